@@ -1,0 +1,3 @@
+"""kinectdata: music-driven dance research toolkit."""
+
+__version__ = "0.1.0"

@@ -1,0 +1,169 @@
+"""An aligned recording: motion on an exact grid paired with mono audio, and its HDF5 file.
+
+The file (``kinectdata align ... -o OUT.h5``) is self-describing; its layout, version 1:
+
+=====================================  ==============================================================
+``/`` attributes                       ``format`` = "kinectdata.aligned", ``format_version`` = 1,
+                                       ``fps``, ``sample_rate`` (Hz), ``joint_set``, ``created_by``
+``/motion/times``                      [N] float64, seconds; frame k is at exactly k / fps
+``/motion/positions``                  [N, J, D] float32, metres (pixels for 2-D joint sets), NaN where masked
+``/motion/position_mask``              [N, J] bool, True where valid
+``/motion/position_interpolated``      [N, J] bool, True where filled across a gap
+``/motion/confidence``                 [N, J] float32, 0..1
+``/motion/orientations``               [N, J, 4] float32 unit quaternions (x, y, z, w), if the source has them
+``/motion/orientation_mask``           [N, J] bool
+``/motion/orientation_interpolated``   [N, J] bool
+``/joints/names``, ``/joints/parents`` [J] joint names (UTF-8) and parent indices (-1: root)
+``/audio/samples``                     [S] float32 mono at ``sample_rate``; sample 0 is at time 0
+``/`` attribute ``offset``             JSON: seconds, source ("given", "clap", "xcorr"), confidence
+``/`` attribute ``provenance``         JSON: source files with SHA-256, reader, options
+``/`` attribute ``summary``            JSON: the figures printed by ``align``
+``/`` attribute ``gaps``               JSON: gaps longer than max_gap (masked), on the output clock
+=====================================  ==============================================================
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import h5py
+import numpy as np
+
+from . import __version__
+from .atomic import atomic_output
+from .errors import FormatError
+from .jointsets import JointSet, load_joint_set, shipped_joint_sets
+from .motion import Motion
+
+FORMAT = "kinectdata.aligned"
+FORMAT_VERSION = 1
+
+
+@dataclass(eq=False)
+class AlignedRecording:
+    """Motion resampled to ``k / fps`` seconds and the audio that goes with it.
+
+    Attributes:
+        motion: on the output clock; ``motion.times[k] == k / fps``.
+        audio: [S] float32 mono samples at ``sample_rate``; sample 0 is at time 0.
+        sample_rate: Hz.
+        fps: motion frames per second.
+        position_interpolated / orientation_interpolated: [N, J] bool, values filled across gaps.
+        offset: ``{"seconds", "source", "confidence", ...}``; audio_time = motion_time + seconds
+            on the *source* clocks.
+        provenance: source files, hashes and options.
+        summary: figures about the alignment (frames, duration, jitter, drops, interpolation...).
+        gaps: gaps longer than ``max_gap`` (left masked), on the output clock.
+    """
+
+    motion: Motion
+    audio: np.ndarray
+    sample_rate: int
+    fps: float
+    position_interpolated: np.ndarray
+    orientation_interpolated: np.ndarray | None = None
+    offset: dict[str, Any] = field(default_factory=dict)
+    provenance: dict[str, Any] = field(default_factory=dict)
+    summary: dict[str, Any] = field(default_factory=dict)
+    gaps: list[dict[str, Any]] = field(default_factory=list)
+
+    @property
+    def n_frames(self) -> int:
+        return self.motion.n_frames
+
+    def save(self, path: str | Path, *, compression: str | None = "gzip") -> None:
+        """Write the HDF5 file atomically (a temporary file renamed into place)."""
+        m = self.motion
+        with atomic_output(path) as tmp, h5py.File(tmp, "w") as f:
+            f.attrs.update(
+                {
+                    "format": FORMAT,
+                    "format_version": FORMAT_VERSION,
+                    "fps": self.fps,
+                    "sample_rate": self.sample_rate,
+                    "joint_set": m.joint_set.name,
+                    "created_by": f"kinectdata {__version__}",
+                    "offset": json.dumps(self.offset),
+                    "provenance": json.dumps(self.provenance),
+                    "summary": json.dumps(self.summary),
+                    "gaps": json.dumps(self.gaps),
+                    "metadata": json.dumps(m.metadata, default=str),
+                }
+            )
+            g = f.create_group("motion")
+            kw = {"compression": compression} if compression else {}
+            g.create_dataset("times", data=m.times)
+            g.create_dataset("positions", data=m.positions.astype(np.float32), **kw)
+            g.create_dataset("position_mask", data=m.position_mask, **kw)
+            g.create_dataset("position_interpolated", data=self.position_interpolated, **kw)
+            g.create_dataset("confidence", data=m.confidence, **kw)
+            if m.has_orientations:
+                g.create_dataset("orientations", data=m.orientations.astype(np.float32), **kw)
+                g.create_dataset("orientation_mask", data=m.orientation_mask, **kw)
+                g.create_dataset("orientation_interpolated", data=self.orientation_interpolated, **kw)
+            j = f.create_group("joints")
+            j.create_dataset("names", data=np.array(m.joint_set.names, dtype=h5py.string_dtype()))
+            j.create_dataset("parents", data=np.array(m.joint_set.parents, dtype=np.int32))
+            j.attrs["dimensions"] = m.joint_set.dimensions
+            f.create_group("audio").create_dataset("samples", data=self.audio.astype(np.float32), **kw)
+
+    @classmethod
+    def load(cls, path: str | Path) -> AlignedRecording:
+        """Read a file written by :meth:`save`; FormatError if it is not one."""
+        path = Path(path)
+        try:
+            f = h5py.File(path, "r")
+        except OSError as exc:
+            raise FormatError(path, f"not a readable HDF5 file ({exc})") from exc
+        with f:
+            if f.attrs.get("format") != FORMAT:
+                raise FormatError(
+                    path, f"not a kinectdata aligned recording (format attribute {f.attrs.get('format')!r})"
+                )
+            version = int(f.attrs.get("format_version", -1))
+            if version != FORMAT_VERSION:
+                raise FormatError(
+                    path, f"aligned-recording format version {version}; this kinectdata reads {FORMAT_VERSION}"
+                )
+            try:
+                js = _joint_set(f)
+                g = f["motion"]
+                has_q = "orientations" in g
+                motion = Motion(
+                    times=g["times"][()],
+                    positions=g["positions"][()],
+                    joint_set=js,
+                    position_mask=g["position_mask"][()],
+                    confidence=g["confidence"][()],
+                    orientations=g["orientations"][()] if has_q else None,
+                    orientation_mask=g["orientation_mask"][()] if has_q else None,
+                    metadata=json.loads(f.attrs.get("metadata", "{}")),
+                )
+                return cls(
+                    motion=motion,
+                    audio=f["audio/samples"][()],
+                    sample_rate=int(f.attrs["sample_rate"]),
+                    fps=float(f.attrs["fps"]),
+                    position_interpolated=g["position_interpolated"][()],
+                    orientation_interpolated=g["orientation_interpolated"][()] if has_q else None,
+                    offset=json.loads(f.attrs["offset"]),
+                    provenance=json.loads(f.attrs["provenance"]),
+                    summary=json.loads(f.attrs["summary"]),
+                    gaps=json.loads(f.attrs["gaps"]),
+                )
+            except (KeyError, ValueError) as exc:
+                raise FormatError(path, f"damaged aligned recording: {exc}") from exc
+
+
+def _joint_set(f: h5py.File) -> JointSet:
+    names = tuple(n.decode() if isinstance(n, bytes) else str(n) for n in f["joints/names"][()])
+    name = str(f.attrs["joint_set"])
+    if name in shipped_joint_sets():
+        shipped = load_joint_set(name)
+        if shipped.names == names:
+            return shipped
+    parents = [int(p) for p in f["joints/parents"][()]]
+    return JointSet(name=name, names=names, parents=tuple(parents), dimensions=int(f["joints"].attrs["dimensions"]))

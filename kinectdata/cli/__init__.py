@@ -1,0 +1,41 @@
+"""The ``kinectdata`` command line: thin click commands over the library.
+
+Every command turns a :class:`~kinectdata.errors.KinectDataError` into a one-line message on
+standard error and exit status 1; click's own usage errors exit with 2.
+"""
+
+from __future__ import annotations
+
+import click
+
+from .. import __version__
+from ..errors import KinectDataError
+
+
+class _Group(click.Group):
+    def invoke(self, ctx: click.Context):
+        try:
+            return super().invoke(ctx)
+        except KinectDataError as exc:
+            raise click.ClickException(str(exc)) from exc
+
+
+@click.group(cls=_Group, context_settings={"help_option_names": ["-h", "--help"], "max_content_width": 100})
+@click.version_option(__version__, prog_name="kinectdata")
+def main() -> None:
+    """kinectdata: skeleton recordings + music -> aligned data for music-driven dance research.
+
+    Units everywhere: seconds, metres, Hz; quaternions (x, y, z, w). Run any command with
+    --help for its options.
+    """
+
+
+def _register() -> None:
+    from . import align, info, quickstart, synth
+
+    for module in (info, align, synth, quickstart):
+        for command in module.COMMANDS:
+            main.add_command(command)
+
+
+_register()

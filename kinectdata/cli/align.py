@@ -1,0 +1,130 @@
+"""``kinectdata align``: a recording and its music on one exact timeline."""
+
+from __future__ import annotations
+
+import click
+
+from ..align import DEFAULT_FPS, DEFAULT_MAX_GAP, DEFAULT_MIN_COVERAGE, align_files, format_summary
+from ..audio import DEFAULT_SAMPLE_RATE
+from .options import reader_options
+
+
+class OffsetType(click.ParamType):
+    """'auto' or a number of seconds."""
+
+    name = "auto|SECONDS"
+
+    def convert(self, value, param, ctx):
+        if isinstance(value, float) or value == "auto":
+            return value
+        try:
+            return float(value)
+        except ValueError:
+            self.fail(f"{value!r} is neither 'auto' nor a number of seconds", param, ctx)
+
+
+@click.command()
+@click.argument("recording", type=click.Path(dir_okay=True, path_type=str))
+@click.argument("audio", type=click.Path(dir_okay=False, path_type=str))
+@click.option(
+    "-o",
+    "--out",
+    required=True,
+    type=click.Path(dir_okay=False, path_type=str),
+    help="Output HDF5 file (written atomically: nothing appears if anything fails).",
+)
+@reader_options
+@click.option(
+    "--fps",
+    default=DEFAULT_FPS,
+    show_default=True,
+    type=click.FloatRange(min=0, min_open=True),
+    help="Output motion frame rate, frames per second; frame k is at exactly k / fps seconds.",
+)
+@click.option(
+    "--sample-rate",
+    default=DEFAULT_SAMPLE_RATE,
+    show_default=True,
+    type=click.IntRange(min=1000),
+    help="Output audio sample rate in Hz (mono, band-limited resampling).",
+)
+@click.option(
+    "--offset",
+    default="auto",
+    show_default=True,
+    type=OffsetType(),
+    help="Audio-to-motion offset in seconds, audio_time = motion_time + offset (positive: the audio "
+    "started first), or 'auto' to estimate it from a sync clap or by cross-correlation; an "
+    "ambiguous estimate stops with an error.",
+)
+@click.option(
+    "--max-offset",
+    default=None,
+    type=click.FloatRange(min=0),
+    metavar="SECONDS",
+    help="With --offset auto: ignore offsets larger than this many seconds.",
+)
+@click.option(
+    "--min-confidence",
+    default=0.5,
+    show_default=True,
+    type=click.FloatRange(0, 1),
+    help="With --offset auto: least confidence (0..1) accepted.",
+)
+@click.option(
+    "--max-gap",
+    default=DEFAULT_MAX_GAP,
+    show_default=True,
+    type=click.FloatRange(min=0),
+    help="Longest tracking gap, in seconds without data, filled by interpolation (and flagged); "
+    "longer gaps stay masked and are reported.",
+)
+@click.option(
+    "--min-coverage",
+    default=DEFAULT_MIN_COVERAGE,
+    show_default=True,
+    type=click.FloatRange(0, 1),
+    help="Least share (0..1) of the motion's duration the audio must cover.",
+)
+def align(
+    recording,
+    audio,
+    out,
+    format_,
+    schema,
+    body,
+    fps,
+    sample_rate,
+    offset,
+    max_offset,
+    min_confidence,
+    max_gap,
+    min_coverage,
+) -> None:
+    """Align a skeleton RECORDING with its AUDIO and write them to one HDF5 file.
+
+    The motion is resampled onto an exact FPS grid (positions linearly, orientations by slerp
+    after making quaternions sign-continuous), short tracking gaps are filled and flagged, the
+    audio is read (WAV, FLAC, OGG, MP3...), mixed to mono and resampled, and both are trimmed to
+    the span they share. A summary is printed.
+    """
+    result = align_files(
+        recording,
+        audio,
+        out,
+        format=format_,
+        schema=schema,
+        body=body,
+        sample_rate=sample_rate,
+        fps=fps,
+        offset=offset,
+        max_gap=max_gap,
+        min_coverage=min_coverage,
+        max_offset=max_offset,
+        min_confidence=min_confidence,
+    )
+    click.echo(format_summary(result))
+    click.echo(f"wrote {out}")
+
+
+COMMANDS = [align]

@@ -1,0 +1,69 @@
+"""The error types kinectdata raises on bad input.
+
+Every problem with a user's file is raised as a :class:`KinectDataError` subclass whose message
+names the file and, where it applies, the place in it (line, frame, record, column), so that a
+command can print it as is and exit non-zero.
+"""
+
+from __future__ import annotations
+
+from os import PathLike
+
+
+class KinectDataError(Exception):
+    """Base class of every error kinectdata raises about its inputs or configuration."""
+
+
+class InputError(KinectDataError):
+    """A problem located in one input file.
+
+    The message reads ``PATH, line 12, column 'SpineBase_X': what is wrong``; each location part
+    appears only when given. ``line`` is 1-based (as editors count), ``frame`` and ``record`` are
+    0-based indices into the file's frames or records.
+    """
+
+    def __init__(
+        self,
+        path: str | PathLike[str] | None,
+        message: str,
+        *,
+        line: int | None = None,
+        frame: int | None = None,
+        record: int | None = None,
+        column: str | int | None = None,
+    ) -> None:
+        self.path = None if path is None else str(path)
+        self.line = line
+        self.frame = frame
+        self.record = record
+        self.column = column
+        self.reason = message
+        super().__init__(self._format())
+
+    def _format(self) -> str:
+        parts = [self.path if self.path is not None else "<input>"]
+        if self.line is not None:
+            parts.append(f"line {self.line}")
+        if self.frame is not None:
+            parts.append(f"frame {self.frame}")
+        if self.record is not None:
+            parts.append(f"record {self.record}")
+        if self.column is not None:
+            parts.append(f"column {self.column!r}")
+        return ", ".join(parts) + ": " + self.reason
+
+
+class FormatError(InputError):
+    """A recording file does not follow its format."""
+
+
+class SchemaError(InputError):
+    """A schema, joint-set or other declarative file is invalid."""
+
+
+class AudioError(InputError):
+    """An audio file cannot be read or is unusable."""
+
+
+class AlignmentError(KinectDataError):
+    """Motion and audio cannot be aligned as asked (ambiguous offset, too little overlap...)."""

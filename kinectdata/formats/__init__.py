@@ -1,0 +1,10 @@
+"""Skeleton recording formats, one module each, registered by name (see :mod:`.registry`)."""
+
+# Importing the format modules registers their readers.
+from . import azure_json as _azure_json  # noqa: F401
+from . import csv as _csv  # noqa: F401
+from . import htr as _htr  # noqa: F401
+from . import ntu as _ntu  # noqa: F401
+from .registry import Reader, detect_format, read_motion, readers, register_reader
+
+__all__ = ["Reader", "detect_format", "read_motion", "readers", "register_reader"]

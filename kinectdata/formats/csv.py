@@ -1,0 +1,745 @@
+"""Skeleton CSV files in any dialect a CSV schema describes (see :mod:`.csv_schema`).
+
+Reading: the dialect is the ``schema`` given (a shipped name or a schema file) or, when none is
+given, the one shipped schema that recognises the file (by its signature line, header or field
+count). Every cell that must be a number is checked; a bad cell, a row with the wrong number of
+fields, time going backwards, a repeated timestamp or joint, an unknown joint name or a missing
+column raises :class:`~kinectdata.errors.FormatError` naming the file, line and column.
+
+Writing (:func:`write_csv`) uses the same schemas, so kinectdata can write any dialect it reads;
+``canonical`` is kinectdata's own lossless CSV.
+"""
+
+from __future__ import annotations
+
+import io
+import re
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from ..atomic import atomic_output
+from ..errors import FormatError, KinectDataError
+from ..jointsets import JointSet, find_joint_set, load_joint_set, shipped_joint_sets
+from ..motion import Motion
+from ..quaternions import reorder, split_missing_and_normalise, xyzw_to_wxyz
+from .csv_schema import JOINT, CsvSchema, load_csv_schema, shipped_csv_schemas
+from .registry import register_reader
+
+_META_LINE = re.compile(r"^\s*([A-Za-z_][\w.-]*)\s*:\s*(.*?)\s*$")
+_DETECT_LINES = 64
+
+
+# ---------------------------------------------------------------------------------------------
+# Reading the text into a table with line numbers
+# ---------------------------------------------------------------------------------------------
+@dataclass
+class _Table:
+    """The data rows of a CSV file; cells are parsed on first use, after the header is checked."""
+
+    path: Path
+    schema: CsvSchema
+    names: list[str]
+    lines: np.ndarray  # [R] 1-based line number of each data row
+    rows: list[str]  # [R] the data rows' text
+    header_line: int | None = None
+    meta: dict[str, str] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        self._position = {n: i for i, n in enumerate(self.names)}
+        self._frame: pd.DataFrame | None = None
+
+    @property
+    def frame(self) -> pd.DataFrame:
+        """[R, C] cells, columns by position; checks every row's field count first."""
+        if self._frame is None:
+            delim = self.schema.delimiter
+            counts = np.fromiter((r.count(delim) + 1 for r in self.rows), dtype=np.int64, count=len(self.rows))
+            wrong = counts != len(self.names)
+            if wrong.any():
+                r = int(np.argmax(wrong))
+                what = "the header" if self.header_line is not None else f"the {self.schema.name} schema"
+                raise FormatError(
+                    self.path,
+                    f"expected {len(self.names)} fields as {what} says, found {counts[r]}",
+                    line=int(self.lines[r]),
+                )
+            self._frame = pd.read_csv(
+                io.StringIO("\n".join(self.rows)),
+                sep=delim,
+                header=None,
+                names=range(len(self.names)),
+                na_filter=False,
+                skipinitialspace=True,
+                low_memory=False,
+                skip_blank_lines=False,
+            )
+        return self._frame
+
+    def has(self, column: str) -> bool:
+        return column in self._position
+
+    def text(self, column: str) -> np.ndarray:
+        """[R] cells of a column as stripped strings."""
+        return self.frame[self._position[column]].astype(str).str.strip().to_numpy(dtype=object)
+
+    def numbers(self, column: str, rows: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """([R] float64 values, [R] bool missing) of a numeric column, checking every cell.
+
+        Cells listed in the schema's ``missing_values`` are missing (value NaN). Any other cell
+        that is not a finite number raises FormatError with its line and column.
+        """
+        series = self.frame[self._position[column]]
+        if rows is not None:
+            series = series.iloc[rows]
+        line_of = self.lines if rows is None else self.lines[rows]
+        if pd.api.types.is_numeric_dtype(series.dtype):
+            values = series.to_numpy(dtype=np.float64, copy=True)
+            missing = np.zeros(values.shape, bool)
+            text = None
+        else:
+            text = series.astype(str).str.strip()
+            missing = (
+                text.isin(self.schema.missing_values).to_numpy()
+                if self.schema.missing_values
+                else np.zeros(len(text), bool)
+            )
+            values = pd.to_numeric(text.mask(missing, "0"), errors="coerce").to_numpy(dtype=np.float64, copy=True)
+        bad = ~missing & ~np.isfinite(values)
+        if bad.any():
+            r = int(np.argmax(bad))
+            cell = str(series.iloc[r]).strip() if text is None else text.iloc[r]
+            raise FormatError(self.path, _describe_bad_cell(cell), line=int(line_of[r]), column=column)
+        values[missing] = np.nan
+        return values, missing
+
+
+def _describe_bad_cell(cell: str) -> str:
+    low = cell.lower()
+    if low in ("nan", "-nan", "+nan", "na", "n/a", "null", "none"):
+        return (
+            f"{cell!r} is not a number (NaN is not allowed here; a dialect that writes it for missing joints "
+            "lists it in the schema's missing_values)"
+        )
+    if low.lstrip("+-") in ("inf", "infinity"):
+        return f"infinite value {cell!r}"
+    if cell == "":
+        return "empty cell"
+    return f"non-numeric value {cell!r}"
+
+
+def _read_lines(path: Path) -> list[str]:
+    try:
+        raw = path.read_bytes()
+    except OSError as exc:
+        raise FormatError(path, f"cannot read file: {exc.strerror or exc}") from exc
+    try:
+        text = raw.decode("utf-8-sig")
+    except UnicodeDecodeError:
+        text = raw.decode("latin-1")  # Windows tools write cp1252; the numbers are ASCII either way
+    return text.splitlines()
+
+
+def _split_fields(line: str, delimiter: str) -> list[str]:
+    return [c.strip().strip('"') for c in line.split(delimiter)]
+
+
+def _strip_trailing(line: str, delimiter: str) -> str:
+    stripped = line.rstrip()
+    return stripped[: -len(delimiter)] if stripped.endswith(delimiter) else line
+
+
+def _load_table(path: Path, schema: CsvSchema, joint_set: JointSet | None) -> _Table:
+    lines = _read_lines(path)
+    delim = schema.delimiter
+    comment = schema.get("comment")
+    trailing = schema.get("trailing_delimiter", False)
+    meta: dict[str, str] = {}
+    header: list[str] | None = None
+    header_line = None
+    data_idx: list[int] = []
+    for i in range(schema.get("skip_lines", 0), len(lines)):
+        stripped = lines[i].strip()
+        if not stripped:
+            continue
+        if comment and stripped.startswith(comment):
+            m = _META_LINE.match(stripped[len(comment) :])
+            if m:
+                meta[m.group(1)] = m.group(2)
+            continue
+        if schema.has_header and header is None:
+            header = _split_fields(_strip_trailing(lines[i], delim) if trailing else lines[i], delim)
+            header_line = i + 1
+            continue
+        data_idx.append(i)
+    if schema.has_header and header is None:
+        raise FormatError(path, f"empty file: no header line (the {schema.name} dialect has one)")
+    if header is not None:
+        dup = sorted({c for c in header if header.count(c) > 1})
+        if dup:
+            raise FormatError(path, f"the header repeats column(s) {', '.join(map(repr, dup))}", line=header_line)
+        names = header
+    else:
+        if joint_set is None:
+            raise FormatError(path, f"the {schema.name} schema has no header and no fixed joint set")
+        names = schema.headerless_columns(_file_joint_names(schema, joint_set))
+    if not data_idx:
+        raise FormatError(path, "no data rows" + (f" after the header (line {header_line})" if header_line else ""))
+    rows = [(_strip_trailing(lines[i], delim) if trailing else lines[i]) for i in data_idx]
+    return _Table(path, schema, names, np.asarray(data_idx) + 1, rows, header_line, meta)
+
+
+# ---------------------------------------------------------------------------------------------
+# Interpreting the table
+# ---------------------------------------------------------------------------------------------
+def _file_joint_names(schema: CsvSchema, joint_set: JointSet) -> list[str]:
+    """How each joint of the set is spelled in the file, in joint-set order."""
+    to_file = {v: k for k, v in schema.joint_names_in_file.items()}
+    return [to_file.get(n, n) for n in joint_set.names]
+
+
+def _template_regex(template: str) -> re.Pattern[str]:
+    return re.compile("^" + re.escape(template).replace(re.escape(JOINT), "(?P<joint>.+)") + "$")
+
+
+def _resolve_joint_set(schema: CsvSchema, table_names: list[str] | None, meta: dict[str, str], path: Path) -> JointSet:
+    spec = schema.joint_set
+    if spec != "auto":
+        return load_joint_set(spec)
+    if "joint_set" in meta:
+        try:
+            return load_joint_set(meta["joint_set"])
+        except KinectDataError as exc:
+            raise FormatError(
+                path, f"the file's '# joint_set: {meta['joint_set']}' line names no known joint set"
+            ) from exc
+    rx = _template_regex(schema.document["position"]["columns"][0])
+    mapping = schema.joint_names_in_file
+    found = [mapping.get(m.group("joint"), m.group("joint")) for c in table_names or [] if (m := rx.match(c))]
+    if not found:
+        raise FormatError(path, "the header names no joint columns")
+    shipped = find_joint_set(found)
+    dims = len(schema.document["position"]["columns"])
+    return shipped if shipped is not None else JointSet.custom("custom", found, dimensions=dims)
+
+
+def _check_header(table: _Table, joint_set: JointSet, present: list[int]) -> None:
+    """Unknown joint names and missing columns in a headered wide file."""
+    schema, path = table.schema, table.path
+    known = set(joint_set.names) | set(joint_set.aliases) | set(schema.joint_names_in_file)
+    for tmpl in schema.per_joint_columns():
+        rx = _template_regex(tmpl)
+        for col in table.names:
+            m = rx.match(col)
+            if m and m.group("joint") not in known:
+                raise FormatError(
+                    path,
+                    f"unknown joint name {m.group('joint')!r} in the header (joint set {joint_set.name}: "
+                    f"{', '.join(joint_set.names)})",
+                    line=table.header_line,
+                    column=col,
+                )
+    fnames = _file_joint_names(schema, joint_set)
+    required = [t for t in schema.per_joint_columns() if t not in _optional_orientation_templates(schema, table)]
+    missing = [
+        t.replace(JOINT, fnames[j]) for j in present for t in required if not table.has(t.replace(JOINT, fnames[j]))
+    ]
+    for key in ("time", "body"):
+        col = schema.get(key, {}).get("column")
+        if col is not None and not table.has(col):
+            missing.insert(0, col)
+    if missing:
+        shown = ", ".join(missing[:6]) + (f" and {len(missing) - 6} more" if len(missing) > 6 else "")
+        raise FormatError(path, f"missing column(s) {shown}", line=table.header_line)
+
+
+def _optional_orientation_templates(schema: CsvSchema, table: _Table) -> list[str]:
+    """Orientation templates to ignore: optional ones whose columns the file does not have."""
+    o = schema.get("orientation")
+    if not o or o.get("required", True):
+        return []
+    if any(_template_regex(o["columns"][0]).match(c) for c in table.names):
+        return []
+    return list(o["columns"])
+
+
+def _select_body(table: _Table, body: str | None, frame_key: np.ndarray) -> tuple[np.ndarray | None, dict]:
+    """Rows of the chosen body, and metadata about the bodies present."""
+    col = table.schema.get("body", {}).get("column")
+    if col is None:
+        if body is not None:
+            raise FormatError(
+                table.path, f"--body {body} given, but the {table.schema.name} dialect has no body column"
+            )
+        return None, {}
+    ids = table.text(col)
+    order, first = np.unique(ids, return_index=True)
+    frames = {str(b): int(np.unique(frame_key[ids == b]).size) for b in order[np.argsort(first)]}
+    if body is None:
+        body = max(frames, key=lambda b: frames[b])  # max keeps the first of equals: first to appear
+    elif body not in frames:
+        listing = ", ".join(f"{b} ({n} frames)" for b, n in frames.items())
+        raise FormatError(table.path, f"no body {body!r} in the file; bodies: {listing}", column=col)
+    return np.flatnonzero(ids == body), {"body": body, "bodies": frames}
+
+
+def _tracking_confidence(table: _Table, column: str, rows: np.ndarray | None) -> np.ndarray:
+    spec = table.schema.document["tracking"]
+    if spec.get("scale") == "confidence":
+        conf, missing = table.numbers(column, rows)
+        bad = ~missing & ((conf < 0) | (conf > 1))
+        if bad.any():
+            r = int(np.argmax(bad))
+            lines = table.lines if rows is None else table.lines[rows]
+            raise FormatError(table.path, f"confidence {conf[r]} outside 0..1", line=int(lines[r]), column=column)
+        return np.where(missing, 0.0, conf)
+    mapping = spec["values"]
+    cells = table.text(column) if rows is None else table.text(column)[rows]
+    numeric_keys = {}
+    for k, v in mapping.items():
+        try:
+            numeric_keys[float(k)] = v
+        except ValueError:
+            pass
+    lookup = {k.lower(): v for k, v in mapping.items()}
+    uniq, inverse = np.unique(cells, return_inverse=True)
+    conf_of = np.empty(len(uniq))
+    for i, cell in enumerate(uniq):
+        if cell.lower() in lookup:
+            conf_of[i] = lookup[cell.lower()]
+            continue
+        try:
+            conf_of[i] = numeric_keys[float(cell)]
+        except (ValueError, KeyError):
+            r = int(np.argmax(inverse == i))
+            lines = table.lines if rows is None else table.lines[rows]
+            allowed = ", ".join(repr(k) for k in mapping)
+            raise FormatError(
+                table.path,
+                f"unknown tracking state {cell!r} (expected one of {allowed})",
+                line=int(lines[r]),
+                column=column,
+            ) from None
+    return conf_of[inverse]
+
+
+def _check_times(path: Path, t: np.ndarray, lines: np.ndarray, unit: str) -> None:
+    dt = np.diff(t)
+    bad = dt <= 0
+    if bad.any():
+        i = int(np.argmax(bad)) + 1
+        if dt[i - 1] == 0:
+            raise FormatError(
+                path, f"duplicated timestamp {t[i]:g} {unit} (also on line {lines[i - 1]})", line=int(lines[i])
+            )
+        raise FormatError(
+            path,
+            f"time goes backwards: {t[i]:g} {unit} after {t[i - 1]:g} {unit} on line {lines[i - 1]}",
+            line=int(lines[i]),
+        )
+
+
+def _frame_times(table: _Table, rows: np.ndarray | None, n_rows: int) -> tuple[np.ndarray, float, str]:
+    """Raw time values per row, seconds per unit, unit name."""
+    spec = table.schema.document["time"]
+    if "column" in spec:
+        t, _ = table.numbers(spec["column"], rows)
+        return t, table.schema.time_scale(), spec["unit"]
+    return np.arange(n_rows, dtype=np.float64), 1.0 / spec["fps"], "frames"
+
+
+def _read_wide(table: _Table, joint_set: JointSet, body: str | None) -> tuple:
+    schema = table.schema
+    present = [joint_set.index(n) for n in schema.get("joints", joint_set.names)]
+    if schema.has_header:
+        _check_header(table, joint_set, present)
+    key = np.arange(len(table.lines))
+    rows, body_meta = _select_body(table, body, key)
+    lines = table.lines if rows is None else table.lines[rows]
+    n = len(lines)
+    t_raw, scale, unit = _frame_times(table, rows, n)
+    _check_times(table.path, t_raw, lines, unit)
+    fnames = _file_joint_names(schema, joint_set)
+    J, D = len(joint_set), joint_set.dimensions
+    pos = np.full((n, J, D), np.nan)
+    missing = np.ones((n, J), bool)
+    conf = np.zeros((n, J))
+    o = schema.get("orientation")
+    with_q = o is not None and not _optional_orientation_templates(schema, table)
+    quats = np.full((n, J, 4), np.nan) if with_q else None
+    for j in present:
+        missing[:, j] = False
+        for d, tmpl in enumerate(schema.document["position"]["columns"]):
+            pos[:, j, d], m = table.numbers(tmpl.replace(JOINT, fnames[j]), rows)
+            missing[:, j] |= m
+        if "tracking" in schema.document:
+            conf[:, j] = _tracking_confidence(
+                table, schema.document["tracking"]["column"].replace(JOINT, fnames[j]), rows
+            )
+        else:
+            conf[:, j] = 1.0
+        if with_q:
+            for c, tmpl in enumerate(o["columns"]):
+                quats[:, j, c], _ = table.numbers(tmpl.replace(JOINT, fnames[j]), rows)
+    return t_raw, scale, lines, pos, missing, conf, quats, body_meta
+
+
+def _read_long(table: _Table, joint_set: JointSet, body: str | None) -> tuple:
+    schema = table.schema
+    spec = schema.document["time"]
+    if "column" not in spec:
+        raise FormatError(table.path, "a long-layout dialect needs a time column to group rows into frames")
+    t_all, _ = table.numbers(spec["column"])
+    rows, body_meta = _select_body(table, body, t_all)
+    lines = table.lines if rows is None else table.lines[rows]
+    t_rows = t_all if rows is None else t_all[rows]
+    jspec = schema.document["joint"]
+    joint_idx = _joint_indices(table, jspec, joint_set, rows, lines)
+    dt = np.diff(t_rows)
+    if (dt < 0).any():
+        i = int(np.argmax(dt < 0)) + 1
+        raise FormatError(
+            table.path,
+            f"time goes backwards: {t_rows[i]:g} {spec['unit']} after {t_rows[i - 1]:g} "
+            f"{spec['unit']} on line {lines[i - 1]}",
+            line=int(lines[i]),
+        )
+    frame_id = np.concatenate([[0], np.cumsum(dt > 0)])
+    n, J, D = int(frame_id[-1]) + 1, len(joint_set), joint_set.dimensions
+    cell = frame_id * J + joint_idx
+    order = np.argsort(cell, kind="stable")
+    dup = np.flatnonzero(np.diff(cell[order]) == 0)
+    if dup.size:
+        a, b = sorted((order[dup[0]], order[dup[0] + 1]))
+        raise FormatError(
+            table.path,
+            f"joint {joint_set.names[joint_idx[b]]!r} appears twice at time {t_rows[b]:g} "
+            f"{spec['unit']} (also on line {lines[a]}): a duplicated timestamp or repeated rows",
+            line=int(lines[b]),
+        )
+    pos = np.full((n, J, D), np.nan)
+    missing = np.ones((n, J), bool)
+    missing[frame_id, joint_idx] = False
+    for d, col in enumerate(schema.document["position"]["columns"]):
+        v, m = table.numbers(col, rows)
+        pos[frame_id, joint_idx, d] = v
+        missing[frame_id[m], joint_idx[m]] = True
+    conf = np.zeros((n, J))
+    if "tracking" in schema.document:
+        conf[frame_id, joint_idx] = _tracking_confidence(table, schema.document["tracking"]["column"], rows)
+    else:
+        conf[frame_id, joint_idx] = 1.0
+    quats = None
+    if "orientation" in schema.document:
+        quats = np.full((n, J, 4), np.nan)
+        for c, col in enumerate(schema.document["orientation"]["columns"]):
+            quats[frame_id, joint_idx, c], _ = table.numbers(col, rows)
+    first_row = np.concatenate([[0], np.flatnonzero(dt > 0) + 1])
+    line_of = np.repeat(lines[first_row][:, None], J, axis=1)  # [T, J]: the row of each joint value
+    line_of[frame_id, joint_idx] = lines
+    return t_rows[first_row], schema.time_scale(), line_of, pos, missing, conf, quats, body_meta
+
+
+def _joint_indices(table: _Table, jspec: dict, joint_set: JointSet, rows, lines) -> np.ndarray:
+    col = jspec["column"]
+    if jspec["values"] == "index":
+        v, _ = table.numbers(col, rows)
+        bad = (v != np.round(v)) | (v < 0) | (v >= len(joint_set))
+        if bad.any():
+            r = int(np.argmax(bad))
+            raise FormatError(
+                table.path,
+                f"joint index {v[r]:g} is not a joint of {joint_set.name} (0..{len(joint_set) - 1})",
+                line=int(lines[r]),
+                column=col,
+            )
+        return v.astype(np.int64)
+    names = table.text(col) if rows is None else table.text(col)[rows]
+    mapping = table.schema.joint_names_in_file
+    uniq, inverse = np.unique(names, return_inverse=True)
+    idx = np.empty(len(uniq), np.int64)
+    for i, name in enumerate(uniq):
+        try:
+            idx[i] = joint_set.index(mapping.get(name, name))
+        except KeyError:
+            r = int(np.argmax(inverse == i))
+            raise FormatError(
+                table.path,
+                f"unknown joint name {name!r} (joint set {joint_set.name}: {', '.join(joint_set.names)})",
+                line=int(lines[r]),
+                column=col,
+            ) from None
+    return idx[inverse]
+
+
+def _build_motion(path: Path, schema: CsvSchema, joint_set: JointSet, parts: tuple, meta: dict) -> Motion:
+    t_raw, scale, lines, pos, missing, conf, quats, body_meta = parts
+    pos = pos * schema.position_scale()
+    position_mask = ~missing & (conf > 0)
+    orientations = orientation_mask = None
+    if quats is not None:
+        order = schema.document["orientation"]["order"]
+        q_missing = ~np.isfinite(quats).all(axis=-1)
+        unit, present, bad = split_missing_and_normalise(reorder(np.nan_to_num(quats), order))
+        bad &= ~q_missing & joint_set.orientation_mask[None, :]
+        if bad.any():
+            f, j = np.argwhere(bad)[0]
+            raise FormatError(
+                path,
+                f"orientation of joint {joint_set.names[j]!r} is not a unit quaternion "
+                f"(norm {np.linalg.norm(quats[f, j]):.3f}; is the quaternion order {order} right?)",
+                line=int(lines[f] if lines.ndim == 1 else lines[f, j]),
+            )
+        orientations = unit
+        orientation_mask = present & ~q_missing
+        if schema.document["orientation"].get("gated_by_tracking", True):
+            orientation_mask &= position_mask
+    metadata = {
+        "format": "csv",
+        "schema": schema.name,
+        "schema_path": schema.path,
+        "time_origin": {"value": float(t_raw[0]), "unit": schema.document["time"].get("unit", "frames")},
+        **body_meta,
+        **({"file_metadata": meta} if meta else {}),
+    }
+    if "fps" in schema.document["time"]:
+        metadata["nominal_fps"] = schema.document["time"]["fps"]
+    return Motion(
+        times=(t_raw - t_raw[0]) * scale,
+        positions=pos,
+        joint_set=joint_set,
+        position_mask=position_mask,
+        confidence=np.where(position_mask, conf, 0.0),
+        orientations=orientations,
+        orientation_mask=orientation_mask,
+        metadata=metadata,
+    )
+
+
+# ---------------------------------------------------------------------------------------------
+# Dialect detection
+# ---------------------------------------------------------------------------------------------
+def _schema_matches(schema: CsvSchema, lines: list[str]) -> bool:
+    if not lines:
+        return False
+    sig = schema.signature
+    if sig is not None:
+        return bool(sig.search(lines[0]))
+    delim, comment = schema.delimiter, schema.get("comment")
+    body = [
+        ln
+        for ln in lines[schema.get("skip_lines", 0) :]
+        if ln.strip() and not (comment and ln.strip().startswith(comment))
+    ]
+    if not body:
+        return False
+    first = _strip_trailing(body[0], delim) if schema.get("trailing_delimiter") else body[0]
+    fields = _split_fields(first, delim)
+    if schema.has_header:
+        time_col = schema.get("time", {}).get("column")
+        if time_col is not None and time_col not in fields:
+            return False
+        rx = _template_regex(schema.document["position"]["columns"][0]) if schema.layout == "wide" else None
+        return any(rx.match(f) for f in fields) if rx else schema.document["position"]["columns"][0] in fields
+    if schema.joint_set == "auto":
+        return False
+    names = schema.headerless_columns(_file_joint_names(schema, load_joint_set(schema.joint_set)))
+    if len(fields) != len(names):
+        return False
+    # mostly numbers: a corrupt cell should be reported by the reader, not mistaken for a dialect
+    return sum(_is_number(f) for f in fields) >= 0.9 * len(fields)
+
+
+def _is_number(text: str) -> bool:
+    try:
+        float(text)
+    except ValueError:
+        return False
+    return True
+
+
+def detect_csv_schema(path: str | Path) -> CsvSchema:
+    """The shipped CSV schema that recognises a file; FormatError if none or several do."""
+    path = Path(path)
+    head = _read_lines(path)[:_DETECT_LINES]
+    if not any(ln.strip() for ln in head):
+        raise FormatError(path, "empty file")
+    matches = [s for s in (load_csv_schema(n) for n in shipped_csv_schemas()) if _schema_matches(s, head)]
+    if len(matches) == 1:
+        return matches[0]
+    if not matches:
+        raise FormatError(
+            path,
+            "no shipped CSV dialect recognises this file (shipped: "
+            f"{', '.join(shipped_csv_schemas())}); describe it in a schema file and pass --schema FILE "
+            "(see docs/csv-schemas.md)",
+            line=1,
+        )
+    raise FormatError(path, f"several CSV dialects fit this file ({', '.join(s.name for s in matches)}); pass --schema")
+
+
+def _sniff(path: Path, head: bytes) -> bool:
+    try:
+        lines = head.decode("utf-8-sig", errors="replace").splitlines()[:_DETECT_LINES]
+        return any(_schema_matches(load_csv_schema(n), lines) for n in shipped_csv_schemas())
+    except KinectDataError:
+        return False
+
+
+@register_reader(
+    "csv",
+    extensions=(".csv",),
+    sniff=_sniff,
+    description="Skeleton CSV in a dialect described by a CSV schema (--schema NAME or FILE)",
+)
+def read_csv_motion(
+    path: str | Path, *, schema: str | Path | CsvSchema | None = None, body: str | None = None
+) -> Motion:
+    """Read a skeleton CSV file.
+
+    Args:
+        path: the CSV file.
+        schema: a shipped dialect name (``kinectreader``, ``lsl_kinect``, ``dumpkinectskeleton``,
+            ``canonical``), a schema file path, or None to detect the dialect.
+        body: body id (as written in the body column) for dialects that interleave bodies; by
+            default the body present in the most frames.
+
+    Returns:
+        A :class:`~kinectdata.motion.Motion` with times in seconds from the first frame.
+    """
+    path = Path(path)
+    sch = load_csv_schema(schema) if schema is not None else detect_csv_schema(path)
+    fixed = None if sch.joint_set == "auto" else load_joint_set(sch.joint_set)
+    table = _load_table(path, sch, fixed)
+    joint_set = fixed or _resolve_joint_set(sch, table.names, table.meta, path)
+    if len(sch.document["position"]["columns"]) != joint_set.dimensions:
+        raise FormatError(
+            path,
+            f"the {sch.name} schema gives {len(sch.document['position']['columns'])} position "
+            f"columns but joint set {joint_set.name} is {joint_set.dimensions}-D",
+        )
+    parts = (_read_wide if sch.layout == "wide" else _read_long)(table, joint_set, body)
+    return _build_motion(path, sch, joint_set, parts, table.meta)
+
+
+# ---------------------------------------------------------------------------------------------
+# Writing
+# ---------------------------------------------------------------------------------------------
+def _state_column(motion: Motion, spec: dict, states: np.ndarray | None) -> np.ndarray:
+    """[T, J] cells of the tracking column."""
+    if spec.get("scale") == "confidence":
+        return np.char.mod("%g", np.round(motion.confidence.astype(np.float64), 6)).astype(object)
+    keys = list(spec["values"])
+    if states is not None:
+        allowed = {str(k) for k in keys}
+        cells = np.asarray(states).astype(str).astype(object)
+        bad = sorted(set(np.unique(cells)) - allowed)
+        if bad:
+            raise ValueError(f"states {bad} are not among the dialect's tracking values {keys}")
+        return cells
+    values = np.array([spec["values"][k] for k in keys])
+    nearest = np.argmin(np.abs(motion.confidence[..., None] - values), axis=-1)
+    return np.array(keys, dtype=object)[nearest]
+
+
+def write_csv(
+    motion: Motion,
+    path: str | Path,
+    schema: str | Path | CsvSchema = "canonical",
+    *,
+    states: np.ndarray | None = None,
+    time_origin: float = 0.0,
+) -> None:
+    """Write a Motion as a CSV file in a schema's dialect (atomically).
+
+    Args:
+        motion: the recording. Its joint set must be the schema's (any, for ``auto`` schemas).
+        path: output file.
+        schema: dialect name or schema file; ``canonical`` keeps everything kinectdata reads.
+        states: optional [T, J] tracking states to write verbatim (e.g. Kinect 0/1/2); by
+            default they come from ``motion.confidence`` (nearest state value).
+        time_origin: value of the first timestamp, in the schema's time unit.
+
+    Invalid positions are written as the dialect's missing-value text when it has one, else as
+    zeros (with a not-tracked state, as the Kinect SDK does); missing orientations likewise, or
+    as ``0 0 0 0``.
+    """
+    sch = load_csv_schema(schema)
+    js = motion.joint_set
+    if sch.joint_set != "auto" and load_joint_set(sch.joint_set).names != js.names:
+        raise KinectDataError(f"the {sch.name} dialect is for joint set {sch.joint_set}, the motion has {js.name}")
+    doc = sch.document
+    T, J = motion.n_frames, len(js)
+    fnames = _file_joint_names(sch, js)
+    missing_text = sorted(sch.missing_values)[0] if sch.missing_values else None
+
+    def fmt(a: np.ndarray, spec: str) -> np.ndarray:
+        cells = np.char.mod(spec, np.nan_to_num(a)).astype(object)
+        if missing_text is not None:
+            cells[~np.isfinite(a)] = missing_text
+        return cells
+
+    cols: dict[str, np.ndarray] = {}  # template -> [T] or [T, J] cells
+    tspec = doc["time"]
+    if "column" in tspec:
+        t = motion.times / sch.time_scale() + time_origin
+        cols[tspec["column"]] = (
+            np.char.mod("%d", np.round(t)).astype(object) if tspec["unit"] in ("ticks", "ns") else fmt(t, "%.6f")
+        )
+    if "body" in doc:
+        cols[doc["body"]["column"]] = np.full(T, str(motion.metadata.get("body", 0)), dtype=object)
+    pos = motion.positions / sch.position_scale()
+    for d, tmpl in enumerate(doc["position"]["columns"]):
+        cols[tmpl] = fmt(pos[..., d], "%.6f")
+    o = doc.get("orientation")
+    if o is not None and (motion.has_orientations or o.get("required", True)):
+        q = motion.orientations if motion.has_orientations else np.zeros((T, J, 4))
+        q = np.where(np.isfinite(q), q, np.nan if missing_text is not None else 0.0)
+        if o["order"] == "wxyz":
+            q = xyzw_to_wxyz(q)
+        for c, tmpl in enumerate(o["columns"]):
+            cols[tmpl] = fmt(q[..., c], "%.6f")
+    if "tracking" in doc:
+        cols[doc["tracking"]["column"]] = _state_column(motion, doc["tracking"], states)
+
+    per_joint = set(sch.per_joint_columns())
+    if sch.layout == "wide":
+        names = (
+            sch.headerless_columns(fnames)
+            if not sch.has_header
+            else (
+                [c for c in cols if c not in per_joint]
+                + [t.replace(JOINT, fnames[j]) for j in range(J) for t in cols if t in per_joint]
+            )
+        )
+        table = {}
+        for j in range(J):
+            for t in per_joint & cols.keys():
+                table[t.replace(JOINT, fnames[j])] = cols[t][:, j]
+        for c in cols:
+            if c not in per_joint:
+                table[c] = cols[c]
+        data = pd.DataFrame({n: table[n] for n in names})
+    else:
+        jcol = doc["joint"]["column"]
+        cols[jcol] = np.tile(
+            np.arange(J).astype(str) if doc["joint"]["values"] == "index" else np.array(fnames), (T, 1)
+        ).astype(object)
+        names = sch.headerless_columns(fnames) if not sch.has_header else list(cols)
+        data = pd.DataFrame({n: (cols[n].reshape(-1) if cols[n].ndim == 2 else np.repeat(cols[n], J)) for n in names})
+    preamble = list(doc.get("preamble", []))
+    if sch.joint_set == "auto" and js.name in shipped_joint_sets():
+        preamble.append(f"# joint_set: {js.name}")
+    with atomic_output(path) as tmp:
+        with open(tmp, "w", newline="\n", encoding="utf-8") as f:
+            for line in preamble:
+                f.write(line + "\n")
+            data.to_csv(
+                f,
+                sep=sch.delimiter,
+                header=sch.has_header,
+                index=False,
+                lineterminator=",\n" if doc.get("trailing_delimiter") else "\n",
+            )

@@ -1,0 +1,170 @@
+"""Joint sets: the names, hierarchy and roles of a skeleton's joints, read from data files.
+
+Shipped joint sets live in ``kinectdata/schemas/jointsets/*.json`` (``kinect_v2``, ``nite``,
+``azure_kinect``, ``openpose_mpi``) and follow ``schemas/jointset.schema.json``. Formats that bring
+their own hierarchy (HTR, Azure JSON with other joint lists) build a JointSet with
+:meth:`JointSet.custom`.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from functools import cache
+from pathlib import Path
+
+import numpy as np
+
+from .errors import SchemaError
+from .resources import load_json, shipped_names, shipped_path, validate
+
+
+@dataclass(frozen=True)
+class JointSet:
+    """The joints of a skeleton.
+
+    Attributes:
+        name: identifier, e.g. ``"kinect_v2"``.
+        names: joint names in storage order; index ``j`` of every [T, J, ...] array is ``names[j]``.
+        parents: index of each joint's parent, -1 for a root.
+        dimensions: 3 for camera-space skeletons (metres), 2 for image-plane ones (pixels).
+        has_orientation: [J] bool, False for joints whose orientation the sensor never gives
+            (Kinect v2 leaf joints); their orientation mask is always False.
+        roles: semantic names (``left_hand``, ``right_hand``, ``root``...) to joint names, so that
+            format-independent code (clap detection, root centring) can find them.
+        aliases: other spellings of joint names found in files, mapped to the names used here.
+    """
+
+    name: str
+    names: tuple[str, ...]
+    parents: tuple[int, ...]
+    dimensions: int = 3
+    has_orientation: tuple[bool, ...] = ()
+    roles: Mapping[str, str] = field(default_factory=dict)
+    aliases: Mapping[str, str] = field(default_factory=dict)
+    description: str = ""
+
+    def __post_init__(self) -> None:
+        if not self.has_orientation:
+            object.__setattr__(self, "has_orientation", (True,) * len(self.names))
+        if not (len(self.names) == len(self.parents) == len(self.has_orientation)):
+            raise ValueError("names, parents and has_orientation must have the same length")
+        if len(set(self.names)) != len(self.names):
+            raise ValueError(f"joint set {self.name!r} repeats a joint name")
+
+    @classmethod
+    def custom(
+        cls,
+        name: str,
+        names: Sequence[str],
+        parents: Sequence[str | None] | None = None,
+        dimensions: int = 3,
+    ) -> JointSet:
+        """A joint set built from names and parent names (None for a root; all roots if omitted)."""
+        index = {n: i for i, n in enumerate(names)}
+        parent_idx = tuple(-1 if p is None else index[p] for p in (parents or [None] * len(names)))
+        return cls(name=name, names=tuple(names), parents=parent_idx, dimensions=dimensions)
+
+    def __len__(self) -> int:
+        return len(self.names)
+
+    def index(self, name: str) -> int:
+        """Index of a joint by name or alias; KeyError if unknown."""
+        name = self.aliases.get(name, name)
+        try:
+            return self.names.index(name)
+        except ValueError:
+            raise KeyError(name) from None
+
+    def role(self, role: str) -> int | None:
+        """Index of the joint playing a role (``left_hand``...), or None if the set has no such role."""
+        joint = self.roles.get(role)
+        return None if joint is None else self.index(joint)
+
+    @property
+    def orientation_mask(self) -> np.ndarray:
+        """[J] bool: joints that can carry an orientation."""
+        return np.array(self.has_orientation, dtype=bool)
+
+    def bones(self) -> list[tuple[int, int]]:
+        """(parent, child) index pairs, one per non-root joint."""
+        return [(p, c) for c, p in enumerate(self.parents) if p >= 0]
+
+
+def _from_document(doc: dict, path: Path) -> JointSet:
+    validate(doc, "jointset.schema.json", path)
+    names = [j["name"] for j in doc["joints"]]
+    if len(set(names)) != len(names):
+        dup = next(n for n in names if names.count(n) > 1)
+        raise SchemaError(path, f"joint name {dup!r} appears twice")
+    index = {n: i for i, n in enumerate(names)}
+    parents = []
+    for j in doc["joints"]:
+        p = j["parent"]
+        if p is not None and p not in index:
+            raise SchemaError(path, f"joint {j['name']!r} has unknown parent {p!r}")
+        parents.append(-1 if p is None else index[p])
+    _check_acyclic(names, parents, path)
+    for key in ("no_orientation",):
+        for n in doc.get(key, []):
+            if n not in index:
+                raise SchemaError(path, f"{key} names unknown joint {n!r}")
+    roles = doc.get("roles", {})
+    for role, n in roles.items():
+        if n not in index:
+            raise SchemaError(path, f"role {role!r} names unknown joint {n!r}")
+    no_orientation = set(doc.get("no_orientation", []))
+    return JointSet(
+        name=doc["name"],
+        names=tuple(names),
+        parents=tuple(parents),
+        dimensions=doc.get("dimensions", 3),
+        has_orientation=tuple(n not in no_orientation for n in names),
+        roles=dict(roles),
+        aliases=dict(doc.get("aliases", {})),
+        description=doc.get("description", ""),
+    )
+
+
+def _check_acyclic(names: list[str], parents: list[int], path: Path) -> None:
+    for start in range(len(names)):
+        seen, j = set(), start
+        while j >= 0:
+            if j in seen:
+                raise SchemaError(path, f"the hierarchy has a cycle through joint {names[j]!r}")
+            seen.add(j)
+            j = parents[j]
+
+
+@cache
+def _load_shipped(name: str) -> JointSet:
+    path = shipped_path("jointsets", name)
+    return _from_document(load_json(path), path)
+
+
+def load_joint_set(name_or_path: str | Path) -> JointSet:
+    """A shipped joint set by name (``kinect_v2``...) or a joint-set JSON file by path."""
+    text = str(name_or_path)
+    if text in shipped_names("jointsets"):
+        return _load_shipped(text)
+    path = Path(text)
+    if path.suffix == ".json" and path.exists():
+        return _from_document(load_json(path), path)
+    return _load_shipped(text)  # raises the "no shipped joint set" error listing what exists
+
+
+def shipped_joint_sets() -> list[str]:
+    """Names of the joint sets shipped with kinectdata."""
+    return shipped_names("jointsets")
+
+
+def find_joint_set(joint_names: Sequence[str]) -> JointSet | None:
+    """The smallest shipped joint set that contains every given joint name (or alias), if any."""
+    wanted = set(joint_names)
+    best: JointSet | None = None
+    for name in shipped_joint_sets():
+        js = load_joint_set(name)
+        known = set(js.names) | set(js.aliases)
+        if wanted <= known and (best is None or len(js) < len(best)):
+            best = js
+    return best

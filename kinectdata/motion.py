@@ -1,0 +1,139 @@
+"""The motion container: one recording of one body, whatever format it came from.
+
+Conventions, used everywhere in kinectdata:
+
+- ``times`` [T] float64, seconds, strictly increasing. Readers make the first frame 0.0 and keep
+  the file's own first timestamp in ``metadata["time_origin"]``.
+- ``positions`` [T, J, D] float64: metres in camera space for 3-D joint sets (D = 3; Kinect axes:
+  x right, y up, z away from the sensor), pixels for 2-D ones (D = 2).
+- ``orientations`` [T, J, 4] float64 unit quaternions in scipy's scalar-last order (x, y, z, w),
+  or None when the format has none.
+- ``confidence`` [T, J] float32 in 0..1 (Kinect: tracked 1.0, inferred 0.5, not tracked 0.0).
+- ``position_mask`` / ``orientation_mask`` [T, J] bool: True where the value is valid. Invalid
+  values are NaN, so that using one by mistake cannot go unnoticed.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+from typing import Any
+
+import numpy as np
+
+from .jointsets import JointSet
+
+
+@dataclass(eq=False)
+class Motion:
+    """A recording of one body: times, positions, orientations, confidence, masks, joint set."""
+
+    times: np.ndarray
+    positions: np.ndarray
+    joint_set: JointSet
+    position_mask: np.ndarray | None = None
+    confidence: np.ndarray | None = None
+    orientations: np.ndarray | None = None
+    orientation_mask: np.ndarray | None = None
+    metadata: dict[str, Any] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        self.times = np.asarray(self.times, dtype=np.float64)
+        self.positions = np.array(self.positions, dtype=np.float64)
+        T, J = self.times.shape[0], len(self.joint_set)
+        D = self.joint_set.dimensions
+        if self.times.ndim != 1:
+            raise ValueError(f"times must be [T], got shape {self.times.shape}")
+        if self.positions.shape != (T, J, D):
+            raise ValueError(f"positions must be [T={T}, J={J}, {D}], got {self.positions.shape}")
+        if T > 1 and not np.all(np.diff(self.times) > 0):
+            raise ValueError("times must be strictly increasing")
+        if self.position_mask is None:
+            self.position_mask = np.isfinite(self.positions).all(axis=-1)
+        self.position_mask = np.array(self.position_mask, dtype=bool)
+        if self.position_mask.shape != (T, J):
+            raise ValueError(f"position_mask must be [T, J] = {(T, J)}, got {self.position_mask.shape}")
+        self.positions[~self.position_mask] = np.nan
+        if self.confidence is None:
+            self.confidence = self.position_mask.astype(np.float32)
+        self.confidence = np.asarray(self.confidence, dtype=np.float32)
+        if self.confidence.shape != (T, J):
+            raise ValueError(f"confidence must be [T, J] = {(T, J)}, got {self.confidence.shape}")
+        if self.orientations is not None:
+            self.orientations = np.array(self.orientations, dtype=np.float64)
+            if self.orientations.shape != (T, J, 4):
+                raise ValueError(f"orientations must be [T, J, 4], got {self.orientations.shape}")
+            if self.orientation_mask is None:
+                self.orientation_mask = np.isfinite(self.orientations).all(axis=-1)
+            self.orientation_mask = np.array(self.orientation_mask, dtype=bool)
+            if self.orientation_mask.shape != (T, J):
+                raise ValueError(f"orientation_mask must be [T, J], got {self.orientation_mask.shape}")
+            self.orientation_mask &= self.joint_set.orientation_mask[None, :]
+            self.orientations[~self.orientation_mask] = np.nan
+        elif self.orientation_mask is not None:
+            raise ValueError("orientation_mask given without orientations")
+
+    # -- shape ---------------------------------------------------------------------------------
+    @property
+    def n_frames(self) -> int:
+        return int(self.times.shape[0])
+
+    @property
+    def n_joints(self) -> int:
+        return len(self.joint_set)
+
+    @property
+    def duration(self) -> float:
+        """Seconds from the first to the last frame."""
+        return float(self.times[-1] - self.times[0]) if self.n_frames else 0.0
+
+    @property
+    def has_orientations(self) -> bool:
+        return self.orientations is not None
+
+    # -- access --------------------------------------------------------------------------------
+    def joint_positions(self, name: str) -> np.ndarray:
+        """[T, D] positions of one joint (NaN where invalid)."""
+        return self.positions[:, self.joint_set.index(name)]
+
+    def select(self, frames: slice | np.ndarray) -> Motion:
+        """A new Motion holding only the given frames (a slice, indices or a [T] bool mask)."""
+
+        def take(a):
+            return None if a is None else a[frames]
+
+        return replace(
+            self,
+            times=self.times[frames],
+            positions=self.positions[frames],
+            position_mask=self.position_mask[frames],
+            confidence=self.confidence[frames],
+            orientations=take(self.orientations),
+            orientation_mask=take(self.orientation_mask),
+            metadata=dict(self.metadata),
+        )
+
+    def timing(self) -> dict[str, float | int]:
+        """Frame timing of the recording.
+
+        Returns ``fps`` (1 / median frame interval), ``interval_ms`` (median), ``jitter_ms``
+        (standard deviation of the intervals that are not drops) and ``dropped_frames`` (frames
+        missing where an interval exceeds 1.5 median intervals, counted as round(dt / median) - 1).
+        """
+        if self.n_frames < 2:
+            return {"fps": float("nan"), "interval_ms": float("nan"), "jitter_ms": float("nan"), "dropped_frames": 0}
+        dt = np.diff(self.times)
+        med = float(np.median(dt))
+        drop = dt > 1.5 * med
+        regular = dt[~drop]
+        return {
+            "fps": 1.0 / med,
+            "interval_ms": med * 1e3,
+            "jitter_ms": float(np.std(regular) * 1e3) if regular.size else 0.0,
+            "dropped_frames": int(np.sum(np.round(dt[drop] / med) - 1)),
+        }
+
+    def __repr__(self) -> str:
+        return (
+            f"Motion({self.n_frames} frames, {self.duration:.2f} s, joint_set={self.joint_set.name!r}, "
+            f"orientations={'yes' if self.has_orientations else 'no'})"
+        )

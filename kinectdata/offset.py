@@ -1,0 +1,305 @@
+"""Estimating the offset between a skeleton recording and its audio.
+
+Convention (used throughout kinectdata): ``audio_time = motion_time + offset``, both in seconds,
+``motion_time`` being the recording's own clock (0 at its first frame). A positive offset means
+the audio started before the skeleton recording.
+
+Two methods, tried in this order:
+
+``clap``
+    The usual sync protocol: the dancer claps once (or a few times) in quiet before the music.
+    In the motion, a clap is the moment the hands meet: a minimum of the left-right hand
+    distance below :data:`CLAP_DISTANCE_M` reached at a closing speed above
+    :data:`CLAP_SPEED_M_S`; its time is where the approach, extrapolated linearly, reaches that
+    minimum. In the audio, a clap is an *isolated* transient: energy above 1 kHz (5 ms frames)
+    at least :data:`ISOLATION_DB` above the mean level both in the 0.5 s before it and in the
+    80-500 ms after it, so a drum hit inside music, or the first beat of the music, does not
+    qualify; its time is its onset (the first frame within 10 dB of its peak). Every pairing of a
+    motion clap with an audio clap proposes an offset; the offset that matches the most claps
+    (within :data:`CLAP_MATCH_S`) wins. Confidence: (matches of the best - matches of the
+    runner-up) / matches of the best; when another offset matches as many claps, the audio's
+    sharpest transient decides, with confidence (isolation of the best - isolation of the
+    runner-up) / :data:`ISOLATION_MARGIN_DB`, so two similar claps leave it ambiguous.
+
+``xcorr``
+    Without claps: the normalised cross-correlation of the audio's onset envelope (spectral flux,
+    100 Hz) with the motion's energy envelope (summed joint speed, 100 Hz). Music with a steady
+    beat correlates almost as well one beat off, so confidence is ``1 - runner_up / best`` over
+    the correlation's local maxima more than 0.1 s from the best; it is low for steady music,
+    and then the estimate is refused rather than guessed.
+
+An estimate whose confidence is below ``min_confidence`` raises
+:class:`~kinectdata.errors.AlignmentError` saying what was found; pass the offset explicitly then.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from scipy import ndimage, signal
+
+from .audio import Audio
+from .errors import AlignmentError
+from .motion import Motion
+
+CLAP_DISTANCE_M = 0.10
+CLAP_SPEED_M_S = 0.8
+CLAP_MATCH_S = 0.06
+ISOLATION_DB = 20.0
+ISOLATION_MARGIN_DB = 20.0
+ENVELOPE_RATE = 100.0  # Hz, for the cross-correlation envelopes
+_FRAME_S = 0.005
+
+
+@dataclass(frozen=True)
+class OffsetEstimate:
+    """An estimated offset (seconds, ``audio_time = motion_time + offset``) and its evidence.
+
+    ``candidates`` lists (offset, score) pairs, best first; ``curve`` holds (lags, scores) for the
+    cross-correlation method (for plots); ``detail`` the events found.
+    """
+
+    offset: float
+    confidence: float
+    method: str
+    candidates: list[tuple[float, float]] = field(default_factory=list)
+    curve: tuple[np.ndarray, np.ndarray] | None = None
+    detail: dict[str, Any] = field(default_factory=dict)
+
+
+# ---------------------------------------------------------------------------------------------
+# Clap events
+# ---------------------------------------------------------------------------------------------
+def motion_claps(motion: Motion) -> list[float]:
+    """Times (seconds, motion clock) at which the hands meet in a clap.
+
+    Needs the joint set's ``left_hand`` and ``right_hand`` roles (else returns []).
+    """
+    js = motion.joint_set
+    left, right = js.role("left_hand"), js.role("right_hand")
+    if left is None or right is None or js.dimensions != 3:
+        return []
+    valid = motion.position_mask[:, left] & motion.position_mask[:, right]
+    t = motion.times[valid]
+    if t.size < 5:
+        return []
+    d = np.linalg.norm(motion.positions[valid, left] - motion.positions[valid, right], axis=-1)
+    closing = -np.diff(d) / np.diff(t)  # [n-1]: closing speed from sample k to k+1
+    claps: list[float] = []
+    minima = np.flatnonzero((d[1:-1] <= d[:-2]) & (d[1:-1] < d[2:]) & (d[1:-1] < CLAP_DISTANCE_M)) + 1
+    for i in minima:
+        fast = np.flatnonzero((closing[:i] >= CLAP_SPEED_M_S) & (t[:i] >= t[i] - 0.3))
+        if fast.size == 0:
+            continue
+        tc = _contact_time(t, d, closing, int(fast[-1]), int(i))
+        if claps and tc - claps[-1] < 0.15:
+            continue
+        claps.append(tc)
+    return claps
+
+
+def _contact_time(t: np.ndarray, d: np.ndarray, closing: np.ndarray, k: int, i: int) -> float:
+    """When the hands meet: the last fast approach (samples k -> k+1), extended at its speed to
+    the contact distance (the median distance from k+1 to the minimum i). Using the approach
+    rather than the lowest sample matters: the hands rest together for a few frames, and sensor
+    noise decides which of those frames is lowest.
+    """
+    level = float(np.median(d[k + 1 : i + 1]))
+    tc = t[k] + (d[k] - level) / closing[k]
+    return float(np.clip(tc, t[k], t[k + 1] + (t[k + 1] - t[k])))
+
+
+def audio_claps(audio: Audio) -> list[tuple[float, float]]:
+    """Isolated transients in the audio: (onset time in seconds, isolation in dB), by time."""
+    sr = audio.sample_rate
+    hop = int(round(_FRAME_S * sr))
+    sos = signal.butter(4, 1000.0, btype="highpass", fs=sr, output="sos")
+    x = signal.sosfilt(sos, audio.samples.astype(np.float64))
+    n = x.size // hop
+    if n < 10:
+        return []
+    energy = (x[: n * hop].reshape(n, hop) ** 2).mean(axis=1)
+    floor = max(energy.max() * 1e-6, 1e-12)
+    # Mean (not median) energy around each frame: sparse drum hits in a quiet intro must count.
+    w = int(round(0.5 / _FRAME_S))
+    mean = ndimage.uniform_filter1d(energy, size=w, mode="nearest")
+    half = w // 2
+    before = np.concatenate([np.full(w, floor), mean])[np.arange(n) + w - (half + int(0.03 / _FRAME_S))]
+    after = np.concatenate([mean, np.full(w, floor)])[np.arange(n) + half + int(0.08 / _FRAME_S)]
+    background = np.maximum(np.maximum(before, after), floor)
+    isolation = 10 * np.log10(np.maximum(energy, 1e-30) / background)
+    peaks, _ = signal.find_peaks(energy, distance=int(0.1 / _FRAME_S))
+    loud = energy[peaks] >= energy.max() * 1e-4
+    out: list[tuple[float, float]] = []
+    for p in peaks[loud & (isolation[peaks] >= ISOLATION_DB)]:
+        k = p
+        while k > 0 and energy[k - 1] >= energy[p] * 0.1:
+            k -= 1
+        onset = k * hop / sr
+        if out and onset - out[-1][0] < 0.1:  # one event seen from several peaks
+            out[-1] = (out[-1][0], max(out[-1][1], float(isolation[p])))
+            continue
+        out.append((onset, float(isolation[p])))
+    return out
+
+
+def _clap_estimate(
+    m_claps: list[float], a_claps: list[tuple[float, float]], max_offset: float | None
+) -> OffsetEstimate | None:
+    a_times = np.array([a for a, _ in a_claps])
+    a_iso = np.array([i for _, i in a_claps])
+    proposals: list[tuple[int, float, float]] = []  # (claps matched, least isolation of them, offset)
+    for m in m_claps:
+        for a in a_times:
+            off = a - m
+            if max_offset is not None and abs(off) > max_offset:
+                continue
+            nearest = [int(np.argmin(np.abs(a_times - (mm + off)))) for mm in m_claps]
+            matched = [(mm, j) for mm, j in zip(m_claps, nearest) if abs(a_times[j] - (mm + off)) <= CLAP_MATCH_S]
+            refined = float(np.mean([a_times[j] - mm for mm, j in matched]))
+            proposals.append((len(matched), float(min(a_iso[j] for _, j in matched)), refined))
+    if not proposals:
+        return None
+    proposals.sort(key=lambda p: (-p[0], -p[1]))
+    best_n, best_iso, best = proposals[0]
+    rivals = [p for p in proposals if abs(p[2] - best) > CLAP_MATCH_S]
+    if not rivals or rivals[0][0] < best_n:
+        confidence = (best_n - (rivals[0][0] if rivals else 0)) / best_n
+    else:  # as many claps matched elsewhere: only a clearly sharper transient decides
+        confidence = float(np.clip((best_iso - rivals[0][1]) / ISOLATION_MARGIN_DB, 0.0, 1.0))
+    distinct: list[tuple[float, float]] = []
+    for n, iso, off in proposals:
+        if all(abs(off - o) > CLAP_MATCH_S for o, _ in distinct):
+            distinct.append((off, n + iso / 1000.0))
+    return OffsetEstimate(
+        offset=best,
+        confidence=confidence,
+        method="clap",
+        candidates=distinct,
+        detail={
+            "motion_claps_s": m_claps,
+            "audio_claps_s": a_times.tolist(),
+            "audio_clap_isolation_db": a_iso.tolist(),
+            "matched": best_n,
+        },
+    )
+
+
+# ---------------------------------------------------------------------------------------------
+# Cross-correlation of envelopes
+# ---------------------------------------------------------------------------------------------
+def audio_onset_envelope(audio: Audio, rate: float = ENVELOPE_RATE) -> np.ndarray:
+    """Spectral-flux onset strength at ``rate`` Hz: summed positive change of log magnitude."""
+    hop = int(round(audio.sample_rate / rate))
+    _, _, z = signal.stft(
+        audio.samples, fs=audio.sample_rate, nperseg=4 * hop, noverlap=3 * hop, boundary=None, padded=False
+    )
+    logmag = np.log1p(100.0 * np.abs(z))
+    flux = np.maximum(np.diff(logmag, axis=1), 0.0).sum(axis=0)
+    # frame i of the STFT is centred at (i * hop + 2 * hop); the difference i belongs to frame i + 1
+    pad = int(round(3 * hop / hop))
+    return np.concatenate([np.zeros(pad), flux])
+
+
+def motion_energy_envelope(motion: Motion, rate: float = ENVELOPE_RATE) -> np.ndarray:
+    """Summed joint speed (m/s) on a ``rate`` Hz grid starting at the motion's first frame."""
+    grid = np.arange(motion.times[0], motion.times[-1], 1.0 / rate)
+    total = np.zeros(grid.size)
+    for j in range(motion.n_joints):
+        ok = motion.position_mask[:, j]
+        if ok.sum() < 2:
+            continue
+        p = np.stack(
+            [np.interp(grid, motion.times[ok], motion.positions[ok, j, d]) for d in range(motion.joint_set.dimensions)],
+            -1,
+        )
+        total[1:] += np.linalg.norm(np.diff(p, axis=0), axis=-1) * rate
+    return total
+
+
+def _zscore(x: np.ndarray) -> np.ndarray:
+    s = x.std()
+    return (x - x.mean()) / s if s > 0 else x * 0.0
+
+
+def _xcorr_estimate(motion: Motion, audio: Audio, max_offset: float | None) -> OffsetEstimate:
+    rate = ENVELOPE_RATE
+    a = _zscore(audio_onset_envelope(audio, rate))
+    m = motion_energy_envelope(motion, rate)
+    m = _zscore(np.maximum(np.diff(ndimage.uniform_filter1d(m, 5), prepend=m[0]), 0.0))
+    corr = signal.correlate(a, m, mode="full", method="fft")
+    lags = np.arange(-(m.size - 1), a.size) / rate  # corr[k] = sum a[n + lag] m[n]
+    overlap = signal.correlate(np.ones(a.size), np.ones(m.size), mode="full", method="fft")
+    minimum = 0.5 * min(a.size, m.size)
+    score = np.where(overlap >= minimum, corr / np.maximum(overlap, 1.0), -np.inf)
+    if max_offset is not None:
+        score[np.abs(lags) > max_offset] = -np.inf
+    if not np.isfinite(score).any():
+        raise AlignmentError("the audio and the motion overlap too little to estimate their offset")
+    best = int(np.argmax(score))
+    peaks, _ = signal.find_peaks(np.where(np.isfinite(score), score, -1e9))
+    far = peaks[np.abs(lags[peaks] - lags[best]) > 0.1]
+    runner = float(score[far].max()) if far.size else 0.0
+    p1 = float(score[best])
+    conf = 0.0 if p1 <= 0 else float(np.clip(1.0 - max(runner, 0.0) / p1, 0.0, 1.0))
+    order = far[np.argsort(score[far])[::-1][:4]]
+    finite = np.isfinite(score)
+    return OffsetEstimate(
+        offset=float(lags[best]),
+        confidence=conf,
+        method="xcorr",
+        candidates=[(float(lags[best]), p1)] + [(float(lags[i]), float(score[i])) for i in order],
+        curve=(lags[finite], score[finite]),
+    )
+
+
+def estimate_offset(
+    motion: Motion,
+    audio: Audio,
+    *,
+    max_offset: float | None = None,
+    min_confidence: float = 0.5,
+) -> OffsetEstimate:
+    """Estimate ``offset`` with ``audio_time = motion_time + offset`` (seconds).
+
+    Args:
+        motion: the skeleton recording (its own clock).
+        audio: the audio (any rate; 16 kHz mono as loaded by :func:`~kinectdata.audio.load_audio`).
+        max_offset: ignore offsets larger than this many seconds in magnitude.
+        min_confidence: below this confidence the estimate is refused.
+
+    Raises:
+        AlignmentError: no method reaches ``min_confidence``; the message gives the candidates.
+    """
+    m_claps = motion_claps(motion)
+    a_claps = audio_claps(audio) if m_claps else []
+    clap = _clap_estimate(m_claps, a_claps, max_offset) if m_claps and a_claps else None
+    if clap is not None and clap.confidence >= min_confidence:
+        return clap
+    xcorr = _xcorr_estimate(motion, audio, max_offset)
+    if xcorr.confidence >= min_confidence:
+        return xcorr
+    lines = []
+    if clap is not None:
+        shown = ", ".join(f"{o:+.3f} s ({int(n)} clap(s) matched)" for o, n in clap.candidates[:3])
+        lines.append(
+            f"claps: {len(m_claps)} in the motion and {len(a_claps)} isolated in the audio fit about equally "
+            f"well at several offsets (confidence {clap.confidence:.2f}): {shown}"
+        )
+    elif m_claps:
+        lines.append(
+            f"a clap in the motion at {', '.join(f'{c:.2f} s' for c in m_claps)} but no isolated clap in the audio"
+        )
+    else:
+        lines.append("no clap in the motion (hands meeting fast)")
+    shown = ", ".join(f"{o:+.3f} s (score {s:.2f})" for o, s in xcorr.candidates[:3])
+    lines.append(
+        f"cross-correlation is ambiguous (confidence {xcorr.confidence:.2f} < {min_confidence}): candidates {shown}"
+    )
+    raise AlignmentError(
+        "cannot determine the audio-to-motion offset reliably: "
+        + "; ".join(lines)
+        + ". Pass the offset explicitly (--offset SECONDS, audio_time = motion_time + offset)."
+    )

@@ -1,0 +1,162 @@
+"""Resampling a recording onto an exact time grid, with tracking gaps found, filled or masked.
+
+For every joint, each grid time is computed from the two *valid* source samples around it:
+positions linearly, orientations by spherical linear interpolation (scipy's ``Slerp``) after the
+joint's quaternions have been made sign-continuous (q . q_prev >= 0), confidence linearly.
+
+A *gap* is a stretch where a joint has no valid sample: two consecutive valid samples further
+apart than 1.5 nominal frame intervals (the joint was untracked, or whole frames were dropped).
+Its length is the time with no data, ``t_after - t_before - nominal interval``. Grid times
+inside a gap no longer than ``max_gap`` seconds are interpolated and flagged; inside a longer
+gap they are masked. Grid times before a joint's first or after its last valid sample are masked
+(nothing is extrapolated).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.spatial.transform import Rotation, Slerp
+
+from .motion import Motion
+from .quaternions import make_continuous
+
+GAP_FACTOR = 1.5
+"""Consecutive valid samples further apart than this many nominal intervals bound a gap."""
+
+
+@dataclass(frozen=True)
+class Gap:
+    """A stretch where one joint's position or orientation has no valid sample.
+
+    ``start`` / ``end`` are the source times (seconds) of the valid samples around it (for a gap at
+    the start or end of the recording: the recording's first / last frame time); ``length`` is
+    the time with no data in seconds; ``filled`` tells whether it was interpolated.
+    """
+
+    joint: str
+    quantity: str  # "position" or "orientation"
+    start: float
+    end: float
+    length: float
+    filled: bool
+
+
+@dataclass(eq=False)
+class Resampled:
+    """A recording on a grid. ``*_interpolated`` [N, J] flag values filled across gaps."""
+
+    motion: Motion
+    position_interpolated: np.ndarray
+    orientation_interpolated: np.ndarray | None
+    gaps: list[Gap]
+
+
+def nominal_interval(times: np.ndarray) -> float:
+    """Median frame interval in seconds."""
+    if times.size < 2:
+        raise ValueError("a recording needs at least two frames to be resampled")
+    return float(np.median(np.diff(times)))
+
+
+def _brackets(tv: np.ndarray, grid: np.ndarray, dt: float, max_gap: float):
+    """For each grid time: left/right valid-sample indices, weight, validity and gap flag."""
+    n = tv.size
+    k = np.searchsorted(tv, grid, side="right") - 1
+    at_end = (k == n - 1) & (grid == tv[-1])
+    inside = ((k >= 0) & (k < n - 1)) | at_end
+    a = np.clip(k, 0, n - 1)
+    b = np.where(at_end, a, np.clip(k + 1, 0, n - 1))
+    span = tv[b] - tv[a]
+    with np.errstate(invalid="ignore", divide="ignore"):
+        w = np.where(span > 0, (grid - tv[a]) / np.where(span > 0, span, 1.0), 0.0)
+    in_gap = inside & (span > GAP_FACTOR * dt) & (w > 0)
+    too_long = in_gap & (span - dt > max_gap)
+    return a, b, w, inside & ~too_long, in_gap & ~too_long
+
+
+def _gaps(name: str, quantity: str, tv: np.ndarray, t0: float, t1: float, dt: float, max_gap: float) -> list[Gap]:
+    out = []
+    if tv.size == 0:
+        return [Gap(name, quantity, t0, t1, t1 - t0 + dt, False)]
+    if tv[0] - t0 > GAP_FACTOR * dt / 2:
+        out.append(Gap(name, quantity, t0, float(tv[0]), float(tv[0] - t0), False))
+    spans = np.diff(tv)
+    for i in np.flatnonzero(spans > GAP_FACTOR * dt):
+        length = float(spans[i] - dt)
+        out.append(Gap(name, quantity, float(tv[i]), float(tv[i + 1]), length, length <= max_gap))
+    if t1 - tv[-1] > GAP_FACTOR * dt / 2:
+        out.append(Gap(name, quantity, float(tv[-1]), t1, float(t1 - tv[-1]), False))
+    return out
+
+
+def resample_motion(motion: Motion, grid: np.ndarray, max_gap: float = 0.2) -> Resampled:
+    """Resample a recording at the given times.
+
+    Args:
+        motion: the source recording.
+        grid: [N] increasing times in seconds, on the recording's own clock.
+        max_gap: longest gap (seconds without data) that is filled by interpolation.
+
+    Returns:
+        A :class:`Resampled` whose motion has ``times == grid``.
+    """
+    grid = np.asarray(grid, dtype=np.float64)
+    times = motion.times
+    dt = nominal_interval(times)
+    t0, t1 = float(times[0]), float(times[-1])
+    N, J, D = grid.size, motion.n_joints, motion.joint_set.dimensions
+    names = motion.joint_set.names
+    pos = np.full((N, J, D), np.nan)
+    pmask = np.zeros((N, J), bool)
+    pint = np.zeros((N, J), bool)
+    conf = np.zeros((N, J), np.float32)
+    gaps: list[Gap] = []
+    for j in range(J):
+        idx = np.flatnonzero(motion.position_mask[:, j])
+        gaps += _gaps(names[j], "position", times[idx], t0, t1, dt, max_gap)
+        if idx.size == 0:
+            continue
+        a, b, w, ok, filled = _brackets(times[idx], grid, dt, max_gap)
+        va, vb = motion.positions[idx[a], j], motion.positions[idx[b], j]
+        pos[ok, j] = (va + w[:, None] * (vb - va))[ok]
+        ca, cb = motion.confidence[idx[a], j], motion.confidence[idx[b], j]
+        conf[ok, j] = (ca + w * (cb - ca))[ok]
+        pmask[:, j], pint[:, j] = ok, filled
+
+    quats = qmask = qint = None
+    if motion.has_orientations:
+        quats = np.full((N, J, 4), np.nan)
+        qmask = np.zeros((N, J), bool)
+        qint = np.zeros((N, J), bool)
+        continuous = make_continuous(np.nan_to_num(motion.orientations), motion.orientation_mask)
+        for j in range(J):
+            if not motion.joint_set.has_orientation[j]:
+                continue
+            idx = np.flatnonzero(motion.orientation_mask[:, j])
+            gaps += _gaps(names[j], "orientation", times[idx], t0, t1, dt, max_gap)
+            if idx.size == 0:
+                continue
+            a, b, w, ok, filled = _brackets(times[idx], grid, dt, max_gap)
+            q = continuous[idx, j]
+            if idx.size == 1:
+                out = np.repeat(q, N, axis=0)
+            else:
+                out = Slerp(times[idx], Rotation.from_quat(q))(np.clip(grid, times[idx[0]], times[idx[-1]])).as_quat()
+                # scipy picks the sign freely: keep the continuous source's hemisphere
+                out *= np.where(np.einsum("ij,ij->i", out, q[a]) < 0, -1.0, 1.0)[:, None]
+            quats[ok, j] = out[ok]
+            qmask[:, j], qint[:, j] = ok, filled
+
+    resampled = Motion(
+        times=grid,
+        positions=pos,
+        joint_set=motion.joint_set,
+        position_mask=pmask,
+        confidence=conf,
+        orientations=quats,
+        orientation_mask=qmask,
+        metadata=dict(motion.metadata),
+    )
+    return Resampled(resampled, pint, qint, gaps)

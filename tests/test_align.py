@@ -1,0 +1,122 @@
+"""align: the exact grid, audio pairing, trimming, refusals, the HDF5 file and its atomicity."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import soundfile as sf
+from conftest import REPO
+
+from kinectdata.align import align, align_files
+from kinectdata.aligned import AlignedRecording
+from kinectdata.audio import load_audio
+from kinectdata.collection import find_sessions
+from kinectdata.errors import AlignmentError, AudioError, FormatError
+from kinectdata.formats import read_motion
+
+
+@pytest.fixture
+def noise_wav(tmp_path):
+    """8 s of 44.1 kHz stereo noise: a stand-in for the music of the real fixture recording."""
+    x = np.random.default_rng(0).uniform(-0.5, 0.5, (8 * 44100, 2)).astype(np.float32)
+    path = tmp_path / "music.wav"
+    sf.write(path, x, 44100, subtype="FLOAT")
+    return path
+
+
+def test_real_fixture_on_an_exact_grid_against_independent_interpolation(fixture_csv, noise_wav, tmp_path):
+    offset = 0.75
+    rec = align_files(fixture_csv, noise_wav, tmp_path / "out.h5", offset=offset)
+    src = read_motion(fixture_csv)
+    n = rec.n_frames
+    np.testing.assert_array_equal(rec.motion.times, np.arange(n) / 30.0)
+    # output time 0 is audio sample ceil(0.75 * 16000) = 12000, i.e. motion time 0
+    motion_t = rec.motion.times + 12000 / 16000 - offset
+    assert motion_t[-1] <= src.times[-1] < motion_t[-1] + 1 / 30
+    j = src.joint_set.index("HandRight")
+    for d in range(3):
+        ref = np.interp(motion_t, src.times, src.positions[:, j, d])
+        np.testing.assert_allclose(rec.motion.positions[:, j, d], ref, atol=1e-12)
+    audio = load_audio(noise_wav)
+    np.testing.assert_array_equal(rec.audio, audio.samples[12000 : 12000 + rec.audio.size])
+    assert rec.audio.size == round(n * 16000 / 30)
+    s = rec.summary
+    dt = np.diff(src.times)
+    assert s["dropped_frames"] == 2 and s["source_frames"] == 154
+    assert s["source_fps"] == pytest.approx(1 / np.median(dt))
+    assert s["offset_source"] == "given" and s["audio_trimmed_start_s"] == pytest.approx(0.75)
+
+
+def test_saved_file_reads_back_identically(fixture_csv, noise_wav, tmp_path):
+    rec = align_files(fixture_csv, noise_wav, tmp_path / "a.h5", offset=0.5)
+    back = AlignedRecording.load(tmp_path / "a.h5")
+    np.testing.assert_array_equal(back.motion.times, rec.motion.times)
+    np.testing.assert_allclose(back.motion.positions, rec.motion.positions, atol=1e-6, equal_nan=True)
+    np.testing.assert_array_equal(back.motion.position_mask, rec.motion.position_mask)
+    np.testing.assert_array_equal(back.position_interpolated, rec.position_interpolated)
+    np.testing.assert_array_equal(back.audio, rec.audio)
+    assert back.offset == rec.offset and back.summary == rec.summary
+    assert back.provenance["motion"]["sha256"] == rec.provenance["motion"]["sha256"]
+    assert len(back.provenance["audio"]["sha256"]) == 64
+    assert back.motion.joint_set.name == "kinect_v2"
+
+
+def test_negative_offset_trims_the_motion_start(fixture_csv, noise_wav):
+    rec = align_files(fixture_csv, noise_wav, offset=-0.4, min_coverage=0.5)
+    assert rec.summary["motion_trimmed_start_s"] == pytest.approx(0.4, abs=1e-9)
+    assert rec.summary["audio_trimmed_start_s"] == 0.0
+    src = read_motion(fixture_csv)
+    j = src.joint_set.index("Head")
+    np.testing.assert_allclose(
+        rec.motion.positions[:, j, 1], np.interp(rec.motion.times + 0.4, src.times, src.positions[:, j, 1])
+    )
+
+
+def test_audio_shorter_than_the_motion_is_refused(fixture_csv, tmp_path):
+    short = tmp_path / "short.wav"
+    sf.write(short, np.zeros(2 * 16000, np.float32), 16000)
+    out = tmp_path / "never.h5"
+    with pytest.raises(
+        AlignmentError, match=r"short\.wav: the audio \(2\.00 s\) covers only .* shorter than the motion"
+    ):
+        align_files(fixture_csv, short, out, offset=0.0)
+    assert list(tmp_path.iterdir()) == [short]  # nothing written, no temporary left behind
+
+
+def test_unreadable_audio_and_bad_recording_leave_nothing(fixture_csv, noise_wav, tmp_path):
+    junk = tmp_path / "junk.flac"
+    junk.write_bytes(b"\x00" * 100)
+    with pytest.raises(AudioError, match=r"junk\.flac: cannot read audio"):
+        align_files(fixture_csv, junk, tmp_path / "o.h5", offset=0.0)
+    bad = tmp_path / "bad.csv"
+    bad.write_text(fixture_csv.read_text().replace("2.69467", "x", 1))
+    with pytest.raises(FormatError, match=r"bad\.csv, line 1, column 'SpineBase.z': non-numeric value 'x'"):
+        align_files(bad, noise_wav, tmp_path / "o.h5", offset=0.0)
+    assert not (tmp_path / "o.h5").exists()
+
+
+def test_every_sample_session_aligns_with_the_true_offset():
+    sessions = find_sessions(REPO / "sample_data")
+    assert len(sessions) == 3
+    for s in sessions:
+        rec = align_files(s.skeleton, s.audio, offset="auto")
+        truth = s.load_truth()
+        assert abs(rec.offset["seconds"] - truth["offset_s"]) < 1 / 30, s.name
+        assert rec.offset["source"] == "clap"
+        assert rec.motion.has_orientations and rec.n_frames > 500
+        # the longer foot loss listed in the truth stays masked and is reported
+        long_losses = {sp["joint"] for sp in truth["tracking_spans"] if sp["end_s"] - sp["start_s"] > 0.3}
+        assert long_losses <= {g["joint"] for g in rec.gaps}
+        q = rec.motion.orientations
+        ok = rec.motion.orientation_mask[1:] & rec.motion.orientation_mask[:-1]
+        assert (np.einsum("tjc,tjc->tj", q[1:], q[:-1])[ok] > 0).all()  # sign-continuous
+
+
+def test_align_other_rates_and_options(fixture_csv, noise_wav):
+    src = read_motion(fixture_csv)
+    audio = load_audio(noise_wav, sample_rate=22050)
+    rec = align(src, audio, fps=60.0, offset=0.1)
+    assert rec.sample_rate == 22050 and rec.fps == 60.0
+    np.testing.assert_array_equal(rec.motion.times, np.arange(rec.n_frames) / 60.0)
+    with pytest.raises(Exception, match="fps must be a positive number"):
+        align(src, audio, fps=0, offset=0.1)

@@ -1,0 +1,74 @@
+"""Audio loading: formats, mono downmix, band-limited resampling, clear errors."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import soundfile as sf
+
+from kinectdata.audio import load_audio
+from kinectdata.errors import AudioError
+
+
+def _tone(freq, sr, seconds, amp):
+    t = np.arange(int(sr * seconds)) / sr
+    return amp * np.sin(2 * np.pi * freq * t)
+
+
+def _peak_frequency(x, sr):
+    w = np.hanning(x.size)
+    spec = np.abs(np.fft.rfft(x * w))
+    k = int(np.argmax(spec))
+    a, b, c = np.log(spec[k - 1 : k + 2])
+    return (k + 0.5 * (a - c) / (a - 2 * b + c)) * sr / x.size  # parabolic interpolation
+
+
+@pytest.mark.parametrize("fmt,subtype", [("WAV", "FLOAT"), ("WAV", "PCM_24"), ("FLAC", "PCM_24"), ("OGG", "VORBIS")])
+def test_tone_keeps_frequency_and_level(tmp_path, fmt, subtype):
+    sr = 44100
+    tone = _tone(997.0, sr, 3.0, 0.5)
+    path = tmp_path / f"tone.{fmt.lower()}"
+    sf.write(path, np.stack([tone, tone], axis=1), sr, format=fmt, subtype=subtype)
+    audio = load_audio(path)
+    assert audio.sample_rate == 16000 and audio.samples.dtype == np.float32 and audio.samples.ndim == 1
+    assert audio.samples.size == pytest.approx(3.0 * 16000, abs=2)
+    assert audio.source["sample_rate"] == sr and audio.source["channels"] == 2
+    mid = audio.samples[4000:-4000].astype(np.float64)
+    assert _peak_frequency(mid, 16000) == pytest.approx(997.0, abs=0.2)
+    rms_db = 20 * np.log10(np.sqrt(np.mean(mid**2)) / (0.5 / np.sqrt(2)))
+    assert abs(rms_db) < (0.3 if fmt == "OGG" else 0.02)
+
+
+def test_content_above_the_new_nyquist_is_removed_not_aliased(tmp_path):
+    sr = 44100
+    path = tmp_path / "high.wav"
+    sf.write(path, _tone(12000.0, sr, 2.0, 0.5), sr, subtype="FLOAT")  # would alias to 4 kHz
+    out = load_audio(path).samples[2000:-2000].astype(np.float64)
+    level_db = 20 * np.log10(np.sqrt(np.mean(out**2)) / (0.5 / np.sqrt(2)) + 1e-12)
+    assert level_db < -80
+
+
+def test_downmix_is_the_mean_of_the_channels(tmp_path):
+    sr = 16000
+    left, right = _tone(440, sr, 1.0, 0.4), _tone(660, sr, 1.0, 0.2)
+    sf.write(tmp_path / "st.wav", np.stack([left, right], axis=1), sr, subtype="FLOAT")
+    np.testing.assert_allclose(load_audio(tmp_path / "st.wav").samples, (left + right) / 2, atol=1e-6)
+    sf.write(tmp_path / "anti.wav", np.stack([left, -left], axis=1), sr, subtype="FLOAT")
+    assert np.abs(load_audio(tmp_path / "anti.wav").samples).max() < 1e-6
+
+
+def test_unreadable_missing_empty_and_nan_audio(tmp_path):
+    bad = tmp_path / "notaudio.wav"
+    bad.write_text("this is not audio")
+    with pytest.raises(AudioError, match=r"notaudio\.wav: cannot read audio"):
+        load_audio(bad)
+    with pytest.raises(AudioError, match=r"missing\.flac: no such audio file"):
+        load_audio(tmp_path / "missing.flac")
+    sf.write(tmp_path / "empty.wav", np.zeros((0, 1)), 16000)
+    with pytest.raises(AudioError, match=r"empty\.wav: the audio file holds no samples"):
+        load_audio(tmp_path / "empty.wav")
+    x = np.zeros(1000, np.float32)
+    x[500] = np.nan
+    sf.write(tmp_path / "nan.wav", x, 16000, subtype="FLOAT")
+    with pytest.raises(AudioError, match=r"nan\.wav: non-finite sample .* at sample 500"):
+        load_audio(tmp_path / "nan.wav")

@@ -1,0 +1,84 @@
+"""The command line: help texts, exit codes, the quickstart, synth determinism."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+
+import pytest
+from click.testing import CliRunner
+from conftest import REPO
+
+from kinectdata.cli import main
+
+COMMANDS = ["info", "formats", "align", "synth", "quickstart"]
+
+
+def run(*args):
+    return CliRunner().invoke(main, list(map(str, args)))
+
+
+@pytest.mark.parametrize("command", COMMANDS)
+def test_every_command_explains_itself(command):
+    result = run(command, "--help")
+    assert result.exit_code == 0 and "Usage: " in result.output
+
+
+def test_align_help_states_units():
+    text = run("align", "--help").output
+    for phrase in ["frames per second", "in Hz", "in seconds", "audio_time = motion_time + offset", "(0..1)"]:
+        assert phrase in " ".join(text.split()), phrase
+
+
+def test_top_level_help_lists_commands():
+    out = run("--help").output
+    assert all(c in out for c in COMMANDS)
+
+
+def test_align_cli_writes_file_and_summary(fixture_csv, tmp_path):
+    sample = REPO / "sample_data"
+    out = tmp_path / "a.h5"
+    result = run("align", sample / "synth_003.csv", sample / "synth_003.flac", "-o", out)
+    assert result.exit_code == 0, result.output
+    assert "offset          +0.01" in result.output and "(clap, confidence 1.00)" in result.output
+    assert out.is_file()
+
+
+def test_errors_exit_nonzero_with_the_file_named(fixture_csv, tmp_path):
+    out = tmp_path / "x.h5"
+    result = run("align", fixture_csv, REPO / "sample_data" / "synth_001.flac", "-o", out)  # no clap in it
+    assert result.exit_code == 1 and "cannot determine the audio-to-motion offset" in result.output
+    result = run("align", tmp_path / "nothing.csv", REPO / "sample_data" / "synth_001.flac", "-o", out)
+    assert result.exit_code == 1 and "nothing.csv: no such file" in result.output
+    result = run("align", fixture_csv, fixture_csv, "-o", out, "--offset", "0")
+    assert result.exit_code == 1 and "Ges01_wavehand.csv: cannot read audio" in result.output
+    result = run("align", fixture_csv, fixture_csv, "-o", out, "--offset", "soon")
+    assert result.exit_code == 2 and "neither 'auto' nor a number" in result.output
+    assert not out.exists()
+
+
+def test_info_on_the_real_fixture(fixture_csv):
+    result = run("info", fixture_csv)
+    assert result.exit_code == 0
+    assert "schema kinectreader" in result.output and "154 over 5.167 s" in result.output
+
+
+def test_synth_is_deterministic(tmp_path):
+    for d in ("a", "b"):
+        assert run("synth", tmp_path / d, "--seed", 5, "--duration", 9).exit_code == 0
+    for suffix in (".csv", ".flac", ".truth.json"):
+        a = (tmp_path / "a" / f"synth_005{suffix}").read_bytes()
+        assert a == (tmp_path / "b" / f"synth_005{suffix}").read_bytes()
+
+
+def test_quickstart_runs_on_the_bundled_samples(tmp_path, monkeypatch):
+    monkeypatch.chdir(REPO)
+    result = run("quickstart", "--out", tmp_path / "qs")
+    assert result.exit_code == 0, result.output
+    assert result.output.count("offset error against the ground truth") == 4
+    assert len(list((tmp_path / "qs" / "aligned").glob("*.h5"))) == 4
+
+
+def test_python_dash_m_runs_the_cli():
+    out = subprocess.run([sys.executable, "-m", "kinectdata", "--version"], capture_output=True, text=True, check=True)
+    assert "kinectdata" in out.stdout

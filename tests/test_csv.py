@@ -1,0 +1,357 @@
+"""Schema-driven CSV reading and writing."""
+
+from __future__ import annotations
+
+import json
+import re
+
+import numpy as np
+import pytest
+from helpers import random_motion
+
+from kinectdata.errors import FormatError, SchemaError
+from kinectdata.formats import detect_format, read_motion
+from kinectdata.formats.csv import detect_csv_schema, write_csv
+from kinectdata.formats.csv_schema import load_csv_schema, shipped_csv_schemas
+from kinectdata.jointsets import load_joint_set
+
+DIALECTS = ["canonical", "dumpkinectskeleton", "kinectreader", "lsl_kinect"]
+
+
+# ---------------------------------------------------------------------------------------------
+# The real KinectReader file
+# ---------------------------------------------------------------------------------------------
+def test_real_kinectreader_file_matches_a_plain_parse(fixture_csv):
+    rows = [line.rstrip(",\n").split(",") for line in fixture_csv.read_text().splitlines()]
+    ref = np.array(rows, dtype=np.float64)  # [T, 101]
+    m = read_motion(fixture_csv)
+    assert m.metadata["schema"] == "kinectreader"
+    assert m.n_frames == len(rows) == 154 and m.n_joints == 25
+    np.testing.assert_allclose(m.times, (ref[:, 0] - ref[0, 0]) * 1e-7, rtol=0, atol=1e-12)
+    joints = ref[:, 1:].reshape(-1, 25, 4)
+    np.testing.assert_array_equal(m.positions, joints[..., :3])
+    np.testing.assert_array_equal(m.confidence, np.select([joints[..., 3] == 2, joints[..., 3] == 1], [1.0, 0.5], 0.0))
+    assert m.positions[0, 0].tolist() == [0.0111604, -0.367822, 2.69467]
+    assert m.metadata["time_origin"] == {"value": 89810293609.0, "unit": "ticks"}
+    assert not m.has_orientations
+    assert (m.confidence == 0.5).sum() == (joints[..., 3] == 1).sum() > 0
+
+
+def test_detection_of_every_shipped_dialect(tmp_path, fixture_csv):
+    assert detect_csv_schema(fixture_csv).name == "kinectreader"
+    m = random_motion()
+    for name in DIALECTS:
+        path = tmp_path / f"{name}.txt"  # no .csv extension: found by content through the registry
+        write_csv(m, path, name)
+        assert detect_format(path) == "csv"
+        assert detect_csv_schema(path).name == name
+
+
+@pytest.mark.parametrize("dialect", DIALECTS)
+def test_round_trip_through_every_dialect(tmp_path, dialect):
+    m = random_motion(seed=3)
+    path = tmp_path / "x.csv"
+    write_csv(m, path, dialect)
+    r = read_motion(path, schema=dialect)
+    assert r.joint_set.names == m.joint_set.names
+    np.testing.assert_allclose(r.times, m.times, atol=1e-6)
+    np.testing.assert_array_equal(r.position_mask, m.position_mask)
+    np.testing.assert_allclose(r.positions[m.position_mask], m.positions[m.position_mask], atol=5e-7)
+    np.testing.assert_array_equal(r.confidence, m.confidence)
+    has_q = load_csv_schema(dialect).get("orientation") is not None
+    assert r.has_orientations == has_q
+    if has_q:
+        gated = load_csv_schema(dialect).get("orientation").get("gated_by_tracking", True)
+        expect = m.orientation_mask & (m.position_mask if gated else True)
+        np.testing.assert_array_equal(r.orientation_mask, expect)
+        np.testing.assert_allclose(r.orientations[expect], m.orientations[expect], atol=2e-6)
+
+
+def test_canonical_keeps_any_joint_set_and_missing_orientations(tmp_path):
+    js = load_joint_set("nite")
+    rng = np.random.default_rng(1)
+    from kinectdata.motion import Motion
+
+    m = Motion(np.arange(5) / 30, rng.normal(size=(5, 15, 3)), js)
+    write_csv(m, tmp_path / "n.csv")
+    r = read_motion(tmp_path / "n.csv")
+    assert r.joint_set.name == "nite" and not r.has_orientations
+    np.testing.assert_allclose(r.positions, m.positions, atol=5e-7)
+
+
+def test_dumpkinectskeleton_leaf_zero_quaternions_are_missing(tmp_path):
+    m = random_motion(seed=5, untracked=0.0)
+    write_csv(m, tmp_path / "d.csv", "dumpkinectskeleton")
+    text = (tmp_path / "d.csv").read_text().splitlines()
+    head_row = next(line for line in text[1:] if line.split(",")[1] == "3")  # Head: a leaf
+    assert head_row.split(",")[5:9] == ["0.000000"] * 4
+    r = read_motion(tmp_path / "d.csv")
+    assert not r.orientation_mask[:, r.joint_set.index("Head")].any()
+
+
+# ---------------------------------------------------------------------------------------------
+# New dialects through schema files alone
+# ---------------------------------------------------------------------------------------------
+def _csharp_logger_schema(tmp_path):
+    schema = {
+        "name": "csharp_logger",
+        "description": "Timestamp,Index,BodyID,SpineBase_X,...,SpineBase_inferred",
+        "joint_set": "kinect_v2",
+        "layout": "wide",
+        "header": True,
+        "time": {"column": "Timestamp", "unit": "us"},
+        "body": {"column": "BodyID"},
+        "position": {"columns": ["{joint}_X", "{joint}_Y", "{joint}_Z"], "unit": "m"},
+        "tracking": {"column": "{joint}_inferred", "values": {"0": 1.0, "1": 0.5}},
+    }
+    path = tmp_path / "csharp.schema.json"
+    path.write_text(json.dumps(schema))
+    return path
+
+
+def test_new_wide_dialect_with_bodies_through_a_schema_file(tmp_path):
+    js = load_joint_set("kinect_v2")
+    cols = ["Timestamp", "Index", "BodyID"] + [f"{n}_{c}" for n in js.names for c in ("X", "Y", "Z", "inferred")]
+    lines = [",".join(cols)]
+    expected = {}
+    for k in range(6):
+        for body, frames in (("72057594037930001", range(6)), ("72057594037930002", range(2, 4))):
+            if k not in frames:
+                continue
+            vals = [(k * 25 + j) * 0.001 + (0.5 if body.endswith("2") else 0) for j in range(25)]
+            flag = [1 if (k == 3 and j == 7) else 0 for j in range(25)]
+            cells = [str(1_000_000 + k * 33_333), str(k), body]
+            for j in range(25):
+                cells += [f"{vals[j]:.6f}", f"{-vals[j]:.6f}", "2.5", str(flag[j])]
+            lines.append(",".join(cells))
+            expected[(body, k)] = vals
+    data = tmp_path / "take.csv"
+    data.write_text("\n".join(lines) + "\n")
+    schema = _csharp_logger_schema(tmp_path)
+
+    m = read_motion(data, schema=schema)
+    assert m.metadata["body"] == "72057594037930001"  # present in 6 frames, the other in 2
+    assert m.metadata["bodies"] == {"72057594037930001": 6, "72057594037930002": 2}
+    np.testing.assert_allclose(m.times, np.arange(6) * 0.033333)
+    np.testing.assert_allclose(m.positions[4, :, 0], expected[("72057594037930001", 4)])
+    np.testing.assert_allclose(m.positions[4, :, 1], -np.array(expected[("72057594037930001", 4)]))
+    assert m.confidence[3, 7] == 0.5 and m.confidence[2, 7] == 1.0
+
+    other = read_motion(data, schema=schema, body="72057594037930002")
+    assert other.n_frames == 2
+    np.testing.assert_allclose(other.positions[0, :, 0], expected[("72057594037930002", 2)])
+    with pytest.raises(FormatError, match=r"take\.csv.*no body '9'.*72057594037930001 \(6 frames\)"):
+        read_motion(data, schema=schema, body="9")
+
+
+def test_new_dialect_millimetres_without_time_column(tmp_path):
+    az = load_joint_set("azure_kinect")
+    schema = {
+        "name": "azure_recorder",
+        "joint_set": "azure_kinect",
+        "layout": "wide",
+        "header": True,
+        "time": {"fps": 30},
+        "position": {"columns": ["{joint}.x", "{joint}.y", "{joint}.z"], "unit": "mm"},
+    }
+    (tmp_path / "az.json").write_text(json.dumps(schema))
+    header = ",".join(f"{n}.{c}" for n in az.names for c in "xyz")
+    rows = [",".join(str(float(100 * k + j)) for j in range(96)) for k in range(4)]
+    (tmp_path / "az.csv").write_text(header + "\n" + "\n".join(rows) + "\n")
+    m = read_motion(tmp_path / "az.csv", schema=tmp_path / "az.json")
+    assert m.joint_set.name == "azure_kinect"
+    np.testing.assert_allclose(m.times, np.arange(4) / 30)
+    assert m.positions[2, 1].tolist() == pytest.approx([0.203, 0.204, 0.205])  # mm -> m
+    assert m.metadata["nominal_fps"] == 30
+
+
+def test_a_long_dialect_with_joint_names(tmp_path):
+    schema = {
+        "name": "long_names",
+        "joint_set": "nite",
+        "layout": "long",
+        "header": True,
+        "time": {"column": "t", "unit": "s"},
+        "joint": {"column": "joint", "values": "name"},
+        "joint_names": {"Head": "HEAD", "Torso": "TORSO"},
+        "position": {"columns": ["x", "y", "z"], "unit": "cm"},
+    }
+    (tmp_path / "s.json").write_text(json.dumps(schema))
+    (tmp_path / "l.csv").write_text("t,joint,x,y,z\n0.0,Head,1,2,3\n0.0,Torso,4,5,6\n0.05,Head,7,8,9\n")
+    m = read_motion(tmp_path / "l.csv", schema=tmp_path / "s.json")
+    js = m.joint_set
+    assert m.n_frames == 2
+    assert m.positions[0, js.index("HEAD")].tolist() == pytest.approx([0.01, 0.02, 0.03])
+    assert m.positions[1, js.index("HEAD")].tolist() == pytest.approx([0.07, 0.08, 0.09])
+    assert not m.position_mask[1, js.index("TORSO")]  # no row for it in frame 1
+    assert not m.position_mask[:, js.index("NECK")].any()
+    (tmp_path / "bad.csv").write_text("t,joint,x,y,z\n0.0,Head,1,2,3\n0.0,Elbow,4,5,6\n")
+    with pytest.raises(FormatError, match=r"bad\.csv, line 3, column 'joint': unknown joint name 'Elbow'"):
+        read_motion(tmp_path / "bad.csv", schema=tmp_path / "s.json")
+
+
+# ---------------------------------------------------------------------------------------------
+# Bad schemas
+# ---------------------------------------------------------------------------------------------
+def _schema_error(tmp_path, doc_or_text) -> str:
+    path = tmp_path / "my.schema.json"
+    path.write_text(doc_or_text if isinstance(doc_or_text, str) else json.dumps(doc_or_text))
+    with pytest.raises(SchemaError) as err:
+        load_csv_schema(path)
+    assert "my.schema.json" in str(err.value)
+    return str(err.value)
+
+
+def test_bad_schemas_get_clear_errors(tmp_path):
+    good = json.loads(json.dumps(load_csv_schema("lsl_kinect").document))
+    assert "line 2" in _schema_error(tmp_path, '{"name": "x",\n "layout": }')
+    doc = dict(good)
+    del doc["position"]
+    assert "'position' is a required property" in _schema_error(tmp_path, doc)
+    doc = dict(good, layout="diagonal")
+    assert "layout" in _schema_error(tmp_path, doc)
+    doc = dict(good, position={"columns": ["X", "Y", "Z"], "unit": "m"})
+    assert "must contain {joint}" in _schema_error(tmp_path, doc)
+    doc = dict(good, signature="([")
+    assert "signature is not a valid regular expression" in _schema_error(tmp_path, doc)
+    doc = dict(good, tracking={"column": "{joint}_Conf", "values": {"2": 1.7}})
+    assert "tracking/values/2" in _schema_error(tmp_path, doc)
+    kr = json.loads(json.dumps(load_csv_schema("kinectreader").document))
+    kr["time"] = {"column": "stamp", "unit": "ticks"}
+    assert "time.column 'stamp' is not among 'columns'" in _schema_error(tmp_path, kr)
+    with pytest.raises(SchemaError, match="no shipped csv file named 'nope'"):
+        load_csv_schema("nope")
+
+
+def test_shipped_schemas_are_valid():
+    assert set(shipped_csv_schemas()) == set(DIALECTS)
+    for name in shipped_csv_schemas():
+        assert load_csv_schema(name).name == name
+
+
+# ---------------------------------------------------------------------------------------------
+# Bad input files: each error names the file and the line
+# ---------------------------------------------------------------------------------------------
+@pytest.fixture
+def lsl_file(tmp_path):
+    path = tmp_path / "take.csv"
+    write_csv(random_motion(T=10, untracked=0.0), path, "lsl_kinect")
+    return path
+
+
+def _edit(path, line_no, fn):
+    lines = path.read_text().splitlines()
+    lines[line_no - 1] = fn(lines[line_no - 1])
+    path.write_text("\n".join(lines) + "\n")
+
+
+def _cells(line, index, value):
+    cells = line.split(",")
+    cells[index] = value
+    return ",".join(cells)
+
+
+def _error(path, **kw) -> str:
+    with pytest.raises(FormatError) as err:
+        read_motion(path, **kw)
+    message = str(err.value)
+    assert message.startswith(str(path)), message
+    return message
+
+
+def test_missing_column(lsl_file):
+    _edit(lsl_file, 3, lambda h: h.replace(",SpineMid_Z", ""))
+    msg = _error(lsl_file)
+    assert re.search(r"line 3: missing column\(s\) SpineMid_Z", msg), msg
+
+
+def test_unknown_joint_name_in_header(lsl_file):
+    _edit(lsl_file, 3, lambda h: h.replace("HandLeft_", "HandLefty_"))
+    msg = _error(lsl_file)
+    assert "line 3, column 'HandLefty_X': unknown joint name 'HandLefty'" in msg
+
+
+def test_non_numeric_cell(lsl_file):
+    _edit(lsl_file, 7, lambda row: _cells(row, 5, "1,2".replace(",", ";")))
+    assert "line 7, column 'SpineMid_X': non-numeric value '1;2'" in _error(lsl_file)
+
+
+def test_nan_cell(lsl_file):
+    _edit(lsl_file, 8, lambda row: _cells(row, 2, "NaN"))
+    assert "line 8, column 'SpineBase_Y': 'NaN' is not a number" in _error(lsl_file)
+
+
+def test_empty_cell_without_missing_values(lsl_file):
+    _edit(lsl_file, 8, lambda row: _cells(row, 3, ""))
+    assert "line 8, column 'SpineBase_Z': empty cell" in _error(lsl_file)
+
+
+def test_time_going_backwards(lsl_file):
+    _edit(lsl_file, 9, lambda row: _cells(row, 0, "-5"))
+    msg = _error(lsl_file)
+    assert "line 9: time goes backwards: -5 ms after" in msg and "on line 8" in msg
+
+
+def test_duplicated_timestamp(lsl_file):
+    lines = lsl_file.read_text().splitlines()
+    lines[8] = _cells(lines[8], 0, lines[7].split(",")[0])
+    lsl_file.write_text("\n".join(lines) + "\n")
+    assert "line 9: duplicated timestamp" in _error(lsl_file) and "(also on line 8)" in _error(lsl_file)
+
+
+def test_wrong_field_count(lsl_file):
+    _edit(lsl_file, 6, lambda row: row.rsplit(",", 3)[0])
+    assert "line 6: expected 101 fields as the header says, found 98" in _error(lsl_file)
+
+
+def test_unknown_tracking_state(tmp_path):
+    path = tmp_path / "d.csv"
+    write_csv(random_motion(T=3), path, "dumpkinectskeleton")
+    _edit(path, 5, lambda row: _cells(row, 9, "7"))
+    assert "line 5, column 'state': unknown tracking state '7'" in _error(path)
+
+
+def test_long_format_duplicate_and_backwards(tmp_path):
+    path = tmp_path / "d.csv"
+    write_csv(random_motion(T=4, untracked=0.0), path, "dumpkinectskeleton")
+    lines = path.read_text().splitlines()
+    dup = lines[:30] + [lines[29]] + lines[30:]
+    path.write_text("\n".join(dup) + "\n")
+    msg = _error(path)
+    assert "line 31: joint" in msg and "appears twice" in msg and "also on line 30" in msg
+    back = lines[:27] + [_cells(lines[27], 0, "0.000000")] + lines[28:]
+    path.write_text("\n".join(back) + "\n")
+    assert "line 28: time goes backwards" in _error(path)
+
+
+def test_not_a_unit_quaternion(tmp_path):
+    path = tmp_path / "d.csv"
+    write_csv(random_motion(T=3, untracked=0.0), path, "dumpkinectskeleton")
+    _edit(path, 4, lambda row: ",".join(row.split(",")[:5] + ["0.5", "0", "0", "0.5"] + row.split(",")[9:]))
+    assert "line 4: orientation of joint 'Neck' is not a unit quaternion (norm 0.707" in _error(path)
+
+
+def test_empty_and_header_only_files(tmp_path):
+    empty = tmp_path / "empty.csv"
+    empty.write_text("")
+    assert "empty file" in _error(empty)
+    assert "empty file" in _error(empty, schema="kinectreader") or "no data rows" in _error(
+        empty, schema="kinectreader"
+    )
+    only = tmp_path / "only.csv"
+    write_csv(random_motion(T=2), only, "lsl_kinect")
+    only.write_text("\n".join(only.read_text().splitlines()[:3]) + "\n")
+    assert "no data rows after the header (line 3)" in _error(only)
+
+
+def test_unrecognised_dialect_points_to_schema_option(tmp_path):
+    path = tmp_path / "odd.csv"
+    path.write_text("a,b,c\n1,2,3\n")
+    assert "pass --schema FILE" in _error(path)
+
+
+def test_kinectreader_nan_and_garbage(fixture_csv, tmp_path):
+    path = tmp_path / "kr.csv"
+    path.write_text(fixture_csv.read_text())
+    _edit(path, 100, lambda row: _cells(row, 30, "nan"))
+    assert "line 100, column 'HandLeft.y': 'nan' is not a number" in _error(path)  # cell 30 = joint 7, y

@@ -1,0 +1,120 @@
+"""The Motion container's invariants and the shipped joint sets."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from kinectdata.errors import SchemaError
+from kinectdata.jointsets import find_joint_set, load_joint_set, shipped_joint_sets
+from kinectdata.motion import Motion
+from kinectdata.resources import schemas_dir
+
+KINECT_V2_ORDER = [
+    "SpineBase",
+    "SpineMid",
+    "Neck",
+    "Head",
+    "ShoulderLeft",
+    "ElbowLeft",
+    "WristLeft",
+    "HandLeft",
+    "ShoulderRight",
+    "ElbowRight",
+    "WristRight",
+    "HandRight",
+    "HipLeft",
+    "KneeLeft",
+    "AnkleLeft",
+    "FootLeft",
+    "HipRight",
+    "KneeRight",
+    "AnkleRight",
+    "FootRight",
+    "SpineShoulder",
+    "HandTipLeft",
+    "ThumbLeft",
+    "HandTipRight",
+    "ThumbRight",
+]
+
+
+def test_shipped_joint_sets_have_the_documented_sizes():
+    sizes = {name: len(load_joint_set(name)) for name in shipped_joint_sets()}
+    assert sizes == {"kinect_v2": 25, "nite": 15, "azure_kinect": 32, "openpose_mpi": 15}
+    assert load_joint_set("openpose_mpi").dimensions == 2
+
+
+def test_kinect_v2_order_and_hierarchy():
+    js = load_joint_set("kinect_v2")
+    assert list(js.names) == KINECT_V2_ORDER  # JointType 0..24, from the SDK enumeration
+    roots = [js.names[i] for i, p in enumerate(js.parents) if p < 0]
+    assert roots == ["SpineBase"]
+    assert js.names[js.parents[js.index("Neck")]] == "SpineShoulder"
+    assert not js.has_orientation[js.index("Head")] and js.has_orientation[js.index("ElbowLeft")]
+    assert len(js.bones()) == 24
+
+
+def test_every_shipped_joint_set_is_a_tree_reaching_its_root():
+    for name in shipped_joint_sets():
+        js = load_joint_set(name)
+        for j in range(len(js)):
+            seen = 0
+            while js.parents[j] >= 0:
+                j = js.parents[j]
+                seen += 1
+                assert seen <= len(js)
+
+
+def test_azure_alias_and_find_joint_set():
+    az = load_joint_set("azure_kinect")
+    assert az.index("SPINE_NAVAL") == az.index("SPINE_NAVEL") == 1
+    assert find_joint_set(["HEAD", "NECK", "TORSO"]).name == "nite"
+    assert find_joint_set(["SpineBase", "HandLeft"]).name == "kinect_v2"
+    assert find_joint_set(["Nonsense"]) is None
+
+
+def test_a_bad_joint_set_file_is_refused_with_its_path(tmp_path):
+    doc = json.loads((schemas_dir() / "jointsets" / "nite.json").read_text())
+    doc["joints"][0]["parent"] = "NOSE"
+    bad = tmp_path / "bad.json"
+    bad.write_text(json.dumps(doc))
+    with pytest.raises(SchemaError, match=r"bad\.json.*unknown parent 'NOSE'"):
+        load_joint_set(bad)
+    doc["joints"][0] = {"name": "HEAD"}
+    bad.write_text(json.dumps(doc))
+    with pytest.raises(SchemaError, match=r"bad\.json.*joints/0.*parent"):
+        load_joint_set(bad)
+
+
+def test_motion_masks_invalid_values_with_nan():
+    js = load_joint_set("nite")
+    pos = np.ones((3, 15, 3))
+    mask = np.ones((3, 15), bool)
+    mask[1, 2] = False
+    m = Motion(np.array([0.0, 0.1, 0.2]), pos, js, position_mask=mask, orientations=np.tile([0, 0, 0, 1.0], (3, 15, 1)))
+    assert np.isnan(m.positions[1, 2]).all() and not np.isnan(m.positions[0]).any()
+    assert m.confidence[1, 2] == 0 and m.confidence[0, 0] == 1
+    assert m.orientation_mask.all()
+    assert m.duration == pytest.approx(0.2)
+
+
+def test_motion_rejects_bad_shapes_and_times():
+    js = load_joint_set("nite")
+    with pytest.raises(ValueError, match="positions"):
+        Motion(np.zeros(3), np.zeros((3, 14, 3)), js)
+    with pytest.raises(ValueError, match="increasing"):
+        Motion(np.array([0.0, 0.2, 0.1]), np.zeros((3, 15, 3)), js)
+
+
+def test_timing_counts_dropped_frames():
+    js = load_joint_set("nite")
+    t = np.arange(100) / 30.0
+    t = np.delete(t, [10, 50, 51])  # one single drop and one double drop
+    m = Motion(t, np.zeros((t.size, 15, 3)), js)
+    timing = m.timing()
+    assert timing["dropped_frames"] == 3
+    assert timing["fps"] == pytest.approx(30.0)
+    assert timing["jitter_ms"] == pytest.approx(0.0, abs=1e-6)
