@@ -1,0 +1,30 @@
+"""Run every benchmark module (``bench_*.py``) in this folder, or those named on the command line."""
+
+from __future__ import annotations
+
+import importlib
+import platform
+import sys
+from pathlib import Path
+
+import numpy as np
+
+
+def machine() -> str:
+    import os
+
+    return f"{platform.python_implementation()} {platform.python_version()}, numpy {np.__version__}, " \
+           f"{platform.machine()}, {os.cpu_count()} cores, {platform.platform(terse=True)}"
+
+
+def main(argv: list[str]) -> None:
+    here = Path(__file__).parent
+    names = argv or sorted(p.stem for p in here.glob("bench_*.py"))
+    print(f"machine: {machine()}")
+    for name in names:
+        print(f"\n== {name} ==")
+        importlib.import_module(f"benchmarks.{name}").main()
+
+
+if __name__ == "__main__":
+    main(sys.argv[1:])
