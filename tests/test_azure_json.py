@@ -89,7 +89,7 @@ def test_values(tmp_path, two_bodies):
 
     assert m.joint_set is load_joint_set("azure_kinect")  # SPINE_NAVAL matched through the alias
     assert m.metadata["body"] == "2"  # 4 frames against 3
-    assert m.metadata["bodies"] == [{"id": "1", "frames": 3}, {"id": "2", "frames": 4}]
+    assert m.metadata["bodies"] == {"1": 3, "2": 4}
     np.testing.assert_allclose(m.times, (np.array(t) - T0) / 1e6, rtol=0, atol=1e-12)
     assert m.times[0] == 0.0
     assert m.metadata["time_origin"] == {"value": T0, "unit": "us"}

@@ -140,7 +140,10 @@ def test_new_wide_dialect_with_bodies_through_a_schema_file(tmp_path):
     other = read_motion(data, schema=schema, body="72057594037930002")
     assert other.n_frames == 2
     np.testing.assert_allclose(other.positions[0, :, 0], expected[("72057594037930002", 2)])
-    with pytest.raises(FormatError, match=r"take\.csv.*no body '9'.*72057594037930001 \(6 frames\)"):
+    with pytest.raises(
+        FormatError,
+        match=r"take\.csv, column 'BodyID': no body with id '9'; the file has: 72057594037930001 \(6 frames\)",
+    ):
         read_motion(data, schema=schema, body="9")
 
 

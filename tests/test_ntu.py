@@ -92,7 +92,7 @@ def test_values_round_trip(tmp_path):
     assert md["format"] == "ntu" and md["nominal_fps"] == 30.0
     assert md["time_source"] == "frame index at nominal 30 fps"
     assert md["body"] == "72057594037931101"
-    assert md["bodies"] == [{"id": "72057594037931101", "frames": 3}]
+    assert md["bodies"] == {"72057594037931101": 3}
     assert (md["setup"], md["camera"], md["performer"], md["replication"], md["action"]) == (1, 2, 3, 4, 5)
 
 
@@ -111,7 +111,7 @@ def test_body_choice_and_gaps(tmp_path):
 
     m = read_ntu(path)  # 22 is in 3 frames, 11 in 3: tie -> the first to appear
     assert m.metadata["body"] == "11"
-    assert m.metadata["bodies"] == [{"id": "11", "frames": 3}, {"id": "22", "frames": 3}]
+    assert m.metadata["bodies"] == {"11": 3, "22": 3}
     assert "setup" not in m.metadata
 
     frames[0].append(("22", b[0]))
@@ -268,4 +268,4 @@ def test_bad_tracking_state(tmp_path, good):
 def test_binary_file(tmp_path):
     path = tmp_path / "x.skeleton"
     path.write_bytes(b"\xff\xfe\x00\x01garbage")
-    check(path, None, "not a text file")
+    check(path, None, "not a UTF-8 text file")

@@ -33,6 +33,7 @@ from ..errors import FormatError
 from ..jointsets import JointSet, load_joint_set
 from ..motion import Motion
 from ..quaternions import split_missing_and_normalise, wxyz_to_xyzw
+from .common import choose_body, count_bodies, read_text
 from .registry import register_reader
 
 
@@ -49,12 +50,7 @@ def _sniff(path: Path, head: bytes) -> bool:
 
 
 def _load(path: Path) -> Any:
-    try:
-        text = path.read_text(encoding="utf-8-sig")
-    except OSError as exc:
-        raise FormatError(path, f"cannot read file: {exc.strerror or exc}") from exc
-    except UnicodeDecodeError as exc:
-        raise FormatError(path, f"not a UTF-8 text file (byte {exc.start})") from exc
+    text = read_text(path, fallback_encoding=None)
     if not text.strip():
         raise FormatError(path, "the file is empty", line=1)
     try:
@@ -252,18 +248,8 @@ def read_azure_json(path: Path, *, body: str | None = None) -> Motion:
             path, f"timestamp_usec {stamps[f]} is not after the previous frame's {stamps[f - 1]}", frame=f
         )
 
-    counts: dict[str, int] = {}
-    for body_id in ids:
-        counts[body_id] = counts.get(body_id, 0) + 1
-    bodies_meta = [{"id": i, "frames": n} for i, n in counts.items()]
-    if not counts:
-        raise FormatError(path, f"no body appears in any of the {len(frames)} frames")
-    if body is None:
-        body = max(counts, key=counts.__getitem__)  # max keeps the first of equal counts
-    elif str(body) not in counts:
-        listing = ", ".join(f"{b['id']} ({b['frames']} frames)" for b in bodies_meta)
-        raise FormatError(path, f"no body with id {str(body)!r}; the file has: {listing}")
-    body = str(body)
+    bodies_meta = count_bodies(ids)
+    body = choose_body(path, bodies_meta, body, n_frames=len(frames))
 
     positions_mm = _numbers(path, pos_lists, where, "joint_positions", 3, names)
     quats = _numbers(path, ori_lists, where, "joint_orientations", 4, names)

@@ -25,6 +25,7 @@ from ..errors import FormatError, KinectDataError
 from ..jointsets import JointSet, find_joint_set, load_joint_set, shipped_joint_sets
 from ..motion import Motion
 from ..quaternions import reorder, split_missing_and_normalise, xyzw_to_wxyz
+from .common import choose_body, count_bodies, read_text
 from .csv_schema import JOINT, CsvSchema, load_csv_schema, shipped_csv_schemas
 from .registry import register_reader
 
@@ -131,15 +132,7 @@ def _describe_bad_cell(cell: str) -> str:
 
 
 def _read_lines(path: Path) -> list[str]:
-    try:
-        raw = path.read_bytes()
-    except OSError as exc:
-        raise FormatError(path, f"cannot read file: {exc.strerror or exc}") from exc
-    try:
-        text = raw.decode("utf-8-sig")
-    except UnicodeDecodeError:
-        text = raw.decode("latin-1")  # Windows tools write cp1252; the numbers are ASCII either way
-    return text.splitlines()
+    return read_text(path).splitlines()
 
 
 def _split_fields(line: str, delimiter: str) -> list[str]:
@@ -275,13 +268,9 @@ def _select_body(table: _Table, body: str | None, frame_key: np.ndarray) -> tupl
             )
         return None, {}
     ids = table.text(col)
-    order, first = np.unique(ids, return_index=True)
-    frames = {str(b): int(np.unique(frame_key[ids == b]).size) for b in order[np.argsort(first)]}
-    if body is None:
-        body = max(frames, key=lambda b: frames[b])  # max keeps the first of equals: first to appear
-    elif body not in frames:
-        listing = ", ".join(f"{b} ({n} frames)" for b, n in frames.items())
-        raise FormatError(table.path, f"no body {body!r} in the file; bodies: {listing}", column=col)
+    pairs = dict.fromkeys(zip(frame_key.tolist(), ids.tolist()))  # one entry per (frame, body)
+    frames = count_bodies(b for _, b in pairs)
+    body = choose_body(table.path, frames, body, n_frames=len(np.unique(frame_key)), column=col)
     return np.flatnonzero(ids == body), {"body": body, "bodies": frames}
 
 

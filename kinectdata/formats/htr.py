@@ -44,6 +44,7 @@ from ..errors import FormatError
 from ..jointsets import JointSet
 from ..motion import Motion
 from ..quaternions import make_continuous
+from .common import read_text
 from .registry import register_reader
 
 BOGUS = 9e6
@@ -93,14 +94,7 @@ def _sniff(path: Path, head: bytes) -> bool:
 
 def _split_sections(path: Path) -> list[_Section]:
     """The file's sections in order, up to ``[EndOfFile]`` (content after it is ignored)."""
-    try:
-        data = path.read_bytes()
-    except OSError as e:
-        raise FormatError(path, f"cannot read the file: {e.strerror or e}") from None
-    try:
-        text = data.decode("utf-8-sig")
-    except UnicodeDecodeError:
-        text = data.decode("cp1252", errors="replace")
+    text = read_text(path)
     sections: list[_Section] = []
     current: _Section | None = None
     for number, raw in enumerate(text.replace("\r\n", "\n").replace("\r", "\n").split("\n"), start=1):

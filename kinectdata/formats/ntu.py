@@ -35,6 +35,7 @@ from ..errors import FormatError
 from ..jointsets import load_joint_set
 from ..motion import Motion
 from ..quaternions import split_missing_and_normalise, wxyz_to_xyzw
+from .common import choose_body, count_bodies, read_text
 from .registry import register_reader
 
 NOMINAL_FPS = 30.0
@@ -64,13 +65,7 @@ class _Lines:
     """The non-blank lines of a text file, consumed in order, with their 1-based line numbers."""
 
     def __init__(self, path: Path) -> None:
-        try:
-            text = path.read_text(encoding="utf-8-sig")
-        except OSError as exc:
-            raise FormatError(path, f"cannot read file: {exc.strerror or exc}") from exc
-        except UnicodeDecodeError as exc:
-            raise FormatError(path, f"not a text file (byte {exc.start} is not UTF-8)") from exc
-        all_lines = text.splitlines()
+        all_lines = read_text(path, fallback_encoding=None).splitlines()
         self.path = path
         self.n_total = len(all_lines)
         self.numbers = [i for i, s in enumerate(all_lines, 1) if s.strip()]
@@ -215,18 +210,8 @@ def read_ntu(path: Path, *, body: str | None = None) -> Motion:
 
     values = _parse_joints(lines, starts, block_frames)
 
-    counts: dict[str, int] = {}
-    for body_id in block_ids:
-        counts[body_id] = counts.get(body_id, 0) + 1
-    bodies = [{"id": i, "frames": n} for i, n in counts.items()]
-    if not counts:
-        raise FormatError(path, f"no body appears in any of the {n_frames} frames")
-    if body is None:
-        body = max(counts, key=counts.__getitem__)  # max keeps the first of equal counts
-    elif str(body) not in counts:
-        listing = ", ".join(f"{b['id']} ({b['frames']} frames)" for b in bodies)
-        raise FormatError(path, f"no body with id {str(body)!r}; the file has: {listing}")
-    body = str(body)
+    bodies = count_bodies(block_ids)
+    body = choose_body(path, bodies, body, n_frames=n_frames)
 
     chosen = np.array([i for i, b in enumerate(block_ids) if b == body])
     frames = np.array(block_frames)[chosen]

@@ -1,0 +1,51 @@
+"""Pieces every reader needs: reading a text file, choosing one body among several."""
+
+from __future__ import annotations
+
+from collections import Counter
+from collections.abc import Iterable
+from pathlib import Path
+
+from ..errors import FormatError
+
+
+def read_text(path: Path, *, fallback_encoding: str | None = "cp1252") -> str:
+    """The text of a file: UTF-8 (a byte-order mark is dropped), else ``fallback_encoding``.
+
+    Windows tools often write cp1252; for numeric files that is harmless. With
+    ``fallback_encoding=None`` a file that is not UTF-8 is a FormatError (a binary file given by
+    mistake). Unreadable files are FormatErrors too.
+    """
+    try:
+        raw = path.read_bytes()
+    except OSError as exc:
+        raise FormatError(path, f"cannot read file: {exc.strerror or exc}") from exc
+    try:
+        return raw.decode("utf-8-sig")
+    except UnicodeDecodeError as exc:
+        if fallback_encoding is None:
+            raise FormatError(path, f"not a UTF-8 text file (byte {exc.start})") from exc
+        return raw.decode(fallback_encoding, errors="replace")
+
+
+def count_bodies(frame_body_ids: Iterable[str]) -> dict[str, int]:
+    """Frames per body id, in order of first appearance, from one id per (frame, body) pair."""
+    return dict(Counter(frame_body_ids))
+
+
+def choose_body(path: Path, frames_per_body: dict[str, int], body: str | None, *, n_frames: int, **where) -> str:
+    """The body to read: ``body`` (an id as written in the file) or, by default, the body present
+    in the most frames, the first to appear winning ties.
+
+    ``n_frames`` is the file's frame count; ``where`` (line=, column=...) locates the body ids
+    for the error message.
+    """
+    if not frames_per_body:
+        raise FormatError(path, f"no body appears in any of the {n_frames} frames", **where)
+    if body is None:
+        return max(frames_per_body, key=frames_per_body.__getitem__)  # max keeps the first of equals
+    body = str(body)
+    if body not in frames_per_body:
+        listing = ", ".join(f"{b} ({n} frames)" for b, n in frames_per_body.items())
+        raise FormatError(path, f"no body with id {body!r}; the file has: {listing}", **where)
+    return body
