@@ -4,10 +4,12 @@
 HDF5 file (``kinectdata align`` is a thin command over it).
 
 Timeline: with ``audio_time = motion_time + offset``, the output keeps the span both cover. Its
-time 0 is the first audio sample inside that span, frame k is at ``k / fps`` on that clock, the
-motion is resampled there (:mod:`kinectdata.timeline`) and the audio is cut to start at its
-sample 0. The audio must cover at least ``min_coverage`` of the motion's duration; otherwise the
-pair is refused (audio shorter than the dance, or a wrong offset), not silently trimmed.
+time 0 is the first audio sample inside that span and frame k is at ``k / fps`` on that clock.
+The last frame is the last one that has motion at its time and audio for its whole frame period,
+so the output audio is exactly ``n_frames / fps`` seconds long. The motion is resampled onto the
+frame times (:mod:`kinectdata.timeline`). The audio must cover at least ``min_coverage`` of the
+motion's duration; otherwise the pair is refused (audio shorter than the dance, or a wrong
+offset), not silently trimmed.
 """
 
 from __future__ import annotations
@@ -113,7 +115,16 @@ def align(
         )
     first_sample = math.ceil(start * sr - 1e-6)
     t0 = first_sample / sr
-    n = int(math.floor((end - t0) * fps + 1e-9)) + 1
+    # frame k (at t0 + k / fps on the audio clock) needs motion up to its time and audio for its
+    # whole period [t, t + 1 / fps)
+    n_motion = math.floor((m1 + o - t0) * fps + 1e-9) + 1
+    n_audio = math.floor((audio.samples.size - first_sample) / sr * fps + 1e-9)
+    n = min(n_motion, n_audio)
+    if n < 2:
+        raise AlignmentError(
+            f"{audio.source.get('path', 'the audio')}: audio ({audio.duration:.2f} s) and motion "
+            f"({m1 - m0:.2f} s) overlap by less than two frames at offset {o:+.3f} s"
+        )
     grid = np.clip(t0 + np.arange(n) / fps - o, m0, m1)
     res = resample_motion(motion, grid, max_gap=max_gap)
     out = res.motion
@@ -127,9 +138,10 @@ def align(
             "start_s": round(g.start + o - t0, 4),
             "end_s": round(g.end + o - t0, 4),
             "length_s": round(g.length, 4),
+            "edge": g.edge,
         }
         for g in res.gaps
-        if not g.filled and g.end + o > t0 and g.start + o < t0 + n / fps
+        if g.length > max_gap + 1e-9 and g.end + o > t0 and g.start + o < t0 + n / fps
     ]
     timing = motion.timing()
     valid_any = out.position_mask | res.position_interpolated
@@ -230,7 +242,8 @@ def format_summary(rec: AlignedRecording) -> str:
     )
     for g in rec.gaps[:10]:
         span = f"{g['start_s']:.3f}-{g['end_s']:.3f} s ({g['length_s']:.3f} s)"
-        lines.append(f"  masked gap    {g['joint']} {g['quantity']}: {span}")
+        where = ", at the recording's edge" if g["edge"] else ""
+        lines.append(f"  masked gap    {g['joint']} {g['quantity']}: {span}{where}")
     if len(rec.gaps) > 10:
         lines.append(f"  ... and {len(rec.gaps) - 10} more masked gaps")
     return "\n".join(lines)

@@ -40,6 +40,24 @@ from .motion import Motion
 
 FORMAT = "kinectdata.aligned"
 FORMAT_VERSION = 1
+_MAX_ARRAY_IN_ATTRIBUTE = 1024
+
+
+def _jsonable(value: Any) -> Any:
+    """numpy values for JSON attributes. Arrays of up to 1024 items become lists; larger ones
+    (per-frame data of the source recording, meaningless on the output grid and too big for an
+    HDF5 attribute) are replaced by a note of their shape."""
+    if isinstance(value, np.ndarray):
+        if value.size <= _MAX_ARRAY_IN_ATTRIBUTE:
+            return value.tolist()
+        return f"<array {list(value.shape)} {value.dtype} not kept>"
+    if isinstance(value, np.generic):
+        return value.item()
+    return str(value)
+
+
+def _dumps(value: Any) -> str:
+    return json.dumps(value, default=_jsonable)
 
 
 @dataclass(eq=False)
@@ -86,11 +104,11 @@ class AlignedRecording:
                     "sample_rate": self.sample_rate,
                     "joint_set": m.joint_set.name,
                     "created_by": f"kinectdata {__version__}",
-                    "offset": json.dumps(self.offset),
-                    "provenance": json.dumps(self.provenance),
-                    "summary": json.dumps(self.summary),
-                    "gaps": json.dumps(self.gaps),
-                    "metadata": json.dumps(m.metadata, default=str),
+                    "offset": _dumps(self.offset),
+                    "provenance": _dumps(self.provenance),
+                    "summary": _dumps(self.summary),
+                    "gaps": _dumps(self.gaps),
+                    "metadata": _dumps(m.metadata),
                 }
             )
             g = f.create_group("motion")

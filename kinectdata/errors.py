@@ -24,7 +24,7 @@ class InputError(KinectDataError):
 
     def __init__(
         self,
-        path: str | PathLike[str] | None,
+        path: str | PathLike[str] | None,  # None: the problem is not in a file (a bad name)
         message: str,
         *,
         line: int | None = None,
@@ -41,7 +41,9 @@ class InputError(KinectDataError):
         super().__init__(self._format())
 
     def _format(self) -> str:
-        parts = [self.path if self.path is not None else "<input>"]
+        if self.path is None:
+            return self.reason
+        parts = [self.path]
         if self.line is not None:
             parts.append(f"line {self.line}")
         if self.frame is not None:

@@ -104,11 +104,12 @@ def _from_document(doc: dict, path: Path) -> JointSet:
         if p is not None and p not in index:
             raise SchemaError(path, f"joint {j['name']!r} has unknown parent {p!r}")
         parents.append(-1 if p is None else index[p])
-    _check_acyclic(names, parents, path)
-    for key in ("no_orientation",):
-        for n in doc.get(key, []):
-            if n not in index:
-                raise SchemaError(path, f"{key} names unknown joint {n!r}")
+    cyclic = find_cycle(parents)
+    if cyclic is not None:
+        raise SchemaError(path, f"the hierarchy has a cycle through joint {names[cyclic]!r}")
+    for n in doc.get("no_orientation", []):
+        if n not in index:
+            raise SchemaError(path, f"no_orientation names unknown joint {n!r}")
     roles = doc.get("roles", {})
     for role, n in roles.items():
         if n not in index:
@@ -126,14 +127,16 @@ def _from_document(doc: dict, path: Path) -> JointSet:
     )
 
 
-def _check_acyclic(names: list[str], parents: list[int], path: Path) -> None:
-    for start in range(len(names)):
+def find_cycle(parents: Sequence[int]) -> int | None:
+    """Index of a joint on a cycle of a parent list (-1 marks roots), or None for a forest."""
+    for start in range(len(parents)):
         seen, j = set(), start
         while j >= 0:
             if j in seen:
-                raise SchemaError(path, f"the hierarchy has a cycle through joint {names[j]!r}")
+                return j
             seen.add(j)
             j = parents[j]
+    return None
 
 
 @cache

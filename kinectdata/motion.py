@@ -4,11 +4,14 @@ Conventions, used everywhere in kinectdata:
 
 - ``times`` [T] float64, seconds, strictly increasing. Readers make the first frame 0.0 and keep
   the file's own first timestamp in ``metadata["time_origin"]``.
-- ``positions`` [T, J, D] float64: metres in camera space for 3-D joint sets (D = 3; Kinect axes:
-  x right, y up, z away from the sensor), pixels for 2-D ones (D = 2).
+- ``positions`` [T, J, D] float64: metres for 3-D joint sets (D = 3), pixels for 2-D ones
+  (D = 2). Sensor formats give Kinect v2 camera space: x to the sensor's left (the right of a
+  person facing it), y up, z away from the sensor; HTR gives its own world frame
+  (``metadata["gravity_axis"]`` says which axis is up).
 - ``orientations`` [T, J, 4] float64 unit quaternions in scipy's scalar-last order (x, y, z, w),
   or None when the format has none.
-- ``confidence`` [T, J] float32 in 0..1 (Kinect: tracked 1.0, inferred 0.5, not tracked 0.0).
+- ``confidence`` [T, J] float32 in 0..1 (Kinect: tracked 1.0, inferred 0.5, not tracked 0.0);
+  always 0 where the position is masked.
 - ``position_mask`` / ``orientation_mask`` [T, J] bool: True where the value is valid. Invalid
   values are NaN, so that using one by mistake cannot go unnoticed.
 """
@@ -58,6 +61,7 @@ class Motion:
         self.confidence = np.asarray(self.confidence, dtype=np.float32)
         if self.confidence.shape != (T, J):
             raise ValueError(f"confidence must be [T, J] = {(T, J)}, got {self.confidence.shape}")
+        self.confidence = np.where(self.position_mask, self.confidence, np.float32(0.0))
         if self.orientations is not None:
             self.orientations = np.array(self.orientations, dtype=np.float64)
             if self.orientations.shape != (T, J, 4):

@@ -25,7 +25,8 @@ Two methods, tried in this order:
     Without claps: the normalised cross-correlation of the audio's onset envelope (spectral flux,
     100 Hz) with the motion's energy envelope (summed joint speed, 100 Hz). Music with a steady
     beat correlates almost as well one beat off, so confidence is ``1 - runner_up / best`` over
-    the correlation's local maxima more than 0.1 s from the best; it is low for steady music,
+    the correlation's local maxima more than :data:`MAIN_LOBE_S` from the best; it is low for
+    steady music,
     and then the estimate is refused rather than guessed.
 
 An estimate whose confidence is below ``min_confidence`` raises
@@ -40,7 +41,7 @@ from typing import Any
 import numpy as np
 from scipy import ndimage, signal
 
-from .audio import Audio
+from .audio import Audio, resample
 from .errors import AlignmentError
 from .motion import Motion
 
@@ -50,6 +51,10 @@ CLAP_MATCH_S = 0.06
 ISOLATION_DB = 20.0
 ISOLATION_MARGIN_DB = 20.0
 ENVELOPE_RATE = 100.0  # Hz, for the cross-correlation envelopes
+MAIN_LOBE_S = 0.25
+"""Correlation peaks closer than this to the best belong to its main lobe, not rivals. Shorter
+than the beat period of any dance music (0.33 s at 180 BPM), so a beat away still competes."""
+ANALYSIS_RATE = 16000  # Hz; audio at a lower rate is resampled to this for the analysis
 _FRAME_S = 0.005
 
 
@@ -191,16 +196,17 @@ def _clap_estimate(
 # Cross-correlation of envelopes
 # ---------------------------------------------------------------------------------------------
 def audio_onset_envelope(audio: Audio, rate: float = ENVELOPE_RATE) -> np.ndarray:
-    """Spectral-flux onset strength at ``rate`` Hz: summed positive change of log magnitude."""
-    hop = int(round(audio.sample_rate / rate))
+    """Spectral-flux onset strength (summed positive change of log magnitude) sampled at exactly
+    ``rate`` Hz, index k at ``k / rate`` seconds of the audio."""
+    hop = max(1, int(round(audio.sample_rate / rate)))
     _, _, z = signal.stft(
         audio.samples, fs=audio.sample_rate, nperseg=4 * hop, noverlap=3 * hop, boundary=None, padded=False
     )
     logmag = np.log1p(100.0 * np.abs(z))
     flux = np.maximum(np.diff(logmag, axis=1), 0.0).sum(axis=0)
-    # frame i of the STFT is centred at (i * hop + 2 * hop); the difference i belongs to frame i + 1
-    pad = int(round(3 * hop / hop))
-    return np.concatenate([np.zeros(pad), flux])
+    # STFT frame i is centred on sample (i + 2) * hop; difference i belongs to frame i + 1
+    times = (np.arange(flux.size) + 3) * hop / audio.sample_rate
+    return np.interp(np.arange(0.0, audio.duration, 1.0 / rate), times, flux, left=0.0, right=0.0)
 
 
 def motion_energy_envelope(motion: Motion, rate: float = ENVELOPE_RATE) -> np.ndarray:
@@ -230,7 +236,8 @@ def _xcorr_estimate(motion: Motion, audio: Audio, max_offset: float | None) -> O
     m = motion_energy_envelope(motion, rate)
     m = _zscore(np.maximum(np.diff(ndimage.uniform_filter1d(m, 5), prepend=m[0]), 0.0))
     corr = signal.correlate(a, m, mode="full", method="fft")
-    lags = np.arange(-(m.size - 1), a.size) / rate  # corr[k] = sum a[n + lag] m[n]
+    # corr[k] = sum_n a[n + k - (m.size - 1)] m[n]; m[n] is at motion time times[0] + n / rate
+    lags = np.arange(-(m.size - 1), a.size) / rate - motion.times[0]
     overlap = signal.correlate(np.ones(a.size), np.ones(m.size), mode="full", method="fft")
     minimum = 0.5 * min(a.size, m.size)
     score = np.where(overlap >= minimum, corr / np.maximum(overlap, 1.0), -np.inf)
@@ -240,7 +247,7 @@ def _xcorr_estimate(motion: Motion, audio: Audio, max_offset: float | None) -> O
         raise AlignmentError("the audio and the motion overlap too little to estimate their offset")
     best = int(np.argmax(score))
     peaks, _ = signal.find_peaks(np.where(np.isfinite(score), score, -1e9))
-    far = peaks[np.abs(lags[peaks] - lags[best]) > 0.1]
+    far = peaks[np.abs(lags[peaks] - lags[best]) > MAIN_LOBE_S]
     runner = float(score[far].max()) if far.size else 0.0
     p1 = float(score[best])
     conf = 0.0 if p1 <= 0 else float(np.clip(1.0 - max(runner, 0.0) / p1, 0.0, 1.0))
@@ -273,6 +280,8 @@ def estimate_offset(
     Raises:
         AlignmentError: no method reaches ``min_confidence``; the message gives the candidates.
     """
+    if audio.sample_rate < ANALYSIS_RATE / 2:  # too low for the 1 kHz high-pass and the flux
+        audio = Audio(resample(audio.samples, audio.sample_rate, ANALYSIS_RATE), ANALYSIS_RATE, audio.source)
     m_claps = motion_claps(motion)
     a_claps = audio_claps(audio) if m_claps else []
     clap = _clap_estimate(m_claps, a_claps, max_offset) if m_claps and a_claps else None

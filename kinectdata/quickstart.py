@@ -16,7 +16,9 @@ from .collection import find_sessions
 from .errors import KinectDataError
 from .synth import synthesize_recording, write_recording
 
-SAMPLE_COMMAND = "kinectdata synth sample_data --seed 1 --count 3 --duration 20"
+SAMPLE_SEEDS = (1, 2, 3)
+SAMPLE_DURATION_S = 22.0
+SAMPLE_COMMAND = "kinectdata synth sample_data --seed 1 --count 3 --duration 22"
 """The command that made ``sample_data/`` (also run by the quickstart when the folder is absent)."""
 
 FRAME_S = 1 / 30
@@ -42,10 +44,11 @@ def run_quickstart(
         if not samples.is_dir():
             samples = out / "sample_data"
             echo(f"[synth] no ./sample_data here: making it in {samples} ({SAMPLE_COMMAND})")
-            for seed in (1, 2, 3):
-                write_recording(synthesize_recording(seed=seed, duration_s=20.0), samples, f"synth_{seed:03d}")
-    echo("[synth] a new session: seed 7, 20 s")
-    fresh = synthesize_recording(seed=7, duration_s=20.0)
+            for seed in SAMPLE_SEEDS:
+                rec = synthesize_recording(seed=seed, duration_s=SAMPLE_DURATION_S)
+                write_recording(rec, samples, f"synth_{seed:03d}")
+    echo(f"[synth] a new session: seed 7, {SAMPLE_DURATION_S:g} s")
+    fresh = synthesize_recording(seed=7, duration_s=SAMPLE_DURATION_S)
     write_recording(fresh, out / "synth", "synth_007")
 
     sessions = find_sessions(samples) + find_sessions(out / "synth")

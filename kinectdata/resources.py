@@ -21,7 +21,7 @@ def schemas_dir() -> Path:
 
 
 def shipped_names(kind: str) -> list[str]:
-    """Names (file stems) of the shipped files of one kind: ``jointsets``, ``csv``, ``targets``."""
+    """Names (file stems) of the shipped files of one kind (a folder of ``schemas/``: ``jointsets``, ``csv``)."""
     return sorted(p.stem for p in (schemas_dir() / kind).glob("*.json"))
 
 

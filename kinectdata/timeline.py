@@ -6,10 +6,12 @@ joint's quaternions have been made sign-continuous (q . q_prev >= 0), confidence
 
 A *gap* is a stretch where a joint has no valid sample: two consecutive valid samples further
 apart than 1.5 nominal frame intervals (the joint was untracked, or whole frames were dropped).
-Its length is the time with no data, ``t_after - t_before - nominal interval``. Grid times
-inside a gap no longer than ``max_gap`` seconds are interpolated and flagged; inside a longer
-gap they are masked. Grid times before a joint's first or after its last valid sample are masked
-(nothing is extrapolated).
+Its length is the duration of the frames missing in it, ``(round((t_after - t_before) / dt) - 1)
+* dt`` with ``dt`` the nominal (median) interval, so that timestamp jitter cannot change it.
+Grid times inside a gap no longer than ``max_gap`` seconds are interpolated and flagged, and
+their confidence is at most 0.5 (what Kinect reports for joints it infers); inside a longer gap
+they are masked. Grid times before a joint's first or after its last valid sample are masked
+(nothing is extrapolated): those are *edge* gaps.
 """
 
 from __future__ import annotations
@@ -24,15 +26,18 @@ from .quaternions import make_continuous
 
 GAP_FACTOR = 1.5
 """Consecutive valid samples further apart than this many nominal intervals bound a gap."""
+INFERRED_CONFIDENCE = 0.5
+"""Highest confidence of a value filled across a gap (Kinect's level for inferred joints)."""
 
 
 @dataclass(frozen=True)
 class Gap:
     """A stretch where one joint's position or orientation has no valid sample.
 
-    ``start`` / ``end`` are the source times (seconds) of the valid samples around it (for a gap at
-    the start or end of the recording: the recording's first / last frame time); ``length`` is
-    the time with no data in seconds; ``filled`` tells whether it was interpolated.
+    ``start`` / ``end`` are the source times (seconds) of the valid samples around it (for an
+    edge gap, at the start or end of the recording: the recording's first / last frame time);
+    ``length`` is the duration of the missing frames in seconds; ``filled`` tells whether it was
+    interpolated (never, for an edge gap).
     """
 
     joint: str
@@ -41,6 +46,7 @@ class Gap:
     end: float
     length: float
     filled: bool
+    edge: bool = False
 
 
 @dataclass(eq=False)
@@ -60,6 +66,11 @@ def nominal_interval(times: np.ndarray) -> float:
     return float(np.median(np.diff(times)))
 
 
+def _missing_duration(span: np.ndarray | float, dt: float) -> np.ndarray | float:
+    """Seconds of frames missing between two valid samples ``span`` seconds apart."""
+    return (np.round(np.asarray(span) / dt) - 1) * dt
+
+
 def _brackets(tv: np.ndarray, grid: np.ndarray, dt: float, max_gap: float):
     """For each grid time: left/right valid-sample indices, weight, validity and gap flag."""
     n = tv.size
@@ -72,22 +83,26 @@ def _brackets(tv: np.ndarray, grid: np.ndarray, dt: float, max_gap: float):
     with np.errstate(invalid="ignore", divide="ignore"):
         w = np.where(span > 0, (grid - tv[a]) / np.where(span > 0, span, 1.0), 0.0)
     in_gap = inside & (span > GAP_FACTOR * dt) & (w > 0)
-    too_long = in_gap & (span - dt > max_gap)
+    too_long = in_gap & (_missing_duration(span, dt) > max_gap + 1e-9)
     return a, b, w, inside & ~too_long, in_gap & ~too_long
 
 
 def _gaps(name: str, quantity: str, tv: np.ndarray, t0: float, t1: float, dt: float, max_gap: float) -> list[Gap]:
-    out = []
     if tv.size == 0:
-        return [Gap(name, quantity, t0, t1, t1 - t0 + dt, False)]
+        return [Gap(name, quantity, t0, t1, t1 - t0 + dt, False, edge=True)]
+    out = []
     if tv[0] - t0 > GAP_FACTOR * dt / 2:
-        out.append(Gap(name, quantity, t0, float(tv[0]), float(tv[0] - t0), False))
+        out.append(
+            Gap(name, quantity, t0, float(tv[0]), float(_missing_duration(tv[0] - t0 + dt, dt)), False, edge=True)
+        )
     spans = np.diff(tv)
     for i in np.flatnonzero(spans > GAP_FACTOR * dt):
-        length = float(spans[i] - dt)
-        out.append(Gap(name, quantity, float(tv[i]), float(tv[i + 1]), length, length <= max_gap))
+        length = float(_missing_duration(spans[i], dt))
+        out.append(Gap(name, quantity, float(tv[i]), float(tv[i + 1]), length, length <= max_gap + 1e-9))
     if t1 - tv[-1] > GAP_FACTOR * dt / 2:
-        out.append(Gap(name, quantity, float(tv[-1]), t1, float(t1 - tv[-1]), False))
+        out.append(
+            Gap(name, quantity, float(tv[-1]), t1, float(_missing_duration(t1 - tv[-1] + dt, dt)), False, edge=True)
+        )
     return out
 
 
@@ -122,7 +137,8 @@ def resample_motion(motion: Motion, grid: np.ndarray, max_gap: float = 0.2) -> R
         va, vb = motion.positions[idx[a], j], motion.positions[idx[b], j]
         pos[ok, j] = (va + w[:, None] * (vb - va))[ok]
         ca, cb = motion.confidence[idx[a], j], motion.confidence[idx[b], j]
-        conf[ok, j] = (ca + w * (cb - ca))[ok]
+        c = ca + w * (cb - ca)
+        conf[ok, j] = np.where(filled, np.minimum(c, INFERRED_CONFIDENCE), c)[ok]
         pmask[:, j], pint[:, j] = ok, filled
 
     quats = qmask = qint = None

@@ -2,10 +2,14 @@
 
 from __future__ import annotations
 
+import json
+
 import numpy as np
 import pytest
 import soundfile as sf
 from conftest import REPO
+from helpers import random_motion
+from scipy.spatial.transform import Rotation
 
 from kinectdata.align import align, align_files
 from kinectdata.aligned import AlignedRecording
@@ -13,6 +17,7 @@ from kinectdata.audio import load_audio
 from kinectdata.collection import find_sessions
 from kinectdata.errors import AlignmentError, AudioError, FormatError
 from kinectdata.formats import read_motion
+from kinectdata.jointsets import load_joint_set
 
 
 @pytest.fixture
@@ -120,3 +125,83 @@ def test_align_other_rates_and_options(fixture_csv, noise_wav):
     np.testing.assert_array_equal(rec.motion.times, np.arange(rec.n_frames) / 60.0)
     with pytest.raises(Exception, match="fps must be a positive number"):
         align(src, audio, fps=0, offset=0.1)
+
+
+def test_audio_ending_first_limits_the_frames_so_each_has_its_full_audio(tmp_path):
+    sample = REPO / "sample_data" / "synth_003"
+    x, sr = sf.read(f"{sample}.flac")
+    cut = tmp_path / "cut.wav"
+    sf.write(cut, x[: int(18.51 * sr)], sr)
+    rec = align_files(f"{sample}.csv", cut, offset="auto", min_coverage=0.5)
+    assert rec.audio.size == round(rec.n_frames * 16000 / 30)
+    assert (rec.n_frames - 1) / 30 + 1 / 30 <= 18.51 - rec.summary["audio_trimmed_start_s"] + 1e-9
+
+
+def test_too_little_overlap_is_refused_even_without_a_coverage_requirement(fixture_csv, noise_wav):
+    for offset in (100.0, -100.0, -5.16):
+        with pytest.raises(AlignmentError, match="overlap by less than two frames|covers only"):
+            align_files(fixture_csv, noise_wav, offset=offset, min_coverage=0.0)
+
+
+def test_short_edge_gap_is_not_reported_as_long(fixture_csv, noise_wav, tmp_path):
+    lines = fixture_csv.read_text().splitlines()
+    cells = lines[0].rstrip(",").split(",")
+    cells[1 + 4 * 7 + 3] = "0"  # HandLeft not tracked in the first frame only
+    lines[0] = ",".join(cells) + ","
+    path = tmp_path / "edge.csv"
+    path.write_text("\n".join(lines) + "\n")
+    rec = align_files(path, noise_wav, offset=0.0)
+    assert rec.gaps == [] and not rec.motion.position_mask[0, 7]
+
+
+@pytest.mark.parametrize("fmt", ["htr", "ntu", "azure_json"])
+def test_every_format_aligns_and_saves(fmt, tmp_path, noise_wav):
+    m = random_motion(T=60, seed=2)
+    if fmt == "htr":
+        path = REPO / "tests" / "data" / "htr" / "two_segments.htr"
+    elif fmt == "ntu":
+        path = tmp_path / "S001C001P001R001A001.skeleton"
+        lines = [str(m.n_frames)]
+        q = Rotation.random(25, random_state=0).as_quat()[:, [3, 0, 1, 2]]
+        for f in range(m.n_frames):
+            lines += ["1", "72057594037931101 0 1 1 1 1 0 0.1 0.2 2", "25"]
+            lines += [" ".join(map(str, [*np.nan_to_num(m.positions[f, j]), 0, 0, 0, 0, *q[j], 2])) for j in range(25)]
+        path.write_text("\n".join(lines) + "\n")
+    else:
+        import json
+
+        names = list(load_joint_set("azure_kinect").names)
+        q = Rotation.random(32, random_state=0).as_quat()[:, [3, 0, 1, 2]].tolist()
+        frames = [
+            {
+                "timestamp_usec": 1000 + 33333 * f,
+                "frame_id": f,
+                "num_bodies": 1,
+                "bodies": [{"body_id": 1, "joint_positions": [[10.0 * f, 0, 2000]] * 32, "joint_orientations": q}],
+            }
+            for f in range(60)
+        ]
+        path = tmp_path / "azure.json"
+        path.write_text(json.dumps({"joint_names": names, "bone_list": [], "frames": frames}))
+    rec = align_files(path, noise_wav, tmp_path / "out.h5", offset=0.0, min_coverage=0.0)
+    back = AlignedRecording.load(tmp_path / "out.h5")
+    assert back.n_frames == rec.n_frames >= 2 and back.provenance["motion"]["format"] == fmt
+
+
+def test_azure_skeleton_comes_out_upright(tmp_path):
+    names = list(load_joint_set("azure_kinect").names)
+    pos = np.zeros((32, 3))
+    pos[names.index("HEAD")] = [100.0, -600.0, 2000.0]  # Azure: y down, so the head has smaller y
+    pos[names.index("PELVIS")] = [100.0, 100.0, 2000.0]
+    frames = [
+        {
+            "timestamp_usec": 33333 * f,
+            "num_bodies": 1,
+            "bodies": [{"body_id": 1, "joint_positions": pos.tolist(), "joint_orientations": [[1, 0, 0, 0]] * 32}],
+        }
+        for f in range(3)
+    ]
+    (tmp_path / "a.json").write_text(json.dumps({"joint_names": names, "frames": frames}))
+    m = read_motion(tmp_path / "a.json")
+    head, pelvis = m.joint_positions("HEAD")[0], m.joint_positions("PELVIS")[0]
+    assert head[1] > pelvis[1] and head[0] == pytest.approx(-0.1)  # y up; x to the sensor's left

@@ -7,6 +7,7 @@ import re
 
 import numpy as np
 import pytest
+from scipy.spatial.transform import Rotation
 
 from kinectdata.errors import FormatError
 from kinectdata.formats import detect_format, read_motion
@@ -34,6 +35,8 @@ BONES = [
     ("KNEE_RIGHT", "ANKLE_RIGHT"), ("ANKLE_RIGHT", "FOOT_RIGHT"), ("NOSE", "EYE_RIGHT"), ("EYE_RIGHT", "EAR_RIGHT"),
 ]  # fmt: skip
 T0 = 1_234_567  # first device timestamp, microseconds
+
+AXES = np.array([-1.0, -1.0, 1.0])  # Azure (x right, y down) -> Kinect v2 (x left, y up)
 
 
 def make_body(rng: np.random.Generator, body_id, n_joints: int = 32) -> tuple[dict, np.ndarray, np.ndarray]:
@@ -103,13 +106,15 @@ def test_values(tmp_path, two_bodies):
     assert np.isnan(m.positions[~present]).all() and not m.orientation_mask[~present].any()
     for f in np.flatnonzero(present):
         _, pos, q = b2[f]
-        np.testing.assert_allclose(m.positions[f], pos / 1000.0, rtol=1e-15)
-        np.testing.assert_allclose(m.orientations[f], q[:, [1, 2, 3, 0]], atol=1e-12)
+        np.testing.assert_allclose(m.positions[f], pos / 1000.0 * AXES, rtol=1e-15)
+        # orientation in Kinect v2 axes: the file's rotation (w, x, y, z) turned 180 deg about z
+        expected = np.diag(AXES) @ Rotation.from_quat(q[:, [1, 2, 3, 0]]).as_matrix()
+        np.testing.assert_allclose(Rotation.from_quat(m.orientations[f]).as_matrix(), expected, atol=1e-12)
 
     m1 = read_azure_json(write(tmp_path, doc), body="1")
     assert m1.metadata["body"] == "1"
     assert list(m1.position_mask.all(axis=1)) == [True, True, False, False, False, True]
-    np.testing.assert_allclose(m1.positions[5], b1[5][1] / 1000.0, rtol=1e-15)  # second entry of its frame
+    np.testing.assert_allclose(m1.positions[5], b1[5][1] / 1000.0 * AXES, rtol=1e-15)  # second entry of its frame
 
 
 def test_tie_goes_to_first_and_zero_quaternion_masked(tmp_path):
@@ -121,7 +126,7 @@ def test_tie_goes_to_first_and_zero_quaternion_masked(tmp_path):
     assert m.metadata["body"] == "3"
     m = read_azure_json(write(tmp_path, make_doc([(100, [b]), (200, [a])])), body="5")
     assert not m.orientation_mask[1, 9] and m.orientation_mask[1, :9].all()
-    np.testing.assert_allclose(m.positions[1, 9], pa[9] / 1000.0)
+    np.testing.assert_allclose(m.positions[1, 9], pa[9] / 1000.0 * AXES)
 
 
 def test_custom_joint_set_from_bone_list(tmp_path):
@@ -133,7 +138,7 @@ def test_custom_joint_set_from_bone_list(tmp_path):
     assert m.joint_set.name == "azure_kinect_4"
     assert m.joint_set.names == tuple(names)
     assert m.joint_set.parents == (-1, 0, 1, 1)
-    np.testing.assert_allclose(m.positions[0], pos / 1000.0)
+    np.testing.assert_allclose(m.positions[0], pos / 1000.0 * AXES)
 
 
 def test_read_motion_detects_by_content(tmp_path, two_bodies):

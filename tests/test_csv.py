@@ -222,7 +222,7 @@ def test_bad_schemas_get_clear_errors(tmp_path):
     kr = json.loads(json.dumps(load_csv_schema("kinectreader").document))
     kr["time"] = {"column": "stamp", "unit": "ticks"}
     assert "time.column 'stamp' is not among 'columns'" in _schema_error(tmp_path, kr)
-    with pytest.raises(SchemaError, match="no shipped csv file named 'nope'"):
+    with pytest.raises(SchemaError, match=r"^unknown CSV schema 'nope': no such file.*shipped: canonical"):
         load_csv_schema("nope")
 
 
@@ -331,7 +331,51 @@ def test_not_a_unit_quaternion(tmp_path):
     path = tmp_path / "d.csv"
     write_csv(random_motion(T=3, untracked=0.0), path, "dumpkinectskeleton")
     _edit(path, 4, lambda row: ",".join(row.split(",")[:5] + ["0.5", "0", "0", "0.5"] + row.split(",")[9:]))
-    assert "line 4: orientation of joint 'Neck' is not a unit quaternion (norm 0.707" in _error(path)
+    assert "line 4, column 'qx': orientation of joint 'Neck' is not a unit quaternion (norm 0.707" in _error(path)
+
+
+def test_junk_orientation_of_an_untracked_joint_is_masked_not_an_error(tmp_path):
+    path = tmp_path / "d.csv"
+    write_csv(random_motion(T=3, untracked=0.0), path, "dumpkinectskeleton")
+    junk = ["0.5", "0", "0", "0.5"]
+    _edit(path, 4, lambda row: ",".join(row.split(",")[:5] + junk + ["0"]))  # Neck, frame 0, not tracked
+    m = read_motion(path)
+    neck = m.joint_set.index("Neck")
+    assert not m.position_mask[0, neck] and not m.orientation_mask[0, neck]
+
+
+def test_masked_positions_are_written_as_not_tracked_in_every_dialect(tmp_path):
+    m = random_motion(T=4, untracked=0.0, inferred=0.0)
+    mask = m.position_mask.copy()
+    mask[2, 7] = False
+    from kinectdata.motion import Motion
+
+    m = Motion(
+        m.times,
+        m.positions,
+        m.joint_set,
+        position_mask=mask,
+        confidence=np.ones(mask.shape),
+        orientations=m.orientations,
+    )
+    for dialect in DIALECTS:
+        write_csv(m, tmp_path / f"{dialect}.csv", dialect)
+        back = read_motion(tmp_path / f"{dialect}.csv")
+        assert not back.position_mask[2, 7] and back.position_mask.sum() == mask.sum(), dialect
+
+
+def test_schema_naming_unknown_joints_or_joint_set_is_refused_in_its_own_file(tmp_path, fixture_csv):
+    doc = json.loads(json.dumps(load_csv_schema("kinectreader").document))
+    for change, expected in [
+        ({"joints": ["SpineBase", "Nope"]}, "joints: 'Nope' is not a joint of kinect_v2"),
+        ({"joint_names": {"Spine_Base": "SpineBottom"}}, "joint_names: 'Spine_Base' maps to 'SpineBottom'"),
+        ({"joint_set": "kinect_v3"}, "joint_set 'kinect_v3': no shipped jointsets file named 'kinect_v3'"),
+    ]:
+        path = tmp_path / "mine.json"
+        path.write_text(json.dumps({**doc, **change}))
+        with pytest.raises(SchemaError) as err:
+            read_motion(fixture_csv, schema=path)
+        assert str(err.value).startswith(f"{path}: {expected}"), str(err.value)
 
 
 def test_empty_and_header_only_files(tmp_path):

@@ -71,3 +71,38 @@ def test_motion_without_hand_roles_has_no_claps():
     js = JointSet.custom("bare", ["a", "b"])
     m = Motion(np.arange(10) / 30, np.zeros((10, 2, 3)), js)
     assert motion_claps(m) == []
+
+
+def _irregular_events_scene(offset, sr=16000, seed=0, t0=0.0):
+    """Motion whose right foot kicks at irregular times, audio with a hit at the same times."""
+    from kinectdata.jointsets import load_joint_set
+    from kinectdata.motion import Motion
+
+    rng = np.random.default_rng(seed)
+    events = np.sort(rng.uniform(2, 50, 25))
+    t = np.arange(0, 55, 1 / 30)
+    pos = np.zeros((t.size, 25, 3))
+    pos[..., 0], pos[..., 2] = np.linspace(-0.3, 0.3, 25), 2.5
+    for e in events:
+        d = t - e
+        pos[:, 19, 1] += 0.15 * np.clip(d / 0.06, 0, 1) * np.clip(1 - (d - 0.06) / 0.44, 0, 1) * (d > 0)
+    x = rng.normal(0, 0.001, 60 * sr)
+    for e in events:
+        i, k = int((e + offset) * sr), np.arange(int(0.05 * sr))
+        x[i : i + k.size] += rng.normal(0, 0.3, k.size) * np.exp(-k / (0.01 * sr))
+    return Motion(t + t0, pos, load_joint_set("kinect_v2")), Audio(x.astype(np.float32), sr)
+
+
+@pytest.mark.parametrize("sr,t0", [(16000, 0.0), (22050, 0.0), (11025, 0.0), (16000, 5.0)])
+def test_cross_correlation_succeeds_on_irregular_events_at_any_rate_and_start(sr, t0):
+    motion, audio = _irregular_events_scene(0.8, sr=sr, t0=t0)
+    est = estimate_offset(motion, audio)
+    assert est.method == "xcorr" and est.confidence > 0.5
+    assert est.offset == pytest.approx(0.8 - t0, abs=FRAME)
+
+
+def test_low_sample_rate_audio_is_analysed_at_16k():
+    rec = synthesize_recording(seed=12, duration_s=12.0, offset_s=0.6)
+    audio = Audio(resample(to_mono(rec.audio), rec.sample_rate, 2000), 2000)
+    est = estimate_offset(rec.motion, audio)
+    assert est.method == "clap" and est.offset == pytest.approx(0.6, abs=FRAME)

@@ -120,3 +120,29 @@ def test_dropped_frame_is_filled_and_flagged_for_every_joint():
     r = resample_motion(m, grid)
     assert r.position_interpolated[20].all() and r.position_interpolated.sum() == 15
     assert r.motion.position_mask.all()
+
+
+def test_gap_length_counts_missing_frames_whatever_the_jitter():
+    rng = np.random.default_rng(7)
+    t = np.arange(200) / 30.0 + rng.uniform(-0.006, 0.006, 200)
+    mask = np.ones((200, 15), bool)
+    mask[50:56, 0] = False  # 6 missing frames: 0.2 s, filled at max_gap 0.2 whatever the jitter
+    mask[100:107, 1] = False  # 7 missing frames: 0.233 s, masked
+    m = Motion(t, np.zeros((200, 15, 3)), NITE, position_mask=mask)
+    r = resample_motion(m, np.arange(0.1, 6.5, 1 / 30), max_gap=0.2)
+    gaps = {g.joint: g for g in r.gaps}
+    assert gaps["HEAD"].length == pytest.approx(6 / 30, rel=0.02) and gaps["HEAD"].filled
+    assert gaps["NECK"].length == pytest.approx(7 / 30, rel=0.02) and not gaps["NECK"].filled
+
+
+def test_edge_gaps_are_marked_and_filled_values_are_at_most_inferred():
+    t = np.arange(60) / 30.0
+    mask = np.ones((60, 15), bool)
+    mask[:3, 4] = False  # joint 4 appears late: an edge gap
+    mask[20:23, 5] = False  # a short inner gap
+    m = Motion(t, np.ones((60, 15, 3)), NITE, position_mask=mask)
+    r = resample_motion(m, t, max_gap=0.2)
+    edge = [g for g in r.gaps if g.joint == "LEFT_ELBOW"]
+    assert len(edge) == 1 and edge[0].edge and not edge[0].filled
+    assert edge[0].length == pytest.approx(3 / 30)
+    assert (r.motion.confidence[20:23, 5] == 0.5).all() and (r.motion.confidence[10, 5] == 1.0)

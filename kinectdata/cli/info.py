@@ -50,11 +50,17 @@ def formats() -> None:
         click.echo(f"  {name:<14} {exts:<12} {r.description}")
     click.echo("CSV dialects (--schema):")
     for name in shipped_csv_schemas():
-        click.echo(f"  {name:<20} {load_csv_schema(name).get('description', '').split('.')[0]}")
+        click.echo(f"  {name:<20} {_headline(load_csv_schema(name).get('description', ''))}")
     click.echo("joint sets:")
     for name in shipped_joint_sets():
         js = load_joint_set(name)
         click.echo(f"  {name:<14} {len(js)} joints, {js.dimensions}-D")
+
+
+def _headline(text: str, width: int = 76) -> str:
+    """The part of a description before its first colon or full stop, cut at a word."""
+    head = text.split(": ")[0].split(". ")[0]
+    return head if len(head) <= width else head[: width - 3].rsplit(" ", 1)[0] + "..."
 
 
 COMMANDS = [info, formats]

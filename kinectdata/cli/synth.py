@@ -5,14 +5,19 @@ from __future__ import annotations
 import click
 
 from ..synth import synthesize_recording, write_recording
+from ..synth.recording import DIALECTS
 
-DIALECTS = ["dumpkinectskeleton", "kinectreader", "lsl_kinect", "canonical"]
+MAX_DURATION_S = 600.0  # the generator needs about 5 MB of memory per second of audio
 
 
 @click.command()
 @click.argument("out_dir", type=click.Path(file_okay=False, path_type=str))
 @click.option(
-    "--seed", default=0, show_default=True, type=int, help="Random seed; the same options give identical files."
+    "--seed",
+    default=0,
+    show_default=True,
+    type=click.IntRange(min=0),
+    help="Random seed; the same options give identical files.",
 )
 @click.option(
     "--count",
@@ -25,20 +30,20 @@ DIALECTS = ["dumpkinectskeleton", "kinectreader", "lsl_kinect", "canonical"]
     "--duration",
     default=30.0,
     show_default=True,
-    type=click.FloatRange(min=8),
+    type=click.FloatRange(min=8, max=MAX_DURATION_S),
     help="Audio length in seconds (the skeleton recording is a little shorter).",
 )
 @click.option(
     "--tempo",
     default=None,
-    type=click.FloatRange(min=60, max=200),
+    type=click.FloatRange(min=30, max=300),
     metavar="BPM",
     help="Tempo in beats per minute. Default: drawn from 96..128 by the seed.",
 )
 @click.option(
     "--offset",
     default=None,
-    type=float,
+    type=click.FloatRange(min=-5, max=MAX_DURATION_S),
     metavar="SECONDS",
     help="Audio-to-motion offset, audio_time = motion_time + offset. Default: drawn from -1.5..2.5 s.",
 )
@@ -72,9 +77,12 @@ def synth(out_dir, seed, count, duration, tempo, offset, no_clap, sample_rate, d
     if name is not None and count > 1:
         raise click.UsageError("--name applies to a single session; with --count the names are synth_<seed>")
     for s in range(seed, seed + count):
-        rec = synthesize_recording(
-            seed=s, duration_s=duration, tempo_bpm=tempo, offset_s=offset, clap=not no_clap, sample_rate=sample_rate
-        )
+        try:
+            rec = synthesize_recording(
+                seed=s, duration_s=duration, tempo_bpm=tempo, offset_s=offset, clap=not no_clap, sample_rate=sample_rate
+            )
+        except ValueError as exc:  # the generator's own checks of option combinations
+            raise click.UsageError(str(exc)) from exc
         stem = name or f"synth_{s:03d}"
         paths = write_recording(rec, out_dir, stem, dialect=dialect, audio_format=audio_format)
         t = rec.truth

@@ -15,6 +15,10 @@ Mapping to :class:`~kinectdata.motion.Motion`:
   in the most frames (ties: the first to appear). Frames without it stay, fully masked;
 - ``times`` are seconds from the first frame's ``timestamp_usec``; positions are converted from
   millimetres to metres, quaternions from (w, x, y, z) to (x, y, z, w) (all-zero = no orientation);
+- axes: Azure Kinect reports the depth camera's frame (x right, y down, z forward); kinectdata
+  uses the Kinect v2 camera convention (x to the sensor's left, y up, z forward), so positions
+  become (-x, -y, z) and orientations R become Rz(180 deg) R: a 180-degree turn about z, which
+  keeps the frame right-handed and the skeleton upright and unmirrored next to Kinect v2 data;
 - the tool writes no per-joint confidence: 1.0 wherever the body is present.
 
 Errors name the 0-based frame index (and ``bodies[i]``), or the line of a JSON syntax error.
@@ -28,6 +32,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from scipy.spatial.transform import Rotation
 
 from ..errors import FormatError
 from ..jointsets import JointSet, load_joint_set
@@ -158,6 +163,10 @@ def _numbers(
     raise FormatError(path, f"'{key}' values cannot be read as numbers")
 
 
+_TURN_Z = np.array([-1.0, -1.0, 1.0])  # Azure depth-camera axes -> Kinect v2 camera axes
+_ROT_Z180 = Rotation.from_quat([0.0, 0.0, 1.0, 0.0])
+
+
 @register_reader(
     "azure_json",
     extensions=(),
@@ -264,7 +273,11 @@ def read_azure_json(path: Path, *, body: str | None = None) -> Motion:
 
     T = len(frames)
     positions = np.full((T, J, 3), np.nan)
-    positions[frame_idx] = positions_mm[chosen] / 1000.0
+    positions[frame_idx] = positions_mm[chosen] / 1000.0 * _TURN_Z
+    valid = present.reshape(-1)
+    flat = unit.reshape(-1, 4)
+    flat[valid] = (_ROT_Z180 * Rotation.from_quat(flat[valid])).as_quat(canonical=False)
+    unit = flat.reshape(unit.shape)
     position_mask = np.zeros((T, J), bool)
     position_mask[frame_idx] = True
     orientations = np.full((T, J, 4), np.nan)
@@ -285,6 +298,7 @@ def read_azure_json(path: Path, *, body: str | None = None) -> Motion:
             "format": "azure_json",
             "time_origin": {"value": first, "unit": "us"},
             "time_source": "timestamp_usec (device clock)",
+            "axes": "Kinect v2 camera space (converted from Azure's x right, y down, z forward)",
             "body": body,
             "bodies": bodies_meta,
             "k4abt_sdk_version": doc.get("k4abt_sdk_version"),

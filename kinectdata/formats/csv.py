@@ -26,7 +26,7 @@ from ..jointsets import JointSet, find_joint_set, load_joint_set, shipped_joint_
 from ..motion import Motion
 from ..quaternions import reorder, split_missing_and_normalise, xyzw_to_wxyz
 from .common import choose_body, count_bodies, read_text
-from .csv_schema import JOINT, CsvSchema, load_csv_schema, shipped_csv_schemas
+from .csv_schema import JOINT, CsvSchema, joint_set_of, load_csv_schema, shipped_csv_schemas
 from .registry import register_reader
 
 _META_LINE = re.compile(r"^\s*([A-Za-z_][\w.-]*)\s*:\s*(.*?)\s*$")
@@ -341,7 +341,7 @@ def _frame_times(table: _Table, rows: np.ndarray | None, n_rows: int) -> tuple[n
 
 def _read_wide(table: _Table, joint_set: JointSet, body: str | None) -> tuple:
     schema = table.schema
-    present = [joint_set.index(n) for n in schema.get("joints", joint_set.names)]
+    present = [joint_set.index(n) for n in schema.get("joints", joint_set.names)]  # checked in joint_set_of
     if schema.has_header:
         _check_header(table, joint_set, present)
     key = np.arange(len(table.lines))
@@ -471,20 +471,25 @@ def _build_motion(path: Path, schema: CsvSchema, joint_set: JointSet, parts: tup
     if quats is not None:
         order = schema.document["orientation"]["order"]
         q_missing = ~np.isfinite(quats).all(axis=-1)
+        gated = schema.document["orientation"].get("gated_by_tracking", True)
         unit, present, bad = split_missing_and_normalise(reorder(np.nan_to_num(quats), order))
         bad &= ~q_missing & joint_set.orientation_mask[None, :]
+        if gated:
+            bad &= position_mask  # junk written for untracked joints is expected, and masked
         if bad.any():
             f, j = np.argwhere(bad)[0]
+            column = schema.document["orientation"]["columns"][0]
+            if schema.layout == "wide":
+                column = column.replace(JOINT, _file_joint_names(schema, joint_set)[j])
             raise FormatError(
                 path,
                 f"orientation of joint {joint_set.names[j]!r} is not a unit quaternion "
                 f"(norm {np.linalg.norm(quats[f, j]):.3f}; is the quaternion order {order} right?)",
                 line=int(lines[f] if lines.ndim == 1 else lines[f, j]),
+                column=column,
             )
         orientations = unit
-        orientation_mask = present & ~q_missing
-        if schema.document["orientation"].get("gated_by_tracking", True):
-            orientation_mask &= position_mask
+        orientation_mask = present & ~q_missing & (position_mask if gated else True)
     metadata = {
         "format": "csv",
         "schema": schema.name,
@@ -600,7 +605,7 @@ def read_csv_motion(
     """
     path = Path(path)
     sch = load_csv_schema(schema) if schema is not None else detect_csv_schema(path)
-    fixed = None if sch.joint_set == "auto" else load_joint_set(sch.joint_set)
+    fixed = None if sch.joint_set == "auto" else joint_set_of(sch)
     table = _load_table(path, sch, fixed)
     joint_set = fixed or _resolve_joint_set(sch, table.names, table.meta, path)
     if len(sch.document["position"]["columns"]) != joint_set.dimensions:
@@ -657,7 +662,7 @@ def write_csv(
     """
     sch = load_csv_schema(schema)
     js = motion.joint_set
-    if sch.joint_set != "auto" and load_joint_set(sch.joint_set).names != js.names:
+    if sch.joint_set != "auto" and joint_set_of(sch).names != js.names:
         raise KinectDataError(f"the {sch.name} dialect is for joint set {sch.joint_set}, the motion has {js.name}")
     doc = sch.document
     T, J = motion.n_frames, len(js)

@@ -15,6 +15,7 @@ from pathlib import Path
 from typing import Any
 
 from ..errors import SchemaError
+from ..jointsets import JointSet, load_joint_set
 from ..resources import load_json, shipped_names, shipped_path, validate
 
 JOINT = "{joint}"
@@ -50,7 +51,7 @@ class CsvSchema:
 
     @property
     def has_header(self) -> bool:
-        return bool(self.document.get("header", "columns" not in self.document))
+        return _has_header(self.document)
 
     @property
     def missing_values(self) -> frozenset[str]:
@@ -76,12 +77,7 @@ class CsvSchema:
 
     def per_joint_columns(self) -> list[str]:
         """Every column template that names a joint field (position, orientation, tracking)."""
-        d = self.document
-        cols = list(d["position"]["columns"])
-        cols += d.get("orientation", {}).get("columns", [])
-        if "tracking" in d:
-            cols.append(d["tracking"]["column"])
-        return cols
+        return _joint_field_templates(self.document)
 
     def headerless_columns(self, joint_file_names: list[str]) -> list[str]:
         """Column names of a headerless file, expanding ``per_joint`` entries over the joints."""
@@ -114,7 +110,7 @@ def _check_semantics(doc: dict[str, Any], path: Path) -> None:
             re.compile(doc["signature"])
         except re.error as exc:
             raise SchemaError(path, f"signature is not a valid regular expression: {exc}") from exc
-    if doc["joint_set"] == "auto" and not doc.get("header", "columns" not in doc):
+    if doc["joint_set"] == "auto" and not _has_header(doc):
         raise SchemaError(path, 'joint_set "auto" needs a header naming the joints')
     if "time" not in doc:
         raise SchemaError(path, "the schema must say where frame times come from: time.column + time.unit, or time.fps")
@@ -128,6 +124,10 @@ def _check_semantics(doc: dict[str, Any], path: Path) -> None:
         for tmpl in _joint_field_templates(doc):
             if tmpl not in (templates if wide else plain):
                 raise SchemaError(path, f"column {tmpl!r} is not among 'columns'")
+
+
+def _has_header(doc: dict[str, Any]) -> bool:
+    return bool(doc.get("header", "columns" not in doc))
 
 
 def _joint_field_templates(doc: dict[str, Any]) -> list[str]:
@@ -149,6 +149,23 @@ def _shipped(name: str) -> CsvSchema:
     return _from_file(shipped_path("csv", name))
 
 
+def joint_set_of(schema: CsvSchema) -> JointSet:
+    """The joint set a (non-``auto``) schema names, checked against the schema's ``joints`` and
+    ``joint_names``; a SchemaError names the schema file and the field."""
+    try:
+        js = load_joint_set(schema.joint_set)
+    except SchemaError as exc:
+        raise SchemaError(schema.path, f"joint_set {schema.joint_set!r}: {exc.reason}") from exc
+    known = set(js.names) | set(js.aliases)
+    for name in schema.get("joints", []):
+        if name not in known:
+            raise SchemaError(schema.path, f"joints: {name!r} is not a joint of {js.name} ({', '.join(js.names)})")
+    for spelling, name in schema.joint_names_in_file.items():
+        if name not in known:
+            raise SchemaError(schema.path, f"joint_names: {spelling!r} maps to {name!r}, not a joint of {js.name}")
+    return js
+
+
 def shipped_csv_schemas() -> list[str]:
     """Names of the CSV dialect schemas shipped with kinectdata."""
     return shipped_names("csv")
@@ -166,4 +183,8 @@ def load_csv_schema(name_or_path: str | Path | CsvSchema) -> CsvSchema:
         return _from_file(path)
     if path.suffix.lower() == ".json" or "/" in text:
         raise SchemaError(path, "schema file not found")
-    return _shipped(text)  # raises, listing the shipped schemas
+    raise SchemaError(
+        None,
+        f"unknown CSV schema {text!r}: no such file, and no shipped schema has that name "
+        f"(shipped: {', '.join(shipped_csv_schemas())})",
+    )

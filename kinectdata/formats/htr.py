@@ -41,7 +41,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from ..errors import FormatError
-from ..jointsets import JointSet
+from ..jointsets import JointSet, find_cycle
 from ..motion import Motion
 from ..quaternions import make_continuous
 from .common import read_text
@@ -186,14 +186,10 @@ def _hierarchy(path: Path, sec: _Section) -> tuple[list[str], list[str | None], 
     for child, parent in zip(names, parents):
         if parent is not None and parent not in lines:
             raise FormatError(path, f"segment {child!r} has unknown parent {parent!r}", line=lines[child])
-    parent_of = dict(zip(names, parents))
-    for start in names:
-        seen, node = set(), start
-        while node is not None:
-            if node in seen:
-                raise FormatError(path, f"the hierarchy has a cycle through segment {node!r}", line=lines[node])
-            seen.add(node)
-            node = parent_of[node]
+    cyclic = find_cycle([-1 if p is None else names.index(p) for p in parents])
+    if cyclic is not None:
+        node = names[cyclic]
+        raise FormatError(path, f"the hierarchy has a cycle through segment {node!r}", line=lines[node])
     return names, parents, lines
 
 

@@ -314,15 +314,26 @@ def _melody_notes(rng, bar_t, chords, base, pentatonic, period, section_names):
 
 
 # -- sound sources -----------------------------------------------------------------------------
-def _render_line(t, starts, durs, freqs, vels, *, attack, decay, release, harmonics, vibrato=None):
+_CHUNK = 1 << 18  # samples rendered at a time: bounds the temporaries of long tracks
+
+
+def _render_line(t, starts, durs, freqs, vels, **kw):
     """A monophonic line of notes evaluated at every sample time ``t`` [N] (seconds).
 
     Each sample belongs to the latest note started before it; the note's envelope (linear
     attack, exponential decay, linear release that ends at the note's end) is zero at both ends,
-    so consecutive notes join without clicks.
+    so consecutive notes join without clicks. Rendered in chunks (every sample is computed on its
+    own, so chunking changes nothing but memory).
     """
+    out = np.zeros_like(t)
     if len(starts) == 0:
-        return np.zeros_like(t)
+        return out
+    for s in range(0, t.size, _CHUNK):
+        out[s : s + _CHUNK] = _render_chunk(t[s : s + _CHUNK], starts, durs, freqs, vels, **kw)
+    return out
+
+
+def _render_chunk(t, starts, durs, freqs, vels, *, attack, decay, release, harmonics, vibrato=None):
     idx = np.searchsorted(starts, t, side="right") - 1
     on = idx >= 0
     idx = np.maximum(idx, 0)
@@ -406,8 +417,12 @@ def _reverb(send: np.ndarray, sr: int, rng) -> np.ndarray:
     ir = signal.sosfilt(signal.butter(1, 5000, "low", fs=sr, output="sos"), ir, axis=0)
     ir /= np.sqrt(np.sum(ir**2, axis=0))
     ir = np.concatenate([np.zeros((int(0.015 * sr), 2)), ir])
-    wet = signal.oaconvolve(send, ir, axes=0)[: send.shape[0]]
-    return wet
+    # overlap-add in blocks: one convolution of a 10-minute track would need gigabytes
+    wet = np.zeros((send.shape[0] + ir.shape[0] - 1, send.shape[1]))
+    for s in range(0, send.shape[0], _CHUNK):
+        block = signal.oaconvolve(send[s : s + _CHUNK], ir, axes=0)
+        wet[s : s + block.shape[0]] += block
+    return wet[: send.shape[0]]
 
 
 def _clap(n: int, sr: int, onset_s: float, rng) -> np.ndarray:

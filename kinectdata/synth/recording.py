@@ -19,8 +19,11 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+import soundfile as sf
 
 from .. import __version__
+from ..atomic import atomic_output
+from ..formats.csv import write_csv
 from ..motion import Motion
 from .dancer import CLAP_LEAD_S, dance
 from .music import BEATS_PER_BAR, CLAP_ATTACK_S, synthesize_music
@@ -140,6 +143,8 @@ def synthesize_recording(
         offset = OFFSET_RANGE_S[0] + offset_u * (hi - OFFSET_RANGE_S[0])
     else:
         offset = float(offset_s)
+        if not np.isfinite(offset):
+            raise ValueError(f"offset_s must be a finite number of seconds, got {offset_s!r}")
         if offset < -5.0 or max(offset, 0.0) + needed_after_offset > duration_s:
             raise ValueError(
                 f"offset_s={offset} leaves too little music in {duration_s} s "
@@ -324,21 +329,17 @@ def write_recording(
     the truth file adds ``dialect``, ``audio_format``, ``skeleton_time_origin`` (the file's first
     timestamp, in the dialect's unit), ``files`` and the full ``command``.
     """
-    import soundfile as sf
-
-    from ..formats.csv import write_csv  # written elsewhere; imported late on purpose
-
     if audio_format not in AUDIO_FORMATS:
         raise ValueError(f"audio_format must be one of {sorted(AUDIO_FORMATS)}, got {audio_format!r}")
     out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
     paths = {
         "audio": out / f"{name}.{audio_format}",
         "skeleton": out / f"{name}.csv",
         "truth": out / f"{name}.truth.json",
     }
     fmt, subtype = AUDIO_FORMATS[audio_format]
-    sf.write(paths["audio"], rec.audio, rec.sample_rate, format=fmt, subtype=subtype)
+    with atomic_output(paths["audio"]) as tmp:
+        sf.write(tmp, rec.audio, rec.sample_rate, format=fmt, subtype=subtype)
     origin = _time_origin(dialect, rec.options["seed"])
     write_csv(rec.written_motion(), paths["skeleton"], dialect, states=rec.states, time_origin=origin)
     truth = {
@@ -349,5 +350,6 @@ def write_recording(
         "skeleton_time_origin": origin,
         "files": {k: p.name for k, p in paths.items()},
     }
-    paths["truth"].write_text(json.dumps(truth, indent=2) + "\n", encoding="utf-8")
+    with atomic_output(paths["truth"]) as tmp:
+        tmp.write_text(json.dumps(truth, indent=2) + "\n", encoding="utf-8")
     return paths
