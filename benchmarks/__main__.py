@@ -13,8 +13,10 @@ import numpy as np
 def machine() -> str:
     import os
 
-    return f"{platform.python_implementation()} {platform.python_version()}, numpy {np.__version__}, " \
-           f"{platform.machine()}, {os.cpu_count()} cores, {platform.platform(terse=True)}"
+    return (
+        f"{platform.python_implementation()} {platform.python_version()}, numpy {np.__version__}, "
+        f"{platform.machine()}, {os.cpu_count()} cores, {platform.platform(terse=True)}"
+    )
 
 
 def main(argv: list[str]) -> None:
