@@ -20,7 +20,7 @@ from pathlib import Path
 from kinectdata.align import align
 from kinectdata.audio import load_audio
 from kinectdata.formats import read_motion
-from kinectdata.formats.csv import write_csv
+from kinectdata.formats.csv_writer import write_csv
 from kinectdata.offset import estimate_offset
 
 DURATION_S = 600.0

@@ -31,8 +31,10 @@ def main() -> None:
         errors.append(abs(est.offset - rec.truth["offset_s"]) * 1000)
         methods.add(est.method)
     e = np.array(errors)
-    print(f"  with a clap: {len(e)} estimated ({', '.join(sorted(methods))}), {refused} refused; error median "
-          f"{np.median(e):.1f} ms, p95 {np.percentile(e, 95):.1f} ms, max {e.max():.1f} ms (one frame: 33.3 ms)")
+    print(
+        f"  with a clap: {len(e)} estimated ({', '.join(sorted(methods))}), {refused} refused; error median "
+        f"{np.median(e):.1f} ms, p95 {np.percentile(e, 95):.1f} ms, max {e.max():.1f} ms (one frame: 33.3 ms)"
+    )
     ambiguous = 0
     for seed in range(100, 120):
         rec = synthesize_recording(seed=seed, duration_s=12.0, clap=False)

@@ -11,8 +11,9 @@ from helpers import random_motion
 
 from kinectdata.errors import FormatError, SchemaError
 from kinectdata.formats import detect_format, read_motion
-from kinectdata.formats.csv import detect_csv_schema, write_csv
+from kinectdata.formats.csv import detect_csv_schema
 from kinectdata.formats.csv_schema import load_csv_schema, shipped_csv_schemas
+from kinectdata.formats.csv_writer import write_csv
 from kinectdata.jointsets import load_joint_set
 
 DIALECTS = ["canonical", "dumpkinectskeleton", "kinectreader", "lsl_kinect"]

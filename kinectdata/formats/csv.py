@@ -6,8 +6,7 @@ count). Every cell that must be a number is checked; a bad cell, a row with the 
 fields, time going backwards, a repeated timestamp or joint, an unknown joint name or a missing
 column raises :class:`~kinectdata.errors.FormatError` naming the file, line and column.
 
-Writing (:func:`write_csv`) uses the same schemas, so kinectdata can write any dialect it reads;
-``canonical`` is kinectdata's own lossless CSV.
+Writing is :mod:`.csv_writer`, over the same schemas.
 """
 
 from __future__ import annotations
@@ -20,11 +19,10 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from ..atomic import atomic_output
 from ..errors import FormatError, KinectDataError
-from ..jointsets import JointSet, find_joint_set, load_joint_set, shipped_joint_sets
+from ..jointsets import JointSet, find_joint_set, load_joint_set
 from ..motion import Motion
-from ..quaternions import reorder, split_missing_and_normalise, xyzw_to_wxyz
+from ..quaternions import reorder, split_missing_and_normalise
 from .common import choose_body, count_bodies, read_text
 from .csv_schema import JOINT, CsvSchema, joint_set_of, load_csv_schema, shipped_csv_schemas
 from .registry import register_reader
@@ -177,7 +175,7 @@ def _load_table(path: Path, schema: CsvSchema, joint_set: JointSet | None) -> _T
     else:
         if joint_set is None:
             raise FormatError(path, f"the {schema.name} schema has no header and no fixed joint set")
-        names = schema.headerless_columns(_file_joint_names(schema, joint_set))
+        names = schema.headerless_columns(schema.file_joint_names(joint_set))
     if not data_idx:
         raise FormatError(path, "no data rows" + (f" after the header (line {header_line})" if header_line else ""))
     rows = [(_strip_trailing(lines[i], delim) if trailing else lines[i]) for i in data_idx]
@@ -187,12 +185,6 @@ def _load_table(path: Path, schema: CsvSchema, joint_set: JointSet | None) -> _T
 # ---------------------------------------------------------------------------------------------
 # Interpreting the table
 # ---------------------------------------------------------------------------------------------
-def _file_joint_names(schema: CsvSchema, joint_set: JointSet) -> list[str]:
-    """How each joint of the set is spelled in the file, in joint-set order."""
-    to_file = {v: k for k, v in schema.joint_names_in_file.items()}
-    return [to_file.get(n, n) for n in joint_set.names]
-
-
 def _template_regex(template: str) -> re.Pattern[str]:
     return re.compile("^" + re.escape(template).replace(re.escape(JOINT), "(?P<joint>.+)") + "$")
 
@@ -234,7 +226,7 @@ def _check_header(table: _Table, joint_set: JointSet, present: list[int]) -> Non
                     line=table.header_line,
                     column=col,
                 )
-    fnames = _file_joint_names(schema, joint_set)
+    fnames = schema.file_joint_names(joint_set)
     required = [t for t in schema.per_joint_columns() if t not in _optional_orientation_templates(schema, table)]
     missing = [
         t.replace(JOINT, fnames[j]) for j in present for t in required if not table.has(t.replace(JOINT, fnames[j]))
@@ -350,7 +342,7 @@ def _read_wide(table: _Table, joint_set: JointSet, body: str | None) -> tuple:
     n = len(lines)
     t_raw, scale, unit = _frame_times(table, rows, n)
     _check_times(table.path, t_raw, lines, unit)
-    fnames = _file_joint_names(schema, joint_set)
+    fnames = schema.file_joint_names(joint_set)
     J, D = len(joint_set), joint_set.dimensions
     pos = np.full((n, J, D), np.nan)
     missing = np.ones((n, J), bool)
@@ -480,7 +472,7 @@ def _build_motion(path: Path, schema: CsvSchema, joint_set: JointSet, parts: tup
             f, j = np.argwhere(bad)[0]
             column = schema.document["orientation"]["columns"][0]
             if schema.layout == "wide":
-                column = column.replace(JOINT, _file_joint_names(schema, joint_set)[j])
+                column = column.replace(JOINT, schema.file_joint_names(joint_set)[j])
             raise FormatError(
                 path,
                 f"orientation of joint {joint_set.names[j]!r} is not a unit quaternion "
@@ -539,7 +531,7 @@ def _schema_matches(schema: CsvSchema, lines: list[str]) -> bool:
         return any(rx.match(f) for f in fields) if rx else schema.document["position"]["columns"][0] in fields
     if schema.joint_set == "auto":
         return False
-    names = schema.headerless_columns(_file_joint_names(schema, load_joint_set(schema.joint_set)))
+    names = schema.headerless_columns(schema.file_joint_names(load_joint_set(schema.joint_set)))
     if len(fields) != len(names):
         return False
     # mostly numbers: a corrupt cell should be reported by the reader, not mistaken for a dialect
@@ -616,124 +608,3 @@ def read_csv_motion(
         )
     parts = (_read_wide if sch.layout == "wide" else _read_long)(table, joint_set, body)
     return _build_motion(path, sch, joint_set, parts, table.meta)
-
-
-# ---------------------------------------------------------------------------------------------
-# Writing
-# ---------------------------------------------------------------------------------------------
-def _state_column(motion: Motion, spec: dict, states: np.ndarray | None) -> np.ndarray:
-    """[T, J] cells of the tracking column."""
-    if spec.get("scale") == "confidence":
-        return np.char.mod("%g", np.round(motion.confidence.astype(np.float64), 6)).astype(object)
-    keys = list(spec["values"])
-    if states is not None:
-        allowed = {str(k) for k in keys}
-        cells = np.asarray(states).astype(str).astype(object)
-        bad = sorted(set(np.unique(cells)) - allowed)
-        if bad:
-            raise ValueError(f"states {bad} are not among the dialect's tracking values {keys}")
-        return cells
-    values = np.array([spec["values"][k] for k in keys])
-    nearest = np.argmin(np.abs(motion.confidence[..., None] - values), axis=-1)
-    return np.array(keys, dtype=object)[nearest]
-
-
-def write_csv(
-    motion: Motion,
-    path: str | Path,
-    schema: str | Path | CsvSchema = "canonical",
-    *,
-    states: np.ndarray | None = None,
-    time_origin: float = 0.0,
-) -> None:
-    """Write a Motion as a CSV file in a schema's dialect (atomically).
-
-    Args:
-        motion: the recording. Its joint set must be the schema's (any, for ``auto`` schemas).
-        path: output file.
-        schema: dialect name or schema file; ``canonical`` keeps everything kinectdata reads.
-        states: optional [T, J] tracking states to write verbatim (e.g. Kinect 0/1/2); by
-            default they come from ``motion.confidence`` (nearest state value).
-        time_origin: value of the first timestamp, in the schema's time unit.
-
-    Invalid positions are written as the dialect's missing-value text when it has one, else as
-    zeros (with a not-tracked state, as the Kinect SDK does); missing orientations likewise, or
-    as ``0 0 0 0``.
-    """
-    sch = load_csv_schema(schema)
-    js = motion.joint_set
-    if sch.joint_set != "auto" and joint_set_of(sch).names != js.names:
-        raise KinectDataError(f"the {sch.name} dialect is for joint set {sch.joint_set}, the motion has {js.name}")
-    doc = sch.document
-    T, J = motion.n_frames, len(js)
-    fnames = _file_joint_names(sch, js)
-    missing_text = sorted(sch.missing_values)[0] if sch.missing_values else None
-
-    def fmt(a: np.ndarray, spec: str) -> np.ndarray:
-        cells = np.char.mod(spec, np.nan_to_num(a)).astype(object)
-        if missing_text is not None:
-            cells[~np.isfinite(a)] = missing_text
-        return cells
-
-    cols: dict[str, np.ndarray] = {}  # template -> [T] or [T, J] cells
-    tspec = doc["time"]
-    if "column" in tspec:
-        t = motion.times / sch.time_scale() + time_origin
-        cols[tspec["column"]] = (
-            np.char.mod("%d", np.round(t)).astype(object) if tspec["unit"] in ("ticks", "ns") else fmt(t, "%.6f")
-        )
-    if "body" in doc:
-        cols[doc["body"]["column"]] = np.full(T, str(motion.metadata.get("body", 0)), dtype=object)
-    pos = motion.positions / sch.position_scale()
-    for d, tmpl in enumerate(doc["position"]["columns"]):
-        cols[tmpl] = fmt(pos[..., d], "%.6f")
-    o = doc.get("orientation")
-    if o is not None and (motion.has_orientations or o.get("required", True)):
-        q = motion.orientations if motion.has_orientations else np.zeros((T, J, 4))
-        q = np.where(np.isfinite(q), q, np.nan if missing_text is not None else 0.0)
-        if o["order"] == "wxyz":
-            q = xyzw_to_wxyz(q)
-        for c, tmpl in enumerate(o["columns"]):
-            cols[tmpl] = fmt(q[..., c], "%.6f")
-    if "tracking" in doc:
-        cols[doc["tracking"]["column"]] = _state_column(motion, doc["tracking"], states)
-
-    per_joint = set(sch.per_joint_columns())
-    if sch.layout == "wide":
-        names = (
-            sch.headerless_columns(fnames)
-            if not sch.has_header
-            else (
-                [c for c in cols if c not in per_joint]
-                + [t.replace(JOINT, fnames[j]) for j in range(J) for t in cols if t in per_joint]
-            )
-        )
-        table = {}
-        for j in range(J):
-            for t in per_joint & cols.keys():
-                table[t.replace(JOINT, fnames[j])] = cols[t][:, j]
-        for c in cols:
-            if c not in per_joint:
-                table[c] = cols[c]
-        data = pd.DataFrame({n: table[n] for n in names})
-    else:
-        jcol = doc["joint"]["column"]
-        cols[jcol] = np.tile(
-            np.arange(J).astype(str) if doc["joint"]["values"] == "index" else np.array(fnames), (T, 1)
-        ).astype(object)
-        names = sch.headerless_columns(fnames) if not sch.has_header else list(cols)
-        data = pd.DataFrame({n: (cols[n].reshape(-1) if cols[n].ndim == 2 else np.repeat(cols[n], J)) for n in names})
-    preamble = list(doc.get("preamble", []))
-    if sch.joint_set == "auto" and js.name in shipped_joint_sets():
-        preamble.append(f"# joint_set: {js.name}")
-    with atomic_output(path) as tmp:
-        with open(tmp, "w", newline="\n", encoding="utf-8") as f:
-            for line in preamble:
-                f.write(line + "\n")
-            data.to_csv(
-                f,
-                sep=sch.delimiter,
-                header=sch.has_header,
-                index=False,
-                lineterminator=",\n" if doc.get("trailing_delimiter") else "\n",
-            )

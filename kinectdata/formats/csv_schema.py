@@ -67,6 +67,11 @@ class CsvSchema:
         """File spelling -> joint-set name."""
         return dict(self.document.get("joint_names", {}))
 
+    def file_joint_names(self, joint_set: JointSet) -> list[str]:
+        """How each joint of the set is spelled in the file, in joint-set order."""
+        to_file = {v: k for k, v in self.joint_names_in_file.items()}
+        return [to_file.get(n, n) for n in joint_set.names]
+
     def time_scale(self) -> float | None:
         """Seconds per time unit, or None when times come from a fixed frame rate."""
         t = self.document.get("time", {})

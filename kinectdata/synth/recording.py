@@ -23,7 +23,7 @@ import soundfile as sf
 
 from .. import __version__
 from ..atomic import atomic_output
-from ..formats.csv import write_csv
+from ..formats.csv_writer import write_csv
 from ..motion import Motion
 from .dancer import CLAP_LEAD_S, dance
 from .music import BEATS_PER_BAR, CLAP_ATTACK_S, synthesize_music
