@@ -3,7 +3,8 @@
 Conventions, used everywhere in kinectdata:
 
 - ``times`` [T] float64, seconds, strictly increasing. Readers make the first frame 0.0 and keep
-  the file's own first timestamp in ``metadata["time_origin"]``.
+  the file's own first timestamp in ``metadata["time_origin"]`` as ``{"value", "unit"}`` (None
+  for formats without timestamps, such as NTU).
 - ``positions`` [T, J, D] float64: metres for 3-D joint sets (D = 3), pixels for 2-D ones
   (D = 2). Sensor formats give Kinect v2 camera space: x to the sensor's left (the right of a
   person facing it), y up, z away from the sensor; HTR gives its own world frame

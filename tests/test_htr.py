@@ -170,7 +170,7 @@ def test_rotation_of_the_root_moves_the_child(tmp_path):
     for q in m.orientations[0]:
         assert np.allclose(q, [0, 0, s, s]) or np.allclose(q, [0, 0, -s, -s])
     np.testing.assert_allclose(m.times, [0, 1 / 30])
-    assert m.metadata["time_origin"] == 7
+    assert m.metadata["time_origin"] == {"value": 7, "unit": "frame"}
     assert m.metadata["nominal_fps"] == 30
     assert m.joint_set.names == ("Hips", "Spine") and m.joint_set.parents == (-1, 0)
     np.testing.assert_allclose(m.metadata["bone_length_m"], [0.5, 0.4])

@@ -486,7 +486,7 @@ def _build_motion(path: Path, schema: CsvSchema, joint_set: JointSet, parts: tup
         "format": "csv",
         "schema": schema.name,
         "schema_path": schema.path,
-        "time_origin": {"value": float(t_raw[0]), "unit": schema.document["time"].get("unit", "frames")},
+        "time_origin": {"value": float(t_raw[0]), "unit": schema.document["time"].get("unit", "frame")},
         **body_meta,
         **({"file_metadata": meta} if meta else {}),
     }

@@ -333,8 +333,8 @@ def read_htr(path: Path) -> Motion:
     Returns:
         A Motion with ``times`` [T] seconds from the first frame, ``positions`` [T, J, 3] metres
         and ``orientations`` [T, J, 4] (x, y, z, w), both global in the HTR world frame; J is the
-        segments in hierarchy order. ``metadata`` holds ``time_origin`` (first frame number),
-        ``nominal_fps``, ``header`` (as written), ``euler_rotation_order``, ``calibration_units``,
+        segments in hierarchy order. ``metadata`` holds ``time_origin`` (the first frame number,
+        unit "frame"), ``nominal_fps``, ``header`` (as written), ``euler_rotation_order``, ``calibration_units``,
         ``gravity_axis``, ``bone_length_axis``, ``bone_length_m`` [J] and ``segment_scale``
         [T, J] (the per-frame SF, NaN where masked).
 
@@ -408,7 +408,7 @@ def read_htr(path: Path) -> Motion:
         orientation_mask=valid.copy(),
         metadata={
             "format": "htr",
-            "time_origin": int(frames[0]),
+            "time_origin": {"value": int(frames[0]), "unit": "frame"},
             "nominal_fps": fps,
             "header": raw_header,
             "euler_rotation_order": order,
