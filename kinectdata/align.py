@@ -5,8 +5,9 @@ HDF5 file (``kinectdata align`` is a thin command over it).
 
 Timeline: with ``audio_time = motion_time + offset``, the output keeps the span both cover. Its
 time 0 is the first audio sample inside that span and frame k is at ``k / fps`` on that clock.
-The last frame is the last one that has motion at its time and audio for its whole frame period,
-so the output audio is exactly ``n_frames / fps`` seconds long. The motion is resampled onto the
+The last frame is the last one that has motion at its time and audio for its whole frame period;
+the output audio runs one more frame period past it where the source has it (per-frame analysis
+windows reach slightly past their frame). The motion is resampled onto the
 frame times (:mod:`kinectdata.timeline`). The audio must cover at least ``min_coverage`` of the
 motion's duration; otherwise the pair is refused (audio shorter than the dance, or a wrong
 offset), not silently trimmed.
@@ -16,6 +17,7 @@ from __future__ import annotations
 
 import hashlib
 import math
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -23,11 +25,12 @@ import numpy as np
 
 from .aligned import AlignedRecording
 from .audio import DEFAULT_SAMPLE_RATE, Audio, load_audio
+from .envelopes import AudioEnvelopes
 from .errors import AlignmentError, KinectDataError
 from .formats import read_motion
 from .motion import Motion
 from .offset import estimate_offset
-from .timeline import resample_motion
+from .timeline import Resampled, resample_motion
 
 DEFAULT_FPS = 30.0
 DEFAULT_MAX_GAP = 0.2
@@ -43,9 +46,19 @@ def file_sha256(path: str | Path) -> str:
     return h.hexdigest()
 
 
-def _resolve_offset(
-    motion: Motion, audio: Audio, offset: float | str | None, max_offset: float | None, min_confidence: float
+def resolve_offset(
+    motion: Motion,
+    audio: Audio | AudioEnvelopes,
+    offset: float | str | None,
+    *,
+    max_offset: float | None = None,
+    min_confidence: float = 0.5,
 ) -> dict[str, Any]:
+    """The offset to use, with where it came from: ``{"seconds", "source", "confidence", ...}``.
+
+    ``offset`` is a number of seconds (source "given") or "auto"/None (estimated from the audio or
+    its envelopes by :func:`kinectdata.offset.estimate_offset`).
+    """
     if offset is None or offset == "auto":
         est = estimate_offset(motion, audio, max_offset=max_offset, min_confidence=min_confidence)
         return {
@@ -62,6 +75,145 @@ def _resolve_offset(
     if not math.isfinite(seconds):
         raise KinectDataError(f"offset must be finite, not {offset!r}")
     return {"seconds": seconds, "source": "given", "confidence": 1.0}
+
+
+@dataclass(frozen=True)
+class Timeline:
+    """Where the output frames sit on the two source clocks.
+
+    Output time 0 is audio sample ``first_sample``; output frame k is at ``k / fps`` seconds, i.e.
+    at audio time ``first_sample / sample_rate + k / fps`` and motion time that minus ``offset``.
+    """
+
+    offset: float
+    fps: float
+    sample_rate: int
+    first_sample: int
+    n_frames: int
+
+    @property
+    def start(self) -> float:
+        """Audio time (s) of output time 0."""
+        return self.first_sample / self.sample_rate
+
+    def motion_times(self) -> np.ndarray:
+        """[N] motion-clock times (s) of the output frames."""
+        return self.start + np.arange(self.n_frames) / self.fps - self.offset
+
+    def frame_starts(self) -> np.ndarray:
+        """[N] int64 index of the audio sample at each output frame: ``first_sample + round(k * sr / fps)``."""
+        return self.first_sample + np.round(np.arange(self.n_frames) * self.sample_rate / self.fps).astype(np.int64)
+
+
+def plan_timeline(
+    motion: Motion,
+    audio_samples: int,
+    sample_rate: int,
+    offset: float,
+    *,
+    fps: float = DEFAULT_FPS,
+    min_coverage: float = DEFAULT_MIN_COVERAGE,
+    audio_name: str = "the audio",
+) -> Timeline:
+    """The common span of a recording and ``audio_samples`` samples of audio at ``offset``.
+
+    Raises:
+        AlignmentError: the audio covers less than ``min_coverage`` of the motion's duration, or
+            they share fewer than two frames.
+    """
+    if fps <= 0 or not math.isfinite(fps):
+        raise KinectDataError(f"fps must be a positive number, not {fps}")
+    if motion.n_frames < 2:
+        raise AlignmentError(
+            f"{motion.metadata.get('source', 'the recording')}: needs at least 2 frames, has {motion.n_frames}"
+        )
+    sr, o = sample_rate, offset
+    duration = audio_samples / sr
+    m0, m1 = float(motion.times[0]), float(motion.times[-1])
+    start = max(0.0, m0 + o)
+    covered = max(0.0, min(duration, m1 + o) - start)
+    coverage = covered / (m1 - m0)
+    if coverage < min_coverage:
+        raise AlignmentError(
+            f"{audio_name}: the audio ({duration:.2f} s) covers only {covered:.2f} s ({100 * coverage:.0f}%) of the "
+            f"motion's {m1 - m0:.2f} s at offset {o:+.3f} s (audio_time = motion_time + offset); at least "
+            f"{100 * min_coverage:.0f}% is required. The audio is shorter than the motion, or the offset is wrong "
+            f"(--min-coverage lowers the requirement)."
+        )
+    first_sample = math.ceil(start * sr - 1e-6)
+    t0 = first_sample / sr
+    # frame k (at t0 + k / fps on the audio clock) needs motion up to its time and audio for its
+    # whole period [t, t + 1 / fps)
+    n_motion = math.floor((m1 + o - t0) * fps + 1e-9) + 1
+    n_audio = math.floor((audio_samples - first_sample) / sr * fps + 1e-9)
+    n = min(n_motion, n_audio)
+    if n < 2:
+        raise AlignmentError(
+            f"{audio_name}: audio ({duration:.2f} s) and motion ({m1 - m0:.2f} s) overlap by less than two "
+            f"frames at offset {o:+.3f} s"
+        )
+    return Timeline(offset=o, fps=fps, sample_rate=sr, first_sample=first_sample, n_frames=n)
+
+
+def resample_onto(motion: Motion, timeline: Timeline, max_gap: float = DEFAULT_MAX_GAP) -> tuple[Resampled, list]:
+    """The motion at the timeline's frames (times k / fps), and the gaps longer than ``max_gap``
+    on the output clock."""
+    m0, m1 = float(motion.times[0]), float(motion.times[-1])
+    res = resample_motion(motion, np.clip(timeline.motion_times(), m0, m1), max_gap=max_gap)
+    res.motion.times = np.arange(timeline.n_frames) / timeline.fps
+    res.motion.metadata["time_origin"] = {"value": timeline.start, "unit": "s", "clock": "audio"}
+    shift = timeline.offset - timeline.start  # source motion time -> output time
+    end = timeline.n_frames / timeline.fps
+    long_gaps = [
+        {
+            "joint": g.joint,
+            "quantity": g.quantity,
+            "start_s": round(g.start + shift, 4),
+            "end_s": round(g.end + shift, 4),
+            "length_s": round(g.length, 4),
+            "edge": g.edge,
+        }
+        for g in res.gaps
+        if g.length > max_gap + 1e-9 and g.end + shift > 0 and g.start + shift < end
+    ]
+    return res, long_gaps
+
+
+def summarize(
+    source: Motion, timeline: Timeline, res: Resampled, long_gaps: list, offset: dict, audio_samples: int, kept: int
+) -> dict[str, Any]:
+    """The figures ``align`` prints and stores (see :func:`format_summary`)."""
+    tl, sr = timeline, timeline.sample_rate
+    timing = source.timing()
+    valid_any = res.motion.position_mask | res.position_interpolated
+    last_frame_motion_time = tl.start + (tl.n_frames - 1) / tl.fps - tl.offset
+    summary = {
+        "frames": tl.n_frames,
+        "duration_s": tl.n_frames / tl.fps,
+        "fps": tl.fps,
+        "sample_rate": sr,
+        "audio_samples": kept,
+        "source_frames": source.n_frames,
+        "source_fps": timing["fps"],
+        "source_jitter_ms": timing["jitter_ms"],
+        "dropped_frames": timing["dropped_frames"],
+        "motion_trimmed_start_s": tl.start - tl.offset - float(source.times[0]),
+        "motion_trimmed_end_s": float(source.times[-1]) - last_frame_motion_time,
+        "audio_trimmed_start_s": tl.start,
+        "audio_trimmed_end_s": (audio_samples - tl.first_sample - kept) / sr,
+        "interpolated_share": float(res.position_interpolated.mean()),
+        "masked_share": float(1.0 - valid_any.mean()),
+        "long_gaps": len(long_gaps),
+        "offset_s": tl.offset,
+        "offset_source": offset["source"],
+        "offset_confidence": offset["confidence"],
+    }
+    if res.orientation_interpolated is not None:
+        can = source.joint_set.orientation_mask
+        summary["orientation_interpolated_share"] = (
+            float(res.orientation_interpolated[:, can].mean()) if can.any() else 0.0
+        )
+    return summary
 
 
 def align(
@@ -91,97 +243,31 @@ def align(
     Raises:
         AlignmentError: no reliable offset, or too little overlap between audio and motion.
     """
-    if fps <= 0 or not math.isfinite(fps):
-        raise KinectDataError(f"fps must be a positive number, not {fps}")
-    if motion.n_frames < 2:
-        raise AlignmentError(
-            f"{motion.metadata.get('source', 'the recording')}: needs at least 2 frames, has {motion.n_frames}"
-        )
-    off = _resolve_offset(motion, audio, offset, max_offset, min_confidence)
-    o = off["seconds"]
-    sr = audio.sample_rate
-    m0, m1 = float(motion.times[0]), float(motion.times[-1])
-    start = max(0.0, m0 + o)
-    end = min(audio.duration, m1 + o)
-    covered = max(0.0, end - start)
-    coverage = covered / (m1 - m0)
-    if coverage < min_coverage:
-        src = audio.source.get("path", "the audio")
-        raise AlignmentError(
-            f"{src}: the audio ({audio.duration:.2f} s) covers only {covered:.2f} s ({100 * coverage:.0f}%) of the "
-            f"motion's {m1 - m0:.2f} s at offset {o:+.3f} s (audio_time = motion_time + offset); at least "
-            f"{100 * min_coverage:.0f}% is required. The audio is shorter than the motion, or the offset is wrong "
-            f"(--min-coverage lowers the requirement)."
-        )
-    first_sample = math.ceil(start * sr - 1e-6)
-    t0 = first_sample / sr
-    # frame k (at t0 + k / fps on the audio clock) needs motion up to its time and audio for its
-    # whole period [t, t + 1 / fps)
-    n_motion = math.floor((m1 + o - t0) * fps + 1e-9) + 1
-    n_audio = math.floor((audio.samples.size - first_sample) / sr * fps + 1e-9)
-    n = min(n_motion, n_audio)
-    if n < 2:
-        raise AlignmentError(
-            f"{audio.source.get('path', 'the audio')}: audio ({audio.duration:.2f} s) and motion "
-            f"({m1 - m0:.2f} s) overlap by less than two frames at offset {o:+.3f} s"
-        )
-    grid = np.clip(t0 + np.arange(n) / fps - o, m0, m1)
-    res = resample_motion(motion, grid, max_gap=max_gap)
-    out = res.motion
-    out.times = np.arange(n) / fps
-    samples = audio.samples[first_sample : first_sample + int(round(n * sr / fps))]
-
-    long_gaps = [
-        {
-            "joint": g.joint,
-            "quantity": g.quantity,
-            "start_s": round(g.start + o - t0, 4),
-            "end_s": round(g.end + o - t0, 4),
-            "length_s": round(g.length, 4),
-            "edge": g.edge,
-        }
-        for g in res.gaps
-        if g.length > max_gap + 1e-9 and g.end + o > t0 and g.start + o < t0 + n / fps
-    ]
-    timing = motion.timing()
-    valid_any = out.position_mask | res.position_interpolated
-    summary = {
-        "frames": n,
-        "duration_s": n / fps,
-        "fps": fps,
-        "sample_rate": sr,
-        "audio_samples": int(samples.size),
-        "source_frames": motion.n_frames,
-        "source_fps": timing["fps"],
-        "source_jitter_ms": timing["jitter_ms"],
-        "dropped_frames": timing["dropped_frames"],
-        "motion_trimmed_start_s": t0 - o - m0,
-        "motion_trimmed_end_s": m1 - (grid[-1] if n else m0),
-        "audio_trimmed_start_s": t0,
-        "audio_trimmed_end_s": audio.duration - (first_sample + samples.size) / sr,
-        "interpolated_share": float(res.position_interpolated.mean()),
-        "masked_share": float(1.0 - valid_any.mean()),
-        "long_gaps": len(long_gaps),
-        "offset_s": o,
-        "offset_source": off["source"],
-        "offset_confidence": off["confidence"],
-    }
-    if res.orientation_interpolated is not None:
-        can = motion.joint_set.orientation_mask[None, :]
-        summary["orientation_interpolated_share"] = (
-            float(res.orientation_interpolated[:, can[0]].mean()) if can.any() else 0.0
-        )
-    out.metadata["time_origin"] = {"value": t0, "unit": "s", "clock": "audio"}
+    off = resolve_offset(motion, audio, offset, max_offset=max_offset, min_confidence=min_confidence)
+    tl = plan_timeline(
+        motion,
+        audio.samples.size,
+        audio.sample_rate,
+        off["seconds"],
+        fps=fps,
+        min_coverage=min_coverage,
+        audio_name=audio.source.get("path", "the audio"),
+    )
+    res, long_gaps = resample_onto(motion, tl, max_gap)
+    # one frame period of audio beyond the last frame's, where there is some: per-frame analysis
+    # windows (e.g. 534 samples at 30 fps) reach slightly past their frame
+    keep = int(round((tl.n_frames + 1) * tl.sample_rate / fps))
+    samples = audio.samples[tl.first_sample : tl.first_sample + keep]
     return AlignedRecording(
-        motion=out,
+        motion=res.motion,
         audio=samples,
-        sample_rate=sr,
+        sample_rate=tl.sample_rate,
         fps=fps,
         position_interpolated=res.position_interpolated,
         orientation_interpolated=res.orientation_interpolated,
         offset=off,
         provenance={"motion": dict(motion.metadata), "audio": dict(audio.source)},
-        summary=summary,
+        summary=summarize(motion, tl, res, long_gaps, off, audio.samples.size, samples.size),
         gaps=long_gaps,
     )
 

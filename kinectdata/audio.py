@@ -3,10 +3,15 @@
 Channels are averaged (a plain mean, so a mono file duplicated to two channels comes out
 unchanged) and the result is resampled with soxr's high-quality band-limited resampler, whose
 anti-aliasing filter removes content above the new Nyquist frequency instead of folding it back.
+
+:class:`AudioReader` streams a file in blocks, so that long recordings are processed with
+bounded memory; :func:`load_audio` reads a whole file through the same path, so both give
+identical samples (soxr's streaming resampler does not depend on how its input is cut).
 """
 
 from __future__ import annotations
 
+from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -19,6 +24,8 @@ from .errors import AudioError
 
 DEFAULT_SAMPLE_RATE = 16000
 """Hz; the rate the Yalta et al. (2016) pipeline works at."""
+BLOCK_SECONDS = 10.0
+"""Seconds of source audio decoded at a time when streaming."""
 
 
 @dataclass(eq=False)
@@ -48,10 +55,87 @@ def resample(samples: np.ndarray, from_rate: float, to_rate: float) -> np.ndarra
     return soxr.resample(np.asarray(samples, dtype=np.float32), from_rate, to_rate, quality="HQ")
 
 
+def resampled_length(n: int, from_rate: int, to_rate: int) -> int:
+    """Samples soxr produces from ``n`` input samples: n * to / from, rounded half up."""
+    return n if from_rate == to_rate else (2 * n * to_rate + from_rate) // (2 * from_rate)
+
+
 def to_mono(samples: np.ndarray) -> np.ndarray:
     """[S, C] -> [S]: the mean of the channels."""
     samples = np.asarray(samples)
     return samples if samples.ndim == 1 else samples.mean(axis=1, dtype=np.float64).astype(np.float32)
+
+
+class AudioReader:
+    """An audio file streamed as mono float32 blocks at ``sample_rate`` Hz.
+
+    Opening checks that the file is readable and not empty (AudioError otherwise); :meth:`blocks`
+    decodes it from the start each time it is called.
+    """
+
+    def __init__(self, path: str | Path, sample_rate: int = DEFAULT_SAMPLE_RATE, block_seconds: float = BLOCK_SECONDS):
+        self.path = Path(path)
+        self.sample_rate = int(sample_rate)
+        if not self.path.is_file():
+            raise AudioError(self.path, "no such audio file")
+        try:
+            info = soundfile.info(str(self.path))
+        except (soundfile.LibsndfileError, RuntimeError, TypeError, ValueError) as exc:
+            raise AudioError(
+                self.path, f"cannot read audio ({exc}); kinectdata reads what libsndfile reads: WAV, FLAC, OGG, MP3..."
+            ) from exc
+        if info.frames <= 0:
+            raise AudioError(self.path, "the audio file holds no samples")
+        self.source_rate = int(info.samplerate)
+        self.channels = int(info.channels)
+        self.source_frames = int(info.frames)
+        self.format = f"{info.format}/{info.subtype}"
+        self._block = max(1, int(block_seconds * self.source_rate))
+
+    @property
+    def n_samples(self) -> int:
+        """Samples :meth:`blocks` yields in all (from the header's frame count, which is exact for
+        WAV and FLAC; compressed formats may differ by a few samples)."""
+        return resampled_length(self.source_frames, self.source_rate, self.sample_rate)
+
+    @property
+    def duration(self) -> float:
+        """Seconds, at the output rate."""
+        return self.n_samples / self.sample_rate
+
+    @property
+    def source(self) -> dict[str, Any]:
+        return {
+            "path": str(self.path),
+            "sample_rate": self.source_rate,
+            "channels": self.channels,
+            "frames": self.source_frames,
+            "format": self.format,
+        }
+
+    def blocks(self) -> Iterator[np.ndarray]:
+        """Consecutive [B] float32 mono blocks at ``sample_rate``; together, :attr:`n_samples` samples."""
+        stream = None
+        if self.source_rate != self.sample_rate:
+            stream = soxr.ResampleStream(self.source_rate, self.sample_rate, 1, dtype="float32", quality="HQ")
+        done = 0
+        try:
+            with soundfile.SoundFile(str(self.path)) as f:
+                for block in f.blocks(blocksize=self._block, dtype="float32", always_2d=True):
+                    bad = ~np.isfinite(block).all(axis=1)
+                    if bad.any():
+                        i = done + int(np.argmax(bad))
+                        raise AudioError(
+                            self.path,
+                            f"non-finite sample (NaN or infinity) at sample {i} ({i / self.source_rate:.3f} s)",
+                        )
+                    done += block.shape[0]
+                    mono = to_mono(block)
+                    yield mono if stream is None else stream.resample_chunk(mono, last=False)
+        except (soundfile.LibsndfileError, RuntimeError) as exc:
+            raise AudioError(self.path, f"cannot decode audio at sample {done} ({exc})") from exc
+        if stream is not None:  # flush the resampler's tail
+            yield stream.resample_chunk(np.zeros(0, np.float32), last=True)
 
 
 def load_audio(path: str | Path, sample_rate: int = DEFAULT_SAMPLE_RATE) -> Audio:
@@ -60,30 +144,6 @@ def load_audio(path: str | Path, sample_rate: int = DEFAULT_SAMPLE_RATE) -> Audi
     Raises:
         AudioError: the file is missing, unreadable, empty or holds non-finite samples.
     """
-    path = Path(path)
-    if not path.is_file():
-        raise AudioError(path, "no such audio file")
-    try:
-        data, rate = soundfile.read(str(path), dtype="float32", always_2d=True)
-        info = soundfile.info(str(path))
-    except (soundfile.LibsndfileError, RuntimeError, TypeError, ValueError) as exc:
-        raise AudioError(
-            path, f"cannot read audio ({exc}); kinectdata reads what libsndfile reads: WAV, FLAC, OGG, MP3..."
-        ) from exc
-    if data.shape[0] == 0:
-        raise AudioError(path, "the audio file holds no samples")
-    if not np.isfinite(data).all():
-        frame = int(np.argmax(~np.isfinite(data).all(axis=1)))
-        raise AudioError(path, f"non-finite sample (NaN or infinity) at sample {frame} ({frame / rate:.3f} s)")
-    mono = resample(to_mono(data), rate, sample_rate)
-    return Audio(
-        samples=mono,
-        sample_rate=int(sample_rate),
-        source={
-            "path": str(path),
-            "sample_rate": int(rate),
-            "channels": int(data.shape[1]),
-            "frames": int(data.shape[0]),
-            "format": f"{info.format}/{info.subtype}",
-        },
-    )
+    reader = AudioReader(path, sample_rate)
+    samples = np.concatenate(list(reader.blocks())) if reader.n_samples else np.zeros(0, np.float32)
+    return Audio(samples=samples, sample_rate=reader.sample_rate, source=reader.source)

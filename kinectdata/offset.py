@@ -41,7 +41,8 @@ from typing import Any
 import numpy as np
 from scipy import ndimage, signal
 
-from .audio import Audio, resample
+from .audio import Audio
+from .envelopes import CLAP_FRAME_S, ONSET_RATE, AudioEnvelopes
 from .errors import AlignmentError
 from .motion import Motion
 
@@ -50,12 +51,9 @@ CLAP_SPEED_M_S = 0.8
 CLAP_MATCH_S = 0.06
 ISOLATION_DB = 20.0
 ISOLATION_MARGIN_DB = 20.0
-ENVELOPE_RATE = 100.0  # Hz, for the cross-correlation envelopes
 MAIN_LOBE_S = 0.25
 """Correlation peaks closer than this to the best belong to its main lobe, not rivals. Shorter
 than the beat period of any dance music (0.33 s at 180 BPM), so a beat away still competes."""
-ANALYSIS_RATE = 16000  # Hz; audio at a lower rate is resampled to this for the analysis
-_FRAME_S = 0.005
 
 
 @dataclass(frozen=True)
@@ -116,33 +114,30 @@ def _contact_time(t: np.ndarray, d: np.ndarray, closing: np.ndarray, k: int, i: 
     return float(np.clip(tc, t[k], t[k + 1] + (t[k + 1] - t[k])))
 
 
-def audio_claps(audio: Audio) -> list[tuple[float, float]]:
+def audio_claps(audio: Audio | AudioEnvelopes) -> list[tuple[float, float]]:
     """Isolated transients in the audio: (onset time in seconds, isolation in dB), by time."""
-    sr = audio.sample_rate
-    hop = int(round(_FRAME_S * sr))
-    sos = signal.butter(4, 1000.0, btype="highpass", fs=sr, output="sos")
-    x = signal.sosfilt(sos, audio.samples.astype(np.float64))
-    n = x.size // hop
+    env = audio if isinstance(audio, AudioEnvelopes) else AudioEnvelopes.of(audio)
+    energy = env.clap_energy
+    n = energy.size
     if n < 10:
         return []
-    energy = (x[: n * hop].reshape(n, hop) ** 2).mean(axis=1)
     floor = max(energy.max() * 1e-6, 1e-12)
     # Mean (not median) energy around each frame: sparse drum hits in a quiet intro must count.
-    w = int(round(0.5 / _FRAME_S))
+    w = int(round(0.5 / CLAP_FRAME_S))
     mean = ndimage.uniform_filter1d(energy, size=w, mode="nearest")
     half = w // 2
-    before = np.concatenate([np.full(w, floor), mean])[np.arange(n) + w - (half + int(0.03 / _FRAME_S))]
-    after = np.concatenate([mean, np.full(w, floor)])[np.arange(n) + half + int(0.08 / _FRAME_S)]
+    before = np.concatenate([np.full(w, floor), mean])[np.arange(n) + w - (half + int(0.03 / CLAP_FRAME_S))]
+    after = np.concatenate([mean, np.full(w, floor)])[np.arange(n) + half + int(0.08 / CLAP_FRAME_S)]
     background = np.maximum(np.maximum(before, after), floor)
     isolation = 10 * np.log10(np.maximum(energy, 1e-30) / background)
-    peaks, _ = signal.find_peaks(energy, distance=int(0.1 / _FRAME_S))
+    peaks, _ = signal.find_peaks(energy, distance=int(0.1 / CLAP_FRAME_S))
     loud = energy[peaks] >= energy.max() * 1e-4
     out: list[tuple[float, float]] = []
     for p in peaks[loud & (isolation[peaks] >= ISOLATION_DB)]:
         k = p
         while k > 0 and energy[k - 1] >= energy[p] * 0.1:
             k -= 1
-        onset = k * hop / sr
+        onset = k * CLAP_FRAME_S
         if out and onset - out[-1][0] < 0.1:  # one event seen from several peaks
             out[-1] = (out[-1][0], max(out[-1][1], float(isolation[p])))
             continue
@@ -195,21 +190,7 @@ def _clap_estimate(
 # ---------------------------------------------------------------------------------------------
 # Cross-correlation of envelopes
 # ---------------------------------------------------------------------------------------------
-def audio_onset_envelope(audio: Audio, rate: float = ENVELOPE_RATE) -> np.ndarray:
-    """Spectral-flux onset strength (summed positive change of log magnitude) sampled at exactly
-    ``rate`` Hz, index k at ``k / rate`` seconds of the audio."""
-    hop = max(1, int(round(audio.sample_rate / rate)))
-    _, _, z = signal.stft(
-        audio.samples, fs=audio.sample_rate, nperseg=4 * hop, noverlap=3 * hop, boundary=None, padded=False
-    )
-    logmag = np.log1p(100.0 * np.abs(z))
-    flux = np.maximum(np.diff(logmag, axis=1), 0.0).sum(axis=0)
-    # STFT frame i is centred on sample (i + 2) * hop; difference i belongs to frame i + 1
-    times = (np.arange(flux.size) + 3) * hop / audio.sample_rate
-    return np.interp(np.arange(0.0, audio.duration, 1.0 / rate), times, flux, left=0.0, right=0.0)
-
-
-def motion_energy_envelope(motion: Motion, rate: float = ENVELOPE_RATE) -> np.ndarray:
+def motion_energy_envelope(motion: Motion, rate: float = ONSET_RATE) -> np.ndarray:
     """Summed joint speed (m/s) on a ``rate`` Hz grid starting at the motion's first frame."""
     grid = np.arange(motion.times[0], motion.times[-1], 1.0 / rate)
     total = np.zeros(grid.size)
@@ -230,9 +211,9 @@ def _zscore(x: np.ndarray) -> np.ndarray:
     return (x - x.mean()) / s if s > 0 else x * 0.0
 
 
-def _xcorr_estimate(motion: Motion, audio: Audio, max_offset: float | None) -> OffsetEstimate:
-    rate = ENVELOPE_RATE
-    a = _zscore(audio_onset_envelope(audio, rate))
+def _xcorr_estimate(motion: Motion, env: AudioEnvelopes, max_offset: float | None) -> OffsetEstimate:
+    rate = ONSET_RATE
+    a = _zscore(env.onset)
     m = motion_energy_envelope(motion, rate)
     m = _zscore(np.maximum(np.diff(ndimage.uniform_filter1d(m, 5), prepend=m[0]), 0.0))
     corr = signal.correlate(a, m, mode="full", method="fft")
@@ -264,7 +245,7 @@ def _xcorr_estimate(motion: Motion, audio: Audio, max_offset: float | None) -> O
 
 def estimate_offset(
     motion: Motion,
-    audio: Audio,
+    audio: Audio | AudioEnvelopes,
     *,
     max_offset: float | None = None,
     min_confidence: float = 0.5,
@@ -273,21 +254,21 @@ def estimate_offset(
 
     Args:
         motion: the skeleton recording (its own clock).
-        audio: the audio (any rate; 16 kHz mono as loaded by :func:`~kinectdata.audio.load_audio`).
+        audio: the audio (any rate), or its :class:`~kinectdata.envelopes.AudioEnvelopes` (computed
+            while streaming a long file).
         max_offset: ignore offsets larger than this many seconds in magnitude.
         min_confidence: below this confidence the estimate is refused.
 
     Raises:
         AlignmentError: no method reaches ``min_confidence``; the message gives the candidates.
     """
-    if audio.sample_rate < ANALYSIS_RATE / 2:  # too low for the 1 kHz high-pass and the flux
-        audio = Audio(resample(audio.samples, audio.sample_rate, ANALYSIS_RATE), ANALYSIS_RATE, audio.source)
+    env = audio if isinstance(audio, AudioEnvelopes) else AudioEnvelopes.of(audio)
     m_claps = motion_claps(motion)
-    a_claps = audio_claps(audio) if m_claps else []
+    a_claps = audio_claps(env) if m_claps else []
     clap = _clap_estimate(m_claps, a_claps, max_offset) if m_claps and a_claps else None
     if clap is not None and clap.confidence >= min_confidence:
         return clap
-    xcorr = _xcorr_estimate(motion, audio, max_offset)
+    xcorr = _xcorr_estimate(motion, env, max_offset)
     if xcorr.confidence >= min_confidence:
         return xcorr
     lines = []

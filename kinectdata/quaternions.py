@@ -1,9 +1,11 @@
 """Quaternion helpers on [..., 4] arrays in scipy's scalar-last order (x, y, z, w).
 
-Rotation maths itself is left to :mod:`scipy.spatial.transform`; these functions only handle
-what scipy does not: component order, zero quaternions meaning "no orientation", and sign
-continuity over time (q and -q are the same rotation, but a learning target must not jump
-between them).
+Rotation maths is left to :mod:`scipy.spatial.transform`, except :func:`slerp`: scipy's ``Slerp``
+builds Rotation objects whose overhead dominated resampling (0.3 s of 0.4 s for a 10-minute
+recording), so the formula is applied to arrays here, and tested against scipy's ``Slerp``. The
+other functions handle what scipy does not: component order, zero quaternions meaning "no
+orientation", and sign continuity over time (q and -q are the same rotation, but a learning
+target must not jump between them).
 """
 
 from __future__ import annotations
@@ -80,3 +82,25 @@ def make_continuous(q: np.ndarray, mask: np.ndarray | None = None) -> np.ndarray
         flips = np.concatenate([[1.0], np.cumprod(np.where(dots < 0, -1.0, 1.0))])
         flat[idx, s] = series * flips[:, None]
     return flat.reshape(q.shape)
+
+
+def slerp(q0: np.ndarray, q1: np.ndarray, w: np.ndarray) -> np.ndarray:
+    """Spherical linear interpolation from ``q0`` to ``q1`` at fraction ``w``.
+
+    Args:
+        q0, q1: [N, 4] unit quaternions (x, y, z, w), in the same hemisphere (q0 . q1 >= 0, as
+            :func:`make_continuous` leaves consecutive samples), so the arc is the shortest one.
+        w: [N] fractions in 0..1.
+
+    Returns:
+        [N, 4] unit quaternions, in the hemisphere of the inputs.
+    """
+    dot = np.clip(np.einsum("ij,ij->i", q0, q1), -1.0, 1.0)
+    theta = np.arccos(dot)
+    sin_theta = np.sin(theta)
+    close = sin_theta < 1e-6  # (nearly) the same rotation: linear interpolation is exact enough
+    safe = np.where(close, 1.0, sin_theta)
+    a = np.where(close, 1.0 - w, np.sin((1.0 - w) * theta) / safe)
+    b = np.where(close, w, np.sin(w * theta) / safe)
+    out = a[:, None] * q0 + b[:, None] * q1
+    return out / np.linalg.norm(out, axis=1, keepdims=True)

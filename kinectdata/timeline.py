@@ -1,8 +1,9 @@
 """Resampling a recording onto an exact time grid, with tracking gaps found, filled or masked.
 
 For every joint, each grid time is computed from the two *valid* source samples around it:
-positions linearly, orientations by spherical linear interpolation (scipy's ``Slerp``) after the
-joint's quaternions have been made sign-continuous (q . q_prev >= 0), confidence linearly.
+positions linearly, orientations by spherical linear interpolation (:func:`~kinectdata.quaternions.slerp`,
+checked against scipy's ``Slerp``) after the joint's quaternions have been made sign-continuous
+(q . q_prev >= 0), confidence linearly.
 
 A *gap* is a stretch where a joint has no valid sample: two consecutive valid samples further
 apart than 1.5 nominal frame intervals (the joint was untracked, or whole frames were dropped).
@@ -19,10 +20,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.spatial.transform import Rotation, Slerp
 
 from .motion import Motion
-from .quaternions import make_continuous
+from .quaternions import make_continuous, slerp
 
 GAP_FACTOR = 1.5
 """Consecutive valid samples further apart than this many nominal intervals bound a gap."""
@@ -156,12 +156,7 @@ def resample_motion(motion: Motion, grid: np.ndarray, max_gap: float = 0.2) -> R
                 continue
             a, b, w, ok, filled = _brackets(times[idx], grid, dt, max_gap)
             q = continuous[idx, j]
-            if idx.size == 1:
-                out = np.repeat(q, N, axis=0)
-            else:
-                out = Slerp(times[idx], Rotation.from_quat(q))(np.clip(grid, times[idx[0]], times[idx[-1]])).as_quat()
-                # scipy picks the sign freely: keep the continuous source's hemisphere
-                out *= np.where(np.einsum("ij,ij->i", out, q[a]) < 0, -1.0, 1.0)[:, None]
+            out = slerp(q[a], q[b], w)
             quats[ok, j] = out[ok]
             qmask[:, j], qint[:, j] = ok, filled
 

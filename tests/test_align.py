@@ -44,7 +44,7 @@ def test_real_fixture_on_an_exact_grid_against_independent_interpolation(fixture
         np.testing.assert_allclose(rec.motion.positions[:, j, d], ref, atol=1e-12)
     audio = load_audio(noise_wav)
     np.testing.assert_array_equal(rec.audio, audio.samples[12000 : 12000 + rec.audio.size])
-    assert rec.audio.size == round(n * 16000 / 30)
+    assert rec.audio.size == round((n + 1) * 16000 / 30)  # one more frame period, the source has it
     s = rec.summary
     dt = np.diff(src.times)
     assert s["dropped_frames"] == 2 and s["source_frames"] == 154
@@ -133,8 +133,10 @@ def test_audio_ending_first_limits_the_frames_so_each_has_its_full_audio(tmp_pat
     cut = tmp_path / "cut.wav"
     sf.write(cut, x[: int(18.51 * sr)], sr)
     rec = align_files(f"{sample}.csv", cut, offset="auto", min_coverage=0.5)
-    assert rec.audio.size == round(rec.n_frames * 16000 / 30)
-    assert (rec.n_frames - 1) / 30 + 1 / 30 <= 18.51 - rec.summary["audio_trimmed_start_s"] + 1e-9
+    # every frame has its whole period of audio, and the kept audio ends with the source's
+    assert round(rec.n_frames * 16000 / 30) <= rec.audio.size <= round((rec.n_frames + 1) * 16000 / 30)
+    assert rec.n_frames / 30 <= 18.51 - rec.summary["audio_trimmed_start_s"] + 1e-9
+    assert rec.summary["audio_trimmed_end_s"] == pytest.approx(0.0, abs=1 / 16000)
 
 
 def test_too_little_overlap_is_refused_even_without_a_coverage_requirement(fixture_csv, noise_wav):

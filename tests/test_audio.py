@@ -72,3 +72,38 @@ def test_unreadable_missing_empty_and_nan_audio(tmp_path):
     sf.write(tmp_path / "nan.wav", x, 16000, subtype="FLOAT")
     with pytest.raises(AudioError, match=r"nan\.wav: non-finite sample .* at sample 500"):
         load_audio(tmp_path / "nan.wav")
+
+
+def test_streamed_blocks_equal_whole_file_resampling_for_any_block_size(tmp_path):
+    from kinectdata.audio import AudioReader, resample, to_mono
+
+    x = np.random.default_rng(0).normal(0, 0.2, (44100 * 7 + 77, 2)).astype(np.float32)
+    sf.write(tmp_path / "n.flac", x, 44100, subtype="PCM_24")
+    ref = resample(to_mono(sf.read(tmp_path / "n.flac", dtype="float32")[0]), 44100, 16000)
+    for seconds in (0.37, 1.0, 10.0):
+        reader = AudioReader(tmp_path / "n.flac", block_seconds=seconds)
+        got = np.concatenate(list(reader.blocks()))
+        assert np.array_equal(got, ref) and got.size == reader.n_samples
+
+
+def test_resampled_length_is_soxr_rounding_half_up():
+    import soxr
+
+    from kinectdata.audio import resampled_length
+
+    for n in (1, 15, 22, 29, 36, 1001, 44100 * 3 + 13):
+        for a, b in ((44100, 16000), (48000, 16000), (11025, 16000), (22050, 16000)):
+            assert resampled_length(n, a, b) == soxr.resample(np.zeros(n, np.float32), a, b).size
+
+
+def test_envelopes_do_not_depend_on_the_block_size():
+    from kinectdata.envelopes import audio_envelopes
+
+    x = np.random.default_rng(1).normal(0, 0.1, 16000 * 9 + 321).astype(np.float32)
+    whole = audio_envelopes([x], 16000)
+    for size in (1000, 16000, 77777):
+        parts = audio_envelopes([x[s : s + size] for s in range(0, x.size, size)], 16000)
+        assert np.array_equal(parts.clap_energy, whole.clap_energy)
+        assert np.array_equal(parts.onset, whole.onset)
+        assert parts.mean_square == pytest.approx(whole.mean_square, rel=1e-12)
+    assert whole.clap_energy.size == x.size // 80 and whole.onset.size == int(np.ceil(x.size / 160))

@@ -146,3 +146,18 @@ def test_edge_gaps_are_marked_and_filled_values_are_at_most_inferred():
     assert len(edge) == 1 and edge[0].edge and not edge[0].filled
     assert edge[0].length == pytest.approx(3 / 30)
     assert (r.motion.confidence[20:23, 5] == 0.5).all() and (r.motion.confidence[10, 5] == 1.0)
+
+
+def test_slerp_matches_scipy_including_nearly_equal_rotations():
+    from kinectdata.quaternions import slerp
+
+    rng = np.random.default_rng(5)
+    q0 = Rotation.random(200, random_state=1).as_quat()
+    q1 = (Rotation.from_rotvec(rng.normal(0, 1.0, (200, 3))) * Rotation.from_quat(q0)).as_quat()
+    q1[:50] = (Rotation.from_rotvec(rng.normal(0, 1e-8, (50, 3))) * Rotation.from_quat(q0[:50])).as_quat()
+    q1 *= np.sign(np.einsum("ij,ij->i", q0, q1))[:, None]  # same hemisphere, as after make_continuous
+    w = rng.uniform(0, 1, 200)
+    got = Rotation.from_quat(slerp(q0, q1, w))
+    for i in range(200):
+        ref = Slerp([0.0, 1.0], Rotation.from_quat([q0[i], q1[i]]))([w[i]])[0]
+        assert (got[i] * ref.inv()).magnitude() < 1e-9
