@@ -21,7 +21,6 @@ from dataclasses import dataclass
 
 import numpy as np
 import soxr
-from scipy import signal
 
 from .audio import Audio
 
@@ -66,6 +65,8 @@ class _Framer:
 
 def audio_envelopes(blocks: Iterable[np.ndarray], sample_rate: int) -> AudioEnvelopes:
     """Compute :class:`AudioEnvelopes` from consecutive mono blocks at ``sample_rate`` Hz."""
+    from scipy import signal  # imported here: it takes longer to import than most commands run
+
     stream = None
     if sample_rate < MIN_RATE:
         stream = soxr.ResampleStream(sample_rate, ANALYSIS_RATE, 1, dtype="float32", quality="HQ")
@@ -79,7 +80,8 @@ def audio_envelopes(blocks: Iterable[np.ndarray], sample_rate: int) -> AudioEnve
     stft_frames = _Framer(4 * onset_hop, onset_hop)
     window = signal.get_window("hann", 4 * onset_hop)
     window_sum = window.sum()
-    energy, magnitudes = [], []
+    energy, flux = [], []
+    previous: list[np.ndarray] = []  # the last STFT frame's log magnitude, for the next difference
     total, square_sum = 0, 0.0
 
     def consume(x: np.ndarray) -> None:
@@ -94,15 +96,16 @@ def audio_envelopes(blocks: Iterable[np.ndarray], sample_rate: int) -> AudioEnve
         frames = stft_frames.push(x)
         for s in range(0, frames.shape[0], _CHUNK):
             spectrum = np.abs(np.fft.rfft(frames[s : s + _CHUNK] * window, axis=1))
-            magnitudes.append(np.log1p(100.0 * spectrum / window_sum))
+            logmag = np.concatenate([*previous, np.log1p(100.0 * spectrum / window_sum)])
+            flux.append(np.maximum(np.diff(logmag, axis=0), 0.0).sum(axis=1))
+            previous[:] = [logmag[-1:]]
 
     for block in blocks:
         consume(block if stream is None else stream.resample_chunk(np.asarray(block, np.float32), last=False))
     if stream is not None:
         consume(stream.resample_chunk(np.zeros(0, np.float32), last=True))
 
-    logmag = np.concatenate(magnitudes) if magnitudes else np.zeros((0, 2 * onset_hop + 1))
-    flux = np.maximum(np.diff(logmag, axis=0), 0.0).sum(axis=1)
+    flux = np.concatenate(flux) if flux else np.zeros(0)
     # STFT frame i is centred on sample (i + 2) * hop; difference i belongs to frame i + 1
     times = (np.arange(flux.size) + 3) * onset_hop / sr
     duration = total / sr

@@ -39,7 +39,6 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
-from scipy import ndimage, signal
 
 from .audio import Audio
 from .envelopes import CLAP_FRAME_S, ONSET_RATE, AudioEnvelopes
@@ -116,6 +115,8 @@ def _contact_time(t: np.ndarray, d: np.ndarray, closing: np.ndarray, k: int, i: 
 
 def audio_claps(audio: Audio | AudioEnvelopes) -> list[tuple[float, float]]:
     """Isolated transients in the audio: (onset time in seconds, isolation in dB), by time."""
+    from scipy import ndimage, signal  # slow to import; needed only when estimating
+
     env = audio if isinstance(audio, AudioEnvelopes) else AudioEnvelopes.of(audio)
     energy = env.clap_energy
     n = energy.size
@@ -212,6 +213,8 @@ def _zscore(x: np.ndarray) -> np.ndarray:
 
 
 def _xcorr_estimate(motion: Motion, env: AudioEnvelopes, max_offset: float | None) -> OffsetEstimate:
+    from scipy import ndimage, signal
+
     rate = ONSET_RATE
     a = _zscore(env.onset)
     m = motion_energy_envelope(motion, rate)

@@ -31,9 +31,9 @@ def main() -> None:
 
 
 def _register() -> None:
-    from . import align, info, quickstart, synth
+    from . import align, dataset, info, quickstart, synth
 
-    for module in (info, align, synth, quickstart):
+    for module in (info, align, dataset, synth, quickstart):
         for command in module.COMMANDS:
             main.add_command(command)
 

@@ -4,8 +4,6 @@ from __future__ import annotations
 
 import click
 
-from ..quickstart import run_quickstart
-
 
 @click.command()
 @click.option(
@@ -20,6 +18,8 @@ from ..quickstart import run_quickstart
 def quickstart(out, samples) -> None:
     """Run the data path end to end on the bundled sample data: synthesise a session, then align
     every session (offset found from the sync clap, checked against the ground truth)."""
+    from ..quickstart import run_quickstart  # imports the synthesiser, slow to load
+
     run_quickstart(out, samples, echo=click.echo)
 
 

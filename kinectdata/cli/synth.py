@@ -4,9 +4,7 @@ from __future__ import annotations
 
 import click
 
-from ..synth import synthesize_recording, write_recording
-from ..synth.recording import DIALECTS
-
+DIALECTS = ("dumpkinectskeleton", "kinectreader", "lsl_kinect", "canonical")
 MAX_DURATION_S = 600.0  # the generator needs about 5 MB of memory per second of audio
 
 
@@ -74,6 +72,8 @@ def synth(out_dir, seed, count, duration, tempo, offset, no_clap, sample_rate, d
     """Write synthetic sessions to OUT_DIR: <name>.csv (Kinect v2 skeleton with sensor jitter,
     noise, tracking losses), <name>.flac (music with a clear beat and a sync clap) and
     <name>.truth.json (tempo, beat times, offset, clap times, the command that remakes it)."""
+    from ..synth import synthesize_recording, write_recording  # the generator's imports are slow
+
     if name is not None and count > 1:
         raise click.UsageError("--name applies to a single session; with --count the names are synth_<seed>")
     for s in range(seed, seed + count):

@@ -11,8 +11,8 @@ Writing is :mod:`.csv_writer`, over the same schemas.
 
 from __future__ import annotations
 
-import io
 import re
+from array import array
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -34,85 +34,116 @@ _DETECT_LINES = 64
 # ---------------------------------------------------------------------------------------------
 # Reading the text into a table with line numbers
 # ---------------------------------------------------------------------------------------------
+_CHUNK_ROWS = 16384  # rows parsed at a time: memory grows with the columns kept, not the text
+
+
 @dataclass
 class _Table:
-    """The data rows of a CSV file; cells are parsed on first use, after the header is checked."""
+    """A CSV file's layout from a first pass over its lines, and the cells of the columns a
+    reader needs from a second, chunked pass (:meth:`load`), so that the whole text is never
+    held in memory."""
 
     path: Path
     schema: CsvSchema
     names: list[str]
     lines: np.ndarray  # [R] 1-based line number of each data row
-    rows: list[str]  # [R] the data rows' text
+    skipped: list[int]  # 0-based indices of the lines that are not data rows
+    encoding: str
     header_line: int | None = None
     meta: dict[str, str] = field(default_factory=dict)
+    bad_row: tuple[int, int] | None = None  # (line, fields) of the first row with a wrong field count
 
     def __post_init__(self) -> None:
         self._position = {n: i for i, n in enumerate(self.names)}
-        self._frame: pd.DataFrame | None = None
-
-    @property
-    def frame(self) -> pd.DataFrame:
-        """[R, C] cells, columns by position; checks every row's field count first."""
-        if self._frame is None:
-            delim = self.schema.delimiter
-            counts = np.fromiter((r.count(delim) + 1 for r in self.rows), dtype=np.int64, count=len(self.rows))
-            wrong = counts != len(self.names)
-            if wrong.any():
-                r = int(np.argmax(wrong))
-                what = "the header" if self.header_line is not None else f"the {self.schema.name} schema"
-                raise FormatError(
-                    self.path,
-                    f"expected {len(self.names)} fields as {what} says, found {counts[r]}",
-                    line=int(self.lines[r]),
-                )
-            self._frame = pd.read_csv(
-                io.StringIO("\n".join(self.rows)),
-                sep=delim,
-                header=None,
-                names=range(len(self.names)),
-                na_filter=False,
-                skipinitialspace=True,
-                low_memory=False,
-                skip_blank_lines=False,
-            )
-        return self._frame
+        self._numbers: dict[str, tuple[np.ndarray, np.ndarray]] = {}
+        self._texts: dict[str, np.ndarray] = {}
 
     def has(self, column: str) -> bool:
         return column in self._position
 
-    def text(self, column: str) -> np.ndarray:
-        """[R] cells of a column as stripped strings."""
-        return self.frame[self._position[column]].astype(str).str.strip().to_numpy(dtype=object)
+    def load(self, numeric: set[str], text: set[str]) -> None:
+        """Parse the given columns (numbers checked cell by cell, text kept as strings)."""
+        if self.bad_row is not None:
+            line, found = self.bad_row
+            what = "the header" if self.header_line is not None else f"the {self.schema.name} schema"
+            raise FormatError(self.path, f"expected {len(self.names)} fields as {what} says, found {found}", line=line)
+        columns = sorted(numeric | text, key=self._position.__getitem__)
+        if not columns:
+            return
+        missing_text = sorted(self.schema.missing_values)
+        names = list(range(len(self.names) + (1 if self.schema.get("trailing_delimiter") else 0)))
+        reader = pd.read_csv(
+            self.path,
+            sep=self.schema.delimiter,
+            header=None,
+            names=names,
+            usecols=[self._position[c] for c in columns],
+            skiprows=set(self.skipped),
+            chunksize=_CHUNK_ROWS,
+            encoding=self.encoding,
+            skipinitialspace=True,
+            na_filter=bool(missing_text),
+            na_values=missing_text,
+            keep_default_na=False,
+            dtype={self._position[c]: str for c in text},
+            skip_blank_lines=False,
+            low_memory=False,
+        )
+        parts: dict[str, list] = {c: [] for c in columns}
+        start = 0
+        for chunk in reader:
+            lines = self.lines[start : start + len(chunk)]
+            for c in columns:
+                series = chunk[self._position[c]]
+                if c in text:
+                    parts[c].append(series.fillna("").astype(str).str.strip().to_numpy(dtype=object))
+                else:
+                    parts[c].append(self._convert(series, c, lines))
+            start += len(chunk)
+        for c in columns:
+            if c in text:
+                self._texts[c] = np.concatenate(parts[c]) if parts[c] else np.zeros(0, object)
+            else:
+                values = [v for v, _ in parts[c]]
+                masks = [m for _, m in parts[c]]
+                self._numbers[c] = (np.concatenate(values), np.concatenate(masks))
 
-    def numbers(self, column: str, rows: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
-        """([R] float64 values, [R] bool missing) of a numeric column, checking every cell.
+    def _convert(self, series: pd.Series, column: str, lines: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """([n] float64 values, [n] bool missing) of one chunk of a numeric column, checking every cell.
 
         Cells listed in the schema's ``missing_values`` are missing (value NaN). Any other cell
         that is not a finite number raises FormatError with its line and column.
         """
-        series = self.frame[self._position[column]]
-        if rows is not None:
-            series = series.iloc[rows]
-        line_of = self.lines if rows is None else self.lines[rows]
         if pd.api.types.is_numeric_dtype(series.dtype):
+            # NaN here can only be a missing_values cell: other text keeps the column as strings
             values = series.to_numpy(dtype=np.float64, copy=True)
-            missing = np.zeros(values.shape, bool)
-            text = None
+            missing = np.isnan(values)
         else:
-            text = series.astype(str).str.strip()
-            missing = (
-                text.isin(self.schema.missing_values).to_numpy()
-                if self.schema.missing_values
-                else np.zeros(len(text), bool)
-            )
-            values = pd.to_numeric(text.mask(missing, "0"), errors="coerce").to_numpy(dtype=np.float64, copy=True)
+            values = pd.to_numeric(series, errors="coerce").to_numpy(dtype=np.float64, copy=True)
+            missing = np.zeros(values.shape, bool)
+            failed = np.flatnonzero(np.isnan(values))
+            if failed.size:  # look at the text only where conversion failed
+                text = series.iloc[failed].fillna("").astype(str).str.strip()
+                is_missing = text.isin(self.schema.missing_values).to_numpy()
+                missing[failed[is_missing]] = True
+                retry = pd.to_numeric(text.mask(is_missing, "0"), errors="coerce").to_numpy(dtype=np.float64)
+                values[failed] = retry
         bad = ~missing & ~np.isfinite(values)
         if bad.any():
             r = int(np.argmax(bad))
-            cell = str(series.iloc[r]).strip() if text is None else text.iloc[r]
-            raise FormatError(self.path, _describe_bad_cell(cell), line=int(line_of[r]), column=column)
+            cell = "" if pd.isna(series.iloc[r]) else str(series.iloc[r]).strip()
+            raise FormatError(self.path, _describe_bad_cell(cell), line=int(lines[r]), column=column)
         values[missing] = np.nan
         return values, missing
+
+    def numbers(self, column: str, rows: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """([R] float64 values, [R] bool missing) of a loaded numeric column (or of ``rows``)."""
+        values, missing = self._numbers[column]
+        return (values, missing) if rows is None else (values[rows], missing[rows])
+
+    def text(self, column: str) -> np.ndarray:
+        """[R] cells of a loaded text column, stripped."""
+        return self._texts[column]
 
 
 def _describe_bad_cell(cell: str) -> str:
@@ -143,43 +174,69 @@ def _strip_trailing(line: str, delimiter: str) -> str:
 
 
 def _load_table(path: Path, schema: CsvSchema, joint_set: JointSet | None) -> _Table:
-    lines = _read_lines(path)
+    """First pass: which lines are comments, header and data; every data row's field count."""
+    try:
+        return _scan(path, schema, joint_set, "utf-8-sig")
+    except UnicodeDecodeError:
+        return _scan(path, schema, joint_set, "cp1252")  # Windows tools; the numbers are ASCII either way
+
+
+def _scan(path: Path, schema: CsvSchema, joint_set: JointSet | None, encoding: str) -> _Table:
     delim = schema.delimiter
     comment = schema.get("comment")
     trailing = schema.get("trailing_delimiter", False)
+    first_data = schema.get("skip_lines", 0)
     meta: dict[str, str] = {}
     header: list[str] | None = None
     header_line = None
-    data_idx: list[int] = []
-    for i in range(schema.get("skip_lines", 0), len(lines)):
-        stripped = lines[i].strip()
-        if not stripped:
-            continue
-        if comment and stripped.startswith(comment):
-            m = _META_LINE.match(stripped[len(comment) :])
-            if m:
-                meta[m.group(1)] = m.group(2)
-            continue
-        if schema.has_header and header is None:
-            header = _split_fields(_strip_trailing(lines[i], delim) if trailing else lines[i], delim)
-            header_line = i + 1
-            continue
-        data_idx.append(i)
+    names: list[str] | None = (
+        None
+        if schema.has_header
+        else schema.headerless_columns(schema.file_joint_names(joint_set))
+        if joint_set is not None
+        else None
+    )
+    skipped: list[int] = []
+    data = array("q")
+    bad_row: tuple[int, int] | None = None
+    try:
+        f = open(path, encoding=encoding, newline=None)
+    except OSError as exc:
+        raise FormatError(path, f"cannot read file: {exc.strerror or exc}") from exc
+    with f:
+        for i, line in enumerate(f):
+            stripped = line.strip()
+            if i < first_data or not stripped:
+                skipped.append(i)
+                continue
+            if comment and stripped.startswith(comment):
+                m = _META_LINE.match(stripped[len(comment) :])
+                if m:
+                    meta[m.group(1)] = m.group(2)
+                skipped.append(i)
+                continue
+            row = _strip_trailing(line.rstrip("\r\n"), delim) if trailing else line.rstrip("\r\n")
+            if schema.has_header and header is None:
+                names = header = _split_fields(row, delim)
+                header_line = i + 1
+                skipped.append(i)
+                continue
+            if names is None:
+                raise FormatError(path, f"the {schema.name} schema has no header and no fixed joint set")
+            if bad_row is None and row.count(delim) + 1 != len(names):
+                bad_row = (i + 1, row.count(delim) + 1)  # reported after the header is checked
+            data.append(i + 1)
     if schema.has_header and header is None:
         raise FormatError(path, f"empty file: no header line (the {schema.name} dialect has one)")
     if header is not None:
         dup = sorted({c for c in header if header.count(c) > 1})
         if dup:
             raise FormatError(path, f"the header repeats column(s) {', '.join(map(repr, dup))}", line=header_line)
-        names = header
-    else:
-        if joint_set is None:
-            raise FormatError(path, f"the {schema.name} schema has no header and no fixed joint set")
-        names = schema.headerless_columns(schema.file_joint_names(joint_set))
-    if not data_idx:
+    if not data:
         raise FormatError(path, "no data rows" + (f" after the header (line {header_line})" if header_line else ""))
-    rows = [(_strip_trailing(lines[i], delim) if trailing else lines[i]) for i in data_idx]
-    return _Table(path, schema, names, np.asarray(data_idx) + 1, rows, header_line, meta)
+    return _Table(
+        path, schema, names, np.frombuffer(data, dtype=np.int64).copy(), skipped, encoding, header_line, meta, bad_row
+    )
 
 
 # ---------------------------------------------------------------------------------------------
@@ -277,6 +334,23 @@ def _tracking_confidence(table: _Table, column: str, rows: np.ndarray | None) ->
             raise FormatError(table.path, f"confidence {conf[r]} outside 0..1", line=int(lines[r]), column=column)
         return np.where(missing, 0.0, conf)
     mapping = spec["values"]
+    lines = table.lines if rows is None else table.lines[rows]
+    if _numeric_states(spec):
+        values, missing = table.numbers(column, rows)
+        conf, known = np.zeros(values.shape), missing.copy()  # a missing state: not tracked
+        for key, value in mapping.items():
+            hit = values == float(key)
+            conf[hit], known = value, known | hit
+        if not known.all():
+            r = int(np.argmax(~known))
+            allowed = ", ".join(repr(k) for k in mapping)
+            raise FormatError(
+                table.path,
+                f"unknown tracking state '{values[r]:g}' (expected one of {allowed})",
+                line=int(lines[r]),
+                column=column,
+            )
+        return conf
     cells = table.text(column) if rows is None else table.text(column)[rows]
     numeric_keys = {}
     for k, v in mapping.items():
@@ -295,7 +369,6 @@ def _tracking_confidence(table: _Table, column: str, rows: np.ndarray | None) ->
             conf_of[i] = numeric_keys[float(cell)]
         except (ValueError, KeyError):
             r = int(np.argmax(inverse == i))
-            lines = table.lines if rows is None else table.lines[rows]
             allowed = ", ".join(repr(k) for k in mapping)
             raise FormatError(
                 table.path,
@@ -331,11 +404,48 @@ def _frame_times(table: _Table, rows: np.ndarray | None, n_rows: int) -> tuple[n
     return np.arange(n_rows, dtype=np.float64), 1.0 / spec["fps"], "frames"
 
 
+def _load_columns(table: _Table, joint_names: list[str]) -> None:
+    """Load what the reader uses: time, body, joint, and the per-joint columns of ``joint_names``
+    (file spellings; long layout: the plain columns). Body ids, joint names and word-valued
+    tracking states are text; the rest numbers."""
+    doc = table.schema.document
+    numeric, text = set(), set()
+    for key in ("time",):
+        if "column" in doc.get(key, {}):
+            numeric.add(doc[key]["column"])
+    if "body" in doc:
+        text.add(doc["body"]["column"])
+    if table.schema.layout == "long":
+        (text if doc["joint"]["values"] == "name" else numeric).add(doc["joint"]["column"])
+    templates = list(doc["position"]["columns"])
+    if "orientation" in doc and not _optional_orientation_templates(table.schema, table):
+        templates += doc["orientation"]["columns"]
+    tracking = doc.get("tracking")
+    for tmpl in templates + ([tracking["column"]] if tracking else []):
+        cols = [tmpl.replace(JOINT, j) for j in joint_names] if table.schema.layout == "wide" else [tmpl]
+        words = tracking is not None and tmpl == tracking["column"] and not _numeric_states(tracking)
+        (text if words else numeric).update(cols)
+    table.load(numeric, text)
+
+
+def _numeric_states(tracking: dict) -> bool:
+    """Tracking written as numbers (a confidence, or states whose names are all numbers)."""
+    if tracking.get("scale") == "confidence":
+        return True
+    try:
+        [float(k) for k in tracking["values"]]
+    except ValueError:
+        return False
+    return True
+
+
 def _read_wide(table: _Table, joint_set: JointSet, body: str | None) -> tuple:
     schema = table.schema
     present = [joint_set.index(n) for n in schema.get("joints", joint_set.names)]  # checked in joint_set_of
     if schema.has_header:
         _check_header(table, joint_set, present)
+    fnames = schema.file_joint_names(joint_set)
+    _load_columns(table, [fnames[j] for j in present])
     key = np.arange(len(table.lines))
     rows, body_meta = _select_body(table, body, key)
     lines = table.lines if rows is None else table.lines[rows]
@@ -372,6 +482,7 @@ def _read_long(table: _Table, joint_set: JointSet, body: str | None) -> tuple:
     spec = schema.document["time"]
     if "column" not in spec:
         raise FormatError(table.path, "a long-layout dialect needs a time column to group rows into frames")
+    _load_columns(table, [])
     t_all, _ = table.numbers(spec["column"])
     rows, body_meta = _select_body(table, body, t_all)
     lines = table.lines if rows is None else table.lines[rows]
@@ -457,7 +568,7 @@ def _joint_indices(table: _Table, jspec: dict, joint_set: JointSet, rows, lines)
 
 def _build_motion(path: Path, schema: CsvSchema, joint_set: JointSet, parts: tuple, meta: dict) -> Motion:
     t_raw, scale, lines, pos, missing, conf, quats, body_meta = parts
-    pos = pos * schema.position_scale()
+    pos *= schema.position_scale()
     position_mask = ~missing & (conf > 0)
     orientations = orientation_mask = None
     if quats is not None:
@@ -607,4 +718,6 @@ def read_csv_motion(
             f"columns but joint set {joint_set.name} is {joint_set.dimensions}-D",
         )
     parts = (_read_wide if sch.layout == "wide" else _read_long)(table, joint_set, body)
-    return _build_motion(path, sch, joint_set, parts, table.meta)
+    meta = table.meta
+    del table  # its parsed columns are no longer needed: free them before the arrays are assembled
+    return _build_motion(path, sch, joint_set, parts, meta)

@@ -153,7 +153,7 @@ def synthesize_music(
 
         bass = _bass_notes(rng, bar_t, chords, tonic - 12, period, [section_of_bar[b] for b in bars])
         x = _render_line(t, *bass, attack=0.004, decay=0.35, release=0.02, harmonics=((1, 1.0), (2, 0.45), (3, 0.2)))
-        x = signal.sosfilt(signal.butter(2, 900, "low", fs=sr, output="sos"), x)
+        x = signal.sosfilt(_butter(2, 900, "low", sr), x)
         mix(_pad(n, t0, x), 0.0, 0.42)
 
         for voice, pan in zip(range(3), (-0.55, 0.0, 0.55), strict=True):
@@ -172,7 +172,7 @@ def synthesize_music(
                 release=0.12,
                 harmonics=((1, 1.0), (2, 0.5), (3, 0.33), (4, 0.22), (5, 0.14), (6, 0.08)),
             )
-            x = signal.sosfilt(signal.butter(2, 250, "high", fs=sr, output="sos"), x)  # leave the lows to bass and kick
+            x = signal.sosfilt(_butter(2, 250, "high", sr), x)  # leave the lows to bass and kick
             mix(_pad(n, t0, x), pan, 0.08, reverb=0.5)
 
         melody = _melody_notes(
@@ -201,7 +201,7 @@ def synthesize_music(
         mixed += clap[:, None] * np.array([1.0, 0.92])
         clap_peak = clap_time_s + CLAP_ATTACK_S
     noise = rng.normal(0, 1, (n, 2))
-    noise = signal.sosfilt(signal.butter(1, 4000, "low", fs=sr, output="sos"), noise, axis=0)
+    noise = signal.sosfilt(_butter(1, 4000, "low", sr), noise, axis=0)
     noise *= 10 ** (NOISE_FLOOR_DBFS / 20) / np.sqrt(np.mean(noise**2))
     audio = np.clip(mixed + noise, -1.0, 1.0).astype(np.float32)
 
@@ -357,6 +357,13 @@ def _render_chunk(t, starts, durs, freqs, vels, *, attack, decay, release, harmo
     return env * wave
 
 
+def _butter(order: int, cutoff_hz, kind: str, sr: int) -> np.ndarray:
+    """Butterworth sections with every cutoff kept below 0.45 * sr, so any output rate works."""
+    top = 0.45 * sr
+    cutoff = [min(c, top) for c in cutoff_hz] if isinstance(cutoff_hz, list) else min(cutoff_hz, top)
+    return signal.butter(order, cutoff, kind, fs=sr, output="sos")
+
+
 def _pad(n: int, t0: int, x: np.ndarray) -> np.ndarray:
     out = np.zeros(n)
     out[t0:] = x
@@ -386,7 +393,7 @@ def _kick(sr: int, rng) -> np.ndarray:
     t, env = _decay(sr, 0.45, 0.11, 0.001)
     phase = 2 * np.pi * (50 * t + 70 * 0.015 * (1 - np.exp(-t / 0.015)))  # 120 Hz falling to 50 Hz
     body = np.sin(phase) * env
-    click = signal.sosfilt(signal.butter(2, 3000, "high", fs=sr, output="sos"), rng.normal(0, 1, t.size))
+    click = signal.sosfilt(_butter(2, 3000, "high", sr), rng.normal(0, 1, t.size))
     click *= np.exp(-t / 0.002) * 0.25
     return body + click
 
@@ -394,19 +401,19 @@ def _kick(sr: int, rng) -> np.ndarray:
 def _snare(sr: int, rng) -> np.ndarray:
     t, env_tone = _decay(sr, 0.35, 0.05)
     tone = (np.sin(2 * np.pi * 185 * t) + 0.5 * np.sin(2 * np.pi * 330 * t)) * env_tone * 0.6
-    noise = signal.sosfilt(signal.butter(2, [1500, 8000], "band", fs=sr, output="sos"), rng.normal(0, 1, t.size))
+    noise = signal.sosfilt(_butter(2, [1500, 8000], "band", sr), rng.normal(0, 1, t.size))
     return tone + noise * _decay(sr, 0.35, 0.11)[1] * 0.8
 
 
 def _hat(sr: int, rng, tau: float) -> np.ndarray:
     t, env = _decay(sr, max(0.1, 6 * tau), tau, 0.0005)
-    noise = signal.sosfilt(signal.butter(4, 7000, "high", fs=sr, output="sos"), rng.normal(0, 1, t.size))
+    noise = signal.sosfilt(_butter(4, 7000, "high", sr), rng.normal(0, 1, t.size))
     return noise * env * 0.6
 
 
 def _crash(sr: int, rng) -> np.ndarray:
     t, env = _decay(sr, 2.0, 0.5, 0.001)
-    noise = signal.sosfilt(signal.butter(2, 4500, "high", fs=sr, output="sos"), rng.normal(0, 1, t.size))
+    noise = signal.sosfilt(_butter(2, 4500, "high", sr), rng.normal(0, 1, t.size))
     return noise * env * 0.5
 
 
@@ -414,7 +421,7 @@ def _reverb(send: np.ndarray, sr: int, rng) -> np.ndarray:
     """A small room: 15 ms pre-delay, exponentially decaying noise tail (RT60 about 1 s) per channel."""
     t, env = _decay(sr, 1.0, 0.15, 0.01)
     ir = rng.normal(0, 1, (t.size, 2)) * env[:, None]
-    ir = signal.sosfilt(signal.butter(1, 5000, "low", fs=sr, output="sos"), ir, axis=0)
+    ir = signal.sosfilt(_butter(1, 5000, "low", sr), ir, axis=0)
     ir /= np.sqrt(np.sum(ir**2, axis=0))
     ir = np.concatenate([np.zeros((int(0.015 * sr), 2)), ir])
     # overlap-add in blocks: one convolution of a 10-minute track would need gigabytes
@@ -432,9 +439,7 @@ def _clap(n: int, sr: int, onset_s: float, rng) -> np.ndarray:
     i1 = min(i0 + int(CLAP_LENGTH_S * sr) + 2, n)
     # Filter a longer noise stretch so that the band-pass has settled before the onset.
     pre = int(0.02 * sr)
-    noise = signal.sosfilt(signal.butter(2, [900, 3000], "band", fs=sr, output="sos"), rng.normal(0, 1, pre + i1 - i0))[
-        pre:
-    ]
+    noise = signal.sosfilt(_butter(2, [900, 3000], "band", sr), rng.normal(0, 1, pre + i1 - i0))[pre:]
     tau = np.arange(i0, i1) / sr - onset_s
     env = np.where(
         tau < 0,

@@ -35,7 +35,7 @@ MIN_DURATION_S = 8.0
 OFFSET_RANGE_S = (-1.5, 2.5)
 TEMPO_RANGE_BPM = (96, 128)
 AUDIO_FORMATS = {"flac": ("FLAC", "PCM_16"), "wav": ("WAV", "PCM_16")}
-DIALECTS = ("dumpkinectskeleton", "kinectreader", "lsl_kinect", "canonical")
+DIALECTS = ("dumpkinectskeleton", "kinectreader", "lsl_kinect", "canonical")  # as cli/synth.py offers
 """The shipped Kinect v2 CSV dialects (``write_csv`` also takes schema files)."""
 
 _CLAP_AFTER_START_S = (1.2, 1.8)

@@ -1,0 +1,214 @@
+"""``kinectdata build-dataset`` and ``kinectdata inspect``."""
+
+from __future__ import annotations
+
+import click
+from tqdm import tqdm
+
+from ..dataset.build import build_dataset
+from ..dataset.inspect import inspect as inspect_report
+from ..dataset.prepare import BuildConfig
+from ..features.stft import PRESETS, StftConfig
+from ..targets import load_target_spec, shipped_target_specs
+
+
+def _floats(ctx, param, value: str | None) -> tuple[float, ...]:
+    if not value:
+        return ()
+    try:
+        return tuple(float(v) for v in value.split(","))
+    except ValueError:
+        raise click.BadParameter(f"{value!r} is not a comma-separated list of numbers") from None
+
+
+@click.command("build-dataset")
+@click.argument("source", type=click.Path(exists=True, path_type=str))
+@click.option(
+    "-o",
+    "--out",
+    required=True,
+    type=click.Path(file_okay=False, path_type=str),
+    help="Dataset folder to write (shards + manifest.json). An interrupted build there is resumed.",
+)
+@click.option(
+    "--target",
+    default="yalta65",
+    show_default=True,
+    metavar="NAME|FILE",
+    help=f"Target spec: which joints' positions (metres) and quaternions form the target vector. "
+    f"Shipped: {', '.join(shipped_target_specs())}.",
+)
+@click.option(
+    "--features",
+    "preset",
+    default="yalta2016",
+    show_default=True,
+    type=click.Choice(sorted(PRESETS)),
+    help="Audio feature preset: yalta2016 (per-frame 0.1..0.9 power spectrum) or motion_dance "
+    "(dB mapped from -120..5 dB to -0.9..0.9).",
+)
+@click.option(
+    "--power",
+    default=None,
+    type=click.Choice(["log", "linear"]),
+    help="Override the preset's power scale (yalta2016 default: log, i.e. dB).",
+)
+@click.option(
+    "--normalisation",
+    default="maxabs",
+    show_default=True,
+    type=click.Choice(["maxabs", "minmax"]),
+    help="Target normalisation into -0.9..0.9, fitted on the training split: maxabs (0.9 / max|x| per "
+    "component, the paper) or minmax.",
+)
+@click.option(
+    "--root-centre",
+    is_flag=True,
+    help="Positions relative to the root joint per frame (the root itself relative to its first second).",
+)
+@click.option(
+    "--split-ratios",
+    default="0.8,0.1,0.1",
+    show_default=True,
+    callback=_floats,
+    help="train,val,test shares for recordings without an explicit split (drawn by recording).",
+)
+@click.option(
+    "--seed",
+    default=0,
+    show_default=True,
+    type=click.IntRange(min=0),
+    help="Seed for the drawn splits and the augmentation noise.",
+)
+@click.option(
+    "--augment-snr",
+    default="",
+    callback=_floats,
+    metavar="DB,DB",
+    help="Add a copy of each training recording with white noise at each SNR (dB), e.g. 5,10.",
+)
+@click.option(
+    "--shard-size",
+    default=256.0,
+    show_default=True,
+    type=click.FloatRange(min=0, min_open=True),
+    help="Shard size limit in MB (uncompressed); a recording is never split across shards.",
+)
+@click.option(
+    "--compression",
+    default="none",
+    show_default=True,
+    type=click.Choice(["none", "gzip", "lzf"]),
+    help="HDF5 compression of the shard datasets.",
+)
+@click.option(
+    "--fps",
+    default=30.0,
+    show_default=True,
+    type=click.FloatRange(min=0, min_open=True),
+    help="Motion frames per second.",
+)
+@click.option(
+    "--sample-rate",
+    default=16000,
+    show_default=True,
+    type=click.IntRange(min=8000),
+    help="Audio sample rate in Hz for the features.",
+)
+@click.option(
+    "--max-gap",
+    default=0.2,
+    show_default=True,
+    type=click.FloatRange(min=0),
+    help="Longest tracking gap (seconds) filled by interpolation when aligning.",
+)
+@click.option(
+    "--min-coverage",
+    default=0.9,
+    show_default=True,
+    type=click.FloatRange(0, 1),
+    help="Least share (0..1) of a recording's motion its audio must cover.",
+)
+@click.option(
+    "--jobs",
+    default=1,
+    show_default=True,
+    type=click.IntRange(min=1),
+    help="Recordings prepared in parallel (processes).",
+)
+@click.option("--keep-work", is_flag=True, help="Keep the per-recording work files (.work/) after success.")
+def build_dataset_command(
+    source,
+    out,
+    target,
+    preset,
+    power,
+    normalisation,
+    root_centre,
+    split_ratios,
+    seed,
+    augment_snr,
+    shard_size,
+    compression,
+    fps,
+    sample_rate,
+    max_gap,
+    min_coverage,
+    jobs,
+    keep_work,
+) -> None:
+    """Build a training dataset from SOURCE: a recordings manifest (JSON, YAML or CSV with columns
+    recording, audio, split, offset, format, schema, body, name) or a folder of aligned .h5 files
+    or of sessions (skeleton file + audio of the same name).
+
+    Each motion frame gets a 1x129x5 STFT input and a normalised pose target; shards (HDF5) and a
+    manifest.json are written atomically, deterministically, and resumably.
+    """
+    features = PRESETS[preset]
+    if power is not None:
+        try:
+            features = StftConfig.from_dict({**features.to_dict(), "power": power})
+        except ValueError as exc:
+            raise click.BadParameter(f"not with --features {preset}: {exc}", param_hint="--power") from None
+    if len(split_ratios) != 3:
+        raise click.BadParameter("give three shares: train,val,test", param_hint="--split-ratios")
+    config = BuildConfig(
+        features=features.to_dict(),
+        target=load_target_spec(target).to_dict(),
+        fps=fps,
+        sample_rate=sample_rate,
+        normalisation=normalisation,
+        root_centre=root_centre,
+        split_ratios=split_ratios,
+        seed=seed,
+        augment_snr=augment_snr,
+        shard_size_mb=shard_size,
+        compression=None if compression == "none" else compression,
+        max_gap=max_gap,
+        min_coverage=min_coverage,
+    )
+    with tqdm(total=None, unit="recording", desc="preparing", disable=None) as bar:
+
+        def progress(done: int, total: int) -> None:
+            bar.total = total
+            bar.update(done - bar.n)
+
+        manifest = build_dataset(source, out, config, jobs=jobs, progress=progress, keep_work=keep_work)
+    t = manifest["totals"]
+    click.echo(f"wrote {out}: {t['rows']} rows from {t['recordings']} recordings in {t['shards']} shards")
+    for split, info in manifest["splits"].items():
+        click.echo(f"  {split:<5} {len(info['recordings'])} recordings, {info['rows']} rows")
+
+
+@click.command("inspect")
+@click.argument("path", type=click.Path(exists=True, path_type=str))
+@click.option(
+    "--components", default="12", show_default=True, help="How many target components to list per split, or 'all'."
+)
+def inspect_command(path, components) -> None:
+    """Show what a dataset folder or shard holds: layout (validated), counts, value ranges, statistics."""
+    limit = None if components == "all" else int(components)
+    click.echo(inspect_report(path, components=limit))
+
+
+COMMANDS = [build_dataset_command, inspect_command]

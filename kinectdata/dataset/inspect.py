@@ -1,0 +1,189 @@
+"""``inspect``: what a dataset or one shard holds, checked against its layout, with statistics.
+
+For a dataset folder the manifest is validated (``schemas/dataset-manifest.schema.json``) and
+every shard against the layout and its checksum; then, per split: rows, recordings, the input
+features' range, mean and standard deviation, padded frames, and per target component the range,
+mean and standard deviation over valid values, the share of valid values and how many lie
+beyond ±0.9 (the training split's are inside by construction; other splits may exceed it).
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import h5py
+import numpy as np
+
+from ..align import file_sha256
+from ..errors import FormatError
+from ..resources import validate
+from .build import MANIFEST
+from .shards import json_attribute, read_index, validate_shard
+
+_ROWS = 4096  # rows read at a time
+
+
+@dataclass
+class _Moments:
+    """Streaming min, max, mean and standard deviation per column."""
+
+    dim: int
+    count: np.ndarray = field(init=False)
+    total: np.ndarray = field(init=False)
+    squares: np.ndarray = field(init=False)
+    low: np.ndarray = field(init=False)
+    high: np.ndarray = field(init=False)
+
+    def __post_init__(self) -> None:
+        self.count = np.zeros(self.dim)
+        self.total = np.zeros(self.dim)
+        self.squares = np.zeros(self.dim)
+        self.low = np.full(self.dim, np.inf)
+        self.high = np.full(self.dim, -np.inf)
+
+    def add(self, x: np.ndarray, valid: np.ndarray | None = None) -> None:
+        x = x.astype(np.float64)
+        valid = np.ones(x.shape, bool) if valid is None else valid
+        self.count += valid.sum(axis=0)
+        self.total += np.where(valid, x, 0).sum(axis=0)
+        self.squares += np.where(valid, x * x, 0).sum(axis=0)
+        self.low = np.minimum(self.low, np.where(valid, x, np.inf).min(axis=0))
+        self.high = np.maximum(self.high, np.where(valid, x, -np.inf).max(axis=0))
+
+    def mean(self) -> np.ndarray:
+        return self.total / np.maximum(self.count, 1)
+
+    def std(self) -> np.ndarray:
+        return np.sqrt(np.maximum(self.squares / np.maximum(self.count, 1) - self.mean() ** 2, 0))
+
+
+@dataclass
+class _SplitStats:
+    rows: int = 0
+    recordings: int = 0
+    padded: int = 0
+    inputs: _Moments | None = None
+    targets: _Moments | None = None
+    beyond: np.ndarray | None = None
+
+    def add_shard(self, f: h5py.File) -> None:
+        n, dim = f["current"].shape
+        if self.targets is None:
+            self.inputs, self.targets, self.beyond = _Moments(1), _Moments(dim), np.zeros(dim, np.int64)
+        self.rows += n
+        self.recordings += len(read_index(f))
+        self.padded += int(f["audio_padded"][()].sum())
+        for s in range(0, n, _ROWS):
+            x = f["input"][s : s + _ROWS].reshape(-1, 1)
+            self.inputs.add(x)
+            cur, mask = f["current"][s : s + _ROWS], f["mask"][s : s + _ROWS]
+            self.targets.add(cur, mask)
+            self.beyond += (mask & (np.abs(cur) > np.float32(0.9))).sum(axis=0)
+
+
+def _report(name: str, st: _SplitStats, components: list[str], limit: int | None) -> list[str]:
+    lines = [f"[{name}] {st.rows} rows, {st.recordings} recordings, {st.padded} frames with padded audio"]
+    if not st.rows:
+        return lines
+    i = st.inputs
+    lines.append(f"  input    min {i.low[0]:.4f}  max {i.high[0]:.4f}  mean {i.mean()[0]:.4f}  std {i.std()[0]:.4f}")
+    t = st.targets
+    valid_share = t.count / st.rows
+    lines.append(
+        f"  current  min {np.min(t.low):.4f}  max {np.max(t.high):.4f}  valid {100 * valid_share.mean():.2f}%  "
+        f"beyond +-0.9: {int(st.beyond.sum())} values in {int((st.beyond > 0).sum())} components"
+    )
+    lines.append(f"  {'component':<22} {'min':>8} {'max':>8} {'mean':>8} {'std':>8} {'valid%':>7} {'>0.9':>6}")
+    shown = range(len(components)) if limit is None else range(min(limit, len(components)))
+    for c in shown:
+        lines.append(
+            f"  {components[c]:<22} {t.low[c]:8.4f} {t.high[c]:8.4f} {t.mean()[c]:8.4f} {t.std()[c]:8.4f} "
+            f"{100 * valid_share[c]:7.2f} {int(st.beyond[c]):6d}"
+        )
+    if limit is not None and limit < len(components):
+        lines.append(f"  ... {len(components) - limit} more components (--components all)")
+    return lines
+
+
+def _components(spec: dict[str, Any]) -> list[str]:
+    from ..targets import TargetSpec
+
+    return TargetSpec.from_dict(spec).component_names()
+
+
+def inspect(path: str | Path, *, components: int | None = 12) -> str:
+    """A report on a dataset folder or a shard file (raises FormatError when either is damaged)."""
+    path = Path(path)
+    if path.is_dir():
+        manifest_path = path / MANIFEST
+        if not manifest_path.is_file():
+            raise FormatError(path, "no manifest.json: not a dataset, or a build that did not finish (run it again)")
+        try:
+            manifest = json.loads(manifest_path.read_text())
+        except ValueError as exc:
+            raise FormatError(manifest_path, f"invalid JSON ({exc})") from exc
+        validate(manifest, "dataset-manifest.schema.json", manifest_path)
+        shards = [(s["split"], path / s["file"], s["sha256"]) for s in manifest["shards"]]
+        cfg = manifest["config"]
+        spec = cfg["target"]
+        lines = [
+            f"dataset    {path}",
+            f"built by   {manifest.get('created_by')}; {manifest['totals']['rows']} rows, "
+            f"{manifest['totals']['recordings']} recordings, {manifest['totals']['shards']} shards",
+            f"features   input [N, {', '.join(map(str, manifest['feature_shape']))}] float32: "
+            f"{_feature_line(cfg['features'])}",
+            f"targets    current [N, {manifest['target_dim']}] float32: spec {spec['name']} "
+            f"({len(spec['positions'])} positions, {len(spec['orientations'])} quaternions)"
+            + (", root-centred" if cfg["root_centre"] else ""),
+            f"normalised {_norm_line(manifest['normalisation'])}, fitted on the train split "
+            f"({int(max(manifest['normalisation']['count']))} rows, noisy copies excluded)",
+            f"timeline   {cfg['fps']:g} fps, audio {cfg['sample_rate']} Hz; seed {cfg['seed']}, "
+            f"augmentation SNR {cfg['augment_snr'] or 'none'}",
+        ]
+        for s in ("train", "val", "test"):
+            info = manifest["splits"].get(s, {"recordings": [], "rows": 0, "shards": []})
+            lines.append(
+                f"split {s:<5}  {len(info['recordings'])} recordings, {info['rows']} rows, "
+                f"shards {', '.join(info['shards']) or '-'}"
+            )
+    else:
+        validate_shard(path)
+        with h5py.File(path, "r") as f:
+            split = str(f.attrs["split"])
+            spec = json_attribute(f, "target_spec")
+            norm = json_attribute(f, "normalisation")
+            feats = json_attribute(f, "features")
+            n_in = f["input"].shape
+        shards = [(split, path, None)]
+        lines = [
+            f"shard      {path} (layout version 1, valid)",
+            f"input      {list(n_in)} float32: {_feature_line(feats)}",
+            f"current    spec {spec['name']}; {_norm_line(norm)}",
+        ]
+    names = _components(spec)
+    per_split: dict[str, _SplitStats] = {}
+    for split, shard, checksum in shards:
+        validate_shard(shard)
+        if checksum is not None and file_sha256(shard) != checksum:
+            raise FormatError(shard, "checksum differs from the manifest's: the shard was changed or damaged")
+        with h5py.File(shard, "r") as f:
+            per_split.setdefault(split, _SplitStats()).add_shard(f)
+    for split, st in per_split.items():
+        lines += _report(split, st, names, components)
+    return "\n".join(lines)
+
+
+def _feature_line(cfg: dict[str, Any]) -> str:
+    return (
+        f"{cfg.get('n_frames')} STFT frames of {cfg.get('frame_samples')} samples, hop {cfg.get('hop_samples')}, "
+        f"{cfg.get('window')} window, {cfg.get('n_fft')}-point FFT; {cfg.get('power')} power, "
+        f"{cfg.get('normalisation')}"
+    )
+
+
+def _norm_line(norm: dict[str, Any]) -> str:
+    scale = np.array(norm["scale"], float)
+    return f"{norm['method']} (scale {scale.min():.4g}..{scale.max():.4g})"

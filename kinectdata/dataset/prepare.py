@@ -1,0 +1,298 @@
+"""One recording's share of a dataset build: aligned targets and per-frame features, streamed.
+
+For a recording (a skeleton file with its audio, or an aligned ``.h5``) :func:`prepare_recording`
+aligns the motion onto the frame grid, extracts the raw (unnormalised) target vectors and their
+normalisation statistics, and computes the audio features of every *variant* (the clean audio
+and, for training recordings, copies with white noise at given SNRs) in one pass over the audio,
+which is streamed in blocks: memory does not grow with the recording's length. Each variant goes
+to its own work file, written atomically and named by a key that hashes everything it depends
+on, so an interrupted build resumes by skipping the work files already there.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import zlib
+from collections.abc import Callable, Iterator
+from contextlib import ExitStack
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any
+
+import h5py
+import numpy as np
+
+from ..align import file_sha256, plan_timeline, resample_onto, resolve_offset, summarize
+from ..aligned import AlignedRecording
+from ..atomic import atomic_output
+from ..audio import AudioReader
+from ..envelopes import audio_envelopes
+from ..errors import KinectDataError
+from ..features.stft import StftConfig, stft_features
+from ..formats import read_motion
+from ..normalization import NormStats
+from ..targets import TargetSpec, extract_targets
+from .inputs import RecordingEntry
+
+WORK_FORMAT = "kinectdata.work"
+_BLOCK = 160_000  # samples per block when streaming in-memory audio (10 s at 16 kHz)
+
+
+@dataclass(frozen=True)
+class BuildConfig:
+    """Everything that decides a dataset's contents (stored verbatim in its manifest).
+
+    Attributes:
+        fps: motion frames per second.
+        sample_rate: Hz of the audio the features are computed from.
+        features: feature configuration, ``StftConfig.to_dict()``.
+        target: the target spec, ``TargetSpec.to_dict()``.
+        normalisation: ``maxabs`` (the paper) or ``minmax``.
+        root_centre: root-centre positions before normalising.
+        split_ratios: (train, val, test) shares for recordings without an explicit split.
+        seed: for drawn splits and augmentation noise.
+        augment_snr: SNRs in dB of the noisy copies added to the training split (none: no copies).
+        shard_size_mb: a new shard starts before one would exceed this (uncompressed MB).
+        compression: None, "gzip" or "lzf" for the shard datasets.
+        max_gap, min_coverage: alignment options (see :func:`kinectdata.align.align`).
+    """
+
+    features: dict[str, Any]
+    target: dict[str, Any]
+    fps: float = 30.0
+    sample_rate: int = 16000
+    normalisation: str = "maxabs"
+    root_centre: bool = False
+    split_ratios: tuple[float, float, float] = (0.8, 0.1, 0.1)
+    seed: int = 0
+    augment_snr: tuple[float, ...] = ()
+    shard_size_mb: float = 256.0
+    compression: str | None = None
+    max_gap: float = 0.2
+    min_coverage: float = 0.9
+
+    def to_dict(self) -> dict[str, Any]:
+        d = asdict(self)
+        d["split_ratios"], d["augment_snr"] = list(self.split_ratios), list(self.augment_snr)
+        return d
+
+    @classmethod
+    def from_dict(cls, d: dict[str, Any]) -> BuildConfig:
+        d = dict(d)
+        d["split_ratios"] = tuple(d["split_ratios"])
+        d["augment_snr"] = tuple(d["augment_snr"])
+        return cls(**d)
+
+    def unit_config(self) -> dict[str, Any]:
+        """The part of the configuration a recording's work files depend on."""
+        keys = ("features", "target", "fps", "sample_rate", "root_centre", "seed", "max_gap", "min_coverage")
+        return {k: self.to_dict()[k] for k in keys}
+
+
+@dataclass
+class Unit:
+    """A prepared recording variant: its work file and what the builder needs to know of it."""
+
+    name: str  # unique in the dataset, e.g. "synth_001" or "synth_001~snr10dB"
+    recording: str  # the recording's name
+    snr_db: float | None
+    file: str
+    key: str
+    frames: int
+    stats: dict[str, Any]
+    info: dict[str, Any] = field(default_factory=dict)
+
+    def to_dict(self) -> dict[str, Any]:
+        return asdict(self)
+
+
+def variant_name(recording: str, snr_db: float | None) -> str:
+    return recording if snr_db is None else f"{recording}~snr{snr_db:g}dB"
+
+
+def unit_key(entry: RecordingEntry, hashes: dict[str, str], config: BuildConfig, snr_db: float | None) -> str:
+    doc = {
+        "entry": {k: v for k, v in entry.to_dict().items() if k != "split"},
+        "sources": hashes,
+        "config": config.unit_config(),
+        "snr_db": snr_db,
+    }
+    return hashlib.sha256(json.dumps(doc, sort_keys=True, default=str).encode()).hexdigest()[:32]
+
+
+def _read_unit(path: Path) -> Unit | None:
+    try:
+        with h5py.File(path, "r") as f:
+            if f.attrs.get("format") != WORK_FORMAT:
+                return None
+            return Unit(**json.loads(f.attrs["unit"]))
+    except (OSError, KeyError, ValueError, TypeError):
+        return None  # damaged or foreign: recomputed
+
+
+class _FrameFeaturizer:
+    """Feeds streamed audio to :func:`stft_features` frame by frame, keeping only what is pending.
+
+    ``starts`` [N] are absolute sample indices of the frames' slices; a frame is computed as soon
+    as its slice has arrived, the rest at :meth:`finish` (zero-padded and flagged past the end).
+    """
+
+    def __init__(self, starts: np.ndarray, config: StftConfig, sink: Callable[[int, np.ndarray, np.ndarray], None]):
+        self.starts, self.config, self.sink = starts, config, sink
+        self.ends = starts + config.slice_samples
+        self.k = 0
+        self.buffer = np.zeros(0, np.float32)
+        self.buffer_start = 0
+
+    def push(self, block: np.ndarray) -> None:
+        self.buffer = np.concatenate([self.buffer, block])
+        ready = int(np.searchsorted(self.ends, self.buffer_start + self.buffer.size, side="right"))
+        if ready > self.k:
+            self._emit(ready)
+        keep_from = self.starts[self.k] - self.buffer_start if self.k < self.starts.size else self.buffer.size
+        keep_from = int(np.clip(keep_from, 0, self.buffer.size))
+        self.buffer = self.buffer[keep_from:]
+        self.buffer_start += keep_from
+
+    def finish(self) -> None:
+        if self.k < self.starts.size:
+            self._emit(self.starts.size)
+
+    def _emit(self, upto: int) -> None:
+        feats, padded = stft_features(self.buffer, self.starts[self.k : upto] - self.buffer_start, self.config)
+        self.sink(self.k, feats, padded)
+        self.k = upto
+
+
+def _array_blocks(samples: np.ndarray) -> Iterator[np.ndarray]:
+    for s in range(0, samples.size, _BLOCK):
+        yield np.asarray(samples[s : s + _BLOCK], dtype=np.float32)
+
+
+def source_hashes(entry: RecordingEntry) -> dict[str, str]:
+    """SHA-256 of a recording's files, by file name."""
+    sources = [entry.recording] + ([] if entry.audio is None else [entry.audio])
+    return {Path(p).name: file_sha256(p) for p in sources if Path(p).is_file()}
+
+
+def prepare_recording(
+    entry: RecordingEntry,
+    config: BuildConfig,
+    work_dir: str | Path,
+    snrs: tuple[float, ...] = (),
+    hashes: dict[str, str] | None = None,
+) -> list[Unit]:
+    """Prepare a recording's variants (clean, then one per SNR) into ``work_dir``; skips finished ones.
+
+    ``hashes`` are the recording's :func:`source_hashes`, when the caller has them already.
+    Returns the :class:`Unit` of each variant, clean first.
+    """
+    work_dir = Path(work_dir)
+    variants: list[float | None] = [None, *snrs]
+    sources = [entry.recording] + ([] if entry.audio is None else [entry.audio])
+    hashes = source_hashes(entry) if hashes is None else hashes
+    keys = {v: unit_key(entry, hashes, config, v) for v in variants}
+    done = {v: _read_unit(work_dir / f"{variant_name(entry.name, v)}.h5") for v in variants}
+    if all(u is not None and u.key == keys[v] for v, u in done.items()):
+        return [done[v] for v in variants]
+
+    spec = TargetSpec.from_dict(config.target)
+    stft = StftConfig.from_dict(config.features)
+    sr = config.sample_rate
+    if entry.aligned:
+        rec = AlignedRecording.load(entry.recording)
+        if rec.sample_rate != sr or abs(rec.fps - config.fps) > 1e-9:
+            raise KinectDataError(
+                f"{entry.recording}: aligned at {rec.fps:g} fps and {rec.sample_rate} Hz, but the dataset is built "
+                f"at {config.fps:g} fps and {sr} Hz; align it again with --fps / --sample-rate"
+            )
+        motion, n = rec.motion, rec.n_frames
+        starts = np.round(np.arange(n) * sr / config.fps).astype(np.int64)
+        offset, summary = rec.offset, rec.summary
+
+        def blocks() -> Iterator[np.ndarray]:
+            return _array_blocks(rec.audio)
+
+        mean_square = float(np.mean(np.square(rec.audio, dtype=np.float64))) if snrs else 0.0
+    else:
+        source = read_motion(entry.recording, format=entry.format, schema=entry.schema, body=entry.body)
+        reader = AudioReader(entry.audio, sr)
+        env = audio_envelopes(reader.blocks(), sr) if (entry.offset == "auto" or snrs) else None
+        offset = resolve_offset(source, env, entry.offset)
+        tl = plan_timeline(
+            source,
+            reader.n_samples,
+            sr,
+            offset["seconds"],
+            fps=config.fps,
+            min_coverage=config.min_coverage,
+            audio_name=str(entry.audio),
+        )
+        res, long_gaps = resample_onto(source, tl, config.max_gap)
+        motion, n, starts = res.motion, tl.n_frames, tl.frame_starts()
+        kept = min(reader.n_samples - tl.first_sample, int(round((n + 1) * sr / config.fps)))
+        summary = summarize(source, tl, res, long_gaps, offset, reader.n_samples, kept)
+        blocks = reader.blocks
+        mean_square = env.mean_square if env is not None else 0.0
+
+    values, mask = extract_targets(motion, spec, root_centre=config.root_centre)
+    stats = NormStats.from_arrays(values, mask, spec.component_names()).to_dict()
+    info = {"sources": hashes, "paths": sources, "offset": offset, "alignment": summary}
+    units = {
+        v: Unit(
+            name=variant_name(entry.name, v),
+            recording=entry.name,
+            snr_db=v,
+            file=f"{variant_name(entry.name, v)}.h5",
+            key=keys[v],
+            frames=n,
+            stats=stats,
+            info={**info, "augmentation": None if v is None else {"white_noise_snr_db": v}},
+        )
+        for v in variants
+    }
+    with ExitStack() as stack:
+        outputs = {}
+        for v, unit in units.items():
+            tmp = stack.enter_context(atomic_output(work_dir / unit.file))
+            f = stack.enter_context(h5py.File(tmp, "w"))
+            f.attrs["format"] = WORK_FORMAT
+            f.attrs["unit"] = json.dumps(unit.to_dict(), default=str)
+            f.create_dataset("targets", data=values, track_times=False)
+            f.create_dataset("mask", data=mask, track_times=False)
+            outputs[v] = (
+                f.create_dataset(
+                    "input",
+                    shape=(n, *stft.output_shape),
+                    dtype=np.float32,
+                    track_times=False,
+                    chunks=(min(256, n), *stft.output_shape),
+                ),
+                f.create_dataset("audio_padded", shape=(n,), dtype=bool, track_times=False),
+            )
+
+        def sink_for(v):
+            def sink(k0: int, feats: np.ndarray, padded: np.ndarray) -> None:
+                d_in, d_pad = outputs[v]
+                d_in[k0 : k0 + feats.shape[0]] = feats
+                d_pad[k0 : k0 + feats.shape[0]] = padded
+
+            return sink
+
+        featurizers = {v: _FrameFeaturizer(starts, stft, sink_for(v)) for v in variants}
+        rngs = {
+            v: np.random.default_rng([config.seed, zlib.crc32(entry.name.encode()), int(round(v * 1000)) & 0xFFFFFFFF])
+            for v in variants
+            if v is not None
+        }
+        for block in blocks():
+            for v, featurizer in featurizers.items():
+                if v is None:
+                    featurizer.push(block)
+                else:
+                    sigma = np.sqrt(mean_square / 10 ** (v / 10))
+                    featurizer.push((block + sigma * rngs[v].standard_normal(block.size)).astype(np.float32))
+        for featurizer in featurizers.values():
+            featurizer.finish()
+    return [units[v] for v in variants]

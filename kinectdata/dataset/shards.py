@@ -1,0 +1,188 @@
+"""Dataset shards: HDF5 files of whole recordings, in the layout ``schemas/shard-layout.json``.
+
+A shard holds the rows (motion frames) of one split's recordings, each recording's rows
+contiguous: ``input`` [N, 1, 129, 5] features, ``current`` [N, D] normalised targets, ``mask``
+[N, D], ``audio_padded`` [N] and a ``recordings`` index (name, start, length, info). Rows are
+chunked along N in blocks of :data:`CHUNK_ROWS` so that reading a training sequence touches few
+chunks. :func:`validate_shard` checks a file against the layout.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import h5py
+import numpy as np
+
+from .. import __version__
+from ..atomic import atomic_output
+from ..errors import FormatError
+from ..resources import load_json, schemas_dir
+
+FORMAT = "kinectdata.shard"
+FORMAT_VERSION = 1
+CHUNK_ROWS = 256
+
+
+def layout() -> dict[str, Any]:
+    """The shard layout specification (``schemas/shard-layout.json``)."""
+    return load_json(schemas_dir() / "shard-layout.json")
+
+
+@dataclass
+class ShardRecording:
+    """One recording's rows, ready to be written into a shard."""
+
+    name: str
+    input: Any  # [n, F, B, T] float32 array or h5py dataset
+    current: np.ndarray  # [n, D] float32
+    mask: np.ndarray  # [n, D] bool
+    audio_padded: np.ndarray  # [n] bool
+    info: dict[str, Any]
+
+    @property
+    def n_rows(self) -> int:
+        return int(self.current.shape[0])
+
+
+def row_bytes(feature_shape: tuple[int, ...], dim: int) -> int:
+    """Bytes one row takes in a shard (uncompressed): features, target, mask and padding flag."""
+    return int(np.prod(feature_shape)) * 4 + dim * 5 + 1
+
+
+def write_shard(
+    path: str | Path,
+    recordings: list[ShardRecording],
+    attributes: dict[str, Any],
+    *,
+    compression: str | None = None,
+) -> None:
+    """Write a shard atomically (a temporary file renamed into place).
+
+    ``attributes`` hold the layout's attributes (JSON ones as dicts); format, version and
+    created_by are added here.
+    """
+    n = sum(r.n_rows for r in recordings)
+    feature_shape = tuple(recordings[0].input.shape[1:])
+    dim = recordings[0].current.shape[1]
+    kw: dict[str, Any] = {"track_times": False}
+    if compression:
+        kw["compression"] = compression
+        kw["shuffle"] = True
+
+    with atomic_output(path) as tmp, h5py.File(tmp, "w") as f:
+        f.attrs["format"] = FORMAT
+        f.attrs["format_version"] = FORMAT_VERSION
+        for key, value in attributes.items():
+            f.attrs[key] = json.dumps(value, sort_keys=True) if isinstance(value, (dict, list)) else value
+        f.attrs["created_by"] = f"kinectdata {__version__}"
+
+        def dataset(name: str, shape: tuple[int, ...], dtype) -> h5py.Dataset:
+            chunks = (min(CHUNK_ROWS, max(n, 1)), *shape[1:])
+            return f.create_dataset(name, shape=shape, dtype=dtype, chunks=chunks, **kw)
+
+        d_in = dataset("input", (n, *feature_shape), np.float32)
+        d_cur = dataset("current", (n, dim), np.float32)
+        d_mask = dataset("mask", (n, dim), bool)
+        d_pad = dataset("audio_padded", (n,), bool)
+        start = 0
+        for r in recordings:
+            for s in range(0, r.n_rows, CHUNK_ROWS * 16):  # copy features in slices: bounded memory
+                e = min(r.n_rows, s + CHUNK_ROWS * 16)
+                d_in[start + s : start + e] = r.input[s:e]
+            d_cur[start : start + r.n_rows] = r.current
+            d_mask[start : start + r.n_rows] = r.mask
+            d_pad[start : start + r.n_rows] = r.audio_padded
+            start += r.n_rows
+        g = f.create_group("recordings")
+        lengths = np.array([r.n_rows for r in recordings], np.int64)
+        g.create_dataset("name", data=np.array([r.name for r in recordings], dtype=h5py.string_dtype()), **kw)
+        g.create_dataset("start", data=np.concatenate([[0], np.cumsum(lengths)[:-1]]).astype(np.int64), **kw)
+        g.create_dataset("length", data=lengths, **kw)
+        infos = [json.dumps(r.info, sort_keys=True, default=str) for r in recordings]
+        g.create_dataset("info", data=np.array(infos, dtype=h5py.string_dtype()), **kw)
+
+
+def read_index(f: h5py.File) -> list[dict[str, Any]]:
+    """The recordings of an open shard: ``name``, ``start``, ``length``, ``info`` (dict)."""
+    g = f["recordings"]
+    names = [n.decode() if isinstance(n, bytes) else str(n) for n in g["name"][()]]
+    infos = [json.loads(i.decode() if isinstance(i, bytes) else i) for i in g["info"][()]]
+    return [
+        {"name": n, "start": int(s), "length": int(ln), "info": i}
+        for n, s, ln, i in zip(names, g["start"][()], g["length"][()], infos)
+    ]
+
+
+def json_attribute(f: h5py.File, key: str) -> Any:
+    value = f.attrs[key]
+    return json.loads(value.decode() if isinstance(value, bytes) else value)
+
+
+_DTYPES = {"float32": np.float32, "int64": np.int64, "bool": np.bool_}
+
+
+def validate_shard(path: str | Path) -> dict[str, int]:
+    """Check a shard against the layout; returns its sizes ``{"N", "D", "R", ...}``.
+
+    Raises:
+        FormatError: naming the shard and the attribute or dataset that is wrong.
+    """
+    path = Path(path)
+    spec = layout()
+    try:
+        f = h5py.File(path, "r")
+    except OSError as exc:
+        raise FormatError(path, f"not a readable HDF5 file ({exc})") from exc
+    with f:
+        for key, rule in spec["attributes"].items():
+            if key not in f.attrs:
+                raise FormatError(path, f"missing attribute {key!r} ({rule.get('description', rule['type'])})")
+            value = f.attrs[key]
+            if "const" in rule and value != rule["const"]:
+                raise FormatError(path, f"attribute {key!r} is {value!r}, expected {rule['const']!r}")
+            if rule["type"] == "json":
+                try:
+                    json_attribute(f, key)
+                except (TypeError, ValueError) as exc:
+                    raise FormatError(path, f"attribute {key!r} is not JSON ({exc})") from exc
+        sizes: dict[str, int] = {}
+        for name, rule in spec["datasets"].items():
+            if name not in f or not isinstance(f[name], h5py.Dataset):
+                raise FormatError(path, f"missing dataset {name!r}")
+            d = f[name]
+            if rule["dtype"] == "string":
+                if d.dtype.kind not in "OSU":
+                    raise FormatError(path, f"dataset {name!r} has dtype {d.dtype}, expected strings")
+            elif d.dtype != _DTYPES[rule["dtype"]]:
+                raise FormatError(path, f"dataset {name!r} has dtype {d.dtype}, expected {rule['dtype']}")
+            if len(d.shape) != len(rule["shape"]):
+                raise FormatError(path, f"dataset {name!r} has shape {d.shape}, expected {rule['shape']}")
+            for axis, (want, got) in enumerate(zip(rule["shape"], d.shape)):
+                if isinstance(want, int):
+                    ok = want == got
+                else:
+                    ok = sizes.setdefault(want, got) == got
+                if not ok:
+                    raise FormatError(path, f"dataset {name!r} axis {axis} is {got}, expected {sizes.get(want, want)}")
+        index = read_index(f)
+        expected = 0
+        for i, r in enumerate(index):
+            if r["start"] != expected or r["length"] <= 0:
+                raise FormatError(
+                    path, f"recordings[{i}] ({r['name']}) starts at row {r['start']}, expected {expected}"
+                )
+            expected += r["length"]
+        if expected != sizes["N"]:
+            raise FormatError(path, f"the recordings cover {expected} rows, the shard has {sizes['N']}")
+        spec_dim = _target_dim(json_attribute(f, "target_spec"))
+        if spec_dim != sizes["D"]:
+            raise FormatError(path, f"'current' has {sizes['D']} components, the target spec {spec_dim}")
+    return sizes
+
+
+def _target_dim(spec: dict[str, Any]) -> int:
+    return 3 * len(spec["positions"]) + 4 * len(spec["orientations"])

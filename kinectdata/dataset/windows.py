@@ -1,0 +1,83 @@
+"""Training windows for PyTorch: L consecutive frames of one recording, with the poses around them.
+
+Item i of :class:`WindowDataset` is a window of ``length`` frames starting at frame s of one
+recording (never crossing into another): ``audio`` [L, 1, 129, 5], ``pose`` [L, D] (the targets
+at frames s..s+L-1), ``previous`` [L, D] (at s-1..s+L-2), ``next`` [L, D] (at s+1..s+L), ``mask``
+[L, D] for ``pose``, ``padded`` [L]. Windows start every ``stride`` frames from frame 1 (so the
+first has a previous pose) and end by the recording's second-to-last frame (so the last has a
+next one). Each window is one contiguous read per dataset; files are opened lazily in each
+DataLoader worker process.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from pathlib import Path
+from typing import Any
+
+import h5py
+import torch
+from torch.utils.data import Dataset
+
+from ..errors import KinectDataError
+from .build import MANIFEST
+
+
+class WindowDataset(Dataset):
+    """Windows of ``length`` frames from one split of a dataset folder."""
+
+    def __init__(self, dataset: str | Path, split: str = "train", length: int = 150, stride: int | None = None):
+        self.root = Path(dataset)
+        try:
+            manifest = json.loads((self.root / MANIFEST).read_text())
+        except OSError as exc:
+            raise KinectDataError(f"{self.root}: no readable manifest.json ({exc.strerror or exc})") from exc
+        if length < 1:
+            raise KinectDataError(f"window length must be at least 1 frame, not {length}")
+        self.length, self.stride = length, stride or length
+        self.manifest = manifest
+        self.windows: list[tuple[str, int]] = []  # (shard file, first row of the window)
+        self.recordings: list[str] = []
+        for r in manifest["recordings"]:
+            if r["split"] != split:
+                continue
+            for s in range(1, r["frames"] - length, self.stride):  # s-1 >= 0 and s+length <= frames-1
+                self.windows.append((r["shard"], r["start"] + s))
+                self.recordings.append(r["name"])
+        self._files: dict[str, h5py.File] = {}
+        self._pid = os.getpid()
+
+    def __len__(self) -> int:
+        return len(self.windows)
+
+    def _file(self, name: str) -> h5py.File:
+        if os.getpid() != self._pid:  # a forked DataLoader worker: its own handles
+            self._files, self._pid = {}, os.getpid()
+        if name not in self._files:
+            self._files[name] = h5py.File(self.root / name, "r")
+        return self._files[name]
+
+    def __getitem__(self, i: int) -> dict[str, Any]:
+        shard, row = self.windows[i]
+        f = self._file(shard)
+        L = self.length
+        current = f["current"][row - 1 : row + L + 1]  # previous, the window and next in one read
+        return {
+            "audio": torch.from_numpy(f["input"][row : row + L]),
+            "pose": torch.from_numpy(current[1 : L + 1].copy()),
+            "previous": torch.from_numpy(current[:L].copy()),
+            "next": torch.from_numpy(current[2:].copy()),
+            "mask": torch.from_numpy(f["mask"][row : row + L]),
+            "padded": torch.from_numpy(f["audio_padded"][row : row + L]),
+        }
+
+    def __getstate__(self) -> dict[str, Any]:
+        state = dict(self.__dict__)
+        state["_files"] = {}  # handles do not cross process boundaries
+        return state
+
+    def close(self) -> None:
+        for f in self._files.values():
+            f.close()
+        self._files = {}

@@ -1,0 +1,378 @@
+"""build-dataset: features against an independent computation, targets, splits, shards, resume,
+determinism, inputs, windows, inspect."""
+
+from __future__ import annotations
+
+import json
+import shutil
+import subprocess
+import sys
+
+import h5py
+import numpy as np
+import pytest
+from conftest import REPO
+from scipy import signal
+
+from kinectdata.align import align_files
+from kinectdata.audio import load_audio
+from kinectdata.dataset import build as build_module
+from kinectdata.dataset.build import build_dataset
+from kinectdata.dataset.inputs import assign_splits, read_recordings
+from kinectdata.dataset.inspect import inspect
+from kinectdata.dataset.prepare import BuildConfig
+from kinectdata.dataset.shards import read_index, validate_shard
+from kinectdata.errors import FormatError, KinectDataError, SchemaError
+from kinectdata.features.stft import PRESETS
+from kinectdata.normalization import Normalizer
+from kinectdata.targets import extract_targets, load_target_spec
+
+SAMPLES = REPO / "sample_data"
+
+
+def config(**kw) -> BuildConfig:
+    return BuildConfig(features=PRESETS["yalta2016"].to_dict(), target=load_target_spec("yalta65").to_dict(), **kw)
+
+
+@pytest.fixture(scope="module")
+def dataset(tmp_path_factory):
+    out = tmp_path_factory.mktemp("ds") / "samples"
+    manifest = build_dataset(SAMPLES, out, config())
+    return out, manifest
+
+
+def _files_bytes(folder):
+    return {p.name: p.read_bytes() for p in sorted(folder.iterdir()) if p.is_file()}
+
+
+def _reference_features(audio: np.ndarray, start: int) -> np.ndarray:
+    """Per-slice STFT written independently of the library: scipy.signal.stft on the 534-sample slice,
+    log power floored 80 dB under each frame's peak, min-max into 0.1..0.9 per frame."""
+    piece = np.zeros(534)
+    available = audio[start : start + 534]
+    piece[: available.size] = available
+    _, _, z = signal.stft(
+        piece[:480],
+        window=("hamming"),
+        nperseg=160,
+        noverlap=80,
+        nfft=256,
+        boundary=None,
+        padded=False,
+        detrend=False,
+        return_onesided=True,
+    )
+    out = np.empty((129, 5))
+    for i in range(5):
+        frame = piece[80 * i : 80 * i + 160]
+        power_db = 10 * np.log10(np.abs(z[:, i]) ** 2 + 1e-300)
+        power_db = np.maximum(power_db, power_db.max() - 80.0)
+        lo, hi = power_db.min(), power_db.max()
+        silent = 10 * np.log10(np.mean(frame**2) + 1e-300) < -60.0 or hi == lo
+        out[:, i] = 0.1 if silent else 0.1 + 0.8 * (power_db - lo) / (hi - lo)
+    return out
+
+
+def test_inputs_equal_an_independent_per_slice_stft(dataset):
+    out, manifest = dataset
+    rec = next(r for r in manifest["recordings"] if r["name"] == "synth_003")
+    aligned = align_files(SAMPLES / "synth_003.csv", SAMPLES / "synth_003.flac", offset=rec["offset"]["seconds"])
+    first = round(aligned.summary["audio_trimmed_start_s"] * 16000)
+    audio = load_audio(SAMPLES / "synth_003.flac").samples.astype(np.float64)
+    with h5py.File(out / rec["shard"], "r") as f:
+        rows = f["input"][rec["start"] : rec["start"] + rec["frames"]]
+    assert rows.shape == (rec["frames"], 1, 129, 5) and rows.dtype == np.float32
+    for k in list(range(0, rec["frames"], 37)) + [rec["frames"] - 1]:
+        ref = _reference_features(audio, first + round(k * 16000 / 30))
+        np.testing.assert_allclose(rows[k, 0], ref, atol=1e-4, err_msg=f"frame {k}")
+
+
+def test_targets_are_the_normalised_aligned_motion_and_invert_exactly(dataset):
+    out, manifest = dataset
+    rec = next(r for r in manifest["recordings"] if r["name"] == "synth_001")
+    aligned = align_files(SAMPLES / "synth_001.csv", SAMPLES / "synth_001.flac", offset=rec["offset"]["seconds"])
+    spec = load_target_spec("yalta65")
+    values, mask = extract_targets(aligned.motion, spec)
+    norm = Normalizer.from_dict(manifest["normalisation"])
+    with h5py.File(out / rec["shard"], "r") as f:
+        current = f["current"][rec["start"] : rec["start"] + rec["frames"]]
+        stored_mask = f["mask"][rec["start"] : rec["start"] + rec["frames"]]
+    np.testing.assert_array_equal(stored_mask, mask)
+    back = norm.invert(current, spec, mask=stored_mask)
+    np.testing.assert_allclose(back[:, :9], values[:, :9], atol=1e-5)  # positions, metres
+    np.testing.assert_allclose(back[:, 9:], values[:, 9:], atol=1e-5)  # quaternions
+    q = back[:, 9:].reshape(len(back), 14, 4)
+    np.testing.assert_allclose(np.linalg.norm(q, axis=-1)[stored_mask[:, 9::4]], 1.0, atol=1e-6)
+
+
+def test_train_targets_fill_the_range_and_inputs_lie_in_0_1_to_0_9(dataset):
+    out, manifest = dataset
+    train = [s for s in manifest["shards"] if s["split"] == "train"]
+    with h5py.File(out / train[0]["file"], "r") as f:
+        current, mask, inputs = f["current"][()], f["mask"][()], f["input"][()]
+    assert np.abs(current[mask]).max() == pytest.approx(0.9, abs=1e-6)
+    assert inputs.min() >= 0.1 - 1e-6 and inputs.max() <= 0.9 + 1e-6
+    assert train[0]["targets_beyond_0.9"] == 0
+
+
+def test_splits_are_by_recording_and_complete(dataset):
+    _, manifest = dataset
+    seen = {}
+    for r in manifest["recordings"]:
+        assert seen.setdefault(r["recording"], r["split"]) == r["split"]
+    assert sorted(seen) == ["synth_001", "synth_002", "synth_003"]
+    assert manifest["splits"]["train"]["rows"] + manifest["splits"]["test"]["rows"] == manifest["totals"]["rows"]
+
+
+def test_shards_validate_and_index_their_recordings(dataset):
+    out, manifest = dataset
+    for shard in manifest["shards"]:
+        sizes = validate_shard(out / shard["file"])
+        assert sizes["D"] == 65 and sizes["N"] == shard["frames"]
+        with h5py.File(out / shard["file"], "r") as f:
+            index = read_index(f)
+            assert f.attrs["split"] == shard["split"]
+            assert json.loads(f.attrs["target_spec"])["name"] == "yalta65"
+        assert [r["length"] for r in index] == [
+            r["frames"] for r in manifest["recordings"] if r["shard"] == shard["file"]
+        ]
+        info = index[0]["info"]
+        assert set(info["sources"]) == {f"{index[0]['name']}.csv", f"{index[0]['name']}.flac"}
+        assert info["offset"]["source"] == "clap"
+
+
+def test_build_is_deterministic_and_a_rerun_is_a_no_op(dataset, tmp_path):
+    out, manifest = dataset
+    again = build_dataset(SAMPLES, tmp_path / "again", config())
+    assert again == manifest
+    assert _files_bytes(tmp_path / "again") == _files_bytes(out)
+    assert build_dataset(SAMPLES, tmp_path / "again", config()) == manifest  # complete: nothing recomputed
+
+
+def test_interrupted_build_leaves_no_shard_and_resumes_to_the_same_bytes(dataset, tmp_path, monkeypatch):
+    out, _ = dataset
+    target = tmp_path / "interrupted"
+    real, calls = build_module._prepare, []
+
+    def interrupt_on_second(task):
+        calls.append(task[0].name)
+        if len(calls) == 2:
+            raise KeyboardInterrupt  # as a user's Ctrl-C in the middle of the build
+        return real(task)
+
+    monkeypatch.setattr(build_module, "_prepare", interrupt_on_second)
+    with pytest.raises(KeyboardInterrupt):
+        build_dataset(SAMPLES, target, config())
+    assert not (target / "manifest.json").exists() and not list(target.glob("*.h5"))
+    assert [p.name for p in (target / ".work").glob("*.h5")] == ["synth_001.h5"]
+    assert not list(target.rglob("*.partial"))
+    monkeypatch.setattr(build_module, "_prepare", real)
+    resumed = []
+    monkeypatch.setattr(build_module, "prepare_recording", _spy(build_module.prepare_recording, resumed))
+    build_dataset(SAMPLES, target, config())
+    assert _files_bytes(target) == _files_bytes(out)
+    assert not (target / ".work").exists()
+
+
+def _spy(fn, calls):
+    def wrapped(entry, *a, **kw):
+        calls.append(entry.name)
+        return fn(entry, *a, **kw)
+
+    return wrapped
+
+
+def test_killed_build_process_resumes_to_the_same_bytes(dataset, tmp_path):
+    out, _ = dataset
+    target = tmp_path / "killed"
+    cmd = [sys.executable, "-m", "kinectdata", "build-dataset", str(SAMPLES), "-o", str(target)]
+    proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    try:
+        for _ in range(2000):  # kill -9 as soon as the first recording is prepared
+            if list((target / ".work").glob("*.h5")) or proc.poll() is not None:
+                break
+            subprocess.run(["sleep", "0.005"])
+        proc.kill()
+    finally:
+        proc.wait()
+    assert not (target / "manifest.json").exists() or proc.returncode == 0
+    result = subprocess.run(cmd, capture_output=True, text=True)
+    assert result.returncode == 0, result.stderr
+    assert _files_bytes(target) == _files_bytes(out)
+
+
+def test_parallel_build_gives_the_same_bytes(dataset, tmp_path):
+    out, _ = dataset
+    build_dataset(SAMPLES, tmp_path / "par", config(), jobs=2)
+    assert _files_bytes(tmp_path / "par") == _files_bytes(out)
+
+
+def test_small_shard_size_rolls_over_without_splitting_recordings(tmp_path):
+    manifest = build_dataset(SAMPLES, tmp_path / "small", config(shard_size_mb=0.5, split_ratios=(1, 0, 0)))
+    train = [s for s in manifest["shards"] if s["split"] == "train"]
+    assert len(train) == 3 and [s["recordings"] for s in train] == [1, 1, 1]
+    for s in train:
+        validate_shard(tmp_path / "small" / s["file"])
+
+
+def test_augmented_copies_only_in_train_with_the_same_targets(tmp_path):
+    manifest = build_dataset(SAMPLES, tmp_path / "aug", config(augment_snr=(5.0, 20.0)))
+    names = {r["name"]: r for r in manifest["recordings"]}
+    train = manifest["splits"]["train"]["recordings"]
+    for rec in train:
+        assert f"{rec}~snr5dB" in names and f"{rec}~snr20dB" in names
+    test = manifest["splits"]["test"]["recordings"][0]
+    assert f"{test}~snr5dB" not in names
+    rec = train[0]
+    with h5py.File(tmp_path / "aug" / names[rec]["shard"], "r") as f:
+
+        def rows(name):
+            r = names[name]
+            return f["input"][r["start"] : r["start"] + r["frames"]], f["current"][
+                r["start"] : r["start"] + r["frames"]
+            ]
+
+        clean, noisy5, noisy20 = rows(rec), rows(f"{rec}~snr5dB"), rows(f"{rec}~snr20dB")
+    np.testing.assert_array_equal(clean[1], noisy5[1])
+    d5, d20 = np.abs(noisy5[0] - clean[0]).mean(), np.abs(noisy20[0] - clean[0]).mean()
+    assert d5 > d20 > 0.001  # louder noise changes the features more
+
+
+def test_explicit_splits_and_manifest_formats(tmp_path):
+    rows = [("synth_001", "train"), ("synth_002", "val"), ("synth_003", "test")]
+    lines = ["recording,audio,split,offset"] + [f"{SAMPLES}/{n}.csv,{SAMPLES}/{n}.flac,{s},auto" for n, s in rows]
+    (tmp_path / "recs.csv").write_text("\n".join(lines) + "\n")
+    entries = read_recordings(tmp_path / "recs.csv")
+    assert [(e.name, e.split) for e in entries] == rows
+    docs = [{"recording": f"{SAMPLES}/{n}.csv", "audio": f"{SAMPLES}/{n}.flac", "split": s} for n, s in rows]
+    (tmp_path / "recs.json").write_text(json.dumps(docs))
+    import yaml
+
+    (tmp_path / "recs.yaml").write_text(yaml.safe_dump({"recordings": docs}))
+    for name in ("recs.json", "recs.yaml"):
+        assert [(e.name, e.split) for e in read_recordings(tmp_path / name)] == rows
+    manifest = build_dataset(tmp_path / "recs.yaml", tmp_path / "ds", config())
+    assert {s: v["recordings"] for s, v in manifest["splits"].items()} == {
+        "train": ["synth_001"],
+        "val": ["synth_002"],
+        "test": ["synth_003"],
+    }
+
+
+def test_bad_recordings_manifests_name_the_file(tmp_path):
+    bad = tmp_path / "bad.json"
+    for doc, expected in [
+        ([{"recording": "a.csv", "audio": "a.wav", "split": "training"}], "split"),
+        ([{"audio": "a.wav"}], "'recording' is a required property"),
+        ([{"recording": "a.csv"}], "needs an 'audio'"),
+        ([{"recording": "a.csv", "audio": "a.wav"}, {"recording": "b/a.csv", "audio": "b.wav"}], "already used"),
+    ]:
+        bad.write_text(json.dumps(doc))
+        with pytest.raises(SchemaError, match=expected) as err:
+            read_recordings(bad)
+        assert str(bad) in str(err.value)
+    (tmp_path / "bad.yaml").write_text("recordings: [\n  {recording: a.csv\n")
+    with pytest.raises(SchemaError, match=r"bad\.yaml.*invalid YAML"):
+        read_recordings(tmp_path / "bad.yaml")
+
+
+def test_drawn_splits_follow_the_seed_and_keep_explicit_ones():
+    from kinectdata.dataset.inputs import RecordingEntry
+
+    entries = [RecordingEntry(f"r{i:02d}", "x.csv", "x.wav") for i in range(20)]
+    entries[3] = RecordingEntry("r03", "x.csv", "x.wav", split="test")
+    a, b = assign_splits(entries, (0.8, 0.1, 0.1), 1), assign_splits(entries, (0.8, 0.1, 0.1), 1)
+    assert a == b and a["r03"] == "test"
+    counts = {s: sum(v == s for k, v in a.items() if k != "r03") for s in ("train", "val", "test")}
+    assert counts == {"train": 15, "val": 2, "test": 2}
+    assert assign_splits(entries, (0.8, 0.1, 0.1), 2) != a
+
+
+def test_folder_of_aligned_files_gives_the_same_inputs(dataset, tmp_path):
+    out, manifest = dataset
+    aligned = tmp_path / "aligned"
+    for name in ("synth_001", "synth_002", "synth_003"):
+        align_files(SAMPLES / f"{name}.csv", SAMPLES / f"{name}.flac", aligned / f"{name}.h5")
+    other = build_dataset(aligned, tmp_path / "from_aligned", config())
+    assert other["splits"] == manifest["splits"]
+    for shard in manifest["shards"]:
+        with h5py.File(out / shard["file"], "r") as f, h5py.File(tmp_path / "from_aligned" / shard["file"], "r") as g:
+            np.testing.assert_array_equal(f["input"][()], g["input"][()])
+            np.testing.assert_allclose(f["current"][()], g["current"][()], atol=1e-6)
+
+
+def test_recording_without_orientations_is_refused_clearly(tmp_path, fixture_csv):
+    import soundfile as sf
+
+    sf.write(tmp_path / "Ges01_wavehand.wav", np.zeros(16000 * 7, np.float32), 16000)
+    shutil.copy(fixture_csv, tmp_path / "Ges01_wavehand.csv")
+    (tmp_path / "recs.json").write_text(
+        json.dumps([{"recording": "Ges01_wavehand.csv", "audio": "Ges01_wavehand.wav", "offset": 0.5}])
+    )
+    with pytest.raises(KinectDataError, match=r"Ges01_wavehand\.csv.*orientation"):
+        build_dataset(tmp_path / "recs.json", tmp_path / "ds", config())
+    manifest = build_dataset(
+        tmp_path / "recs.json",
+        tmp_path / "ds",
+        config().__class__(
+            features=PRESETS["yalta2016"].to_dict(), target=load_target_spec("kinect_v2_positions").to_dict()
+        ),
+    )
+    assert manifest["target_dim"] == 75 and not (tmp_path / "ds" / ".work").exists()
+
+
+def test_damaged_shards_are_caught(dataset, tmp_path):
+    out, manifest = dataset
+    shard = tmp_path / "s.h5"
+    shutil.copy(out / manifest["shards"][0]["file"], shard)
+    with h5py.File(shard, "a") as f:
+        del f["mask"]
+    with pytest.raises(FormatError, match=r"s\.h5: missing dataset 'mask'"):
+        validate_shard(shard)
+    copy = tmp_path / "copy"
+    shutil.copytree(out, copy)
+    with h5py.File(copy / manifest["shards"][0]["file"], "a") as f:
+        f["current"][0, 0] = 0.5
+    with pytest.raises(FormatError, match="checksum differs"):
+        inspect(copy)
+
+
+def test_inspect_reports_layout_ranges_and_statistics(dataset):
+    out, _ = dataset
+    text = inspect(out, components=None)
+    assert "input [N, 1, 129, 5] float32" in text and "current [N, 65] float32" in text
+    assert "input    min 0.1000  max 0.9000" in text
+    assert text.count("SpineBase.qw") == 2  # train and test tables
+    assert "beyond +-0.9: 0 values" in text  # the training split
+
+
+def test_windows_never_cross_recordings_and_carry_previous_and_next(dataset):
+    from kinectdata.dataset.windows import WindowDataset
+
+    out, manifest = dataset
+    ds = WindowDataset(out, "train", length=60, stride=25)
+    expected = sum(len(range(1, r["frames"] - 60, 25)) for r in manifest["recordings"] if r["split"] == "train")
+    assert len(ds) == expected
+    rec = next(r for r in manifest["recordings"] if r["split"] == "train")
+    with h5py.File(out / rec["shard"], "r") as f:
+        current, inputs = f["current"][()], f["input"][()]
+    item = ds[1]  # second window of the first recording: frames 26..85
+    s = rec["start"] + 26
+    np.testing.assert_array_equal(item["pose"].numpy(), current[s : s + 60])
+    np.testing.assert_array_equal(item["previous"].numpy(), current[s - 1 : s + 59])
+    np.testing.assert_array_equal(item["next"].numpy(), current[s + 1 : s + 61])
+    np.testing.assert_array_equal(item["audio"].numpy(), inputs[s : s + 60])
+    for (shard, row), name in zip(ds.windows, ds.recordings):
+        r = next(x for x in manifest["recordings"] if x["name"] == name)
+        assert shard == r["shard"] and r["start"] + 1 <= row and row + 60 + 1 <= r["start"] + r["frames"]
+
+
+def test_windows_load_in_worker_processes(dataset):
+    import torch
+
+    from kinectdata.dataset.windows import WindowDataset
+
+    out, _ = dataset
+    loader = torch.utils.data.DataLoader(WindowDataset(out, "train", length=150), batch_size=4, num_workers=2)
+    batch = next(iter(loader))
+    assert tuple(batch["audio"].shape) == (4, 150, 1, 129, 5) and tuple(batch["pose"].shape) == (4, 150, 65)
