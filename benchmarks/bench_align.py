@@ -36,6 +36,8 @@ def _timed(label: str, fn, seconds_of_media: float, frames: int | None = None):
 
 
 def main() -> None:
+    import scipy.signal  # noqa: F401  (offset estimation imports it lazily; keep that out of its timing)
+
     with tempfile.TemporaryDirectory() as tmp:
         tmp = Path(tmp)
         print(f"  making a {DURATION_S / 60:.0f}-minute synthetic session (child process)...")

@@ -56,7 +56,7 @@ class _Framer:
 
     def push(self, x: np.ndarray) -> np.ndarray:
         """[M, size] frames completed by ``x`` (in order)."""
-        buf = np.concatenate([self.buffer, x])
+        buf = np.concatenate([self.buffer, x]) if self.buffer.size else x
         m = 0 if buf.size < self.size else (buf.size - self.size) // self.hop + 1
         frames = np.lib.stride_tricks.sliding_window_view(buf, self.size)[:: self.hop][:m]
         self.buffer = buf[m * self.hop :]

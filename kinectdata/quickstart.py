@@ -1,8 +1,12 @@
 """The quickstart: the toolkit's data path run end to end on sample data.
 
-So far: synthesise a session (``synth``), then align every session in the sample folder and the
-new one (``align --offset auto``), checking each estimated offset against the ground truth.
-Later stages (datasets, training, evaluation) join as they land.
+1. ``synth``: synthesise a new session;
+2. ``align``: align every session of the sample folder and the new one (``--offset auto``),
+   checking each estimated offset against the ground truth;
+3. ``build-dataset``: turn the aligned files into a dataset (1x129x5 STFT inputs, yalta65 targets
+   normalised into -0.9..0.9, HDF5 shards and a manifest), then ``inspect`` it.
+
+Later stages (training, evaluation) join as they land.
 """
 
 from __future__ import annotations
@@ -13,8 +17,13 @@ from typing import Any
 
 from .align import align_files, format_summary
 from .collection import find_sessions
+from .dataset.build import build_dataset
+from .dataset.inspect import inspect
+from .dataset.prepare import BuildConfig
 from .errors import KinectDataError
+from .features.stft import PRESETS
 from .synth import synthesize_recording, write_recording
+from .targets import load_target_spec
 
 SAMPLE_SEEDS = (1, 2, 3)
 SAMPLE_DURATION_S = 22.0
@@ -34,6 +43,9 @@ def run_quickstart(
         samples: folder of sample sessions; default ``./sample_data`` when it exists, else the
             sample set is synthesised into ``out_dir/sample_data`` with :data:`SAMPLE_COMMAND`'s options.
         echo: where progress lines go.
+
+    Returns:
+        ``{"sessions": {name: {...}}, "dataset": path, "rows": n}``.
 
     Raises:
         KinectDataError: a step failed, or an estimated offset is off by more than one frame.
@@ -71,5 +83,14 @@ def run_quickstart(
                     f"{s.name}: estimated offset is {1000 * error:+.1f} ms off the truth (over one frame)"
                 )
         results[s.name] = result
-    echo(f"[done] {len(results)} sessions aligned into {out / 'aligned'}")
-    return results
+    echo(f"[build-dataset] {out / 'aligned'} -> {out / 'dataset'}")
+    config = BuildConfig(features=PRESETS["yalta2016"].to_dict(), target=load_target_spec("yalta65").to_dict())
+    manifest = build_dataset(out / "aligned", out / "dataset", config)
+    echo(f"[inspect] {out / 'dataset'}")
+    echo(inspect(out / "dataset", components=6))
+    t = manifest["totals"]
+    echo(
+        f"[done] {len(results)} sessions aligned into {out / 'aligned'}; dataset of {t['rows']} rows in "
+        f"{t['shards']} shards in {out / 'dataset'}"
+    )
+    return {"sessions": results, "dataset": str(out / "dataset"), "rows": t["rows"]}

@@ -11,7 +11,7 @@ from conftest import REPO
 
 from kinectdata.cli import main
 
-COMMANDS = ["info", "formats", "align", "synth", "quickstart"]
+COMMANDS = ["info", "formats", "align", "build-dataset", "inspect", "synth", "quickstart"]
 
 
 def run(*args):
@@ -77,6 +77,8 @@ def test_quickstart_runs_on_the_bundled_samples(tmp_path, monkeypatch):
     assert result.exit_code == 0, result.output
     assert result.output.count("offset error against the ground truth") == 4
     assert len(list((tmp_path / "qs" / "aligned").glob("*.h5"))) == 4
+    assert "input [N, 1, 129, 5] float32" in result.output and "current [N, 65] float32" in result.output
+    assert (tmp_path / "qs" / "dataset" / "manifest.json").is_file()
 
 
 def test_python_dash_m_runs_the_cli():

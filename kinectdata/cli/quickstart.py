@@ -16,8 +16,9 @@ import click
     help="Folder of sample sessions. Default: ./sample_data, or a freshly synthesised set.",
 )
 def quickstart(out, samples) -> None:
-    """Run the data path end to end on the bundled sample data: synthesise a session, then align
-    every session (offset found from the sync clap, checked against the ground truth)."""
+    """Run the data path end to end on the bundled sample data: synthesise a session, align every
+    session (offset found from the sync clap, checked against the ground truth), build a dataset
+    from the aligned files and inspect it."""
     from ..quickstart import run_quickstart  # imports the synthesiser, slow to load
 
     run_quickstart(out, samples, echo=click.echo)

@@ -1,0 +1,19 @@
+"""Packaging: what a non-editable install needs (CI installs it that way)."""
+
+from __future__ import annotations
+
+from conftest import REPO
+
+from kinectdata.resources import schemas_dir, shipped_names
+
+
+def test_every_folder_of_python_modules_is_a_package():
+    for folder in (REPO / "kinectdata").rglob("*"):
+        if folder.is_dir() and any(folder.glob("*.py")):
+            assert (folder / "__init__.py").is_file(), f"{folder} has modules but no __init__.py"
+
+
+def test_schema_files_are_found_through_the_package():
+    assert (schemas_dir() / "csv-schema.schema.json").is_file()
+    assert {"jointsets", "csv", "targets"} <= {p.name for p in schemas_dir().iterdir() if p.is_dir()}
+    assert "yalta65" in shipped_names("targets") and "kinect_v2" in shipped_names("jointsets")
