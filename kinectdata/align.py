@@ -100,6 +100,12 @@ class Timeline:
         """[N] motion-clock times (s) of the output frames."""
         return self.start + np.arange(self.n_frames) / self.fps - self.offset
 
+    def kept_samples(self, available: int) -> int:
+        """Audio samples an aligned recording keeps, of ``available`` in the source: its frames'
+        periods and one period more where the source has it (per-frame analysis windows, such as
+        534 samples at 30 fps, reach slightly past their frame)."""
+        return min(available - self.first_sample, int(round((self.n_frames + 1) * self.sample_rate / self.fps)))
+
     def frame_starts(self) -> np.ndarray:
         """[N] int64 index of the audio sample at each output frame: ``first_sample + round(k * sr / fps)``."""
         return self.first_sample + np.round(np.arange(self.n_frames) * self.sample_rate / self.fps).astype(np.int64)
@@ -254,10 +260,7 @@ def align(
         audio_name=audio.source.get("path", "the audio"),
     )
     res, long_gaps = resample_onto(motion, tl, max_gap)
-    # one frame period of audio beyond the last frame's, where there is some: per-frame analysis
-    # windows (e.g. 534 samples at 30 fps) reach slightly past their frame
-    keep = int(round((tl.n_frames + 1) * tl.sample_rate / fps))
-    samples = audio.samples[tl.first_sample : tl.first_sample + keep]
+    samples = audio.samples[tl.first_sample : tl.first_sample + tl.kept_samples(audio.samples.size)]
     return AlignedRecording(
         motion=res.motion,
         audio=samples,

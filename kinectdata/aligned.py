@@ -25,6 +25,7 @@ The file (``kinectdata align ... -o OUT.h5``) is self-describing; its layout, ve
 from __future__ import annotations
 
 import json
+from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -129,8 +130,9 @@ class AlignedRecording:
             f.create_group("audio").create_dataset("samples", data=self.audio.astype(np.float32), **kw)
 
     @classmethod
-    def load(cls, path: str | Path) -> AlignedRecording:
-        """Read a file written by :meth:`save`; FormatError if it is not one."""
+    def load(cls, path: str | Path, *, audio: bool = True) -> AlignedRecording:
+        """Read a file written by :meth:`save`; FormatError if it is not one. With
+        ``audio=False`` the audio is left in the file (``audio`` is empty; see :func:`audio_blocks`)."""
         path = Path(path)
         try:
             f = h5py.File(path, "r")
@@ -162,7 +164,7 @@ class AlignedRecording:
                 )
                 return cls(
                     motion=motion,
-                    audio=f["audio/samples"][()],
+                    audio=f["audio/samples"][()] if audio else np.zeros(0, np.float32),
                     sample_rate=int(f.attrs["sample_rate"]),
                     fps=float(f.attrs["fps"]),
                     position_interpolated=g["position_interpolated"][()],
@@ -185,3 +187,11 @@ def _joint_set(f: h5py.File) -> JointSet:
             return shipped
     parents = [int(p) for p in f["joints/parents"][()]]
     return JointSet(name=name, names=names, parents=tuple(parents), dimensions=int(f["joints"].attrs["dimensions"]))
+
+
+def audio_blocks(path: str | Path, block: int = 160_000) -> Iterator[np.ndarray]:
+    """The audio of an aligned file as consecutive [<= block] float32 arrays, read in slices."""
+    with h5py.File(path, "r") as f:
+        samples = f["audio/samples"]
+        for start in range(0, samples.shape[0], block):
+            yield samples[start : start + block]

@@ -40,6 +40,11 @@ class InputError(KinectDataError):
         self.reason = message
         super().__init__(self._format())
 
+    def __reduce__(self):
+        # picklable (errors cross process boundaries in parallel builds): rebuild with the fields
+        where = {"line": self.line, "frame": self.frame, "record": self.record, "column": self.column}
+        return _rebuild, (type(self), self.path, self.reason, where)
+
     def _format(self) -> str:
         if self.path is None:
             return self.reason
@@ -53,6 +58,10 @@ class InputError(KinectDataError):
         if self.column is not None:
             parts.append(f"column {self.column!r}")
         return ", ".join(parts) + ": " + self.reason
+
+
+def _rebuild(cls: type[InputError], path: str | None, reason: str, where: dict) -> InputError:
+    return cls(path, reason, **where)
 
 
 class FormatError(InputError):

@@ -294,5 +294,6 @@ def estimate_offset(
     raise AlignmentError(
         "cannot determine the audio-to-motion offset reliably: "
         + "; ".join(lines)
-        + ". Pass the offset explicitly (--offset SECONDS, audio_time = motion_time + offset)."
+        + ". Give the offset explicitly (audio_time = motion_time + offset): --offset SECONDS for "
+        "kinectdata align, or 'offset' in a recordings manifest."
     )

@@ -199,6 +199,7 @@ def test_killed_build_process_resumes_to_the_same_bytes(dataset, tmp_path):
     result = subprocess.run(cmd, capture_output=True, text=True)
     assert result.returncode == 0, result.stderr
     assert _files_bytes(target) == _files_bytes(out)
+    assert not list(target.rglob("*.partial")) and not (target / ".work").exists()
 
 
 def test_parallel_build_gives_the_same_bytes(dataset, tmp_path):
@@ -259,13 +260,22 @@ def test_explicit_splits_and_manifest_formats(tmp_path):
     }
 
 
-def test_bad_recordings_manifests_name_the_file(tmp_path):
+def test_bad_recordings_manifests_name_the_file_and_record(tmp_path):
+    for name in ("a.csv", "a.wav", "b.wav"):
+        (tmp_path / name).write_text("x")
+    (tmp_path / "b").mkdir()
+    (tmp_path / "b" / "a.csv").write_text("x")
     bad = tmp_path / "bad.json"
     for doc, expected in [
         ([{"recording": "a.csv", "audio": "a.wav", "split": "training"}], "split"),
         ([{"audio": "a.wav"}], "'recording' is a required property"),
-        ([{"recording": "a.csv"}], "needs an 'audio'"),
-        ([{"recording": "a.csv", "audio": "a.wav"}, {"recording": "b/a.csv", "audio": "b.wav"}], "already used"),
+        ([{"recording": "a.csv"}], r"recordings\[0\]: a.csv needs an 'audio'"),
+        ([{"recording": "a.csv", "audio": "missing.wav"}], r"recordings\[0\]: audio missing.wav does not exist"),
+        (
+            [{"recording": "a.csv", "audio": "a.wav"}, {"recording": "b/a.csv", "audio": "b.wav"}],
+            r"recordings\[1\]: name 'a' is already used by recordings\[0\]",
+        ),
+        ([{"recording": "a.csv", "audio": "a.wav", "name": "a~snr5dB"}], "name: 'a~snr5dB' does not match"),
     ]:
         bad.write_text(json.dumps(doc))
         with pytest.raises(SchemaError, match=expected) as err:
@@ -274,6 +284,13 @@ def test_bad_recordings_manifests_name_the_file(tmp_path):
     (tmp_path / "bad.yaml").write_text("recordings: [\n  {recording: a.csv\n")
     with pytest.raises(SchemaError, match=r"bad\.yaml.*invalid YAML"):
         read_recordings(tmp_path / "bad.yaml")
+    csv_bad = tmp_path / "bad.csv"
+    csv_bad.write_text("recording,audio,split\na.csv,a.wav,train\na.csv,b.wav,test,extra\n")
+    with pytest.raises(SchemaError, match=r"bad\.csv, line 3: more fields than the header's 3"):
+        read_recordings(csv_bad)
+    csv_bad.write_text("recording,audio,split\na.csv,a.wav,train\nb/a.csv,b.wav,later\n")
+    with pytest.raises(SchemaError, match=r"bad\.csv, line 3: .*split"):
+        read_recordings(csv_bad)
 
 
 def test_drawn_splits_follow_the_seed_and_keep_explicit_ones():
@@ -376,3 +393,195 @@ def test_windows_load_in_worker_processes(dataset):
     loader = torch.utils.data.DataLoader(WindowDataset(out, "train", length=150), batch_size=4, num_workers=2)
     batch = next(iter(loader))
     assert tuple(batch["audio"].shape) == (4, 150, 1, 129, 5) and tuple(batch["pose"].shape) == (4, 150, 65)
+
+
+def test_yalta65_targets_against_a_hand_computation(dataset):
+    """The 65 values from the aligned motion with plain numpy: SpineBase, HandLeft, HandRight
+    positions and 14 quaternions in the hemisphere of their first valid w >= 0, scaled by
+    0.9 / max|x| over the training split."""
+    from kinectdata.quaternions import make_continuous
+
+    out, manifest = dataset
+    pos_joints = ["SpineBase", "HandLeft", "HandRight"]
+    q_joints = [
+        "SpineBase",
+        "SpineMid",
+        "SpineShoulder",
+        "Neck",
+        "ShoulderLeft",
+        "ElbowLeft",
+        "WristLeft",
+        "ShoulderRight",
+        "ElbowRight",
+        "WristRight",
+        "HipLeft",
+        "KneeLeft",
+        "HipRight",
+        "KneeRight",
+    ]
+    raw = {}
+    for r in manifest["recordings"]:
+        rec = align_files(
+            SAMPLES / f"{r['recording']}.csv", SAMPLES / f"{r['recording']}.flac", offset=r["offset"]["seconds"]
+        )
+        m, js = rec.motion, rec.motion.joint_set
+        pos = np.stack([m.positions[:, js.index(j)] for j in pos_joints], 1).reshape(m.n_frames, 9)
+        qs = []
+        for j in q_joints:
+            q, ok = m.orientations[:, js.index(j)], m.orientation_mask[:, js.index(j)]
+            q = make_continuous(np.nan_to_num(q), ok)
+            q = q * (-1.0 if q[ok][0, 3] < 0 else 1.0)
+            qs.append(np.where(ok[:, None], q, 0.0))
+        valid = np.concatenate(
+            [
+                np.repeat(np.stack([m.position_mask[:, js.index(j)] for j in pos_joints], 1), 3, 1),
+                np.repeat(np.stack([m.orientation_mask[:, js.index(j)] for j in q_joints], 1), 4, 1),
+            ],
+            1,
+        )
+        raw[r["name"]] = (np.concatenate([np.nan_to_num(pos), np.concatenate(qs, 1)], 1), valid, r)
+    train = [v for v, ok, r in raw.values() if r["split"] == "train"]
+    train_ok = [ok for v, ok, r in raw.values() if r["split"] == "train"]
+    maxabs = np.max(np.abs(np.where(np.concatenate(train_ok), np.concatenate(train), 0)), axis=0)
+    for values, ok, r in raw.values():
+        with h5py.File(out / r["shard"], "r") as f:
+            stored = f["current"][r["start"] : r["start"] + r["frames"]]
+        np.testing.assert_allclose(stored[ok], (values * 0.9 / maxabs)[ok], atol=2e-6)
+
+
+def test_a_failing_recording_in_a_parallel_build_is_a_clear_error(tmp_path):
+    import soundfile as sf
+
+    sf.write(tmp_path / "short.wav", np.zeros(16000, np.float32), 16000)  # 1 s: shorter than the motion
+    docs = [
+        {"recording": str(SAMPLES / f"synth_00{i}.csv"), "audio": str(SAMPLES / f"synth_00{i}.flac")} for i in (1, 2)
+    ]
+    docs.append({"recording": str(SAMPLES / "synth_003.csv"), "audio": "short.wav", "offset": 0.0})
+    (tmp_path / "recs.json").write_text(json.dumps(docs))
+    with pytest.raises(KinectDataError, match=r"recording 'synth_003' of .*recs\.json: .*short\.wav.*covers only"):
+        build_dataset(tmp_path / "recs.json", tmp_path / "ds", config(), jobs=2)
+    assert not (tmp_path / "ds" / "manifest.json").exists()
+
+
+def test_a_failed_rebuild_keeps_the_previous_dataset(dataset, tmp_path):
+    out, manifest = dataset
+    copy = tmp_path / "copy"
+    shutil.copytree(out, copy)
+    (tmp_path / "recs.json").write_text(
+        json.dumps([{"recording": str(SAMPLES / "synth_001.csv"), "audio": "nowhere.flac"}])
+    )
+    with pytest.raises(SchemaError, match="does not exist"):
+        build_dataset(tmp_path / "recs.json", copy, config())
+    assert _files_bytes(copy) == _files_bytes(out)
+
+
+def test_cleanup_removes_only_our_own_files(dataset, tmp_path):
+    out, manifest = dataset
+    target = tmp_path / "mixed"
+    shutil.copytree(out, target)
+    users = target / "dance-00001.h5"
+    shutil.copy(out / manifest["shards"][0]["file"], users)  # the user's own file, shard-like name
+    lookalike = target / "val-00007.h5"
+    lookalike.write_bytes(b"not ours")
+    stale = target / "val-00003.h5"
+    shutil.copy(out / manifest["shards"][0]["file"], stale)  # a shard of ours no longer planned
+    (target / ".train-00000.h5.abc.partial").write_bytes(b"half")
+    build_dataset(SAMPLES, target, config())  # already complete: only the cleanup runs
+    assert users.exists() and lookalike.exists() and not stale.exists()
+    assert not list(target.glob("*.partial"))
+
+
+def test_changing_the_configuration_in_the_same_folder_gives_a_fresh_build(dataset, tmp_path):
+    out, _ = dataset
+    target = tmp_path / "changing"
+    shutil.copytree(out, target)
+    other = config(normalisation="minmax", seed=3)
+    build_dataset(SAMPLES, target, other)
+    build_dataset(SAMPLES, tmp_path / "fresh", other)
+    assert _files_bytes(target) == _files_bytes(tmp_path / "fresh")
+
+
+def test_only_val_and_test_or_the_same_files_twice_are_refused(tmp_path):
+    rows = [
+        {"recording": str(SAMPLES / f"synth_00{i}.csv"), "audio": str(SAMPLES / f"synth_00{i}.flac"), "split": s}
+        for i, s in ((1, "val"), (2, "test"))
+    ]
+    (tmp_path / "a.json").write_text(json.dumps(rows))
+    with pytest.raises(KinectDataError, match="no recording is in the train split"):
+        build_dataset(tmp_path / "a.json", tmp_path / "ds", config())
+    twice = [rows[0] | {"split": "train"}, rows[0] | {"split": "test", "name": "again"}]
+    (tmp_path / "b.json").write_text(json.dumps(twice))
+    with pytest.raises(KinectDataError, match=r"'synth_001' \(train\) and 'again' \(test\) are the same files"):
+        build_dataset(tmp_path / "b.json", tmp_path / "ds", config())
+
+
+def test_an_edited_schema_file_is_read_again(tmp_path):
+    from kinectdata.formats.csv_schema import load_csv_schema
+
+    schema = load_csv_schema("dumpkinectskeleton").document | {"name": "mine"}
+    (tmp_path / "mine.json").write_text(json.dumps(schema))
+    offset = json.loads((SAMPLES / "synth_001.truth.json").read_text())["offset_s"]  # centimetres hide the clap
+    rec = [
+        {
+            "recording": str(SAMPLES / "synth_001.csv"),
+            "audio": str(SAMPLES / "synth_001.flac"),
+            "schema": "mine.json",
+            "offset": offset,
+        }
+    ]
+    (tmp_path / "recs.json").write_text(json.dumps(rec))
+    first = build_dataset(tmp_path / "recs.json", tmp_path / "ds", config())
+    schema["position"] = {"columns": ["x", "y", "z"], "unit": "cm"}
+    (tmp_path / "mine.json").write_text(json.dumps(schema))
+    second = build_dataset(tmp_path / "recs.json", tmp_path / "ds", config())
+    assert first["build_key"] != second["build_key"]
+    assert second["normalisation"]["scale"][0] == pytest.approx(
+        100 * first["normalisation"]["scale"][0]
+    )  # cm: 100x smaller
+
+
+def test_features_must_fit_the_sample_rate_and_frame_rate():
+    with pytest.raises(KinectDataError, match="defined at 16000 Hz"):
+        config(sample_rate=22050)
+    with pytest.raises(KinectDataError, match="at 60 fps a frame is 266.7 samples"):
+        config(fps=60.0)
+
+
+def test_a_stem_that_is_not_a_valid_name_must_be_named(tmp_path):
+    for ext in (".csv", ".flac"):
+        shutil.copy(SAMPLES / f"synth_001{ext}", tmp_path / f"take~1{ext}")
+    with pytest.raises(SchemaError, match=r"take~1\.csv: name 'take~1' may hold only"):
+        read_recordings(tmp_path)
+
+
+def test_inspect_catches_a_manifest_that_misstates_its_shards(dataset, tmp_path):
+    out, manifest = dataset
+    copy = tmp_path / "lying"
+    shutil.copytree(out, copy)
+    lie = json.loads((copy / "manifest.json").read_text())
+    lie["recordings"][0]["frames"] += 5
+    (copy / "manifest.json").write_text(json.dumps(lie))
+    with pytest.raises(FormatError, match=r"manifest\.json: its recordings in .* differ from the shard's own index"):
+        inspect(copy)
+
+
+def test_shard_json_attributes_must_describe_the_datasets(dataset, tmp_path):
+    out, manifest = dataset
+    for key, value, expected in [
+        ("target_spec", "{}", "is not a target spec"),
+        ("normalisation", "[]", "must hold 'scale' and 'offset'"),
+        ("features", "1", "is not a feature configuration"),
+    ]:
+        shard = tmp_path / f"{key}.h5"
+        shutil.copy(out / manifest["shards"][0]["file"], shard)
+        with h5py.File(shard, "a") as f:
+            f.attrs[key] = value
+        with pytest.raises(FormatError, match=expected):
+            validate_shard(shard)
+
+
+def test_inspect_reports_the_training_statistics_behind_the_normalisation(dataset):
+    out, manifest = dataset
+    text = inspect(out, components=2)
+    raw = manifest["normalisation_stats"]
+    assert "raw min" in text and f"{raw['min'][0]:10.4f}".strip() in text

@@ -207,6 +207,8 @@ def build_dataset_command(
 )
 def inspect_command(path, components) -> None:
     """Show what a dataset folder or shard holds: layout (validated), counts, value ranges, statistics."""
+    if components != "all" and not components.isdigit():
+        raise click.BadParameter(f"{components!r} is neither a number nor 'all'", param_hint="--components")
     limit = None if components == "all" else int(components)
     click.echo(inspect_report(path, components=limit))
 

@@ -22,9 +22,11 @@ from __future__ import annotations
 
 import hashlib
 import json
+import re
 import shutil
 from collections.abc import Callable
 from concurrent.futures import ProcessPoolExecutor
+from contextlib import ExitStack
 from pathlib import Path
 from typing import Any
 
@@ -34,20 +36,26 @@ import numpy as np
 from .. import __version__
 from ..align import file_sha256
 from ..atomic import atomic_output
+from ..errors import KinectDataError
 from ..normalization import Normalizer, NormStats, count_out_of_range
 from .inputs import SPLITS, RecordingEntry, assign_splits, read_recordings
 from .prepare import BuildConfig, Unit, prepare_recording, source_hashes
 from .shards import ShardRecording, row_bytes, write_shard
 
 MANIFEST = "manifest.json"
+_SHARD_NAME = re.compile(r"(train|val|test)-\d{5}\.h5")
 DATASET_FORMAT = "kinectdata.dataset"
 DATASET_FORMAT_VERSION = 1
 WORK = ".work"
 
 
-def _prepare(args: tuple[RecordingEntry, BuildConfig, str, tuple[float, ...], dict[str, str]]) -> list[dict[str, Any]]:
-    entry, config, work, snrs, hashes = args
-    return [u.to_dict() for u in prepare_recording(entry, config, work, snrs, hashes)]
+def _prepare(task: tuple) -> list[dict[str, Any]]:
+    """Prepare one recording (in a worker process when --jobs > 1); errors name the recording."""
+    entry, config, work, snrs, hashes, source = task
+    try:
+        return [u.to_dict() for u in prepare_recording(entry, config, work, snrs, hashes)]
+    except KinectDataError as exc:
+        raise KinectDataError(f"recording {entry.name!r} of {source}: {exc}") from exc
 
 
 def _digest(doc: Any) -> str:
@@ -98,6 +106,28 @@ def _existing_key(path: Path) -> str | None:
         return None
 
 
+def _is_shard_of_ours(path: Path) -> bool:
+    """A file this builder wrote: a shard name and the shard format attribute."""
+    if not _SHARD_NAME.fullmatch(path.name):
+        return False
+    try:
+        with h5py.File(path, "r") as f:
+            return f.attrs.get("format") == "kinectdata.shard"
+    except OSError:
+        return False
+
+
+def _clean(out: Path, keep: set[str], keep_work: bool) -> None:
+    """Remove what earlier builds left: other shards of ours, our temporary files, the work folder."""
+    for path in out.iterdir():
+        if path.is_file() and path.name not in keep and _is_shard_of_ours(path):
+            path.unlink()
+    for partial in [*out.glob(".*.partial"), *(out / WORK).glob(".*.partial")]:
+        partial.unlink(missing_ok=True)  # left by a killed build: never renamed into place
+    if not keep_work:
+        shutil.rmtree(out / WORK, ignore_errors=True)
+
+
 def _complete(out: Path, build_key: str) -> dict[str, Any] | None:
     """The manifest of a finished build with this key whose shards are intact, else None."""
     try:
@@ -137,24 +167,81 @@ def build_dataset(
     out = Path(out_dir)
     entries = read_recordings(source)
     splits = assign_splits(entries, config.split_ratios, config.seed)
+    if "train" not in splits.values():
+        raise KinectDataError(f"{source}: no recording is in the train split (the normalisation is fitted on it)")
     hashes = {e.name: source_hashes(e) for e in entries}
+    _refuse_duplicates(entries, hashes, splits, source)
     build_key = _digest(
-        {
-            "config": config.to_dict(),
-            "inputs": [e.to_dict() | {"split": splits[e.name]} for e in entries],
-            "sources": hashes,
-        }
+        {"config": config.to_dict(), "inputs": [_key_entry(e, splits) for e in entries], "sources": hashes}
     )
     done = _complete(out, build_key)
     if done is not None:
+        _clean(out, {s["file"] for s in done["shards"]}, keep_work)
         return done
-    (out / MANIFEST).unlink(missing_ok=True)  # until the new one is written, the folder is incomplete
     work = out / WORK
     work.mkdir(parents=True, exist_ok=True)
-    tasks = [
-        (e, config, str(work), config.augment_snr if splits[e.name] == "train" else (), hashes[e.name]) for e in entries
-    ]
+    for partial in work.glob(".*.partial"):
+        partial.unlink()
+    snrs = {e.name: config.augment_snr if splits[e.name] == "train" else () for e in entries}
+    tasks = [(e, config, str(work), snrs[e.name], hashes[e.name], str(source)) for e in entries]
+    units = _prepare_all(tasks, jobs, progress)
 
+    train_stats = NormStats.merge_all(
+        NormStats.from_dict(u.stats) for u in units if splits[u.recording] == "train" and u.snr_db is None
+    )
+    normalizer = Normalizer.fit(train_stats, config.normalisation)
+    (out / MANIFEST).unlink(missing_ok=True)  # shards change from here: the folder is incomplete until the end
+    shards, records = _write_shards(out, units, splits, config, normalizer)
+    manifest = {
+        "format": DATASET_FORMAT,
+        "format_version": DATASET_FORMAT_VERSION,
+        "created_by": f"kinectdata {__version__}",
+        "build_key": build_key,
+        "config": config.to_dict(),
+        "inputs": [e.to_dict() | {"split": splits[e.name]} for e in entries],
+        "splits": {
+            s: {
+                "recordings": sorted({r["recording"] for r in records if r["split"] == s}),
+                "rows": sum(r["frames"] for r in records if r["split"] == s),
+                "shards": [x["file"] for x in shards if x["split"] == s],
+            }
+            for s in SPLITS
+        },
+        "normalisation": normalizer.to_dict(),
+        "normalisation_stats": train_stats.to_dict(),
+        "feature_shape": list(config.feature_shape),
+        "target_dim": normalizer.dim,
+        "shards": shards,
+        "recordings": records,
+        "totals": {"rows": sum(x["frames"] for x in shards), "recordings": len(records), "shards": len(shards)},
+    }
+    text = json.dumps(manifest, indent=2, default=str) + "\n"
+    with atomic_output(out / MANIFEST) as tmp:
+        tmp.write_text(text)
+    _clean(out, {x["file"] for x in shards}, keep_work)
+    return json.loads(text)
+
+
+def _key_entry(entry: RecordingEntry, splits: dict[str, str]) -> dict[str, Any]:
+    """An input as it counts for the build key: its name, options and split, not where it lies."""
+    return entry.options() | {"split": splits[entry.name]}
+
+
+def _refuse_duplicates(entries: list[RecordingEntry], hashes: dict[str, dict[str, str]], splits, source) -> None:
+    """The same recording twice (by content) would leak between splits or weigh double."""
+    seen: dict[tuple, str] = {}
+    for e in entries:
+        content = tuple(sorted(hashes[e.name].values()))
+        if content in seen:
+            other = seen[content]
+            raise KinectDataError(
+                f"{source}: recordings {other!r} ({splits[other]}) and {e.name!r} ({splits[e.name]}) are the same "
+                "files: a recording must appear once"
+            )
+        seen[content] = e.name
+
+
+def _prepare_all(tasks: list[tuple], jobs: int, progress: Callable[[int, int], None] | None) -> list[Unit]:
     units: list[Unit] = []
     if jobs > 1 and len(tasks) > 1:
         with ProcessPoolExecutor(max_workers=jobs) as pool:
@@ -167,17 +254,16 @@ def build_dataset(
             units += [Unit(**u) for u in _prepare(task)]
             if progress:
                 progress(i + 1, len(tasks))
+    return units
 
-    train_stats = [NormStats.from_dict(u.stats) for u in units if splits[u.recording] == "train" and u.snr_db is None]
-    if not train_stats:
-        raise ValueError("no training recordings")  # assign_splits always puts one in train
-    normalizer = Normalizer.fit(NormStats.merge_all(train_stats), config.normalisation)
 
-    with h5py.File(work / units[0].file, "r") as f:
-        feature_shape, dim = tuple(f["input"].shape[1:]), f["targets"].shape[1]
-    plan = _plan_shards(units, splits, config, feature_shape, dim)
+def _write_shards(
+    out: Path, units: list[Unit], splits: dict[str, str], config: BuildConfig, normalizer: Normalizer
+) -> tuple[list[dict], list[dict]]:
+    """Write (or keep, when already there with the same key) every planned shard."""
+    work = out / WORK
     shards, records = [], []
-    for shard in plan:
+    for shard in _plan_shards(units, splits, config, config.feature_shape, normalizer.dim):
         key = _digest(
             {
                 "config": config.to_dict(),
@@ -187,23 +273,24 @@ def build_dataset(
             }
         )
         path = out / shard["file"]
-        out_of_range = np.zeros(dim, np.int64)
-        with_files = [
-            h5py.File(work / u.file, "r") if (not path.is_file() or _existing_key(path) != key) else None
-            for u in shard["units"]
-        ]
-        try:
-            if any(f is not None for f in with_files):
+        out_of_range = np.zeros(normalizer.dim, np.int64)
+        if path.is_file() and _existing_key(path) == key:
+            with h5py.File(path, "r") as f:
+                out_of_range += count_out_of_range(f["current"][()], f["mask"][()])
+        else:
+            with ExitStack() as stack:
                 members = []
-                for u, f in zip(shard["units"], with_files):
-                    current = normalizer.apply(f["targets"][()], f["mask"][()])
-                    out_of_range += count_out_of_range(current, f["mask"][()])
+                for u in shard["units"]:
+                    f = stack.enter_context(h5py.File(work / u.file, "r"))
+                    mask = f["mask"][()]
+                    current = normalizer.apply(f["targets"][()], mask)
+                    out_of_range += count_out_of_range(current, mask)
                     members.append(
                         ShardRecording(
                             u.name,
                             f["input"],
                             current,
-                            f["mask"][()],
+                            mask,
                             f["audio_padded"][()],
                             {"recording": u.recording, **u.info},
                         )
@@ -214,13 +301,6 @@ def build_dataset(
                     _shard_attributes(config, normalizer, shard["split"], key),
                     compression=config.compression,
                 )
-            else:
-                with h5py.File(path, "r") as f:
-                    out_of_range += count_out_of_range(f["current"][()], f["mask"][()])
-        finally:
-            for f in with_files:
-                if f is not None:
-                    f.close()
         start = 0
         for u in shard["units"]:
             records.append(
@@ -248,37 +328,4 @@ def build_dataset(
                 "targets_beyond_0.9": int(out_of_range.sum()),
             }
         )
-
-    manifest = {
-        "format": DATASET_FORMAT,
-        "format_version": DATASET_FORMAT_VERSION,
-        "created_by": f"kinectdata {__version__}",
-        "build_key": build_key,
-        "config": config.to_dict(),
-        "inputs": [e.to_dict() | {"split": splits[e.name]} for e in entries],
-        "splits": {
-            s: {
-                "recordings": sorted({r["recording"] for r in records if r["split"] == s}),
-                "rows": sum(r["frames"] for r in records if r["split"] == s),
-                "shards": [x["file"] for x in shards if x["split"] == s],
-            }
-            for s in SPLITS
-        },
-        "normalisation": normalizer.to_dict(),
-        "normalisation_stats": NormStats.merge_all(train_stats).to_dict(),
-        "feature_shape": list(feature_shape),
-        "target_dim": dim,
-        "shards": shards,
-        "recordings": records,
-        "totals": {"rows": sum(x["frames"] for x in shards), "recordings": len(records), "shards": len(shards)},
-    }
-    text = json.dumps(manifest, indent=2, default=str) + "\n"
-    with atomic_output(out / MANIFEST) as tmp:
-        tmp.write_text(text)
-    planned = {x["file"] for x in shards}
-    for stale in out.glob("*-[0-9][0-9][0-9][0-9][0-9].h5"):
-        if stale.name not in planned:  # shards of an earlier, different build
-            stale.unlink()
-    if not keep_work:
-        shutil.rmtree(work, ignore_errors=True)
-    return json.loads(text)
+    return shards, records

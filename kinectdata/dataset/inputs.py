@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import csv
 import json
+import re
 from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
@@ -47,6 +48,14 @@ class RecordingEntry:
     def to_dict(self) -> dict[str, Any]:
         return {k: v for k, v in asdict(self).items() if v is not None}
 
+    def options(self) -> dict[str, Any]:
+        """What identifies the recording besides its files' contents: name and reading options
+        (a schema file by its name; its contents are hashed with the sources)."""
+        opts = {k: v for k, v in self.to_dict().items() if k not in ("recording", "audio", "split")}
+        if self.schema is not None and Path(self.schema).is_file():
+            opts["schema"] = Path(self.schema).name
+        return opts
+
 
 def _is_aligned_file(path: Path) -> bool:
     import h5py
@@ -58,22 +67,31 @@ def _is_aligned_file(path: Path) -> bool:
         return False
 
 
-def _read_manifest(path: Path) -> list[dict[str, Any]]:
+def _read_manifest(path: Path) -> tuple[list[dict[str, Any]], list[int] | None]:
+    """The entries of a manifest file, and for CSV the line of each (None for JSON and YAML)."""
     suffix = path.suffix.lower()
     try:
         text = path.read_text(encoding="utf-8-sig")
     except OSError as exc:
         raise SchemaError(path, f"cannot read file: {exc.strerror or exc}") from exc
     if suffix == ".csv":
-        rows = list(csv.DictReader(text.splitlines()))
-        docs = [{k.strip(): v.strip() for k, v in row.items() if k and v is not None and v.strip()} for row in rows]
-        for d in docs:
-            if "offset" in d and d["offset"] != "auto":
+        reader = csv.DictReader(text.splitlines())
+        docs, lines = [], []
+        for row in reader:
+            line = reader.line_num
+            if None in row:
+                raise SchemaError(path, f"more fields than the header's {len(reader.fieldnames)}", line=line)
+            doc = {k.strip(): v.strip() for k, v in row.items() if k and v is not None and v.strip()}
+            if "offset" in doc and doc["offset"] != "auto":
                 try:
-                    d["offset"] = float(d["offset"])
+                    doc["offset"] = float(doc["offset"])
                 except ValueError:
-                    pass  # the JSON Schema reports it
-        return docs
+                    raise SchemaError(
+                        path, f"offset {doc['offset']!r} is neither a number nor auto", line=line
+                    ) from None
+            docs.append(doc)
+            lines.append(line)
+        return docs, lines
     try:
         if suffix in (".yaml", ".yml"):
             import yaml
@@ -88,45 +106,94 @@ def _read_manifest(path: Path) -> list[dict[str, Any]]:
         raise SchemaError(path, f"invalid YAML: {exc}", line=None if mark is None else mark.line + 1) from exc
     if isinstance(doc, dict) and "recordings" in doc:
         doc = doc["recordings"]
-    return doc
+    return doc, None
+
+
+_NAME = re.compile(r"[A-Za-z0-9_.+-]+")
+
+
+def _checked_name(name: str, where: str, source: Path) -> str:
+    if not _NAME.fullmatch(name):
+        raise SchemaError(
+            source, f"{where}: name {name!r} may hold only letters, digits and _ . + - (give a 'name' for it)"
+        )
+    return name
+
+
+def _existing(source: Path, base: Path, doc: dict, key: str, where: str, line: int | None) -> Path:
+    """The resolved path of a manifest field naming a file, which must exist."""
+    path = (base / doc[key]).resolve()
+    if not path.is_file():
+        raise SchemaError(source, f"{where}: {key} {doc[key]} does not exist (looked for {path})", line=line)
+    return path
 
 
 def read_recordings(source: str | Path) -> list[RecordingEntry]:
-    """The recordings listed by a manifest file, or found in a folder, with resolved paths."""
+    """The recordings listed by a manifest file, or found in a folder, with resolved paths.
+
+    Every listed file must exist; errors name the manifest and the record (its line in CSV).
+    """
     source = Path(source)
     if source.is_dir():
         aligned = sorted(p for p in source.glob("*.h5") if _is_aligned_file(p))
         if aligned:
-            return [RecordingEntry(name=p.stem, recording=str(p)) for p in aligned]
+            return [
+                RecordingEntry(name=_checked_name(p.stem, p.name, source), recording=str(p.resolve())) for p in aligned
+            ]
         sessions = find_sessions(source)
         if not sessions:
             raise KinectDataError(
                 f"{source}: no aligned .h5 files and no sessions (a skeleton file with audio beside it)"
             )
-        return [RecordingEntry(name=s.name, recording=str(s.skeleton), audio=str(s.audio)) for s in sessions]
+        return [
+            RecordingEntry(
+                name=_checked_name(s.name, s.skeleton.name, source),
+                recording=str(s.skeleton.resolve()),
+                audio=str(s.audio.resolve()),
+            )
+            for s in sessions
+        ]
     if not source.is_file():
         raise KinectDataError(f"{source}: no such manifest file or folder")
-    docs = _read_manifest(source)
-    validate(docs, "recordings.schema.json", source)
+    docs, lines = _read_manifest(source)
+    if lines is None:
+        validate(docs, "recordings.schema.json", source)
+    else:
+        for doc, line in zip(docs, lines):  # CSV: one record at a time, so that errors name its line
+            try:
+                validate([doc], "recordings.schema.json", source)
+            except SchemaError as exc:
+                raise SchemaError(
+                    source, exc.reason.replace("at 0/", "column ").replace("at 0:", "row:"), line=line
+                ) from None
+        if not docs:
+            raise SchemaError(source, "no recordings listed")
     base = source.parent
     entries, seen = [], {}
     for i, d in enumerate(docs):
-        recording = base / d["recording"]
+        where = f"recordings[{i}]" if lines is None else f"line {lines[i]}"
+        line = None if lines is None else lines[i]
+        recording = _existing(source, base, d, "recording", where, line)
         if "audio" not in d and not _is_aligned_file(recording):
-            raise SchemaError(source, f"recordings[{i}]: {d['recording']} needs an 'audio' (it is not an aligned .h5)")
-        name = d.get("name", Path(d["recording"]).stem)
+            raise SchemaError(
+                source, f"{where}: {d['recording']} needs an 'audio' (it is not an aligned .h5)", line=line
+            )
+        name = _checked_name(d.get("name", Path(d["recording"]).stem), where, source)
         if name in seen:
-            raise SchemaError(source, f"recordings[{i}]: name {name!r} is already used by recordings[{seen[name]}]")
-        seen[name] = i
+            raise SchemaError(source, f"{where}: name {name!r} is already used by {seen[name]}", line=line)
+        seen[name] = where
+        schema = d.get("schema")
+        if schema is not None and (base / schema).suffix.lower() == ".json":
+            schema = str(_existing(source, base, d, "schema", where, line))
         entries.append(
             RecordingEntry(
                 name=name,
                 recording=str(recording),
-                audio=str(base / d["audio"]) if "audio" in d else None,
+                audio=str(_existing(source, base, d, "audio", where, line)) if "audio" in d else None,
                 split=d.get("split"),
                 offset=d.get("offset", "auto"),
                 format=d.get("format"),
-                schema=str(base / d["schema"]) if "schema" in d and (base / d["schema"]).exists() else d.get("schema"),
+                schema=schema,
                 body=d.get("body"),
             )
         )

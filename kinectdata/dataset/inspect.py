@@ -84,7 +84,9 @@ class _SplitStats:
             self.beyond += (mask & (np.abs(cur) > np.float32(0.9))).sum(axis=0)
 
 
-def _report(name: str, st: _SplitStats, components: list[str], limit: int | None) -> list[str]:
+def _report(name: str, st: _SplitStats, components: list[str], limit: int | None, fitted=None) -> list[str]:
+    """A split's summary and per-component table; for the training split, ``fitted`` =
+    (statistics, normaliser) adds the raw minimum, maximum and scale the normalisation came from."""
     lines = [f"[{name}] {st.rows} rows, {st.recordings} recordings, {st.padded} frames with padded audio"]
     if not st.rows:
         return lines
@@ -96,16 +98,38 @@ def _report(name: str, st: _SplitStats, components: list[str], limit: int | None
         f"  current  min {np.min(t.low):.4f}  max {np.max(t.high):.4f}  valid {100 * valid_share.mean():.2f}%  "
         f"beyond +-0.9: {int(st.beyond.sum())} values in {int((st.beyond > 0).sum())} components"
     )
-    lines.append(f"  {'component':<22} {'min':>8} {'max':>8} {'mean':>8} {'std':>8} {'valid%':>7} {'>0.9':>6}")
+    header = f"  {'component':<22} {'min':>8} {'max':>8} {'mean':>8} {'std':>8} {'valid%':>7} {'>0.9':>6}"
+    if fitted is not None:
+        header += f" {'raw min':>10} {'raw max':>10} {'scale':>10}"
+    lines.append(header)
     shown = range(len(components)) if limit is None else range(min(limit, len(components)))
     for c in shown:
-        lines.append(
+        row = (
             f"  {components[c]:<22} {t.low[c]:8.4f} {t.high[c]:8.4f} {t.mean()[c]:8.4f} {t.std()[c]:8.4f} "
             f"{100 * valid_share[c]:7.2f} {int(st.beyond[c]):6d}"
         )
+        if fitted is not None:
+            raw, norm = fitted
+            lo, hi = raw["min"][c], raw["max"][c]
+            row += (
+                f" {'-' if lo is None else f'{lo:10.4f}':>10} {'-' if hi is None else f'{hi:10.4f}':>10}"
+                f" {norm['scale'][c]:10.4g}"
+            )
+        lines.append(row)
     if limit is not None and limit < len(components):
         lines.append(f"  ... {len(components) - limit} more components (--components all)")
     return lines
+
+
+def _cross_check(manifest_path: Path, shard: Path, sizes: dict, index: list[dict], listed: list[dict]) -> None:
+    """The manifest's account of a shard must be the shard's own index."""
+    own = [(r["name"], r["start"], r["length"]) for r in index]
+    said = [(r["name"], r["start"], r["frames"]) for r in listed]
+    if own != said:
+        raise FormatError(
+            manifest_path,
+            f"its recordings in {shard.name} ({said[:3]}...) differ from the shard's own index ({own[:3]}...)",
+        )
 
 
 def _components(spec: dict[str, Any]) -> list[str]:
@@ -117,8 +141,8 @@ def _components(spec: dict[str, Any]) -> list[str]:
 def inspect(path: str | Path, *, components: int | None = 12) -> str:
     """A report on a dataset folder or a shard file (raises FormatError when either is damaged)."""
     path = Path(path)
+    manifest_path = path / MANIFEST
     if path.is_dir():
-        manifest_path = path / MANIFEST
         if not manifest_path.is_file():
             raise FormatError(path, "no manifest.json: not a dataset, or a build that did not finish (run it again)")
         try:
@@ -127,6 +151,8 @@ def inspect(path: str | Path, *, components: int | None = 12) -> str:
             raise FormatError(manifest_path, f"invalid JSON ({exc})") from exc
         validate(manifest, "dataset-manifest.schema.json", manifest_path)
         shards = [(s["split"], path / s["file"], s["sha256"]) for s in manifest["shards"]]
+        if len({s["file"] for s in manifest["shards"]}) != len(shards):
+            raise FormatError(manifest_path, "a shard is listed twice")
         cfg = manifest["config"]
         spec = cfg["target"]
         lines = [
@@ -150,7 +176,6 @@ def inspect(path: str | Path, *, components: int | None = 12) -> str:
                 f"shards {', '.join(info['shards']) or '-'}"
             )
     else:
-        validate_shard(path)
         with h5py.File(path, "r") as f:
             split = str(f.attrs["split"])
             spec = json_attribute(f, "target_spec")
@@ -165,14 +190,27 @@ def inspect(path: str | Path, *, components: int | None = 12) -> str:
         ]
     names = _components(spec)
     per_split: dict[str, _SplitStats] = {}
+    listed = None if not path.is_dir() else manifest["recordings"]
     for split, shard, checksum in shards:
-        validate_shard(shard)
+        sizes = validate_shard(shard)
         if checksum is not None and file_sha256(shard) != checksum:
             raise FormatError(shard, "checksum differs from the manifest's: the shard was changed or damaged")
         with h5py.File(shard, "r") as f:
+            if listed is not None:
+                _cross_check(
+                    manifest_path, shard, sizes, read_index(f), [r for r in listed if r["shard"] == shard.name]
+                )
             per_split.setdefault(split, _SplitStats()).add_shard(f)
+    if listed is not None and sum(st.rows for st in per_split.values()) != manifest["totals"]["rows"]:
+        raise FormatError(
+            manifest_path,
+            f"totals.rows is {manifest['totals']['rows']}, the shards hold {sum(st.rows for st in per_split.values())}",
+        )
+    stats = None
+    if path.is_dir():
+        stats = manifest["normalisation_stats"], manifest["normalisation"]
     for split, st in per_split.items():
-        lines += _report(split, st, names, components)
+        lines += _report(split, st, names, components, stats if split == "train" else None)
     return "\n".join(lines)
 
 

@@ -14,7 +14,7 @@ from __future__ import annotations
 import hashlib
 import json
 import zlib
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterable, Iterator
 from contextlib import ExitStack
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
@@ -24,14 +24,14 @@ import h5py
 import numpy as np
 
 from ..align import file_sha256, plan_timeline, resample_onto, resolve_offset, summarize
-from ..aligned import AlignedRecording
+from ..aligned import AlignedRecording, audio_blocks
 from ..atomic import atomic_output
 from ..audio import AudioReader
 from ..envelopes import audio_envelopes
 from ..errors import KinectDataError
 from ..features.stft import StftConfig, stft_features
 from ..formats import read_motion
-from ..normalization import NormStats
+from ..normalization import METHODS, NormStats
 from ..targets import TargetSpec, extract_targets
 from .inputs import RecordingEntry
 
@@ -72,22 +72,43 @@ class BuildConfig:
     max_gap: float = 0.2
     min_coverage: float = 0.9
 
+    def __post_init__(self) -> None:
+        if self.normalisation not in METHODS:
+            raise KinectDataError(f"normalisation must be one of {', '.join(METHODS)}, not {self.normalisation!r}")
+        if self.compression not in (None, "gzip", "lzf"):
+            raise KinectDataError(f"compression must be none, gzip or lzf, not {self.compression!r}")
+        stft = self.stft
+        if stft.sample_rate != self.sample_rate:
+            raise KinectDataError(
+                f"the features are defined at {stft.sample_rate} Hz ({stft.slice_samples}-sample slices, "
+                f"{stft.frame_samples}-sample STFT frames); building at {self.sample_rate} Hz needs a feature "
+                "configuration for that rate"
+            )
+        period = self.sample_rate / self.fps
+        if abs(stft.slice_samples - period) > 1:
+            raise KinectDataError(
+                f"the features take {stft.slice_samples}-sample slices, one frame at "
+                f"{self.sample_rate / stft.slice_samples:.0f} fps; at {self.fps:g} fps a frame is {period:.1f} "
+                "samples: use a feature configuration with slices of one frame"
+            )
+
+    @property
+    def stft(self) -> StftConfig:
+        return StftConfig.from_dict(self.features)
+
+    @property
+    def feature_shape(self) -> tuple[int, ...]:
+        return self.stft.output_shape
+
     def to_dict(self) -> dict[str, Any]:
         d = asdict(self)
         d["split_ratios"], d["augment_snr"] = list(self.split_ratios), list(self.augment_snr)
         return d
 
-    @classmethod
-    def from_dict(cls, d: dict[str, Any]) -> BuildConfig:
-        d = dict(d)
-        d["split_ratios"] = tuple(d["split_ratios"])
-        d["augment_snr"] = tuple(d["augment_snr"])
-        return cls(**d)
-
-    def unit_config(self) -> dict[str, Any]:
-        """The part of the configuration a recording's work files depend on."""
-        keys = ("features", "target", "fps", "sample_rate", "root_centre", "seed", "max_gap", "min_coverage")
-        return {k: self.to_dict()[k] for k in keys}
+    def unit_config(self, noisy: bool) -> dict[str, Any]:
+        """The part of the configuration a work file depends on (the seed only for noisy copies)."""
+        keys = ("features", "target", "fps", "sample_rate", "root_centre", "max_gap", "min_coverage")
+        return {k: self.to_dict()[k] for k in keys + (("seed",) if noisy else ())}
 
 
 @dataclass
@@ -112,10 +133,12 @@ def variant_name(recording: str, snr_db: float | None) -> str:
 
 
 def unit_key(entry: RecordingEntry, hashes: dict[str, str], config: BuildConfig, snr_db: float | None) -> str:
+    """A work file's key: the recording's name, options and contents (not its paths), the
+    configuration it depends on and the SNR."""
     doc = {
-        "entry": {k: v for k, v in entry.to_dict().items() if k != "split"},
+        "entry": entry.options(),
         "sources": hashes,
-        "config": config.unit_config(),
+        "config": config.unit_config(snr_db is not None),
         "snr_db": snr_db,
     }
     return hashlib.sha256(json.dumps(doc, sort_keys=True, default=str).encode()).hexdigest()[:32]
@@ -132,7 +155,7 @@ def _read_unit(path: Path) -> Unit | None:
 
 
 class _FrameFeaturizer:
-    """Feeds streamed audio to :func:`stft_features` frame by frame, keeping only what is pending.
+    """Feeds streamed audio blocks to :func:`stft_features`, keeping only the samples still needed.
 
     ``starts`` [N] are absolute sample indices of the frames' slices; a frame is computed as soon
     as its slice has arrived, the rest at :meth:`finish` (zero-padded and flagged past the end).
@@ -165,15 +188,33 @@ class _FrameFeaturizer:
         self.k = upto
 
 
-def _array_blocks(samples: np.ndarray) -> Iterator[np.ndarray]:
-    for s in range(0, samples.size, _BLOCK):
-        yield np.asarray(samples[s : s + _BLOCK], dtype=np.float32)
+def _tee(blocks: Iterable[np.ndarray], path: Path) -> Iterator[np.ndarray]:
+    """Pass blocks through while appending them to ``path`` as raw float32."""
+    with open(path, "wb") as f:
+        for block in blocks:
+            f.write(np.asarray(block, np.float32).tobytes())
+            yield block
+
+
+def _raw_blocks(path: Path, block: int = _BLOCK) -> Iterator[np.ndarray]:
+    with open(path, "rb") as f:
+        while (chunk := np.fromfile(f, dtype=np.float32, count=block)).size:
+            yield chunk
+
+
+def _mean_square(blocks: Iterable[np.ndarray]) -> float:
+    total, n = 0.0, 0
+    for b in blocks:
+        b = b.astype(np.float64)
+        total, n = total + float(np.dot(b, b)), n + b.size
+    return total / max(n, 1)
 
 
 def source_hashes(entry: RecordingEntry) -> dict[str, str]:
-    """SHA-256 of a recording's files, by file name."""
-    sources = [entry.recording] + ([] if entry.audio is None else [entry.audio])
-    return {Path(p).name: file_sha256(p) for p in sources if Path(p).is_file()}
+    """SHA-256 of a recording's files by file name: the recording, its audio and its CSV schema
+    file if it has one (an edited schema changes what is read)."""
+    sources = [entry.recording, entry.audio, entry.schema]
+    return {Path(p).name: file_sha256(p) for p in sources if p is not None and Path(p).is_file()}
 
 
 def prepare_recording(
@@ -200,8 +241,9 @@ def prepare_recording(
     spec = TargetSpec.from_dict(config.target)
     stft = StftConfig.from_dict(config.features)
     sr = config.sample_rate
+    cache: Path | None = None  # the resampled audio of the first pass, so the second need not decode again
     if entry.aligned:
-        rec = AlignedRecording.load(entry.recording)
+        rec = AlignedRecording.load(entry.recording, audio=False)
         if rec.sample_rate != sr or abs(rec.fps - config.fps) > 1e-9:
             raise KinectDataError(
                 f"{entry.recording}: aligned at {rec.fps:g} fps and {rec.sample_rate} Hz, but the dataset is built "
@@ -212,13 +254,16 @@ def prepare_recording(
         offset, summary = rec.offset, rec.summary
 
         def blocks() -> Iterator[np.ndarray]:
-            return _array_blocks(rec.audio)
+            return audio_blocks(entry.recording)
 
-        mean_square = float(np.mean(np.square(rec.audio, dtype=np.float64))) if snrs else 0.0
+        mean_square = _mean_square(blocks()) if snrs else 0.0
     else:
         source = read_motion(entry.recording, format=entry.format, schema=entry.schema, body=entry.body)
         reader = AudioReader(entry.audio, sr)
-        env = audio_envelopes(reader.blocks(), sr) if (entry.offset == "auto" or snrs) else None
+        env = None
+        if entry.offset == "auto" or snrs:
+            cache = work_dir / f".{entry.name}.audio-f32.partial"
+            env = audio_envelopes(_tee(reader.blocks(), cache), sr)
         offset = resolve_offset(source, env, entry.offset)
         tl = plan_timeline(
             source,
@@ -231,10 +276,12 @@ def prepare_recording(
         )
         res, long_gaps = resample_onto(source, tl, config.max_gap)
         motion, n, starts = res.motion, tl.n_frames, tl.frame_starts()
-        kept = min(reader.n_samples - tl.first_sample, int(round((n + 1) * sr / config.fps)))
-        summary = summarize(source, tl, res, long_gaps, offset, reader.n_samples, kept)
-        blocks = reader.blocks
+        summary = summarize(source, tl, res, long_gaps, offset, reader.n_samples, tl.kept_samples(reader.n_samples))
+        del source, res
         mean_square = env.mean_square if env is not None else 0.0
+
+        def blocks() -> Iterator[np.ndarray]:
+            return reader.blocks() if cache is None else _raw_blocks(cache)
 
     values, mask = extract_targets(motion, spec, root_centre=config.root_centre)
     stats = NormStats.from_arrays(values, mask, spec.component_names()).to_dict()
@@ -295,4 +342,6 @@ def prepare_recording(
                     featurizer.push((block + sigma * rngs[v].standard_normal(block.size)).astype(np.float32))
         for featurizer in featurizers.values():
             featurizer.finish()
+    if cache is not None:
+        cache.unlink(missing_ok=True)
     return [units[v] for v in variants]

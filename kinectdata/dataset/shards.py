@@ -171,18 +171,36 @@ def validate_shard(path: str | Path) -> dict[str, int]:
         index = read_index(f)
         expected = 0
         for i, r in enumerate(index):
-            if r["start"] != expected or r["length"] <= 0:
-                raise FormatError(
-                    path, f"recordings[{i}] ({r['name']}) starts at row {r['start']}, expected {expected}"
-                )
+            where = f"recordings[{i}] ({r['name']})"
+            if r["length"] <= 0:
+                raise FormatError(path, f"{where} has {r['length']} rows")
+            if r["start"] != expected:
+                raise FormatError(path, f"{where} starts at row {r['start']}, expected {expected}")
             expected += r["length"]
         if expected != sizes["N"]:
             raise FormatError(path, f"the recordings cover {expected} rows, the shard has {sizes['N']}")
-        spec_dim = _target_dim(json_attribute(f, "target_spec"))
-        if spec_dim != sizes["D"]:
-            raise FormatError(path, f"'current' has {sizes['D']} components, the target spec {spec_dim}")
+        _check_json_attributes(f, path, sizes)
     return sizes
 
 
-def _target_dim(spec: dict[str, Any]) -> int:
-    return 3 * len(spec["positions"]) + 4 * len(spec["orientations"])
+def _check_json_attributes(f: h5py.File, path: Path, sizes: dict[str, int]) -> None:
+    """The JSON attributes say what the datasets hold: check they agree with them."""
+    spec = json_attribute(f, "target_spec")
+    norm = json_attribute(f, "normalisation")
+    feats = json_attribute(f, "features")
+    if not (
+        isinstance(spec, dict)
+        and isinstance(spec.get("positions"), list)
+        and isinstance(spec.get("orientations"), list)
+    ):
+        raise FormatError(path, "attribute 'target_spec' is not a target spec (positions and orientations lists)")
+    dim = 3 * len(spec["positions"]) + 4 * len(spec["orientations"])
+    if dim != sizes["D"]:
+        raise FormatError(path, f"'current' has {sizes['D']} components, the target spec {dim}")
+    if not (
+        isinstance(norm, dict)
+        and all(isinstance(norm.get(k), list) and len(norm[k]) == dim for k in ("scale", "offset"))
+    ):
+        raise FormatError(path, f"attribute 'normalisation' must hold 'scale' and 'offset' lists of {dim} numbers")
+    if not isinstance(feats, dict):
+        raise FormatError(path, "attribute 'features' is not a feature configuration (a JSON object)")
