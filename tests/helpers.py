@@ -18,3 +18,23 @@ def random_motion(T: int = 40, seed: int = 0, untracked: float = 0.05, inferred:
     conf = rng.choice([0.0, 0.5, 1.0], size=(T, len(js)), p=[untracked, inferred, 1 - untracked - inferred])
     q = Rotation.random(T * len(js), random_state=seed).as_quat().reshape(T, len(js), 4)
     return Motion(t, rng.normal(0, 0.6, (T, len(js), 3)), js, position_mask=conf > 0, confidence=conf, orientations=q)
+
+
+# yalta65, written out here as the tests' independent expectation of kinectdata/schemas/targets/yalta65.json
+YALTA_POSITIONS = ["SpineBase", "HandLeft", "HandRight"]
+YALTA_ORIENTATIONS = [
+    "SpineBase",
+    "SpineMid",
+    "SpineShoulder",
+    "Neck",
+    "ShoulderLeft",
+    "ElbowLeft",
+    "WristLeft",
+    "ShoulderRight",
+    "ElbowRight",
+    "WristRight",
+    "HipLeft",
+    "KneeLeft",
+    "HipRight",
+    "KneeRight",
+]

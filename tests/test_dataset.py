@@ -12,6 +12,7 @@ import h5py
 import numpy as np
 import pytest
 from conftest import REPO
+from helpers import YALTA_ORIENTATIONS, YALTA_POSITIONS
 from scipy import signal
 
 from kinectdata.align import align_files
@@ -402,23 +403,7 @@ def test_yalta65_targets_against_a_hand_computation(dataset):
     from kinectdata.quaternions import make_continuous
 
     out, manifest = dataset
-    pos_joints = ["SpineBase", "HandLeft", "HandRight"]
-    q_joints = [
-        "SpineBase",
-        "SpineMid",
-        "SpineShoulder",
-        "Neck",
-        "ShoulderLeft",
-        "ElbowLeft",
-        "WristLeft",
-        "ShoulderRight",
-        "ElbowRight",
-        "WristRight",
-        "HipLeft",
-        "KneeLeft",
-        "HipRight",
-        "KneeRight",
-    ]
+    pos_joints, q_joints = YALTA_POSITIONS, YALTA_ORIENTATIONS
     raw = {}
     for r in manifest["recordings"]:
         rec = align_files(

@@ -6,29 +6,12 @@ import json
 
 import numpy as np
 import pytest
+from helpers import YALTA_ORIENTATIONS, YALTA_POSITIONS
 
 from kinectdata.errors import KinectDataError, SchemaError
 from kinectdata.jointsets import load_joint_set
 from kinectdata.motion import Motion
 from kinectdata.targets import TargetSpec, extract_targets, load_target_spec, shipped_target_specs
-
-YALTA_POSITIONS = ["SpineBase", "HandLeft", "HandRight"]
-YALTA_ORIENTATIONS = [
-    "SpineBase",
-    "SpineMid",
-    "SpineShoulder",
-    "Neck",
-    "ShoulderLeft",
-    "ElbowLeft",
-    "WristLeft",
-    "ShoulderRight",
-    "ElbowRight",
-    "WristRight",
-    "HipLeft",
-    "KneeLeft",
-    "HipRight",
-    "KneeRight",
-]
 
 
 def z_rotation(angle: np.ndarray) -> np.ndarray:
