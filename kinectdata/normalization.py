@@ -95,6 +95,13 @@ class NormStats:
         names = self.names if self.names is not None else next((o.names for o in others if o.names), None)
         return NormStats(count, lo, hi, names)
 
+    def negated(self, components: np.ndarray) -> NormStats:
+        """Stats of the values with the selected components [D] bool negated (min and max swap)."""
+        flip = np.asarray(components, bool)
+        lo = np.where(flip, -self.max, self.min)
+        hi = np.where(flip, -self.min, self.max)
+        return NormStats(self.count.copy(), lo, hi, self.names)
+
     @classmethod
     def merge_all(cls, stats: Iterable[NormStats]) -> NormStats:
         """Merge of a non-empty sequence of stats (e.g. one per training recording)."""

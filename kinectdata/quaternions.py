@@ -84,6 +84,37 @@ def make_continuous(q: np.ndarray, mask: np.ndarray | None = None) -> np.ndarray
     return flat.reshape(q.shape)
 
 
+def scatter(q: np.ndarray, mask: np.ndarray | None = None) -> np.ndarray:
+    """Sum of the outer products q q^T over time, per series: [T, K, 4] -> [K, 4, 4].
+
+    The same for q and -q, so it can be summed over recordings whatever sign each one uses; its
+    principal eigenvector is the average rotation (:func:`average_quaternion`). ``mask`` [T, K]
+    selects the valid quaternions (all when None).
+    """
+    q = np.asarray(q, dtype=np.float64)
+    valid = np.ones(q.shape[:2], bool) if mask is None else np.asarray(mask, bool)
+    q = np.where(valid[..., None], q, 0.0)
+    return np.einsum("tki,tkj->kij", q, q)
+
+
+def average_quaternion(scatter_sum: np.ndarray) -> np.ndarray:
+    """The average rotation of each series from its :func:`scatter`: [K, 4, 4] -> [K, 4] (x, y, z, w).
+
+    It is the unit quaternion maximising sum (q . avg)^2 (Markley et al. 2007, the method of
+    ``scipy.spatial.transform.Rotation.mean``): the principal eigenvector. Its sign is set so
+    that its largest-magnitude component is positive. A series without valid quaternions
+    (zero scatter) gets the identity.
+    """
+    scatter_sum = np.asarray(scatter_sum, dtype=np.float64)
+    _, vectors = np.linalg.eigh(scatter_sum)
+    avg = vectors[..., :, -1]  # eigh sorts eigenvalues in ascending order
+    largest = np.take_along_axis(avg, np.abs(avg).argmax(axis=-1)[..., None], axis=-1)
+    avg = avg * np.where(largest < 0, -1.0, 1.0)
+    empty = ~np.any(scatter_sum != 0, axis=(-2, -1))
+    avg[empty] = [0.0, 0.0, 0.0, 1.0]
+    return avg
+
+
 def slerp(q0: np.ndarray, q1: np.ndarray, w: np.ndarray) -> np.ndarray:
     """Spherical linear interpolation from ``q0`` to ``q1`` at fraction ``w``.
 

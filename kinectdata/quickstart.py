@@ -4,13 +4,20 @@
 2. ``align``: align every session of the sample folder and the new one (``--offset auto``),
    checking each estimated offset against the ground truth;
 3. ``build-dataset``: turn the aligned files into a dataset (1x129x5 STFT inputs, yalta65 targets
-   normalised into -0.9..0.9, HDF5 shards and a manifest), then ``inspect`` it.
+   normalised into -0.9..0.9, HDF5 shards and a manifest; the four sessions split 2/1/1 into
+   train, validation and test), then ``inspect`` it;
+4. ``train-baseline``: a short training of the Yalta et al. (2016) network (:data:`QUICK_TRAINING`:
+   a demonstration, not the paper's 10-epoch settings), which writes its loss curve;
+5. ``evaluate``: SMAPE without and with reset, forward time, trajectory plots, the silence test;
+6. ``generate``: motion for the test session's music, written as a canonical CSV.
 
-Later stages (training, evaluation) join as they land.
+Steps 4-6 need PyTorch (``pip install kinectdata[train]``); without it the quickstart stops after
+step 3 and says so.
 """
 
 from __future__ import annotations
 
+import shutil
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
@@ -31,10 +38,25 @@ SAMPLE_COMMAND = "kinectdata synth sample_data --seed 1 --count 3 --duration 22"
 """The command that made ``sample_data/`` (also run by the quickstart when the folder is absent)."""
 
 FRAME_S = 1 / 30
+QUICK_TRAINING = {
+    "units": 250,
+    "feedback": "teacher",
+    "sequence": 150,
+    "stride": 10,
+    "batch_size": 10,
+    "epochs": 3,
+    "lr": 3e-4,
+    "noise_eta": 0.0,
+}
+"""The quickstart's training: small batches and no gradient noise so that three epochs on four
+short sessions show the losses falling (the paper's settings learn too slowly for a demo)."""
 
 
 def run_quickstart(
-    out_dir: str | Path, samples: str | Path | None = None, echo: Callable[[str], Any] = print
+    out_dir: str | Path,
+    samples: str | Path | None = None,
+    echo: Callable[[str], Any] = print,
+    **training: Any,
 ) -> dict[str, Any]:
     """Run the quickstart into ``out_dir``; returns per-session results.
 
@@ -43,6 +65,7 @@ def run_quickstart(
         samples: folder of sample sessions; default ``./sample_data`` when it exists, else the
             sample set is synthesised into ``out_dir/sample_data`` with :data:`SAMPLE_COMMAND`'s options.
         echo: where progress lines go.
+        **training: overrides of :data:`QUICK_TRAINING` (e.g. ``epochs=1, units=32``).
 
     Returns:
         ``{"sessions": {name: {...}}, "dataset": path, "rows": n}``.
@@ -84,13 +107,51 @@ def run_quickstart(
                 )
         results[s.name] = result
     echo(f"[build-dataset] {out / 'aligned'} -> {out / 'dataset'}")
-    config = BuildConfig(features=PRESETS["yalta2016"].to_dict(), target=load_target_spec("yalta65").to_dict())
+    config = BuildConfig(
+        features=PRESETS["yalta2016"].to_dict(),
+        target=load_target_spec("yalta65").to_dict(),
+        split_ratios=(0.5, 0.25, 0.25),
+    )
     manifest = build_dataset(out / "aligned", out / "dataset", config)
     echo(f"[inspect] {out / 'dataset'}")
     echo(inspect(out / "dataset", components=6))
-    t = manifest["totals"]
-    echo(
-        f"[done] {len(results)} sessions aligned into {out / 'aligned'}; dataset of {t['rows']} rows in "
-        f"{t['shards']} shards in {out / 'dataset'}"
+    summary = {"sessions": results, "dataset": str(out / "dataset"), "rows": manifest["totals"]["rows"]}
+    try:
+        import torch  # noqa: F401
+    except ImportError:
+        echo(
+            "[done] PyTorch is not installed (pip install 'kinectdata[train]'): stopping before training. "
+            f"Aligned files in {out / 'aligned'}, dataset in {out / 'dataset'}"
+        )
+        return summary
+    from .training.evaluate import evaluate, format_results
+    from .training.generate import generate
+    from .training.run import TrainConfig
+    from .training.train import train
+
+    run = out / "run"
+    shutil.rmtree(run, ignore_errors=True)  # a fresh run each time (a run folder refuses to be overwritten)
+    settings = {**QUICK_TRAINING, **training}
+    echo(f"[train-baseline] {out / 'dataset'} -> {run} ({', '.join(f'{k} {v}' for k, v in settings.items())})")
+    history = train(
+        out / "dataset",
+        run,
+        TrainConfig(**settings),
+        progress=lambda r: echo(
+            f"  epoch {r['epoch']}: train loss {r['train_loss']:.5f}, validation loss "
+            f"{'-' if r['val_loss'] is None else format(r['val_loss'], '.5f')} ({r['seconds']:.1f} s)"
+        ),
     )
-    return {"sessions": results, "dataset": str(out / "dataset"), "rows": t["rows"]}
+    echo(f"[evaluate] {run} on the test split")
+    results = evaluate(run, out / "dataset", "test")
+    echo(format_results(results))
+    test = manifest["splits"]["test"]["recordings"][0]
+    audio = next(s.audio for s in sessions if s.name == test)
+    echo(f"[generate] {audio} -> {run / 'generated.csv'}")
+    motion, _ = generate(run, audio, run / "generated.csv")
+    echo(
+        f"[done] aligned files: {out / 'aligned'}\n       dataset: {out / 'dataset'}\n       run: {run} "
+        f"(loss.png, log.csv, model.pt, stream.ts)\n       evaluation: {run / 'evaluation'} (results.json, "
+        f"trajectories.png, silence.png)\n       generated motion: {run / 'generated.csv'}"
+    )
+    return summary | {"run": str(run), "history": history, "evaluation": results, "generated_frames": motion.n_frames}

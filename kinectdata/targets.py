@@ -196,8 +196,9 @@ def extract_targets(motion: Motion, spec: TargetSpec, *, root_centre: bool = Fal
     """The target vectors of every frame of a motion.
 
     Quaternions: each joint's series is made sign-continuous over time
-    (:func:`~kinectdata.quaternions.make_continuous`, across masked gaps), then negated as a whole
-    if its first valid quaternion has ``w < 0``, so every recording uses the same hemisphere.
+    (:func:`~kinectdata.quaternions.make_continuous`, across masked gaps); its first valid
+    quaternion keeps the source's sign. A dataset build then puts every recording's track of a
+    joint in one hemisphere (:mod:`kinectdata.dataset.hemispheres`).
 
     Root-centring (``root_centre=True``): each listed position becomes its offset from the spec's
     root joint at the same frame; the root's own position (when listed) becomes its offset from
@@ -244,7 +245,7 @@ def extract_targets(motion: Motion, spec: TargetSpec, *, root_centre: bool = Fal
             )
         oidx = [js.index(j) for j in spec.orientations]
         qmask = motion.orientation_mask[:, oidx]
-        q = _same_hemisphere(make_continuous(motion.orientations[:, oidx], qmask), qmask)
+        q = make_continuous(motion.orientations[:, oidx], qmask)
 
     values = np.concatenate([pos.reshape(T, -1), q.reshape(T, -1)], axis=1)
     mask = np.concatenate([np.repeat(pmask, 3, axis=1), np.repeat(qmask, 4, axis=1)], axis=1)
@@ -259,14 +260,6 @@ def _source(motion: Motion) -> str:
     dialect = meta.get("schema")
     described = f"format {fmt!r}" + (f", CSV dialect {dialect!r}" if dialect else "")
     return f"{meta.get('source', 'the recording')} ({described})"
-
-
-def _same_hemisphere(q: np.ndarray, mask: np.ndarray) -> np.ndarray:
-    """Negate each [T] series of q [T, K, 4] whose first valid quaternion has w < 0."""
-    first = mask.argmax(axis=0)
-    w0 = q[first, np.arange(q.shape[1]), 3]
-    flip = mask.any(axis=0) & (w0 < 0)
-    return np.where(flip[None, :, None], -q, q)
 
 
 def _root_centred(

@@ -14,3 +14,43 @@ REPO = Path(__file__).parent.parent
 def fixture_csv() -> Path:
     """A real Kinect v2 recording in the KinectReader dialect (MIT, see tests/data/kinect_v2_csv)."""
     return DATA / "kinect_v2_csv" / "Ges01_wavehand.csv"
+
+
+TINY_TRAINING = {"units": 32, "sequence": 30, "batch_size": 8, "epochs": 2, "lr": 3e-3, "noise_eta": 0.0}
+"""A training small enough for tests (about a second): 32 units, 30-frame sequences, no noise."""
+
+
+@pytest.fixture(scope="session")
+def sample_dataset(tmp_path_factory) -> Path:
+    """The three bundled sample sessions as a dataset, one per split: train synth_003, val synth_001,
+    test synth_002 (yalta2016 features, yalta65 targets)."""
+    from kinectdata.dataset.build import build_dataset
+    from kinectdata.dataset.prepare import BuildConfig
+    from kinectdata.features.stft import PRESETS
+    from kinectdata.targets import load_target_spec
+
+    out = tmp_path_factory.mktemp("sample_dataset") / "dataset"
+    config = BuildConfig(
+        features=PRESETS["yalta2016"].to_dict(),
+        target=load_target_spec("yalta65").to_dict(),
+        split_ratios=(1 / 3, 1 / 3, 1 / 3),
+    )
+    manifest = build_dataset(REPO / "sample_data", out, config)
+    assert {s: v["recordings"] for s, v in manifest["splits"].items()} == {
+        "train": ["synth_003"],
+        "val": ["synth_001"],
+        "test": ["synth_002"],
+    }
+    return out
+
+
+@pytest.fixture(scope="session")
+def trained_run(sample_dataset, tmp_path_factory):
+    """(run folder, log rows) of a TINY_TRAINING run (predicted feedback) on the sample dataset."""
+    pytest.importorskip("torch")
+    from kinectdata.training.run import TrainConfig
+    from kinectdata.training.train import train
+
+    run = tmp_path_factory.mktemp("trained") / "run"
+    history = train(sample_dataset, run, TrainConfig(**TINY_TRAINING))
+    return run, history

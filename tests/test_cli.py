@@ -11,7 +11,20 @@ from conftest import REPO
 
 from kinectdata.cli import main
 
-COMMANDS = ["info", "formats", "align", "build-dataset", "inspect", "synth", "quickstart"]
+COMMANDS = [
+    "info",
+    "formats",
+    "align",
+    "build-dataset",
+    "inspect",
+    "synth",
+    "quickstart",
+    "train-baseline",
+    "evaluate",
+    "generate",
+    "export",
+    "sweep",
+]
 
 
 def run(*args):
@@ -72,13 +85,45 @@ def test_synth_is_deterministic(tmp_path):
 
 
 def test_quickstart_runs_on_the_bundled_samples(tmp_path, monkeypatch):
+    pytest.importorskip("torch")
     monkeypatch.chdir(REPO)
-    result = run("quickstart", "--out", tmp_path / "qs")
+    result = run("quickstart", "--out", tmp_path / "qs", "--epochs", 1, "--units", 16)
     assert result.exit_code == 0, result.output
     assert result.output.count("offset error against the ground truth") == 4
     assert len(list((tmp_path / "qs" / "aligned").glob("*.h5"))) == 4
     assert "input [N, 1, 129, 5] float32" in result.output and "current [N, 65] float32" in result.output
     assert (tmp_path / "qs" / "dataset" / "manifest.json").is_file()
+    assert "epoch 1: train loss" in result.output and "SMAPE without reset" in result.output
+    assert "silence test" in result.output and "forward time" in result.output
+    for name in ("loss.png", "model.pt", "stream.ts", "generated.csv", "evaluation/results.json"):
+        assert (tmp_path / "qs" / "run" / name).is_file(), name
+
+
+def test_training_commands_end_to_end(sample_dataset, tmp_path):
+    pytest.importorskip("torch")
+    runs = tmp_path / "run"
+    tiny = ["--units", 8, "--sequence", 30, "--batch-size", 8, "--epochs", 1, "--noise-eta", 0]
+    result = run("train-baseline", "--data", sample_dataset, "--out", runs, *tiny)
+    assert result.exit_code == 0, result.output
+    assert "epoch   1: train loss" in result.output and "validation SMAPE" in result.output
+    result = run("train-baseline", "--data", sample_dataset, "--out", runs, *tiny)
+    assert result.exit_code == 1 and "already holds a run; use --resume" in result.output
+    result = run("evaluate", "--run", runs, "--data", sample_dataset, "--silence", 2)
+    assert result.exit_code == 0, result.output
+    assert "SMAPE without reset" in result.output and "% denormalised" in result.output
+    song = REPO / "sample_data" / "synth_001.flac"
+    result = run("generate", "--run", runs, song, "-o", tmp_path / "dance.csv")
+    assert result.exit_code == 0 and "x real time" in result.output and (tmp_path / "dance.csv").is_file()
+    result = run("export", "--run", runs, "-o", tmp_path / "robot.ts", "--precision", "float16")
+    assert result.exit_code == 0 and (tmp_path / "robot.ts").is_file()
+    result = run("generate", "--run", tmp_path, song, "-o", tmp_path / "x.csv")
+    assert result.exit_code == 1 and "not a training run" in result.output
+
+
+def test_training_commands_say_how_to_get_torch(monkeypatch, tmp_path):
+    monkeypatch.setitem(sys.modules, "torch", None)  # import torch raises ImportError
+    result = run("train-baseline", "--data", tmp_path, "--out", tmp_path / "r")
+    assert result.exit_code == 1 and "pip install 'kinectdata[train]'" in result.output
 
 
 def test_python_dash_m_runs_the_cli():

@@ -14,6 +14,7 @@ import pytest
 from conftest import REPO
 from helpers import YALTA_ORIENTATIONS, YALTA_POSITIONS
 from scipy import signal
+from scipy.spatial.transform import Rotation
 
 from kinectdata.align import align_files
 from kinectdata.audio import load_audio
@@ -101,9 +102,13 @@ def test_targets_are_the_normalised_aligned_motion_and_invert_exactly(dataset):
     np.testing.assert_array_equal(stored_mask, mask)
     back = norm.invert(current, spec, mask=stored_mask)
     np.testing.assert_allclose(back[:, :9], values[:, :9], atol=1e-5)  # positions, metres
-    np.testing.assert_allclose(back[:, 9:], values[:, 9:], atol=1e-5)  # quaternions
     q = back[:, 9:].reshape(len(back), 14, 4)
-    np.testing.assert_allclose(np.linalg.norm(q, axis=-1)[stored_mask[:, 9::4]], 1.0, atol=1e-6)
+    sign = np.array([-1.0 if j in rec["flipped_orientations"] else 1.0 for j in YALTA_ORIENTATIONS])
+    np.testing.assert_allclose(q, values[:, 9:].reshape(q.shape) * sign[:, None], atol=1e-5)  # hemisphere
+    ok = stored_mask[:, 9::4]
+    np.testing.assert_allclose(np.linalg.norm(q, axis=-1)[ok], 1.0, atol=1e-6)
+    same = Rotation.from_quat(q[ok]).as_matrix()  # the same rotations whatever the sign
+    np.testing.assert_allclose(same, Rotation.from_quat(values[:, 9:].reshape(q.shape)[ok]).as_matrix(), atol=1e-5)
 
 
 def test_train_targets_fill_the_range_and_inputs_lie_in_0_1_to_0_9(dataset):
@@ -397,9 +402,10 @@ def test_windows_load_in_worker_processes(dataset):
 
 
 def test_yalta65_targets_against_a_hand_computation(dataset):
-    """The 65 values from the aligned motion with plain numpy: SpineBase, HandLeft, HandRight
-    positions and 14 quaternions in the hemisphere of their first valid w >= 0, scaled by
-    0.9 / max|x| over the training split."""
+    """The 65 values from the aligned motion with plain numpy and scipy: SpineBase, HandLeft,
+    HandRight positions and 14 sign-continuous quaternion tracks, each put in the hemisphere of
+    the training split's mean rotation of that joint (scipy's Rotation.mean, signed so its largest
+    component is positive), scaled by 0.9 / max|x| over the training split."""
     from kinectdata.quaternions import make_continuous
 
     out, manifest = dataset
@@ -411,27 +417,59 @@ def test_yalta65_targets_against_a_hand_computation(dataset):
         )
         m, js = rec.motion, rec.motion.joint_set
         pos = np.stack([m.positions[:, js.index(j)] for j in pos_joints], 1).reshape(m.n_frames, 9)
-        qs = []
+        qs, oks = [], []
         for j in q_joints:
             q, ok = m.orientations[:, js.index(j)], m.orientation_mask[:, js.index(j)]
-            q = make_continuous(np.nan_to_num(q), ok)
-            q = q * (-1.0 if q[ok][0, 3] < 0 else 1.0)
-            qs.append(np.where(ok[:, None], q, 0.0))
+            qs.append(np.where(ok[:, None], make_continuous(np.nan_to_num(q), ok), 0.0))
+            oks.append(ok)
+        raw[r["name"]] = (np.nan_to_num(pos), np.stack(qs, 1), np.stack(oks, 1), r)
+    reference = []
+    for k in range(len(q_joints)):
+        train = np.concatenate([q[ok[:, k], k] for _, q, ok, r in raw.values() if r["split"] == "train"])
+        mean = Rotation.from_quat(train).mean().as_quat()
+        reference.append(mean * np.sign(mean[np.argmax(np.abs(mean))]))
+    np.testing.assert_allclose(list(manifest["orientation_reference"].values()), reference, atol=1e-6)
+    rows = {}
+    for name, (pos, q, ok, r) in raw.items():
+        sign = np.where(np.einsum("tki,ki->k", q, np.array(reference)) < 0, -1.0, 1.0)
         valid = np.concatenate(
             [
-                np.repeat(np.stack([m.position_mask[:, js.index(j)] for j in pos_joints], 1), 3, 1),
-                np.repeat(np.stack([m.orientation_mask[:, js.index(j)] for j in q_joints], 1), 4, 1),
+                np.repeat(np.isfinite(pos.reshape(-1, 3, 3)).all(-1) & (pos.reshape(-1, 3, 3) != 0).any(-1), 3, 1),
+                np.repeat(ok, 4, 1),
             ],
             1,
         )
-        raw[r["name"]] = (np.concatenate([np.nan_to_num(pos), np.concatenate(qs, 1)], 1), valid, r)
-    train = [v for v, ok, r in raw.values() if r["split"] == "train"]
-    train_ok = [ok for v, ok, r in raw.values() if r["split"] == "train"]
-    maxabs = np.max(np.abs(np.where(np.concatenate(train_ok), np.concatenate(train), 0)), axis=0)
-    for values, ok, r in raw.values():
+        rows[name] = (np.concatenate([pos, (q * sign[:, None]).reshape(len(q), -1)], 1), valid, r)
+    train_rows = [v for v, ok, r in rows.values() if r["split"] == "train"]
+    train_ok = [ok for v, ok, r in rows.values() if r["split"] == "train"]
+    maxabs = np.max(np.abs(np.where(np.concatenate(train_ok), np.concatenate(train_rows), 0)), axis=0)
+    for values, ok, r in rows.values():
         with h5py.File(out / r["shard"], "r") as f:
             stored = f["current"][r["start"] : r["start"] + r["frames"]]
         np.testing.assert_allclose(stored[ok], (values * 0.9 / maxabs)[ok], atol=2e-6)
+    assert all(r["flipped_orientations"] == [] for r in manifest["recordings"])  # the synthesiser is consistent
+
+
+def test_a_recording_with_every_quaternion_negated_gives_the_same_dataset(dataset, tmp_path):
+    """q and -q are the same rotation: a file storing the other sign must not change the targets."""
+    out, manifest = dataset
+    samples = tmp_path / "samples"
+    shutil.copytree(SAMPLES, samples)
+    path = samples / "synth_002.csv"
+    lines = path.read_text().splitlines()
+    negated = [lines[0]]
+    for line in lines[1:]:
+        cells = line.split(",")
+        cells[5:9] = [f"{-float(c):.6f}" for c in cells[5:9]]
+        negated.append(",".join(cells))
+    path.write_text("\n".join(negated) + "\n")
+    other = build_dataset(samples, tmp_path / "ds", config())
+    flipped = {r["name"]: r["flipped_orientations"] for r in other["recordings"]}
+    assert flipped["synth_002"] == YALTA_ORIENTATIONS and flipped["synth_001"] == flipped["synth_003"] == []
+    assert other["orientation_reference"] == manifest["orientation_reference"]
+    for a, b in zip(manifest["shards"], other["shards"]):
+        with h5py.File(out / a["file"], "r") as fa, h5py.File(tmp_path / "ds" / b["file"], "r") as fb:
+            np.testing.assert_array_equal(fa["current"][()], fb["current"][()])
 
 
 def test_a_failing_recording_in_a_parallel_build_is_a_clear_error(tmp_path):

@@ -95,6 +95,17 @@ def test_stats_merged_over_chunks_equal_stats_of_the_whole():
         whole.merge(NormStats.empty(3))
 
 
+def test_negated_stats_equal_stats_of_negated_values():
+    spec, values, mask = targets(T=50)
+    columns = np.zeros(spec.dim, bool)
+    columns[spec.quaternion_slices[2]] = True
+    flipped = np.where(columns, -values, values)
+    a = NormStats.from_arrays(values, mask).negated(columns)
+    b = NormStats.from_arrays(flipped, mask)
+    for x, y in ((a.count, b.count), (a.min, b.min), (a.max, b.max)):
+        np.testing.assert_array_equal(x, y)
+
+
 def test_to_dict_round_trips_exactly_through_json():
     spec, values, mask, norm = fitted("minmax")
     stats = NormStats.from_arrays(values, mask, spec.component_names())

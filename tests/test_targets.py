@@ -184,12 +184,12 @@ def test_masks_follow_position_and_orientation_masks():
     assert np.all(values[~mask] == 0.0) and np.isfinite(values).all()
 
 
-def test_quaternions_are_continuous_and_start_with_w_non_negative():
+def test_quaternions_are_made_continuous_keeping_the_first_sign():
     T = 8
     m = known_motion("kinect_v2", T=T)
     angle = np.linspace(0.1, 0.8, T)
     truth = z_rotation(angle)
-    stored = -truth  # starts with w < 0
+    stored = -truth  # starts with w < 0: kept (the dataset build chooses hemispheres across recordings)
     stored[3] *= -1  # and a sign jump in the middle
     stored[5:] *= -1
     q = m.orientations.copy()
@@ -202,8 +202,8 @@ def test_quaternions_are_continuous_and_start_with_w_non_negative():
     m = Motion(m.times, m.positions, m.joint_set, orientations=q, orientation_mask=omask)
     values, mask = extract_targets(m, load_target_spec("yalta65"))
     np.testing.assert_allclose(values[:, 9:13], truth, atol=1e-12)
-    np.testing.assert_allclose(values[:, 13:17], truth, atol=1e-12)
-    np.testing.assert_allclose(values[1:, 17:21], truth[1:], atol=1e-12)
+    np.testing.assert_allclose(values[:, 13:17], -truth, atol=1e-12)
+    np.testing.assert_allclose(values[1:, 17:21], -truth[1:], atol=1e-12)
     assert not mask[0, 17:21].any() and np.all(values[0, 17:21] == 0.0)
 
 

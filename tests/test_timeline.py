@@ -161,3 +161,19 @@ def test_slerp_matches_scipy_including_nearly_equal_rotations():
     for i in range(200):
         ref = Slerp([0.0, 1.0], Rotation.from_quat([q0[i], q1[i]]))([w[i]])[0]
         assert (got[i] * ref.inv()).magnitude() < 1e-9
+
+
+def test_average_quaternion_matches_scipy_mean_whatever_the_signs():
+    from kinectdata.quaternions import average_quaternion, scatter
+
+    rng = np.random.default_rng(4)
+    centres = Rotation.random(3, random_state=4)
+    q = np.stack([(c * Rotation.from_rotvec(rng.normal(0, 0.3, (40, 3)))).as_quat() for c in centres], axis=1)
+    signs = rng.choice([-1.0, 1.0], size=(40, 3))
+    mask = rng.random((40, 3)) > 0.2
+    got = average_quaternion(scatter(q * signs[..., None], mask))
+    for k in range(3):
+        expected = Rotation.from_quat(q[mask[:, k], k]).mean().as_quat()
+        assert abs(float(got[k] @ expected)) == pytest.approx(1.0, abs=1e-9)
+        assert got[k][np.argmax(np.abs(got[k]))] > 0  # the documented sign
+    np.testing.assert_array_equal(average_quaternion(np.zeros((1, 4, 4))), [[0.0, 0.0, 0.0, 1.0]])

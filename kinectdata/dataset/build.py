@@ -8,7 +8,8 @@ The recipe, top to bottom:
    features, noisy copies for training), in parallel over recordings, into ``DATASET/.work/``;
    work files already there with the same key are reused, which is how an interrupted build
    resumes;
-3. fit the target normalisation on the training split only (merged per-recording statistics);
+3. pick one quaternion sign per joint for all recordings (:mod:`.hemispheres`) and fit the
+   target normalisation, both on the training split only (merged per-recording statistics);
 4. write the shards, split by split, starting a new one before one would exceed the size limit;
    each shard is written to a temporary name and renamed, and an existing shard with the same
    build key is kept;
@@ -38,6 +39,8 @@ from ..align import file_sha256
 from ..atomic import atomic_output
 from ..errors import KinectDataError
 from ..normalization import Normalizer, NormStats, count_out_of_range
+from ..targets import TargetSpec
+from .hemispheres import apply_flips, flipped_columns, reference_orientations, track_flips
 from .inputs import SPLITS, RecordingEntry, assign_splits, read_recordings
 from .prepare import BuildConfig, Unit, prepare_recording, source_hashes
 from .shards import ShardRecording, row_bytes, write_shard
@@ -45,7 +48,7 @@ from .shards import ShardRecording, row_bytes, write_shard
 MANIFEST = "manifest.json"
 _SHARD_NAME = re.compile(r"(train|val|test)-\d{5}\.h5")
 DATASET_FORMAT = "kinectdata.dataset"
-DATASET_FORMAT_VERSION = 1
+DATASET_FORMAT_VERSION = 2  # 2: one quaternion hemisphere per joint across recordings
 WORK = ".work"
 
 
@@ -172,7 +175,12 @@ def build_dataset(
     hashes = {e.name: source_hashes(e) for e in entries}
     _refuse_duplicates(entries, hashes, splits, source)
     build_key = _digest(
-        {"config": config.to_dict(), "inputs": [_key_entry(e, splits) for e in entries], "sources": hashes}
+        {
+            "format_version": DATASET_FORMAT_VERSION,
+            "config": config.to_dict(),
+            "inputs": [_key_entry(e, splits) for e in entries],
+            "sources": hashes,
+        }
     )
     done = _complete(out, build_key)
     if done is not None:
@@ -186,12 +194,16 @@ def build_dataset(
     tasks = [(e, config, str(work), snrs[e.name], hashes[e.name], str(source)) for e in entries]
     units = _prepare_all(tasks, jobs, progress)
 
+    spec = TargetSpec.from_dict(config.target)
+    train_units = [u for u in units if splits[u.recording] == "train" and u.snr_db is None]
+    reference = reference_orientations((u.orientations for u in train_units), spec)
+    flips = {u.name: track_flips(u.orientations, reference) for u in units}
     train_stats = NormStats.merge_all(
-        NormStats.from_dict(u.stats) for u in units if splits[u.recording] == "train" and u.snr_db is None
+        NormStats.from_dict(u.stats).negated(flipped_columns(spec, flips[u.name])) for u in train_units
     )
     normalizer = Normalizer.fit(train_stats, config.normalisation)
     (out / MANIFEST).unlink(missing_ok=True)  # shards change from here: the folder is incomplete until the end
-    shards, records = _write_shards(out, units, splits, config, normalizer)
+    shards, records = _write_shards(out, units, splits, config, normalizer, flips)
     manifest = {
         "format": DATASET_FORMAT,
         "format_version": DATASET_FORMAT_VERSION,
@@ -209,6 +221,7 @@ def build_dataset(
         },
         "normalisation": normalizer.to_dict(),
         "normalisation_stats": train_stats.to_dict(),
+        "orientation_reference": {j: [float(v) for v in q] for j, q in zip(spec.orientations, reference)},
         "feature_shape": list(config.feature_shape),
         "target_dim": normalizer.dim,
         "shards": shards,
@@ -258,9 +271,16 @@ def _prepare_all(tasks: list[tuple], jobs: int, progress: Callable[[int, int], N
 
 
 def _write_shards(
-    out: Path, units: list[Unit], splits: dict[str, str], config: BuildConfig, normalizer: Normalizer
+    out: Path,
+    units: list[Unit],
+    splits: dict[str, str],
+    config: BuildConfig,
+    normalizer: Normalizer,
+    flips: dict[str, np.ndarray],
 ) -> tuple[list[dict], list[dict]]:
-    """Write (or keep, when already there with the same key) every planned shard."""
+    """Write (or keep, when already there with the same key) every planned shard; ``flips``
+    [K] bool per unit name: the quaternion tracks to negate."""
+    spec = TargetSpec.from_dict(config.target)
     work = out / WORK
     shards, records = [], []
     for shard in _plan_shards(units, splits, config, config.feature_shape, normalizer.dim):
@@ -269,6 +289,7 @@ def _write_shards(
                 "config": config.to_dict(),
                 "normalisation": normalizer.to_dict(),
                 "units": [u.key for u in shard["units"]],
+                "flips": [flips[u.name].tolist() for u in shard["units"]],
                 "file": shard["file"],
             }
         )
@@ -283,7 +304,8 @@ def _write_shards(
                 for u in shard["units"]:
                     f = stack.enter_context(h5py.File(work / u.file, "r"))
                     mask = f["mask"][()]
-                    current = normalizer.apply(f["targets"][()], mask)
+                    targets = apply_flips(f["targets"][()], flipped_columns(spec, flips[u.name]))
+                    current = normalizer.apply(targets, mask)
                     out_of_range += count_out_of_range(current, mask)
                     members.append(
                         ShardRecording(
@@ -314,6 +336,7 @@ def _write_shards(
                     "snr_db": u.snr_db,
                     "sources": u.info["sources"],
                     "offset": u.info["offset"],
+                    "flipped_orientations": [j for j, f in zip(spec.orientations, flips[u.name]) if f],
                 }
             )
             start += u.frames

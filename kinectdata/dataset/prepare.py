@@ -14,7 +14,7 @@ from __future__ import annotations
 import hashlib
 import json
 import zlib
-from collections.abc import Callable, Iterable, Iterator
+from collections.abc import Iterable, Iterator
 from contextlib import ExitStack
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
@@ -29,13 +29,15 @@ from ..atomic import atomic_output
 from ..audio import AudioReader
 from ..envelopes import audio_envelopes
 from ..errors import KinectDataError
-from ..features.stft import StftConfig, stft_features
+from ..features.stft import StftConfig
+from ..features.streaming import StreamingFeatures
 from ..formats import read_motion
 from ..normalization import METHODS, NormStats
 from ..targets import TargetSpec, extract_targets
+from .hemispheres import orientation_stats
 from .inputs import RecordingEntry
 
-WORK_FORMAT = "kinectdata.work"
+WORK_FORMAT = "kinectdata.work.2"  # 2: units carry orientation statistics
 _BLOCK = 160_000  # samples per block when streaming in-memory audio (10 s at 16 kHz)
 
 
@@ -122,6 +124,7 @@ class Unit:
     key: str
     frames: int
     stats: dict[str, Any]
+    orientations: dict[str, Any]  # hemispheres.orientation_stats of the targets
     info: dict[str, Any] = field(default_factory=dict)
 
     def to_dict(self) -> dict[str, Any]:
@@ -152,40 +155,6 @@ def _read_unit(path: Path) -> Unit | None:
             return Unit(**json.loads(f.attrs["unit"]))
     except (OSError, KeyError, ValueError, TypeError):
         return None  # damaged or foreign: recomputed
-
-
-class _FrameFeaturizer:
-    """Feeds streamed audio blocks to :func:`stft_features`, keeping only the samples still needed.
-
-    ``starts`` [N] are absolute sample indices of the frames' slices; a frame is computed as soon
-    as its slice has arrived, the rest at :meth:`finish` (zero-padded and flagged past the end).
-    """
-
-    def __init__(self, starts: np.ndarray, config: StftConfig, sink: Callable[[int, np.ndarray, np.ndarray], None]):
-        self.starts, self.config, self.sink = starts, config, sink
-        self.ends = starts + config.slice_samples
-        self.k = 0
-        self.buffer = np.zeros(0, np.float32)
-        self.buffer_start = 0
-
-    def push(self, block: np.ndarray) -> None:
-        self.buffer = np.concatenate([self.buffer, block])
-        ready = int(np.searchsorted(self.ends, self.buffer_start + self.buffer.size, side="right"))
-        if ready > self.k:
-            self._emit(ready)
-        keep_from = self.starts[self.k] - self.buffer_start if self.k < self.starts.size else self.buffer.size
-        keep_from = int(np.clip(keep_from, 0, self.buffer.size))
-        self.buffer = self.buffer[keep_from:]
-        self.buffer_start += keep_from
-
-    def finish(self) -> None:
-        if self.k < self.starts.size:
-            self._emit(self.starts.size)
-
-    def _emit(self, upto: int) -> None:
-        feats, padded = stft_features(self.buffer, self.starts[self.k : upto] - self.buffer_start, self.config)
-        self.sink(self.k, feats, padded)
-        self.k = upto
 
 
 def _tee(blocks: Iterable[np.ndarray], path: Path) -> Iterator[np.ndarray]:
@@ -285,6 +254,7 @@ def prepare_recording(
 
     values, mask = extract_targets(motion, spec, root_centre=config.root_centre)
     stats = NormStats.from_arrays(values, mask, spec.component_names()).to_dict()
+    orientations = orientation_stats(values, mask, spec)
     info = {"sources": hashes, "paths": sources, "offset": offset, "alignment": summary}
     units = {
         v: Unit(
@@ -295,6 +265,7 @@ def prepare_recording(
             key=keys[v],
             frames=n,
             stats=stats,
+            orientations=orientations,
             info={**info, "augmentation": None if v is None else {"white_noise_snr_db": v}},
         )
         for v in variants
@@ -327,7 +298,7 @@ def prepare_recording(
 
             return sink
 
-        featurizers = {v: _FrameFeaturizer(starts, stft, sink_for(v)) for v in variants}
+        featurizers = {v: StreamingFeatures(starts, stft, sink_for(v)) for v in variants}
         rngs = {
             v: np.random.default_rng([config.seed, zlib.crc32(entry.name.encode()), int(round(v * 1000)) & 0xFFFFFFFF])
             for v in variants

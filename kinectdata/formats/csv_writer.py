@@ -44,6 +44,7 @@ def write_csv(
     *,
     states: np.ndarray | None = None,
     time_origin: float = 0.0,
+    comments: dict[str, str] | None = None,
 ) -> None:
     """Write a Motion as a CSV file in a schema's dialect (atomically).
 
@@ -54,6 +55,8 @@ def write_csv(
         states: optional [T, J] tracking states to write verbatim (e.g. Kinect 0/1/2); by
             default they come from ``motion.confidence`` (nearest state value).
         time_origin: value of the first timestamp, in the schema's time unit.
+        comments: ``# key: value`` lines to write first, for dialects with a comment prefix
+            (the reader keeps them as the file's metadata).
 
     Invalid positions are written as the dialect's missing-value text when it has one, else as
     zeros (with a not-tracked state, as the Kinect SDK does); missing orientations likewise, or
@@ -125,6 +128,11 @@ def write_csv(
     preamble = list(doc.get("preamble", []))
     if sch.joint_set == "auto" and js.name in shipped_joint_sets():
         preamble.append(f"# joint_set: {js.name}")
+    if comments:
+        prefix = sch.get("comment")
+        if prefix is None:
+            raise KinectDataError(f"the {sch.name} dialect has no comment lines to hold {sorted(comments)}")
+        preamble += [f"{prefix} {key}: {value}" for key, value in comments.items()]
     with atomic_output(path) as tmp:
         with open(tmp, "w", newline="\n", encoding="utf-8") as f:
             for line in preamble:

@@ -1,0 +1,175 @@
+"""Speed of the Yalta et al. (2016) network: live generation per frame, and training.
+
+**Streaming latency** (the issue's target: median at most 2 ms per frame for the 500-unit model
+at batch 1 on one CPU core; the paper reports 10.94 ms on a GTX Titan X). One thread
+(``torch.set_num_threads(1)``, ONNX Runtime ``intra_op_num_threads=1``), 65 outputs, the
+model's own output fed back, 1500 timed frames after 100 warm-up frames, per-call wall time.
+Engines: the sequence network called one frame at a time (``YaltaNet`` with torch's LSTM, the
+naive way), the streaming network (``StreamingYalta``: batch norm folded, one product per LSTM
+layer) eager and as TorchScript in float32 and float16 weights, and the exported ONNX file in
+ONNX Runtime (when installed). Latency does not depend on the weights' values, so the networks
+are freshly initialised. Also the largest deviation of float16 weights from float32 over 300
+fed-back frames, and the 250- and 1000-unit models of the paper's Table 4.
+
+**Training throughput**: frames per second of one optimisation step (forward, MSE, backward,
+annealed gradient noise, Adam) with the paper's default configuration (500 units, sequences of
+150, batches of 50) on random inputs, both feedbacks, all cores; data loading is not included
+(``log.csv`` of a real run reports the whole loop).
+"""
+
+from __future__ import annotations
+
+import os
+import time
+import warnings
+
+import numpy as np
+import torch
+
+from kinectdata.models.engines import OnnxRuntimeEngine, onnxruntime_available
+from kinectdata.models.yalta import StreamingYalta, YaltaConfig, YaltaNet
+from kinectdata.training.metrics import masked_mse
+from kinectdata.training.run import TrainConfig
+from kinectdata.training.train import _add_gradient_noise
+
+D = 65
+WARMUP, FRAMES = 100, 1500
+
+
+def _net(units: int) -> YaltaNet:
+    torch.manual_seed(0)
+    return YaltaNet(YaltaConfig(output_dim=D, units=units)).eval()
+
+
+def _features(n: int) -> torch.Tensor:
+    return 0.1 + 0.8 * torch.rand(n, 1, 129, 5, generator=torch.Generator().manual_seed(1))
+
+
+def _summary(times: list[float]) -> tuple[float, float]:
+    t = np.array(times[WARMUP:]) * 1e3
+    return float(np.median(t)), float(np.percentile(t, 95))
+
+
+def time_stream(module, features: torch.Tensor) -> tuple[float, float]:
+    state, pose, times = module.initial_state(), torch.zeros(D), []
+    with torch.inference_mode():
+        for k in range(features.shape[0]):
+            start = time.perf_counter()
+            pose, *state = module(features[k], pose, *state)
+            times.append(time.perf_counter() - start)
+    return _summary(times)
+
+
+def time_sequence_net(net: YaltaNet, features: torch.Tensor) -> tuple[float, float]:
+    s1 = s2 = None
+    pose, times = torch.zeros(1, D), []
+    with torch.inference_mode():
+        for k in range(features.shape[0]):
+            start = time.perf_counter()
+            codes, s1 = net.encode(features[k][None, None], s1)
+            out, s2 = net.decode(codes, pose, "predicted", s2)
+            pose = out[:, 0]
+            times.append(time.perf_counter() - start)
+    return _summary(times)
+
+
+def time_onnx(net: YaltaNet, features: torch.Tensor) -> tuple[float, float] | None:
+    if not onnxruntime_available():
+        return None
+    engine = OnnxRuntimeEngine(net, threads=1)
+    pose, times = np.zeros(D, np.float32), []
+    x = features.numpy()
+    for k in range(x.shape[0]):
+        start = time.perf_counter()
+        pose = engine.step(x[k], pose)
+        times.append(time.perf_counter() - start)
+    return _summary(times)
+
+
+def script(net: YaltaNet, precision: str):
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", DeprecationWarning)
+        return torch.jit.script(StreamingYalta(net, precision).eval())
+
+
+def half_precision_error(net: YaltaNet, frames: int = 300) -> float:
+    features = _features(frames)
+    outputs = []
+    for precision in ("float32", "float16"):
+        module = StreamingYalta(net, precision)
+        state, pose, out = module.initial_state(), torch.zeros(D), []
+        with torch.inference_mode():
+            for k in range(frames):
+                pose, *state = module(features[k], pose, *state)
+                out.append(pose)
+        outputs.append(torch.stack(out))
+    return float((outputs[0] - outputs[1]).abs().max())
+
+
+def latency() -> None:
+    threads = torch.get_num_threads()
+    torch.set_num_threads(1)
+    features = _features(WARMUP + FRAMES)
+    print(f"streaming latency per frame, batch 1, one thread, {FRAMES} frames (ms median / p95):")
+    try:
+        for units in (500, 250, 1000):
+            net = _net(units)
+            rows = {}
+            if units == 500:
+                rows["YaltaNet one frame per call (torch LSTM)"] = time_sequence_net(net, features)
+                rows["StreamingYalta eager float32"] = time_stream(StreamingYalta(net), features)
+            rows["StreamingYalta TorchScript float32"] = time_stream(script(net, "float32"), features)
+            rows["StreamingYalta TorchScript float16 weights"] = time_stream(script(net, "float16"), features)
+            onnx = time_onnx(net, features)
+            if onnx is not None:
+                rows["ONNX Runtime float32"] = onnx
+            for name, (median, p95) in rows.items():
+                mark = "  <= 2 ms" if units == 500 and median <= 2.0 else ""
+                print(f"  {units:>4} units  {name:<44} {median:6.3f} / {p95:6.3f}{mark}")
+        error = half_precision_error(_net(500))
+        print(f"  float16 weights: max deviation from float32 over 300 fed-back frames {error:.1e}")
+    finally:
+        torch.set_num_threads(threads)
+
+
+def training_throughput(steps: int = 2) -> None:
+    config = TrainConfig()
+    print(
+        f"training throughput: {config.units} units, sequences of {config.sequence}, batches of "
+        f"{config.batch_size}, {torch.get_num_threads()} threads, {steps} timed steps after one warm-up:"
+    )
+    for feedback in ("predicted", "teacher"):
+        torch.manual_seed(0)
+        net = YaltaNet(YaltaConfig(output_dim=D, units=config.units)).train()
+        optimizer = torch.optim.Adam(net.parameters(), lr=config.lr)
+        noise = torch.Generator().manual_seed(2)
+        g = torch.Generator().manual_seed(3)
+        shape = (config.batch_size, config.sequence)
+        audio = 0.1 + 0.8 * torch.rand(*shape, 1, 129, 5, generator=g)
+        pose = torch.rand(*shape, D, generator=g) * 1.8 - 0.9
+        previous = torch.cat([pose[:, :1], pose[:, :-1]], dim=1)
+        mask = torch.ones_like(pose, dtype=torch.bool)
+        times = []
+        for step in range(steps + 1):
+            start = time.perf_counter()
+            out = net(audio, previous if feedback == "teacher" else previous[:, 0], feedback)
+            loss = masked_mse(out, pose, mask)
+            optimizer.zero_grad(set_to_none=True)
+            loss.backward()
+            _add_gradient_noise(list(net.parameters()), step, config, noise)
+            optimizer.step()
+            times.append(time.perf_counter() - start)
+        seconds = float(np.mean(times[1:]))
+        frames = config.batch_size * config.sequence
+        rate = frames / seconds
+        print(f"  {feedback:<9} feedback: {seconds:6.2f} s per batch of {frames} frames = {rate:7.0f} frames/s")
+
+
+def main() -> None:
+    print(f"torch {torch.__version__}, {os.cpu_count()} cores")
+    latency()
+    training_throughput()
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,280 @@
+"""``train-baseline``, ``evaluate``, ``generate``, ``export`` and ``sweep``: the reference model's commands.
+
+torch is imported inside the commands, so the rest of the command line works without it.
+"""
+
+from __future__ import annotations
+
+import click
+
+from ..errors import KinectDataError
+
+
+def _torch_or_fail() -> None:
+    try:
+        import torch  # noqa: F401
+    except ImportError:
+        raise KinectDataError(
+            "these commands need PyTorch: pip install 'kinectdata[train]' (on a CPU-only machine install the CPU "
+            "wheel first, e.g. pip install torch==2.13.0)"
+        ) from None
+
+
+def train_options(f):
+    """The training settings, with the paper's defaults."""
+    options = [
+        click.option(
+            "--units",
+            default=500,
+            show_default=True,
+            type=click.IntRange(min=1),
+            help="LSTM units per layer (the paper: 250, 500, 1000).",
+        ),
+        click.option(
+            "--activation",
+            default="elu",
+            show_default=True,
+            type=click.Choice(["tanh", "relu", "elu"]),
+            help="Activation after each convolution and fc1.",
+        ),
+        click.option(
+            "--feedback",
+            default="predicted",
+            show_default=True,
+            type=click.Choice(["predicted", "teacher"]),
+            help="Previous pose fed to the decoder: the model's own output (the paper) or the true one.",
+        ),
+        click.option(
+            "--sequence",
+            default=150,
+            show_default=True,
+            type=click.IntRange(min=1),
+            help="Frames per training sequence (at 30 fps, 150 frames = 5 s).",
+        ),
+        click.option(
+            "--stride",
+            default=None,
+            type=click.IntRange(min=1),
+            help="Frames between training sequence starts. Default: --sequence (no overlap).",
+        ),
+        click.option(
+            "--batch-size", default=50, show_default=True, type=click.IntRange(min=1), help="Sequences per batch."
+        ),
+        click.option(
+            "--epochs", default=10, show_default=True, type=click.IntRange(min=1), help="Passes over the data."
+        ),
+        click.option(
+            "--lr",
+            default=1e-4,
+            show_default=True,
+            type=click.FloatRange(min=0, min_open=True),
+            help="Adam learning rate.",
+        ),
+        click.option(
+            "--noise-eta",
+            default=0.01,
+            show_default=True,
+            type=click.FloatRange(min=0),
+            help="Gradient noise: variance eta / (1 + step)^gamma; 0 turns it off.",
+        ),
+        click.option(
+            "--noise-gamma",
+            default=0.55,
+            show_default=True,
+            type=click.FloatRange(min=0),
+            help="Gradient noise annealing exponent.",
+        ),
+        click.option(
+            "--clip-norm",
+            default=None,
+            type=click.FloatRange(min=0, min_open=True),
+            help="Clip the gradient's global norm to this before the noise (default: no clipping).",
+        ),
+        click.option(
+            "--seed",
+            default=0,
+            show_default=True,
+            type=click.IntRange(min=0),
+            help="Seed of initialisation, batch order and noise.",
+        ),
+        click.option(
+            "--device",
+            default="auto",
+            show_default=True,
+            type=click.Choice(["auto", "cpu", "cuda"]),
+            help="auto: CUDA when present, else CPU.",
+        ),
+    ]
+    for option in reversed(options):
+        f = option(f)
+    return f
+
+
+def make_train_config(
+    units,
+    activation,
+    feedback,
+    sequence,
+    stride,
+    batch_size,
+    epochs,
+    lr,
+    noise_eta,
+    noise_gamma,
+    clip_norm,
+    seed,
+    device,
+):
+    from ..training.run import TrainConfig
+
+    return TrainConfig(
+        units=units,
+        activation=activation,
+        feedback=feedback,
+        sequence=sequence,
+        stride=stride,
+        batch_size=batch_size,
+        epochs=epochs,
+        lr=lr,
+        noise_eta=noise_eta,
+        noise_gamma=noise_gamma,
+        clip_norm=clip_norm,
+        seed=seed,
+        device=device,
+    )
+
+
+def _row(row: dict) -> str:
+    val = "-" if row["val_loss"] is None else f"{row['val_loss']:.5f}"
+    smape = "-" if row["val_smape"] is None else f"{row['val_smape']:.2f} %"
+    return (
+        f"epoch {row['epoch']:>3}: train loss {row['train_loss']:.5f}, validation loss {val}, "
+        f"validation SMAPE {smape} ({row['seconds']:.1f} s, {row['frames_per_second']:.0f} frames/s)"
+    )
+
+
+@click.command("train-baseline")
+@click.option("--data", required=True, type=click.Path(exists=True, file_okay=False), help="Dataset folder.")
+@click.option("--out", required=True, type=click.Path(file_okay=False), help="Run folder to write.")
+@click.option("--resume", is_flag=True, help="Continue the run in --out from its last checkpoint, exactly.")
+@train_options
+def train_baseline(data, out, resume, **options) -> None:
+    """Train the DCNN + deep LSTM of Yalta et al. (2016) on a dataset (the paper's settings by
+    default: Adam 1e-4, MSE, sequences of 150, batches of 50, 10 epochs, annealed gradient noise).
+
+    Writes into --out: config.json, checkpoint.pt (each epoch, atomically), log.csv, loss.png,
+    and at the end model.pt and stream.ts (TorchScript of the streaming network)."""
+    _torch_or_fail()
+    from ..training.train import train
+
+    history = train(data, out, make_train_config(**options), resume=resume, progress=lambda r: click.echo(_row(r)))
+    click.echo(f"run: {out} ({len(history)} epochs; log.csv, loss.png, model.pt, stream.ts)")
+
+
+@click.command("evaluate")
+@click.option("--run", "run_dir", required=True, type=click.Path(exists=True, file_okay=False), help="Run folder.")
+@click.option("--data", required=True, type=click.Path(exists=True, file_okay=False), help="Dataset folder.")
+@click.option("--split", default="test", show_default=True, type=click.Choice(["train", "val", "test"]))
+@click.option("--out", default=None, type=click.Path(file_okay=False), help="Default: RUN/evaluation.")
+@click.option(
+    "--silence",
+    default=5.0,
+    show_default=True,
+    type=click.FloatRange(min=0, min_open=True),
+    help="Seconds of silence inserted for the silence test.",
+)
+def evaluate_command(run_dir, data, split, out, silence) -> None:
+    """Score a run as the paper does: SMAPE (%) free-running without and with reset, on normalised
+    and denormalised values; per-frame forward time; generated-against-real plots; the silence test."""
+    _torch_or_fail()
+    from ..training.evaluate import evaluate, format_results
+
+    results = evaluate(run_dir, data, split, out=out, silence_seconds=silence)
+    click.echo(format_results(results))
+
+
+@click.command("generate")
+@click.option("--run", "run_dir", required=True, type=click.Path(exists=True, file_okay=False), help="Run folder.")
+@click.argument("audio", type=click.Path(dir_okay=False))
+@click.option("-o", "--out", required=True, type=click.Path(dir_okay=False), help="Canonical CSV to write.")
+@click.option(
+    "--engine",
+    default="torch",
+    show_default=True,
+    type=click.Choice(["torch", "onnxruntime"]),
+    help="What runs the network: torch, or ONNX Runtime (fastest on CPUs; pip install 'kinectdata[export]').",
+)
+@click.option(
+    "--precision",
+    default="float32",
+    show_default=True,
+    type=click.Choice(["float32", "float16"]),
+    help="Weights of the torch engine (float16: half the memory traffic, faster on CPUs).",
+)
+def generate_command(run_dir, audio, out, engine, precision) -> None:
+    """Generate dance motion for AUDIO (any file libsndfile reads), streaming frame by frame, and
+    write it (metres, unit quaternions) as the canonical CSV that align reads."""
+    _torch_or_fail()
+    from ..training.generate import generate
+
+    motion, timing = generate(run_dir, audio, out, engine=engine, precision=precision)
+    click.echo(
+        f"wrote {out}: {timing['frames']} frames ({motion.duration:.2f} s) in {timing['seconds']:.2f} s "
+        f"({timing['x_real_time']:.0f}x real time; network step {timing['step_median_ms']:.3f} ms median)"
+    )
+
+
+@click.command("export")
+@click.option("--run", "run_dir", required=True, type=click.Path(exists=True, file_okay=False), help="Run folder.")
+@click.option("-o", "--out", required=True, type=click.Path(dir_okay=False), help="File to write (.onnx or .ts).")
+@click.option(
+    "--format",
+    "fmt",
+    default=None,
+    type=click.Choice(["torchscript", "onnx"]),
+    help="Default: from the suffix (.onnx: ONNX, else TorchScript).",
+)
+@click.option(
+    "--precision",
+    default="float32",
+    show_default=True,
+    type=click.Choice(["float32", "float16"]),
+    help="Weights of the TorchScript network (ONNX is float32).",
+)
+def export_command(run_dir, out, fmt, precision) -> None:
+    """Write a run's streaming network (one frame per call, state passed in and out) as a
+    self-describing TorchScript or ONNX file for a robot: the metadata inside gives frame and
+    sample rate, feature settings, target components, normalisation and the start pose.
+    ONNX needs pip install 'kinectdata[export]'."""
+    _torch_or_fail()
+    from ..models.export import export_run
+
+    path = export_run(run_dir, out, fmt, precision)
+    click.echo(f"wrote {path}")
+
+
+@click.command("sweep")
+@click.option("--data", required=True, type=click.Path(exists=True, file_okay=False), help="Dataset folder.")
+@click.option("--out", required=True, type=click.Path(file_okay=False), help="Folder for the runs and results.md.")
+@click.option("--only", default=None, help="Comma-separated variants (default: all of Tables 3-5).")
+@train_options
+def sweep_command(data, out, only, **options) -> None:
+    """Train and evaluate the variants of the paper's Tables 3-5 (TanH/ReLU/ELU, 250/1000 units,
+    50/100 steps) and write OUT/results.md with the paper's columns beside its figures."""
+    _torch_or_fail()
+    from ..training.sweep import sweep
+
+    variants = None if only is None else [v.strip() for v in only.split(",")]
+    rows = sweep(
+        data,
+        out,
+        make_train_config(**options),
+        variants,
+        progress=lambda name, r: click.echo(
+            f"{name}: SMAPE {r['smape_without_reset']:.2f} % / {r['smape_with_reset']:.2f} %"
+        ),
+    )
+    click.echo(f"wrote {out}/results.md ({len(rows)} variants)")
+
+
+COMMANDS = [train_baseline, evaluate_command, generate_command, export_command, sweep_command]

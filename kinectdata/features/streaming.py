@@ -1,0 +1,48 @@
+"""Per-frame features of streamed audio: blocks in, frame features out as soon as they are complete.
+
+The dataset builder and ``generate`` read audio in blocks (:class:`~kinectdata.audio.AudioReader`);
+:class:`StreamingFeatures` holds only the samples that frames still need, so memory stays
+bounded, and its output equals :func:`~kinectdata.features.stft.stft_features` on the whole audio.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import numpy as np
+
+from .stft import StftConfig, stft_features
+
+
+class StreamingFeatures:
+    """Feeds streamed audio blocks to :func:`stft_features`, keeping only the samples still needed.
+
+    ``starts`` [N] are absolute sample indices of the frames' slices; a frame is computed as soon
+    as its slice has arrived, the rest at :meth:`finish` (zero-padded and flagged past the end).
+    """
+
+    def __init__(self, starts: np.ndarray, config: StftConfig, sink: Callable[[int, np.ndarray, np.ndarray], None]):
+        self.starts, self.config, self.sink = starts, config, sink
+        self.ends = starts + config.slice_samples
+        self.k = 0
+        self.buffer = np.zeros(0, np.float32)
+        self.buffer_start = 0
+
+    def push(self, block: np.ndarray) -> None:
+        self.buffer = np.concatenate([self.buffer, block])
+        ready = int(np.searchsorted(self.ends, self.buffer_start + self.buffer.size, side="right"))
+        if ready > self.k:
+            self._emit(ready)
+        keep_from = self.starts[self.k] - self.buffer_start if self.k < self.starts.size else self.buffer.size
+        keep_from = int(np.clip(keep_from, 0, self.buffer.size))
+        self.buffer = self.buffer[keep_from:]
+        self.buffer_start += keep_from
+
+    def finish(self) -> None:
+        if self.k < self.starts.size:
+            self._emit(self.starts.size)
+
+    def _emit(self, upto: int) -> None:
+        feats, padded = stft_features(self.buffer, self.starts[self.k : upto] - self.buffer_start, self.config)
+        self.sink(self.k, feats, padded)
+        self.k = upto

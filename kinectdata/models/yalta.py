@@ -1,0 +1,228 @@
+"""The DCNN + deep LSTM of Yalta et al. (2016), "Sequential Deep Learning for Dancing Motion Generation".
+
+Per motion frame (their Table 1):
+
+- input [1, 129, 5] (the STFT features); four convolutions with 33x2 kernels and 16, 32, 64, 65
+  channels, each followed by batch normalisation and the activation: 129x5 -> 97x4 -> 65x3 ->
+  33x2 -> 1x1, a 65-value audio code;
+- LSTM1-3 (three stacked LSTM layers of ``units`` each) over the codes; fc1 to 65 values and the
+  activation;
+- that, concatenated with the previous frame's pose (D values), goes through LSTM4-6 and fc2 to
+  the pose (D values, no activation: the targets are normalised into -0.9..0.9).
+
+The previous pose is the model's own previous output (``feedback="predicted"``, their Figure 4)
+or the true one (``"teacher"``). The convolutions and LSTM1-3 do not depend on it, so they run over
+a whole sequence at once; only LSTM4-6 and fc2 step frame by frame when the predictions are fed
+back. :class:`StreamingYalta` is the same network one frame at a time, for live use and export.
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass
+
+import torch
+from torch import nn
+
+ACTIVATIONS = {"tanh": nn.Tanh, "relu": nn.ReLU, "elu": nn.ELU}
+CONV_CHANNELS = (16, 32, 64, 65)
+KERNEL = (33, 2)
+CODE = 65  # fc1 output and conv4 channels
+
+
+@dataclass(frozen=True)
+class YaltaConfig:
+    """The network's hyperparameters.
+
+    Attributes:
+        output_dim: D, the pose vector's size (from the dataset's target spec).
+        units: LSTM units per layer (the paper tries 250, 500, 1000).
+        activation: ``tanh``, ``relu`` or ``elu`` (after each convolution and fc1).
+        input_shape: (channels, frequency bins, STFT frames) of a frame's features.
+    """
+
+    output_dim: int
+    units: int = 500
+    activation: str = "elu"
+    input_shape: tuple[int, int, int] = (1, 129, 5)
+
+    def __post_init__(self) -> None:
+        if self.activation not in ACTIVATIONS:
+            raise ValueError(f"activation must be one of {', '.join(ACTIVATIONS)}, not {self.activation!r}")
+        if self.units < 1 or self.output_dim < 1:
+            raise ValueError("units and output_dim must be positive")
+        _, h, w = self.input_shape
+        if (h - 4 * (KERNEL[0] - 1), w - 4 * (KERNEL[1] - 1)) != (1, 1):
+            raise ValueError(f"four 33x2 convolutions map {h}x{w} to 1x1 only for 129x5 inputs, not {h}x{w}")
+
+    def to_dict(self) -> dict:
+        d = asdict(self)
+        d["input_shape"] = list(self.input_shape)
+        return d
+
+    @classmethod
+    def from_dict(cls, d: dict) -> YaltaConfig:
+        return cls(**{**d, "input_shape": tuple(d.get("input_shape", (1, 129, 5)))})
+
+
+class YaltaNet(nn.Module):
+    """The network for training and sequence evaluation (see the module docstring)."""
+
+    def __init__(self, config: YaltaConfig):
+        super().__init__()
+        self.config = config
+        act = ACTIVATIONS[config.activation]
+        layers: list[nn.Module] = []
+        channels = (config.input_shape[0], *CONV_CHANNELS)
+        for cin, cout in zip(channels[:-1], channels[1:]):
+            layers += [nn.Conv2d(cin, cout, KERNEL), nn.BatchNorm2d(cout), act()]
+        self.convs = nn.Sequential(*layers)
+        self.lstm1 = nn.LSTM(CODE, config.units, num_layers=3, batch_first=True)
+        self.fc1 = nn.Sequential(nn.Linear(config.units, CODE), act())
+        self.lstm2 = nn.LSTM(CODE + config.output_dim, config.units, num_layers=3, batch_first=True)
+        self.fc2 = nn.Linear(config.units, config.output_dim)
+
+    def encode(self, audio: torch.Tensor, state=None):
+        """[B, T, 1, 129, 5] features -> ([B, T, 65] fc1 codes, LSTM1-3 state)."""
+        b, t = audio.shape[:2]
+        codes = self.convs(audio.reshape(b * t, *audio.shape[2:])).reshape(b, t, CODE)
+        hidden, state = self.lstm1(codes, state)
+        return self.fc1(hidden), state
+
+    def decode(self, codes: torch.Tensor, previous: torch.Tensor, feedback: str, state=None):
+        """Poses from fc1 codes [B, T, 65].
+
+        Args:
+            previous: ``teacher``: [B, T, D], the true pose before each frame; ``predicted``:
+                [B, D], the true pose before the first frame (then the model's own outputs).
+            state: LSTM4-6 state to start from (None: zeros).
+
+        Returns:
+            ([B, T, D] poses, LSTM4-6 state).
+        """
+        if feedback == "teacher":
+            hidden, state = self.lstm2(torch.cat([codes, previous], dim=-1), state)
+            return self.fc2(hidden), state
+        if feedback != "predicted":
+            raise ValueError(f"feedback must be 'predicted' or 'teacher', not {feedback!r}")
+        pose, outputs = previous, []
+        for t in range(codes.shape[1]):
+            hidden, state = self.lstm2(torch.cat([codes[:, t], pose], dim=-1)[:, None], state)
+            pose = self.fc2(hidden[:, 0])
+            outputs.append(pose)
+        return torch.stack(outputs, dim=1), state
+
+    def forward(self, audio: torch.Tensor, previous: torch.Tensor, feedback: str = "predicted") -> torch.Tensor:
+        """[B, T, 1, 129, 5] features and the previous poses (see :meth:`decode`) -> [B, T, D] poses."""
+        codes, _ = self.encode(audio)
+        poses, _ = self.decode(codes, previous, feedback)
+        return poses
+
+
+def _packed(lstm: nn.LSTM) -> tuple[list[torch.Tensor], list[torch.Tensor]]:
+    """Per layer, [W_ih | W_hh] as [4 units, inputs + units] and b_ih + b_hh: one product per
+    layer and step."""
+    weights, biases = [], []
+    for k in range(lstm.num_layers):
+        w = torch.cat([getattr(lstm, f"weight_ih_l{k}"), getattr(lstm, f"weight_hh_l{k}")], dim=1)
+        weights.append(w.detach().clone())
+        biases.append((getattr(lstm, f"bias_ih_l{k}") + getattr(lstm, f"bias_hh_l{k}")).detach().clone())
+    return weights, biases
+
+
+def _folded_convs(net: YaltaNet) -> tuple[list[torch.Tensor], list[torch.Tensor]]:
+    """Convolution weights and biases with the (evaluation-mode) batch normalisation folded in."""
+    weights, biases = [], []
+    modules = list(net.convs)
+    for conv, bn in zip(modules[0::3], modules[1::3]):
+        scale = bn.weight / torch.sqrt(bn.running_var + bn.eps)
+        weights.append((conv.weight * scale[:, None, None, None]).detach().clone())
+        biases.append(((conv.bias - bn.running_mean) * scale + bn.bias).detach().clone())
+    return weights, biases
+
+
+class StreamingYalta(nn.Module):
+    """:class:`YaltaNet` one frame at a time, with its state carried by the caller (TorchScript-able).
+
+    ``forward(features [1, 129, 5], previous [D], h1, c1, h2, c2 [3, units])`` returns the pose
+    [D] and the new states; start with :meth:`initial_state`. Batch normalisation is folded into
+    the convolutions and each LSTM layer is one matrix-vector product. With ``precision="float16"``
+    the LSTM and fc weights are stored in half precision: half the memory traffic per frame,
+    which is what limits batch-1 speed on a CPU, at a cost measured in ``benchmarks/bench_model.py``.
+    """
+
+    def __init__(self, net: YaltaNet, precision: str = "float32"):
+        super().__init__()
+        if precision not in ("float32", "float16"):
+            raise ValueError(f"precision must be float32 or float16, not {precision!r}")
+        self.units = net.config.units
+        self.output_dim = net.config.output_dim
+        self.activation = net.config.activation
+        self.conv_w, self.conv_b = _folded_convs(net)
+        dtype = torch.float16 if precision == "float16" else torch.float32
+        # The fastest batch-1 layout differs: float32 weights stored [inputs, outputs] (x @ W, about
+        # 1.2x faster in torch, and ONNX Runtime can pre-pack them: W @ x there is several times
+        # slower); float16 weights [outputs, inputs] (addmv; x @ W in half is slow on CPUs).
+        self.vector_matrix = precision == "float32"
+        w1, b1 = _packed(net.lstm1)
+        w2, b2 = _packed(net.lstm2)
+        self.w1 = [self._layout(w, dtype) for w in w1]
+        self.b1 = [b.to(dtype) for b in b1]
+        self.w2 = [self._layout(w, dtype) for w in w2]
+        self.b2 = [b.to(dtype) for b in b2]
+        self.fc1_w = self._layout(net.fc1[0].weight.detach(), dtype)
+        self.fc1_b = net.fc1[0].bias.detach().clone().to(dtype)
+        self.fc2_w = self._layout(net.fc2.weight.detach(), dtype)
+        self.fc2_b = net.fc2.bias.detach().clone().to(dtype)
+
+    @torch.jit.unused
+    def _layout(self, w: torch.Tensor, dtype: torch.dtype) -> torch.Tensor:
+        return (w.t() if self.vector_matrix else w).contiguous().to(dtype)
+
+    @torch.jit.export
+    def initial_state(self) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor]:
+        z = torch.zeros(3, self.units)
+        return z, z.clone(), z.clone(), z.clone()
+
+    def _act(self, x: torch.Tensor) -> torch.Tensor:
+        if self.activation == "tanh":
+            return torch.tanh(x)
+        if self.activation == "relu":
+            return torch.relu(x)
+        return torch.nn.functional.elu(x)
+
+    def _matvec(self, b: torch.Tensor, w: torch.Tensor, x: torch.Tensor) -> torch.Tensor:
+        """The layer's outputs W x + b for x [inputs], in w's precision, returned as float32."""
+        if self.vector_matrix:
+            return (x.to(w.dtype) @ w + b).float()
+        return torch.addmv(b, w, x.to(w.dtype)).float()
+
+    def _cells(
+        self, ws: list[torch.Tensor], bs: list[torch.Tensor], x: torch.Tensor, h: torch.Tensor, c: torch.Tensor
+    ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+        hs: list[torch.Tensor] = []
+        cs: list[torch.Tensor] = []
+        for k in range(len(ws)):
+            gates = self._matvec(bs[k], ws[k], torch.cat([x, h[k]]))
+            i, f, g, o = gates.chunk(4)
+            ck = torch.sigmoid(f) * c[k] + torch.sigmoid(i) * torch.tanh(g)
+            x = torch.sigmoid(o) * torch.tanh(ck)
+            hs.append(x)
+            cs.append(ck)
+        return x, torch.stack(hs), torch.stack(cs)
+
+    def forward(
+        self,
+        features: torch.Tensor,
+        previous: torch.Tensor,
+        h1: torch.Tensor,
+        c1: torch.Tensor,
+        h2: torch.Tensor,
+        c2: torch.Tensor,
+    ):
+        x = features[None]
+        for k in range(len(self.conv_w)):
+            x = self._act(torch.nn.functional.conv2d(x, self.conv_w[k], self.conv_b[k]))
+        hidden, h1, c1 = self._cells(self.w1, self.b1, x.reshape(-1), h1, c1)
+        code = self._act(self._matvec(self.fc1_b, self.fc1_w, hidden))
+        hidden, h2, c2 = self._cells(self.w2, self.b2, torch.cat([code, previous]), h2, c2)
+        return self._matvec(self.fc2_b, self.fc2_w, hidden), h1, c1, h2, c2

@@ -1,0 +1,280 @@
+"""``evaluate``: a trained run scored on a dataset split as Yalta et al. (2016) score it.
+
+For every (clean, not noise-augmented) recording of the split the model runs **free**: it is
+given the true pose of the recording's first frame as the previous pose, and from then on its
+own outputs. Two ways, as in the paper's tables:
+
+- **without reset**: the LSTM states carry over the whole recording;
+- **with reset**: every ``sequence`` frames (the training sequence length) the states are zeroed
+  and the previous pose is the true one again, exactly as each training sequence starts.
+
+SMAPE (:func:`~kinectdata.training.metrics.smape`, percent, 0/0 counted as 0) compares frames
+1..T-1 with the real poses over valid components, on the normalised targets and on the
+denormalised ones (metres and quaternion components). Also reported: the per-frame forward time
+of the streaming network at batch 1 (median and 95th percentile, in ms, on the named device; torch
+with float32 and float16 weights, and ONNX Runtime when installed),
+plots of generated against real trajectories (the paper's Figure 6), and the **silence test**:
+seconds of silence are inserted into the middle of a recording's features, the model runs
+through it, and the motion energy inside the silence is compared with the energy outside (the
+paper's Figure 7: the motion stops); the silent frames' features must all be identical.
+"""
+
+from __future__ import annotations
+
+import json
+import platform
+import time
+from pathlib import Path
+from typing import Any
+
+import h5py
+import numpy as np
+import torch
+
+from ..dataset.build import MANIFEST
+from ..errors import KinectDataError
+from ..features.stft import StftConfig, stft_features
+from ..models.engines import make_engine, onnxruntime_available
+from ..models.yalta import YaltaNet
+from ..normalization import Normalizer
+from ..plots import trajectories
+from ..targets import TargetSpec
+from .metrics import motion_energy, smape
+from .run import load_model
+
+SILENCE_S = 5.0
+
+
+def _recordings(dataset: Path, manifest: dict, split: str) -> list[dict[str, Any]]:
+    """The split's clean recordings with their rows: input, current, mask."""
+    out = []
+    for r in manifest["recordings"]:
+        if r["split"] != split or r.get("snr_db") is not None:
+            continue
+        with h5py.File(dataset / r["shard"], "r") as f:
+            rows = slice(r["start"], r["start"] + r["frames"])
+            out.append(
+                {"name": r["name"], "input": f["input"][rows], "current": f["current"][rows], "mask": f["mask"][rows]}
+            )
+    return out
+
+
+def free_run(net: YaltaNet, audio: np.ndarray, first_pose: np.ndarray, reset_every: int | None = None) -> np.ndarray:
+    """Poses [T-1, D] for frames 1..T-1 of features [T, 1, 129, 5], starting from the true pose of
+    frame 0; with ``reset_every`` = L, states restart every L frames from ``first_pose[k]``,
+    where ``first_pose`` is then the [T, D] true poses."""
+    x = torch.from_numpy(np.ascontiguousarray(audio[1:]))[None]
+    with torch.no_grad():
+        if reset_every is None:
+            codes, _ = net.encode(x)
+            poses, _ = net.decode(codes, torch.from_numpy(first_pose[None]), "predicted")
+            return poses[0].numpy()
+        pieces = []
+        for s in range(0, x.shape[1], reset_every):
+            codes, _ = net.encode(x[:, s : s + reset_every])
+            previous = torch.from_numpy(first_pose[s][None])  # the true pose before frame s + 1
+            poses, _ = net.decode(codes, previous, "predicted")
+            pieces.append(poses[0].numpy())
+    return np.concatenate(pieces)
+
+
+def forward_times(net: YaltaNet, frames: np.ndarray, engine: str = "torch", precision: str = "float32") -> dict:
+    """Per-frame time of a streaming engine (:mod:`~kinectdata.models.engines`) at batch 1 over
+    ``frames`` [N, 1, 129, 5], its own outputs fed back."""
+    stepper = make_engine(net, engine, precision)
+    pose = np.zeros(net.config.output_dim, np.float32)
+    times = []
+    for k in range(frames.shape[0]):
+        x = np.ascontiguousarray(frames[k], dtype=np.float32)
+        start = time.perf_counter()
+        pose = stepper.step(x, pose)
+        times.append(time.perf_counter() - start)
+    t = np.array(times[min(10, len(times) // 10) :]) * 1e3  # the first calls warm caches up
+    return {
+        "median_ms": float(np.median(t)),
+        "p95_ms": float(np.percentile(t, 95)),
+        "frames": int(t.size),
+        "engine": engine,
+        "precision": precision,
+        "device": _device_name(),
+        "threads": 1 if engine == "onnxruntime" else torch.get_num_threads(),
+    }
+
+
+def default_engines() -> list[tuple[str, str]]:
+    """(engine, precision) pairs timed by :func:`evaluate`: torch in both precisions, and ONNX
+    Runtime when installed."""
+    return [("torch", "float32"), ("torch", "float16")] + (
+        [("onnxruntime", "float32")] if onnxruntime_available() else []
+    )
+
+
+def _device_name() -> str:
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                return "cpu: " + line.split(":", 1)[1].strip()
+    except OSError:
+        pass
+    return "cpu: " + (platform.processor() or platform.machine())
+
+
+def silence_test(net: YaltaNet, features_config: dict, rec: dict, fps: float, seconds: float = SILENCE_S) -> dict:
+    """Insert ``seconds`` of silence in the middle of a recording's features and compare the
+    generated motion's energy (mean squared frame-to-frame change, normalised targets) inside the
+    silence, after a second to settle, with the energy outside it."""
+    cfg = StftConfig.from_dict(features_config)
+    n_silent = int(round(seconds * fps))
+    starts = np.round(np.arange(n_silent) * cfg.sample_rate / fps).astype(np.int64)
+    silent, _ = stft_features(np.zeros(int(starts[-1]) + cfg.slice_samples, np.float32), starts, cfg)
+    identical = bool((silent == silent[0]).all())
+    mid = rec["input"].shape[0] // 2
+    audio = np.concatenate([rec["input"][:mid], silent, rec["input"][mid:]])
+    generated = free_run(net, audio, rec["current"][0])  # frames 1..T-1
+    energy = motion_energy(generated)  # index i: the change into frame i + 1 of the combined features
+    begin, end = mid - 1, mid - 1 + n_silent  # the silence, in those indices
+    settle = min(int(round(fps)), n_silent // 2)  # the motion is given a second to stop
+    inside = np.zeros(energy.size, bool)
+    inside[begin + settle : end] = True
+    outside = np.ones(energy.size, bool)
+    outside[begin:end] = False
+    outside[0] = False
+    return {
+        "recording": rec["name"],
+        "silence_seconds": seconds,
+        "silent_frames": n_silent,
+        "silent_features_identical": identical,
+        "silent_feature_value": float(silent[0].flat[0]),
+        "energy_inside": float(energy[inside].mean()),
+        "energy_outside": float(energy[outside].mean()),
+        "energy_ratio": float(energy[inside].mean() / max(energy[outside].mean(), 1e-30)),
+        "settle_seconds": settle / fps,
+        "generated": generated,
+        "silence_span_s": (begin / fps, end / fps),
+    }
+
+
+def evaluate(
+    run: str | Path,
+    dataset: str | Path,
+    split: str = "test",
+    *,
+    out: str | Path | None = None,
+    silence_seconds: float = SILENCE_S,
+    timing_frames: int = 300,
+    engines: list[tuple[str, str]] | None = None,
+) -> dict[str, Any]:
+    """Score a run on a dataset split; write ``results.json`` and figures into ``out``
+    (default ``RUN/evaluation``); return the results. ``engines``: the (engine, precision)
+    pairs whose forward time is measured (default :func:`default_engines`)."""
+    run, dataset = Path(run), Path(dataset)
+    net, config = load_model(run)
+    try:
+        manifest = json.loads((dataset / MANIFEST).read_text())
+    except OSError as exc:
+        raise KinectDataError(f"{dataset}: not a dataset (no readable {MANIFEST})") from exc
+    if (
+        manifest["normalisation"] != config["dataset"]["normalisation"]
+        or manifest["config"]["target"] != config["dataset"]["target"]
+    ):
+        raise KinectDataError(
+            f"{dataset}: its targets or normalisation differ from those {run} was trained on "
+            f"({config['dataset']['path']}); scores would be meaningless"
+        )
+    recordings = _recordings(dataset, manifest, split)
+    if not recordings:
+        raise KinectDataError(f"{dataset}: the {split} split holds no recording")
+    out = Path(out) if out is not None else run / "evaluation"
+    out.mkdir(parents=True, exist_ok=True)
+    spec = TargetSpec.from_dict(config["dataset"]["target"])
+    norm = Normalizer.from_dict(config["dataset"]["normalisation"])
+    fps = config["dataset"]["fps"]
+    sequence = config["train"]["sequence"]
+    results: dict[str, Any] = {
+        "run": str(run),
+        "dataset": str(dataset),
+        "split": split,
+        "recordings": [r["name"] for r in recordings],
+        "smape_zero_over_zero": 0.0,
+    }
+    scores = {}
+    first = None
+    for mode, reset in (("without_reset", None), ("with_reset", sequence)):
+        generated, real, masks = [], [], []
+        for rec in recordings:
+            pose0 = rec["current"] if reset else rec["current"][0]
+            g = free_run(net, rec["input"], pose0, reset)
+            generated.append(g)
+            real.append(rec["current"][1:])
+            masks.append(rec["mask"][1:])
+            if first is None:
+                first = (rec, g)
+        g, r, m = np.concatenate(generated), np.concatenate(real), np.concatenate(masks)
+        scores[mode] = {
+            "smape_normalised": smape(g, r, m),
+            "smape_denormalised": smape(norm.invert(g, spec, mask=m), norm.invert(r, spec, mask=m), m),
+        }
+    results["smape"] = scores
+    rec, generated = first
+    frames = rec["input"][: min(timing_frames, rec["input"].shape[0])]
+    results["forward_time"] = {
+        f"{engine} {precision}": forward_times(net, frames, engine, precision)
+        for engine, precision in (engines or default_engines())
+    }
+    names = spec.component_names()
+    shown = _shown_components(names)
+    fig6 = trajectories(
+        rec["current"][1:, shown],
+        generated[:, shown],
+        [names[i] for i in shown],
+        fps,
+        out / "trajectories.png",
+        title=f"{rec['name']}: generated (free-running) against real",
+    )
+    sil = silence_test(net, config["dataset"]["features"], rec, fps, silence_seconds)
+    fig7 = trajectories(
+        None,
+        sil.pop("generated")[:, shown],
+        [names[i] for i in shown],
+        fps,
+        out / "silence.png",
+        title=f"{rec['name']} with {silence_seconds:g} s of silence inserted",
+        shade=sil["silence_span_s"],
+    )
+    results["silence_test"] = sil
+    results["figures"] = [str(fig6), str(fig7)]
+    (out / "results.json").write_text(json.dumps(results, indent=2, default=float) + "\n")
+    return results
+
+
+def _shown_components(names: list[str]) -> list[int]:
+    """A few telling components: the first position's height and the hands', and a joint's qw."""
+    wanted = [n for n in names if n.endswith(".y")][:3] + [n for n in names if n.endswith(".qw")][1:2]
+    return [names.index(n) for n in wanted] or list(range(min(4, len(names))))
+
+
+def format_results(results: dict[str, Any]) -> str:
+    """The lines ``kinectdata evaluate`` prints."""
+    s = results["smape"]
+    lines = [
+        f"split {results['split']}: {len(results['recordings'])} recordings, free-running from the first true pose"
+    ]
+    for mode in ("without_reset", "with_reset"):
+        v = s[mode]
+        lines.append(
+            f"  SMAPE {mode.replace('_', ' '):<14} {v['smape_normalised']:6.2f} % normalised, "
+            f"{v['smape_denormalised']:6.2f} % denormalised (0/0 counts as 0)"
+        )
+    for name, t in results["forward_time"].items():
+        lines.append(
+            f"  forward time   {t['median_ms']:.3f} ms median, {t['p95_ms']:.3f} ms p95 per frame "
+            f"(batch 1, streaming, {name}, {t['device']}, {t['threads']} threads)"
+        )
+    sil = results["silence_test"]
+    lines.append(
+        f"  silence test   {sil['silence_seconds']:g} s inserted in {sil['recording']}: motion energy inside "
+        f"{sil['energy_inside']:.3g} vs outside {sil['energy_outside']:.3g} (ratio {sil['energy_ratio']:.3f}); "
+        f"silent features identical: {sil['silent_features_identical']} (all {sil['silent_feature_value']:g})"
+    )
+    lines.append("  figures        " + ", ".join(results["figures"]))
+    return "\n".join(lines)

@@ -1,0 +1,117 @@
+"""``generate``: any audio file -> dance motion, streaming, as a robot would run it live.
+
+The audio is read in blocks (:class:`~kinectdata.audio.AudioReader`), the features of each frame
+are computed as soon as its slice has arrived (:class:`~kinectdata.features.streaming.StreamingFeatures`)
+and the network steps one frame at a time (an engine of :mod:`~kinectdata.models.engines`: torch
+or ONNX Runtime), its state carried from frame to frame; nothing waits for the end of the audio but the file
+written at the end. The first "previous pose" is the mean training pose. Poses are denormalised
+(metres, unit quaternions) and written as kinectdata's canonical CSV, which ``align`` reads: the
+target spec's joints get their positions and orientations, the joint set's other joints are
+left empty (masked).
+"""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ..audio import AudioReader
+from ..errors import KinectDataError
+from ..features.stft import StftConfig
+from ..features.streaming import StreamingFeatures
+from ..formats.csv_writer import write_csv
+from ..jointsets import load_joint_set
+from ..models.engines import make_engine
+from ..motion import Motion
+from ..normalization import Normalizer
+from ..targets import TargetSpec
+from .run import load_model
+
+
+def _motion(values: np.ndarray, spec: TargetSpec, fps: float, metadata: dict[str, Any]) -> Motion:
+    """A Motion of the spec's joint set from denormalised target vectors [T, D]."""
+    js = load_joint_set(spec.joint_set)
+    T, J = values.shape[0], len(js)
+    positions = np.full((T, J, 3), np.nan)
+    for i, joint in enumerate(spec.positions):
+        positions[:, js.index(joint)] = values[:, 3 * i : 3 * i + 3]
+    orientations = np.full((T, J, 4), np.nan)
+    start = 3 * len(spec.positions)
+    for i, joint in enumerate(spec.orientations):
+        orientations[:, js.index(joint)] = values[:, start + 4 * i : start + 4 * i + 4]
+    return Motion(
+        np.arange(T) / fps, positions, js, orientations=orientations if spec.orientations else None, metadata=metadata
+    )
+
+
+def generate(
+    run: str | Path,
+    audio: str | Path,
+    out: str | Path | None = None,
+    *,
+    engine: str = "torch",
+    precision: str = "float32",
+) -> tuple[Motion, dict[str, Any]]:
+    """Generate motion for ``audio`` with a trained run; write canonical CSV to ``out`` if given.
+
+    ``engine``: ``torch`` (``precision`` float32 or float16 weights) or ``onnxruntime`` (float32).
+    Returns the Motion (times k / fps, metres, unit quaternions) and timing figures.
+    """
+    net, config = load_model(run)
+    data = config["dataset"]
+    fps, sr = data["fps"], data["sample_rate"]
+    spec = TargetSpec.from_dict(data["target"])
+    norm = Normalizer.from_dict(data["normalisation"])
+    reader = AudioReader(audio, sr)
+    n = int(np.floor(reader.n_samples / sr * fps + 1e-9))
+    if n < 1:
+        raise KinectDataError(f"{audio}: shorter than one frame ({1 / fps:.3f} s)")
+    stepper = make_engine(net, engine, precision)
+    pose = np.asarray(data["start_pose"], dtype=np.float32)
+    poses = np.empty((n, spec.dim), np.float32)
+    step_times: list[float] = []
+
+    def step(k0: int, features: np.ndarray, padded: np.ndarray) -> None:
+        nonlocal pose
+        for k in range(features.shape[0]):
+            started = time.perf_counter()
+            pose = stepper.step(features[k], pose)
+            step_times.append(time.perf_counter() - started)
+            poses[k0 + k] = pose
+
+    starts = np.round(np.arange(n) * sr / fps).astype(np.int64)
+    featurizer = StreamingFeatures(starts, StftConfig.from_dict(data["features"]), step)
+    started = time.perf_counter()
+    for block in reader.blocks():
+        featurizer.push(block)
+    featurizer.finish()
+    seconds = time.perf_counter() - started
+    values = norm.invert(poses, spec)
+    metadata = {"format": "generated", "source": str(audio), "run": str(run)}
+    motion = _motion(values, spec, fps, metadata)
+    if out is not None:
+        write_csv(
+            motion,
+            out,
+            "canonical",
+            comments={
+                "generated_by": "kinectdata generate",
+                "run": str(Path(run).resolve()),
+                "audio": str(Path(audio).resolve()),
+                "target_spec": spec.name,
+                "root_centred": str(data["root_centre"]).lower(),
+                "engine": f"{engine} {precision}",
+            },
+        )
+    t = np.array(step_times) * 1e3
+    timing = {
+        "frames": n,
+        "seconds": seconds,
+        "x_real_time": n / fps / seconds,
+        "step_median_ms": float(np.median(t)),
+        "step_p95_ms": float(np.percentile(t, 95)),
+    }
+    return motion, timing

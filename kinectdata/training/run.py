@@ -1,0 +1,120 @@
+"""Training configuration and run folders.
+
+A run folder holds ``config.json`` (the training configuration, the model's and what it needs
+to know of the dataset: features, target spec, normalisation, frame and sample rate), the
+latest ``checkpoint.pt`` (model, optimiser, random generators, history; rewritten atomically
+each epoch), ``log.csv``, ``loss.png``, and at the end ``model.pt`` and ``stream.ts`` (the
+streaming network as TorchScript, for robots). Checkpoints hold only tensors and plain values
+and are loaded with ``torch.load(..., weights_only=True)``: nothing is unpickled.
+"""
+
+from __future__ import annotations
+
+import io
+import json
+from dataclasses import asdict, dataclass
+from pathlib import Path
+from typing import Any
+
+import torch
+
+from ..atomic import atomic_output
+from ..errors import KinectDataError
+from ..models.yalta import YaltaConfig, YaltaNet
+
+CONFIG = "config.json"
+CHECKPOINT = "checkpoint.pt"
+MODEL = "model.pt"
+STREAM = "stream.ts"
+LOG = "log.csv"
+
+
+@dataclass(frozen=True)
+class TrainConfig:
+    """Training settings; the defaults are the paper's.
+
+    Attributes:
+        units, activation: the model (LSTM units per layer; tanh, relu or elu).
+        feedback: ``predicted`` (the model's own previous pose, the paper's Figure 4) or
+            ``teacher`` (the true previous pose).
+        sequence: frames per training sequence; stride: frames between sequence starts
+            (default: ``sequence``, non-overlapping).
+        batch_size: sequences per batch. epochs: passes over the training split.
+        lr: Adam's learning rate.
+        noise_eta, noise_gamma: annealed Gaussian gradient noise, variance eta / (1 + t)^gamma
+            at step t (Neelakantan et al. 2015); eta 0 turns it off.
+        clip_norm: clip the gradient's global norm to this before the noise (None: no clipping).
+        seed: every random choice (initialisation, batch order, noise).
+        device: ``auto`` (CUDA when present, else CPU), ``cpu`` or ``cuda``.
+    """
+
+    units: int = 500
+    activation: str = "elu"
+    feedback: str = "predicted"
+    sequence: int = 150
+    stride: int | None = None
+    batch_size: int = 50
+    epochs: int = 10
+    lr: float = 1e-4
+    noise_eta: float = 0.01
+    noise_gamma: float = 0.55
+    clip_norm: float | None = None
+    seed: int = 0
+    device: str = "auto"
+
+    def __post_init__(self) -> None:
+        if self.feedback not in ("predicted", "teacher"):
+            raise KinectDataError(f"feedback must be predicted or teacher, not {self.feedback!r}")
+        if min(self.sequence, self.batch_size, self.epochs, self.units) < 1 or (self.stride or 1) < 1:
+            raise KinectDataError("sequence, stride, batch size, epochs and units must be positive")
+        if self.device not in ("auto", "cpu", "cuda"):
+            raise KinectDataError(f"device must be auto, cpu or cuda, not {self.device!r}")
+
+    def to_dict(self) -> dict[str, Any]:
+        return asdict(self)
+
+    def resolved_device(self) -> torch.device:
+        if self.device == "auto":
+            return torch.device("cuda" if torch.cuda.is_available() else "cpu")
+        if self.device == "cuda" and not torch.cuda.is_available():
+            raise KinectDataError("--device cuda, but torch sees no CUDA device")
+        return torch.device(self.device)
+
+
+def write_json(path: Path, doc: Any) -> None:
+    with atomic_output(path) as tmp:
+        tmp.write_text(json.dumps(doc, indent=2) + "\n")
+
+
+def read_config(run: str | Path) -> dict[str, Any]:
+    path = Path(run) / CONFIG
+    try:
+        return json.loads(path.read_text())
+    except OSError as exc:
+        raise KinectDataError(f"{run}: not a training run (no readable {CONFIG}: {exc.strerror or exc})") from exc
+
+
+def save_checkpoint(path: Path, state: dict[str, Any]) -> None:
+    """Write a checkpoint atomically (tensors and plain values only)."""
+    buffer = io.BytesIO()
+    torch.save(state, buffer)
+    with atomic_output(path) as tmp:
+        tmp.write_bytes(buffer.getvalue())
+
+
+def load_checkpoint(path: Path) -> dict[str, Any]:
+    try:
+        return torch.load(path, map_location="cpu", weights_only=True)
+    except FileNotFoundError as exc:
+        raise KinectDataError(f"{path}: no checkpoint") from exc
+    except Exception as exc:  # a damaged or foreign file: never unpickled
+        raise KinectDataError(f"{path}: not a readable kinectdata checkpoint ({exc})") from exc
+
+
+def load_model(run: str | Path) -> tuple[YaltaNet, dict[str, Any]]:
+    """The trained network of a run (evaluation mode, CPU) and the run's configuration."""
+    config = read_config(run)
+    state = load_checkpoint(Path(run) / MODEL)
+    net = YaltaNet(YaltaConfig.from_dict(config["model"]))
+    net.load_state_dict(state["model"])
+    return net.eval(), config

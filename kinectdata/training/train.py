@@ -1,0 +1,299 @@
+"""``train``: the reference model on a kinectdata dataset, deterministic and resumable.
+
+The output layer's bias starts at the mean training pose (maxabs-normalised positions are far
+from centred: a camera-space depth of 2.5 m becomes about 0.88), the rest of the network at
+PyTorch's default initialisation. Each epoch goes over the training split's windows
+(:class:`~kinectdata.dataset.windows.WindowDataset`) in a seeded random order, in batches; the
+loss is the mean squared error over valid target components; after ``backward`` the gradient is
+clipped (if asked) and annealed Gaussian noise is added; Adam steps. Then the validation split
+is scored (loss with the training feedback, and SMAPE free-running from each window's first
+true pose), one row is added to ``log.csv``, and the checkpoint is rewritten atomically with
+everything needed to continue exactly: model, optimiser, step, the batch-order and noise
+generators, history. ``resume=True`` continues a run from its checkpoint and ends with the same
+weights as an uninterrupted run.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+import math
+import time
+from collections.abc import Callable
+from contextlib import contextmanager
+from pathlib import Path
+from typing import Any
+
+import h5py
+import numpy as np
+import torch
+from torch.utils.data import DataLoader
+
+from ..atomic import atomic_output
+from ..dataset.build import MANIFEST
+from ..dataset.windows import WindowDataset
+from ..errors import KinectDataError
+from ..models.export import export_torchscript, stream_metadata
+from ..models.yalta import YaltaConfig, YaltaNet
+from ..normalization import Normalizer
+from ..plots import loss_curves
+from .metrics import masked_mse, smape
+from .run import CHECKPOINT, CONFIG, LOG, MODEL, STREAM, TrainConfig, load_checkpoint, save_checkpoint, write_json
+
+LOG_FIELDS = ["epoch", "step", "train_loss", "val_loss", "val_smape", "seconds", "frames_per_second"]
+
+
+@contextmanager
+def _deterministic():
+    previous = torch.are_deterministic_algorithms_enabled()
+    torch.use_deterministic_algorithms(True, warn_only=True)
+    try:
+        yield
+    finally:
+        torch.use_deterministic_algorithms(previous)
+
+
+def dataset_summary(dataset: Path, manifest: dict[str, Any]) -> dict[str, Any]:
+    """What a run keeps of its dataset: enough to read features and write poses without it."""
+    cfg = manifest["config"]
+    return {
+        "path": str(dataset.resolve()),
+        "build_key": manifest["build_key"],
+        "fps": cfg["fps"],
+        "sample_rate": cfg["sample_rate"],
+        "features": cfg["features"],
+        "target": cfg["target"],
+        "root_centre": cfg["root_centre"],
+        "normalisation": manifest["normalisation"],
+        "feature_shape": manifest["feature_shape"],
+        "target_dim": manifest["target_dim"],
+    }
+
+
+def _read_manifest(dataset: Path) -> dict[str, Any]:
+    try:
+        return json.loads((dataset / MANIFEST).read_text())
+    except OSError as exc:
+        raise KinectDataError(f"{dataset}: not a dataset (no readable {MANIFEST}: {exc.strerror or exc})") from exc
+
+
+def _start_pose(dataset: Path, manifest: dict[str, Any]) -> list[float]:
+    """Mean normalised pose of the training split's recordings (valid values; 0 where a component
+    never is): the output layer's initial bias and the first "previous pose" when generating."""
+    total = np.zeros(manifest["target_dim"])
+    count = np.zeros(manifest["target_dim"])
+    for r in manifest["recordings"]:
+        if r["split"] != "train" or r.get("snr_db") is not None:
+            continue
+        with h5py.File(dataset / r["shard"], "r") as f:
+            rows = slice(r["start"], r["start"] + r["frames"])
+            mask = f["mask"][rows]
+            total += np.where(mask, f["current"][rows].astype(np.float64), 0.0).sum(axis=0)
+            count += mask.sum(axis=0)
+    return (total / np.maximum(count, 1)).tolist()
+
+
+def _batches(windows: WindowDataset, config: TrainConfig, generator: torch.Generator | None) -> DataLoader:
+    return DataLoader(
+        windows,
+        batch_size=config.batch_size,
+        shuffle=generator is not None,
+        generator=generator,
+        num_workers=0,
+        drop_last=False,
+    )
+
+
+def _add_gradient_noise(
+    params: list[torch.nn.Parameter], step: int, config: TrainConfig, generator: torch.Generator
+) -> None:
+    if config.noise_eta <= 0:
+        return
+    sigma = math.sqrt(config.noise_eta / (1 + step) ** config.noise_gamma)
+    for p in params:
+        if p.grad is not None:
+            p.grad.add_(torch.randn(p.grad.shape, generator=generator).to(p.grad.device) * sigma)
+
+
+def validate(net: YaltaNet, windows: WindowDataset, config: TrainConfig, device: torch.device) -> tuple[float, float]:
+    """(loss with the training feedback, SMAPE in % free-running) over a split's windows."""
+    if len(windows) == 0:
+        return float("nan"), float("nan")
+    net.eval()
+    losses, weights, generated, real, masks = [], [], [], [], []
+    with torch.no_grad():
+        for batch in _batches(windows, config, None):
+            audio, pose, mask = batch["audio"].to(device), batch["pose"].to(device), batch["mask"].to(device)
+            previous = batch["previous"].to(device)
+            pred = net(audio, previous if config.feedback == "teacher" else previous[:, 0], config.feedback)
+            losses.append(float(masked_mse(pred, pose, mask)))
+            weights.append(float(mask.sum()))
+            free = pred if config.feedback == "predicted" else net(audio, previous[:, 0], "predicted")
+            generated.append(free.cpu().numpy())
+            real.append(pose.cpu().numpy())
+            masks.append(mask.cpu().numpy())
+    net.train()
+    loss = float(np.average(losses, weights=weights))
+    return loss, smape(np.concatenate(generated), np.concatenate(real), np.concatenate(masks))
+
+
+def _write_log(run: Path, history: list[dict]) -> None:
+    buffer = io.StringIO()
+    writer = csv.DictWriter(buffer, fieldnames=LOG_FIELDS, lineterminator="\n")
+    writer.writeheader()
+    for row in history:
+        writer.writerow({k: row.get(k) for k in LOG_FIELDS})
+    with atomic_output(run / LOG) as tmp:
+        tmp.write_text(buffer.getvalue())
+
+
+def _tensorboard(run: Path):
+    try:
+        from torch.utils.tensorboard import SummaryWriter
+    except ImportError:  # tensorboard is optional
+        return None
+    return SummaryWriter(str(run / "tensorboard"))
+
+
+def train(
+    dataset: str | Path,
+    out: str | Path,
+    config: TrainConfig | None = None,
+    *,
+    resume: bool = False,
+    stop_after: int | None = None,
+    progress: Callable[[dict], None] | None = None,
+) -> list[dict]:
+    """Train the Yalta et al. (2016) network on a dataset folder into the run folder ``out``.
+
+    Args:
+        dataset: a folder written by ``build-dataset``.
+        out: the run folder (created; must not hold a run unless ``resume``).
+        config: :class:`TrainConfig` (default: the paper's settings).
+        resume: continue the run in ``out`` from its checkpoint (same configuration).
+        stop_after: stop after this epoch (as an interruption would; the run stays resumable).
+        progress: called with each epoch's log row.
+
+    Returns:
+        The log rows of all epochs so far.
+    """
+    config = config or TrainConfig()
+    dataset, run = Path(dataset), Path(out)
+    manifest = _read_manifest(dataset)
+    device = config.resolved_device()
+    model_config = YaltaConfig(
+        output_dim=manifest["target_dim"],
+        units=config.units,
+        activation=config.activation,
+        input_shape=tuple(manifest["feature_shape"]),
+    )
+    stride = config.stride or config.sequence
+    train_windows = WindowDataset(dataset, "train", config.sequence, stride)
+    val_windows = WindowDataset(dataset, "val", config.sequence, config.sequence)
+    if len(train_windows) == 0:
+        raise KinectDataError(f"{dataset}: no training window of {config.sequence} frames (recordings too short?)")
+    run_config = {
+        "train": config.to_dict(),
+        "model": model_config.to_dict(),
+        "dataset": dataset_summary(dataset, manifest),
+    }
+
+    with _deterministic():
+        torch.manual_seed(config.seed)
+        net = YaltaNet(model_config).to(device)
+        optimizer = torch.optim.Adam(net.parameters(), lr=config.lr)
+        order = torch.Generator().manual_seed(config.seed + 1)
+        noise = torch.Generator().manual_seed(config.seed + 2)
+        history: list[dict] = []
+        step = 0
+        if resume:
+            state = load_checkpoint(run / CHECKPOINT)
+            saved = json.loads(state["config"])
+            same_data = saved["dataset"]["build_key"] == run_config["dataset"]["build_key"]
+            if saved["train"] != run_config["train"] or not same_data:
+                raise KinectDataError(f"{run}: the run was made with another configuration or dataset; cannot resume")
+            net.load_state_dict(state["model"])
+            optimizer.load_state_dict(state["optimizer"])
+            order.set_state(state["order_rng"])
+            noise.set_state(state["noise_rng"])
+            torch.set_rng_state(state["torch_rng"])
+            history, step = json.loads(state["history"]), int(state["step"])
+        else:
+            if (run / CHECKPOINT).exists() or (run / MODEL).exists():
+                raise KinectDataError(f"{run}: already holds a run; use --resume to continue it or another folder")
+            run.mkdir(parents=True, exist_ok=True)
+            run_config["dataset"]["start_pose"] = _start_pose(dataset, manifest)
+            with torch.no_grad():  # outputs start at the mean pose, not 0: maxabs targets are far from centred
+                net.fc2.bias.copy_(torch.tensor(run_config["dataset"]["start_pose"]))
+            write_json(run / CONFIG, run_config)
+        run_config = json.loads((run / CONFIG).read_text())
+        writer = _tensorboard(run)
+        net.train()
+        params = list(net.parameters())
+        for epoch in range(len(history) + 1, config.epochs + 1):
+            started, frames, total, weight = time.perf_counter(), 0, 0.0, 0.0
+            for batch in _batches(train_windows, config, order):
+                audio, pose, mask = batch["audio"].to(device), batch["pose"].to(device), batch["mask"].to(device)
+                previous = batch["previous"].to(device)
+                pred = net(audio, previous if config.feedback == "teacher" else previous[:, 0], config.feedback)
+                loss = masked_mse(pred, pose, mask)
+                optimizer.zero_grad(set_to_none=True)
+                loss.backward()
+                if config.clip_norm is not None:
+                    torch.nn.utils.clip_grad_norm_(params, config.clip_norm)
+                _add_gradient_noise(params, step, config, noise)
+                optimizer.step()
+                step += 1
+                frames += pose.shape[0] * pose.shape[1]
+                total += loss.item() * float(mask.sum())
+                weight += float(mask.sum())
+            val_loss, val_smape = validate(net, val_windows, config, device)
+            seconds = time.perf_counter() - started
+            row = {
+                "epoch": epoch,
+                "step": step,
+                "train_loss": total / max(weight, 1.0),
+                "val_loss": val_loss if math.isfinite(val_loss) else None,
+                "val_smape": val_smape if math.isfinite(val_smape) else None,
+                "seconds": round(seconds, 3),
+                "frames_per_second": round(frames / seconds, 1),
+            }
+            history.append(row)
+            _write_log(run, history)
+            if writer is not None:
+                for key in ("train_loss", "val_loss", "val_smape"):
+                    if row[key] is not None:
+                        writer.add_scalar(key, row[key], epoch)
+            save_checkpoint(
+                run / CHECKPOINT,
+                {
+                    "model": net.state_dict(),
+                    "optimizer": optimizer.state_dict(),
+                    "step": step,
+                    "order_rng": order.get_state(),
+                    "noise_rng": noise.get_state(),
+                    "torch_rng": torch.get_rng_state(),
+                    "history": json.dumps(history),
+                    "config": json.dumps(run_config),
+                },
+            )
+            if progress:
+                progress(row)
+            if stop_after is not None and epoch >= stop_after and epoch < config.epochs:
+                return history
+        if writer is not None:
+            writer.close()
+    loss_curves(
+        history,
+        run / "loss.png",
+        title=f"{run.name}: {config.units} units, {config.activation}, {config.feedback} feedback",
+    )
+    net = net.cpu().eval()
+    save_checkpoint(run / MODEL, {"model": net.state_dict(), "config": json.dumps(run_config)})
+    export_torchscript(net, run / STREAM, metadata=stream_metadata(run_config))
+    return history
+
+
+def normalizer_of(run_config: dict[str, Any]) -> Normalizer:
+    return Normalizer.from_dict(run_config["dataset"]["normalisation"])

@@ -1,0 +1,258 @@
+"""evaluate, generate, export and sweep on a tiny trained run, against independent computations."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+import soundfile as sf
+from conftest import REPO, TINY_TRAINING
+
+torch = pytest.importorskip("torch")
+
+from kinectdata.align import align_files  # noqa: E402
+from kinectdata.audio import load_audio  # noqa: E402
+from kinectdata.errors import KinectDataError  # noqa: E402
+from kinectdata.features.stft import StftConfig, stft_features  # noqa: E402
+from kinectdata.formats import read_motion  # noqa: E402
+from kinectdata.models.engines import onnxruntime_available  # noqa: E402
+from kinectdata.normalization import Normalizer  # noqa: E402
+from kinectdata.targets import TargetSpec  # noqa: E402
+from kinectdata.training.evaluate import evaluate, format_results  # noqa: E402
+from kinectdata.training.generate import generate  # noqa: E402
+from kinectdata.training.metrics import motion_energy, smape  # noqa: E402
+from kinectdata.training.run import TrainConfig, load_model  # noqa: E402
+
+SONG = REPO / "sample_data" / "synth_002.flac"
+
+
+def reference_smape(f, a, mask):
+    """The paper's SMAPE written out term by term (a 0/0 term counts as 0)."""
+    terms = [abs(x - y) / (abs(x) + abs(y)) if abs(x) + abs(y) > 0 else 0.0 for x, y in zip(f[mask], a[mask])]
+    return 100.0 * sum(terms) / len(terms)
+
+
+def test_smape_by_hand():
+    f = np.array([[1.0, 0.0, -1.0, 5.0]])
+    a = np.array([[3.0, 0.0, 1.0, 7.0]])
+    assert smape(f, a) == pytest.approx(100 * (0.5 + 0.0 + 1.0 + 2 / 12) / 4)
+    mask = np.array([[True, True, True, False]])
+    assert smape(f, a, mask) == pytest.approx(50.0)
+    assert smape(np.zeros((2, 2)), np.zeros((2, 2))) == 0.0
+    assert np.isnan(smape(f, a, np.zeros_like(mask)))
+    rng = np.random.default_rng(0)
+    f, a, m = rng.normal(size=(20, 6)), rng.normal(size=(20, 6)), rng.random((20, 6)) > 0.3
+    assert smape(f, a, m) == pytest.approx(reference_smape(f, a, m), rel=1e-12)
+
+
+def test_motion_energy():
+    poses = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 2.0]])
+    np.testing.assert_allclose(motion_energy(poses), [0.0, 0.5, 2.0])
+
+
+def stream(run):
+    """The exported TorchScript network (stream.ts) stepped frame by frame."""
+    module = torch.jit.load(str(run / "stream.ts"))
+
+    def run_frames(features, first, reset_every=None, true=None):
+        state, pose, out = module.initial_state(), torch.from_numpy(first), []
+        with torch.no_grad():
+            for i in range(features.shape[0]):
+                if reset_every and i % reset_every == 0:
+                    state, pose = module.initial_state(), torch.from_numpy(true[i])
+                pose, *state = module(torch.from_numpy(features[i]), pose, *state)
+                out.append(pose.numpy())
+        return np.array(out)
+
+    return run_frames
+
+
+@pytest.fixture(scope="module")
+def evaluation(trained_run, sample_dataset, tmp_path_factory):
+    run, _ = trained_run
+    out = tmp_path_factory.mktemp("evaluation")
+    return evaluate(run, sample_dataset, "test", out=out, silence_seconds=3.0, timing_frames=60), out
+
+
+def test_evaluate_scores_against_an_independent_free_run(trained_run, sample_dataset, evaluation):
+    import h5py
+
+    run, _ = trained_run
+    results, _ = evaluation
+    manifest = json.loads((sample_dataset / "manifest.json").read_text())
+    (rec,) = [r for r in manifest["recordings"] if r["split"] == "test"]
+    with h5py.File(sample_dataset / rec["shard"], "r") as f:
+        rows = slice(rec["start"], rec["start"] + rec["frames"])
+        features, true, mask = f["input"][rows], f["current"][rows], f["mask"][rows]
+    run_frames = stream(run)
+    free = run_frames(features[1:], true[0])
+    scores = results["smape"]
+    assert scores["without_reset"]["smape_normalised"] == pytest.approx(
+        reference_smape(free, true[1:], mask[1:]), abs=1e-3
+    )
+    sequence = TINY_TRAINING["sequence"]
+    reset = run_frames(features[1:], true[0], sequence, true)
+    assert scores["with_reset"]["smape_normalised"] == pytest.approx(
+        reference_smape(reset, true[1:], mask[1:]), abs=1e-3
+    )
+    config = json.loads((run / "config.json").read_text())
+    norm = Normalizer.from_dict(config["dataset"]["normalisation"])
+    spec = TargetSpec.from_dict(config["dataset"]["target"])
+    metres = norm.invert(free, spec, mask=mask[1:]), norm.invert(true[1:], spec, mask=mask[1:])
+    assert scores["without_reset"]["smape_denormalised"] == pytest.approx(reference_smape(*metres, mask[1:]), abs=1e-3)
+    assert results["smape_zero_over_zero"] == 0.0 and results["recordings"] == ["synth_002"]
+
+
+def test_evaluate_reports_timing_silence_and_figures(evaluation):
+    results, out = evaluation
+    expected = ["torch float32", "torch float16"] + (["onnxruntime float32"] if onnxruntime_available() else [])
+    assert list(results["forward_time"]) == expected
+    for t in results["forward_time"].values():
+        assert 0 < t["median_ms"] <= t["p95_ms"] and t["device"].startswith("cpu") and t["frames"] > 40
+    sil = results["silence_test"]
+    assert sil["silent_features_identical"] and sil["silent_feature_value"] == pytest.approx(0.1)
+    assert sil["silent_frames"] == 90 and sil["energy_inside"] >= 0 and sil["energy_outside"] > 0
+    for name in ("trajectories.png", "silence.png"):
+        assert (out / name).read_bytes()[:4] == b"\x89PNG"
+    assert json.loads((out / "results.json").read_text())["smape"] == results["smape"]
+    text = format_results(results)
+    for phrase in ("SMAPE without reset", "SMAPE with reset", "forward time", "silence test", "ms median"):
+        assert phrase in text
+
+
+def test_silence_test_measures_energy_inside_the_inserted_silence(trained_run):
+    """A model that copies its input's loudness moves only with sound: its energy inside the
+    silence is 0, outside it is not."""
+    from kinectdata.training.evaluate import silence_test
+
+    run, _ = trained_run
+    net, config = load_model(run)
+    rng = np.random.default_rng(1)
+    rec = {"name": "x", "input": rng.uniform(0.1, 0.9, (120, 1, 129, 5)).astype(np.float32)}
+    rec["current"] = np.zeros((120, 65), np.float32)
+
+    class Loudness(torch.nn.Module):
+        config = net.config
+
+        def encode(self, x):
+            return x.mean(dim=(2, 3, 4))[..., None].expand(*x.shape[:2], 65), None
+
+        def decode(self, codes, previous, feedback):
+            return codes, None
+
+    result = silence_test(Loudness(), config["dataset"]["features"], rec, 30.0, seconds=2.0)
+    assert result["energy_inside"] == 0.0 and result["energy_outside"] > 0 and result["energy_ratio"] == 0.0
+
+
+def test_evaluate_refuses_a_dataset_with_other_targets(trained_run, sample_dataset, tmp_path):
+    import shutil
+
+    run, _ = trained_run
+    other = tmp_path / "other"
+    shutil.copytree(sample_dataset, other)
+    manifest = json.loads((other / "manifest.json").read_text())
+    manifest["normalisation"]["scale"][0] *= 2
+    (other / "manifest.json").write_text(json.dumps(manifest))
+    with pytest.raises(KinectDataError, match="differ from those .* was trained on"):
+        evaluate(run, other, "test", out=tmp_path / "e")
+
+
+def test_generate_streams_what_the_sequence_model_computes_offline(trained_run, tmp_path):
+    run, _ = trained_run
+    motion, timing = generate(run, SONG, tmp_path / "dance.csv")
+    net, config = load_model(run)
+    data = config["dataset"]
+    audio = load_audio(SONG, data["sample_rate"]).samples
+    n = int(np.floor(audio.size / data["sample_rate"] * data["fps"]))
+    starts = np.round(np.arange(n) * data["sample_rate"] / data["fps"]).astype(np.int64)
+    features, _ = stft_features(audio, starts, StftConfig.from_dict(data["features"]))
+    with torch.no_grad():
+        poses = net(torch.from_numpy(features)[None], torch.tensor([data["start_pose"]]), "predicted")[0].numpy()
+    spec = TargetSpec.from_dict(data["target"])
+    expected = Normalizer.from_dict(data["normalisation"]).invert(poses, spec)
+    js = motion.joint_set
+    assert motion.n_frames == n == timing["frames"]
+    got_positions = np.stack([motion.positions[:, js.index(j)] for j in spec.positions], 1).reshape(n, -1)
+    np.testing.assert_allclose(got_positions, expected[:, :9], atol=1e-5)
+    got_q = np.stack([motion.orientations[:, js.index(j)] for j in spec.orientations], 1)
+    np.testing.assert_allclose(got_q.reshape(n, -1), expected[:, 9:], atol=1e-5)
+    np.testing.assert_allclose(np.linalg.norm(got_q, axis=-1), 1.0, atol=1e-9)
+
+
+def test_generate_with_onnx_runtime_gives_the_torch_motion(trained_run):
+    if not onnxruntime_available():
+        pytest.skip("onnxruntime and onnxscript not installed")
+    run, _ = trained_run
+    a, _ = generate(run, SONG)
+    b, timing = generate(run, SONG, engine="onnxruntime")
+    np.testing.assert_allclose(b.positions, a.positions, atol=1e-5)
+    np.testing.assert_allclose(b.orientations, a.orientations, atol=1e-5)
+    assert timing["step_median_ms"] > 0
+    with pytest.raises(KinectDataError, match="float32 weights only"):
+        generate(run, SONG, engine="onnxruntime", precision="float16")
+
+
+def test_generated_csv_reads_back_and_aligns(trained_run, tmp_path):
+    run, _ = trained_run
+    motion, _ = generate(run, SONG, tmp_path / "dance.csv")
+    back = read_motion(tmp_path / "dance.csv")
+    assert back.joint_set.name == "kinect_v2" and back.n_frames == motion.n_frames
+    comments = back.metadata["file_metadata"]
+    assert comments["generated_by"] == "kinectdata generate" and comments["target_spec"] == "yalta65"
+    js = back.joint_set
+    assert back.position_mask[:, js.index("HandLeft")].all() and not back.position_mask[:, js.index("Head")].any()
+    np.testing.assert_allclose(
+        back.positions[:, js.index("HandLeft")], motion.positions[:, js.index("HandLeft")], atol=1e-6
+    )
+    q = back.orientations[:, js.index("ElbowLeft")]
+    np.testing.assert_allclose(np.linalg.norm(q, axis=-1), 1.0, atol=1e-5)
+    rec = align_files(tmp_path / "dance.csv", SONG, tmp_path / "dance.h5", offset=0.0)
+    assert rec.n_frames == motion.n_frames and (tmp_path / "dance.h5").is_file()
+
+
+def test_generate_refuses_audio_shorter_than_a_frame(trained_run, tmp_path):
+    run, _ = trained_run
+    sf.write(tmp_path / "blip.wav", np.zeros(100, np.float32), 16000)
+    with pytest.raises(KinectDataError, match="blip.wav: shorter than one frame"):
+        generate(run, tmp_path / "blip.wav", tmp_path / "x.csv")
+    assert not (tmp_path / "x.csv").exists()
+
+
+def test_exported_files_describe_themselves(trained_run, tmp_path):
+    from kinectdata.models.export import export_run
+
+    run, _ = trained_run
+    config = json.loads((run / "config.json").read_text())
+    extra = {"kinectdata.json": ""}
+    torch.jit.load(str(run / "stream.ts"), _extra_files=extra)
+    meta = json.loads(extra["kinectdata.json"])
+    assert meta["start_pose"] == config["dataset"]["start_pose"] and meta["fps"] == 30
+    assert meta["inputs"]["h1"] == [3, 32] and meta["normalisation"] == config["dataset"]["normalisation"]
+    export_run(run, tmp_path / "half.ts", precision="float16")
+    assert torch.jit.load(str(tmp_path / "half.ts")).w1[0].dtype == torch.float16
+    with pytest.raises(KinectDataError, match="float32 only"):
+        export_run(run, tmp_path / "x.onnx", precision="float16")
+    ort = pytest.importorskip("onnxruntime")
+    pytest.importorskip("onnxscript")
+    export_run(run, tmp_path / "model.onnx")
+    session = ort.InferenceSession(str(tmp_path / "model.onnx"), providers=["CPUExecutionProvider"])
+    assert json.loads(session.get_modelmeta().custom_metadata_map["kinectdata"]) == meta
+
+
+def test_sweep_writes_the_papers_table_and_reuses_finished_variants(sample_dataset, tmp_path):
+    from kinectdata.training.sweep import PAPER, sweep
+
+    base = TrainConfig(**{**TINY_TRAINING, "units": 8, "epochs": 1})
+    rows = sweep(sample_dataset, tmp_path / "sweep", base, ["TanH", "50 steps"])
+    assert [r["setting"] for r in rows] == ["TanH", "50 steps"]
+    assert rows[0]["config"]["activation"] == "tanh" and rows[1]["config"]["sequence"] == 50
+    table = (tmp_path / "sweep" / "results.md").read_text()
+    assert "| setting | SMAPE % without reset | with reset | training min | forward ms/frame" in table
+    assert f"| {PAPER['TanH'][0]:.2f} | {PAPER['TanH'][1]:.2f} |" in table
+    model = tmp_path / "sweep" / "tanh" / "model.pt"
+    before = model.stat().st_mtime_ns
+    again = sweep(sample_dataset, tmp_path / "sweep", base, ["TanH"])
+    assert model.stat().st_mtime_ns == before and again[0]["smape_without_reset"] == rows[0]["smape_without_reset"]
+    with pytest.raises(KinectDataError, match="unknown variant"):
+        sweep(sample_dataset, tmp_path / "sweep", base, ["Sigmoid"])

@@ -1,0 +1,129 @@
+"""train-baseline: losses fall, exact resume, the run folder, gradient noise, refusals."""
+
+from __future__ import annotations
+
+import csv
+import dataclasses
+import json
+import math
+
+import h5py
+import numpy as np
+import pytest
+from conftest import TINY_TRAINING
+
+torch = pytest.importorskip("torch")
+
+from kinectdata.errors import KinectDataError  # noqa: E402
+from kinectdata.training.run import TrainConfig, load_checkpoint, load_model  # noqa: E402
+from kinectdata.training.train import LOG_FIELDS, _add_gradient_noise, train  # noqa: E402
+
+
+def test_two_epochs_lower_the_training_and_validation_loss(trained_run):
+    run, history = trained_run
+    assert [r["epoch"] for r in history] == [1, 2]
+    first, second = history
+    assert second["train_loss"] < first["train_loss"]
+    assert second["val_loss"] < first["val_loss"]
+    assert 0 < second["val_smape"] < 100 and second["frames_per_second"] > 0
+
+
+def test_the_run_folder_holds_everything(trained_run, sample_dataset):
+    run, history = trained_run
+    names = {p.name for p in run.iterdir()}
+    assert {"config.json", "checkpoint.pt", "log.csv", "loss.png", "model.pt", "stream.ts"} <= names
+    assert not [n for n in names if n.endswith(".partial")]
+    assert (run / "loss.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    with open(run / "log.csv") as f:
+        rows = list(csv.DictReader(f))
+    assert list(rows[0]) == LOG_FIELDS and len(rows) == 2
+    assert float(rows[1]["train_loss"]) == pytest.approx(history[1]["train_loss"])
+    config = json.loads((run / "config.json").read_text())
+    assert config["train"] == TrainConfig(**TINY_TRAINING).to_dict()
+    assert config["model"] == {"output_dim": 65, "units": 32, "activation": "elu", "input_shape": [1, 129, 5]}
+    manifest = json.loads((sample_dataset / "manifest.json").read_text())
+    assert config["dataset"]["normalisation"] == manifest["normalisation"]
+    assert config["dataset"]["build_key"] == manifest["build_key"]
+    net, _ = load_model(run)
+    assert net.config.units == 32 and not net.training
+
+
+def test_start_pose_is_the_mean_training_pose(trained_run, sample_dataset):
+    run, _ = trained_run
+    manifest = json.loads((sample_dataset / "manifest.json").read_text())
+    (rec,) = [r for r in manifest["recordings"] if r["split"] == "train"]
+    with h5py.File(sample_dataset / rec["shard"], "r") as f:
+        current = f["current"][rec["start"] : rec["start"] + rec["frames"]].astype(np.float64)
+        mask = f["mask"][rec["start"] : rec["start"] + rec["frames"]]
+    expected = [current[mask[:, c], c].mean() for c in range(current.shape[1])]
+    config = json.loads((run / "config.json").read_text())
+    np.testing.assert_allclose(config["dataset"]["start_pose"], expected, atol=1e-9)
+
+
+def test_checkpoints_load_without_unpickling(trained_run, tmp_path):
+    run, _ = trained_run
+    state = torch.load(run / "checkpoint.pt", weights_only=True)
+    assert {"model", "optimizer", "step", "order_rng", "noise_rng", "torch_rng", "history", "config"} <= set(state)
+    (tmp_path / "bad.pt").write_bytes(b"not a checkpoint")
+    with pytest.raises(KinectDataError, match="bad.pt: not a readable kinectdata checkpoint"):
+        load_checkpoint(tmp_path / "bad.pt")
+    with pytest.raises(KinectDataError, match="not a training run"):
+        load_model(tmp_path)
+
+
+def test_a_resumed_run_equals_an_uninterrupted_one(sample_dataset, tmp_path):
+    """With gradient noise on and predicted feedback, so every random generator must be restored."""
+    config = TrainConfig(**{**TINY_TRAINING, "units": 16, "epochs": 3, "noise_eta": 1e-4, "clip_norm": 1.0})
+    whole = train(sample_dataset, tmp_path / "whole", config)
+    part = train(sample_dataset, tmp_path / "part", config, stop_after=1)
+    assert len(part) == 1 and not (tmp_path / "part" / "model.pt").exists()
+    resumed = train(sample_dataset, tmp_path / "part", config, resume=True)
+    assert [r["train_loss"] for r in resumed] == [r["train_loss"] for r in whole]
+    assert [r["val_smape"] for r in resumed] == [r["val_smape"] for r in whole]
+    a = torch.load(tmp_path / "whole" / "model.pt", weights_only=True)["model"]
+    b = torch.load(tmp_path / "part" / "model.pt", weights_only=True)["model"]
+    assert a.keys() == b.keys() and all(torch.equal(a[k], b[k]) for k in a)
+
+
+def test_a_run_folder_is_never_overwritten_and_resume_checks_the_configuration(trained_run, sample_dataset):
+    run, _ = trained_run
+    with pytest.raises(KinectDataError, match="already holds a run; use --resume"):
+        train(sample_dataset, run, TrainConfig(**TINY_TRAINING))
+    with pytest.raises(KinectDataError, match="another configuration or dataset; cannot resume"):
+        train(sample_dataset, run, TrainConfig(**{**TINY_TRAINING, "lr": 1e-4}), resume=True)
+
+
+def test_settings_are_validated(sample_dataset, tmp_path):
+    with pytest.raises(KinectDataError, match="feedback must be predicted or teacher"):
+        TrainConfig(feedback="oracle")
+    with pytest.raises(KinectDataError, match="positive"):
+        TrainConfig(sequence=0)
+    with pytest.raises(KinectDataError, match="no training window of 5000 frames"):
+        train(sample_dataset, tmp_path / "r", TrainConfig(**{**TINY_TRAINING, "sequence": 5000}))
+    with pytest.raises(KinectDataError, match="not a dataset"):
+        train(tmp_path, tmp_path / "r", TrainConfig(**TINY_TRAINING))
+    assert not (tmp_path / "r").exists()
+
+
+def test_defaults_are_the_papers():
+    c = TrainConfig()
+    assert (c.lr, c.sequence, c.batch_size, c.epochs, c.noise_eta, c.noise_gamma) == (1e-4, 150, 50, 10, 0.01, 0.55)
+    assert (c.units, c.feedback, c.clip_norm) == (500, "predicted", None)
+
+
+@pytest.mark.parametrize("step", [0, 9, 99])
+def test_gradient_noise_has_the_annealed_variance(step):
+    """Neelakantan et al. (2015): N(0, eta / (1 + t)^gamma) added to every gradient."""
+    config = dataclasses.replace(TrainConfig(), noise_eta=0.01, noise_gamma=0.55)
+    p = torch.nn.Parameter(torch.zeros(200_000))
+    p.grad = torch.zeros_like(p)
+    _add_gradient_noise([p], step, config, torch.Generator().manual_seed(0))
+    expected = math.sqrt(0.01 / (1 + step) ** 0.55)
+    assert float(p.grad.std()) == pytest.approx(expected, rel=0.01)
+    assert abs(float(p.grad.mean())) < 4 * expected / math.sqrt(p.numel())
+
+
+def test_teacher_feedback_trains_too(sample_dataset, tmp_path):
+    history = train(sample_dataset, tmp_path / "t", TrainConfig(**{**TINY_TRAINING, "feedback": "teacher"}))
+    assert history[1]["train_loss"] < history[0]["train_loss"]
+    assert math.isfinite(history[1]["val_smape"])
