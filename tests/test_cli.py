@@ -108,6 +108,13 @@ def test_training_commands_end_to_end(sample_dataset, tmp_path):
     assert "epoch   1: train loss" in result.output and "validation SMAPE" in result.output
     result = run("train-baseline", "--data", sample_dataset, "--out", runs, *tiny)
     assert result.exit_code == 1 and "already holds a run; use --resume" in result.output
+    result = run("train-baseline", "--data", sample_dataset, "--out", runs, "--resume", "--epochs", 2)
+    assert result.exit_code == 0, result.output
+    assert "epoch   2: train loss" in result.output and "epoch   1" not in result.output
+    result = run("train-baseline", "--data", sample_dataset, "--out", runs, "--resume", "--units", 9)
+    assert result.exit_code == 1 and "cannot resume with other settings: units 9 (the run's: 8)" in result.output
+    result = run("evaluate", "--run", runs, "--data", sample_dataset, "--silence", 1)
+    assert result.exit_code == 2 and "--silence" in result.output
     result = run("evaluate", "--run", runs, "--data", sample_dataset, "--silence", 2)
     assert result.exit_code == 0, result.output
     assert "SMAPE without reset" in result.output and "% denormalised" in result.output

@@ -14,7 +14,7 @@ torch = pytest.importorskip("torch")
 from kinectdata.align import align_files  # noqa: E402
 from kinectdata.audio import load_audio  # noqa: E402
 from kinectdata.errors import KinectDataError  # noqa: E402
-from kinectdata.features.stft import StftConfig, stft_features  # noqa: E402
+from kinectdata.features.stft import PRESETS, StftConfig, stft_features  # noqa: E402
 from kinectdata.formats import read_motion  # noqa: E402
 from kinectdata.models.engines import onnxruntime_available  # noqa: E402
 from kinectdata.normalization import Normalizer  # noqa: E402
@@ -55,12 +55,12 @@ def stream(run):
     """The exported TorchScript network (stream.ts) stepped frame by frame."""
     module = torch.jit.load(str(run / "stream.ts"))
 
-    def run_frames(features, first, reset_every=None, true=None):
+    def run_frames(features, first, reset_every=None):
         state, pose, out = module.initial_state(), torch.from_numpy(first), []
         with torch.no_grad():
             for i in range(features.shape[0]):
                 if reset_every and i % reset_every == 0:
-                    state, pose = module.initial_state(), torch.from_numpy(true[i])
+                    state = module.initial_state()  # the states only: the pose fed back carries on
                 pose, *state = module(torch.from_numpy(features[i]), pose, *state)
                 out.append(pose.numpy())
         return np.array(out)
@@ -92,7 +92,8 @@ def test_evaluate_scores_against_an_independent_free_run(trained_run, sample_dat
         reference_smape(free, true[1:], mask[1:]), abs=1e-3
     )
     sequence = TINY_TRAINING["sequence"]
-    reset = run_frames(features[1:], true[0], sequence, true)
+    reset = run_frames(features[1:], true[0], sequence)
+    assert not np.allclose(reset, free)  # the resets do change the motion
     assert scores["with_reset"]["smape_normalised"] == pytest.approx(
         reference_smape(reset, true[1:], mask[1:]), abs=1e-3
     )
@@ -143,6 +144,13 @@ def test_silence_test_measures_energy_inside_the_inserted_silence(trained_run):
 
     result = silence_test(Loudness(), config["dataset"]["features"], rec, 30.0, seconds=2.0)
     assert result["energy_inside"] == 0.0 and result["energy_outside"] > 0 and result["energy_ratio"] == 0.0
+    # generated[i] is frame i + 1 of the features with frames 60..119 silent: the energy (the change
+    # into generated[i]) is 0 exactly for i in 60..118, and the silence spans generated 59..118
+    still = np.flatnonzero(motion_energy(result["generated"]) == 0.0)
+    np.testing.assert_array_equal(still[still > 0], np.arange(60, 119))
+    assert result["silence_span_s"] == (59 / 30, 119 / 30) and result["settle_seconds"] == 1.0
+    with pytest.raises(KinectDataError, match="at least 2 s of silence"):
+        silence_test(Loudness(), config["dataset"]["features"], rec, 30.0, seconds=1.5)
 
 
 def test_evaluate_refuses_a_dataset_with_other_targets(trained_run, sample_dataset, tmp_path):
@@ -152,10 +160,20 @@ def test_evaluate_refuses_a_dataset_with_other_targets(trained_run, sample_datas
     other = tmp_path / "other"
     shutil.copytree(sample_dataset, other)
     manifest = json.loads((other / "manifest.json").read_text())
-    manifest["normalisation"]["scale"][0] *= 2
-    (other / "manifest.json").write_text(json.dumps(manifest))
-    with pytest.raises(KinectDataError, match="differ from those .* was trained on"):
+    changed = json.loads(json.dumps(manifest))
+    changed["normalisation"]["scale"][0] *= 2
+    (other / "manifest.json").write_text(json.dumps(changed))
+    with pytest.raises(KinectDataError, match="its normalisation differ from those .* was trained on"):
         evaluate(run, other, "test", out=tmp_path / "e")
+    changed = json.loads(json.dumps(manifest))
+    changed["config"]["features"] = PRESETS["motion_dance"].to_dict()
+    (other / "manifest.json").write_text(json.dumps(changed))
+    with pytest.raises(KinectDataError, match="its features differ"):
+        evaluate(run, other, "test", out=tmp_path / "e")
+    (other / "manifest.json").write_text("{")
+    with pytest.raises(KinectDataError, match="manifest.json: not valid JSON"):
+        evaluate(run, other, "test", out=tmp_path / "e")
+    assert not (tmp_path / "e").exists()
 
 
 def test_generate_streams_what_the_sequence_model_computes_offline(trained_run, tmp_path):
@@ -230,7 +248,7 @@ def test_exported_files_describe_themselves(trained_run, tmp_path):
     assert meta["start_pose"] == config["dataset"]["start_pose"] and meta["fps"] == 30
     assert meta["inputs"]["h1"] == [3, 32] and meta["normalisation"] == config["dataset"]["normalisation"]
     export_run(run, tmp_path / "half.ts", precision="float16")
-    assert torch.jit.load(str(tmp_path / "half.ts")).w1[0].dtype == torch.float16
+    assert torch.jit.load(str(tmp_path / "half.ts")).state_dict()["lstm1.cells.0.weight"].dtype == torch.float16
     with pytest.raises(KinectDataError, match="float32 only"):
         export_run(run, tmp_path / "x.onnx", precision="float16")
     ort = pytest.importorskip("onnxruntime")
@@ -256,3 +274,5 @@ def test_sweep_writes_the_papers_table_and_reuses_finished_variants(sample_datas
     assert model.stat().st_mtime_ns == before and again[0]["smape_without_reset"] == rows[0]["smape_without_reset"]
     with pytest.raises(KinectDataError, match="unknown variant"):
         sweep(sample_dataset, tmp_path / "sweep", base, ["Sigmoid"])
+    with pytest.raises(KinectDataError, match="tanh: holds a finished run whose units differ"):
+        sweep(sample_dataset, tmp_path / "sweep", TrainConfig(**{**TINY_TRAINING, "units": 9, "epochs": 1}), ["TanH"])

@@ -405,3 +405,31 @@ def test_windows_computed_here_equal_scipy():
 
     for name in ("hamming", "hann", "blackman"):
         np.testing.assert_allclose(_window(name, 160), get_window(name, 160, fftbins=True), rtol=0, atol=1e-15)
+
+
+@pytest.mark.parametrize("block", [1, 97, 534, 16000])
+def test_streaming_features_equal_the_whole_audio_at_any_block_size(block):
+    from kinectdata.features.streaming import StreamingFeatures
+
+    rng = np.random.default_rng(block)
+    audio = rng.normal(0, 0.2, 16000 * 2 + 123).astype(np.float32)
+    starts = np.round(np.arange(61) * 16000 / 30).astype(np.int64)  # the last slices run past the end
+    config = PRESETS["yalta2016"]
+    expected, expected_padded = stft_features(audio, starts, config)
+    got = np.full_like(expected, np.nan)
+    padded = np.zeros(len(starts), bool)
+    calls = []
+
+    def sink(k0, feats, pad):
+        calls.append(k0)
+        got[k0 : k0 + len(feats)] = feats
+        padded[k0 : k0 + len(feats)] = pad
+
+    stream = StreamingFeatures(starts, config, sink)
+    for i in range(0, audio.size, block):
+        stream.push(audio[i : i + block])
+        assert stream.buffer.size <= block + config.slice_samples + 16000 / 30  # bounded memory
+    stream.finish()
+    np.testing.assert_array_equal(got, expected)
+    np.testing.assert_array_equal(padded, expected_padded)
+    assert calls == sorted(calls) and (block > audio.size or len(calls) > 1)

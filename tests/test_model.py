@@ -170,19 +170,59 @@ def test_half_precision_weights_stay_close():
         StreamingYalta(net, "int8")
 
 
-def test_state_carries_across_calls():
-    """Two halves streamed with the state handed over equal one continuous stream."""
+def test_state_handed_to_another_engine_continues_the_stream():
+    """Two engines, the second given the first's state and last pose half-way, equal one stream;
+    reset() starts a stream afresh."""
+    from kinectdata.models.engines import TorchEngine
+
     net = make_net()
-    stream = StreamingYalta(net)
-    audio, first = features(20), torch.zeros(D)
-    whole = stream_run(stream, audio, first)
-    state = stream.initial_state()
-    pose, halves = first, []
+    audio, first = features(20).numpy(), np.zeros(D, np.float32)
+    whole, pose = TorchEngine(net), first
+    expected = []
+    for k in range(20):
+        pose = whole.step(audio[k], pose)
+        expected.append(pose)
+    a, b, pose, got = TorchEngine(net), TorchEngine(net), first, []
+    for k in range(10):
+        pose = a.step(audio[k], pose)
+        got.append(pose)
+    b.state = [s.clone() for s in a.state]
+    for k in range(10, 20):
+        pose = b.step(audio[k], pose)
+        got.append(pose)
+    np.testing.assert_array_equal(np.array(got), np.array(expected))
+    whole.reset()
+    np.testing.assert_array_equal(whole.step(audio[0], first), expected[0])
     with torch.no_grad():
-        for k in range(20):
-            pose, *state = stream(audio[k], pose, *state)
-            halves.append(pose)
-            if k == 9:
-                state = [s.clone() for s in state]  # as a caller saving and restoring it would
-    assert torch.equal(torch.stack(halves), whole)
-    np.testing.assert_array_equal(whole[0].numpy(), stream_run(stream, audio[:1], first)[0].numpy())
+        sequence = net(torch.from_numpy(audio)[None], torch.from_numpy(first)[None])[0]
+    np.testing.assert_allclose(np.array(expected), sequence.numpy(), atol=2e-6)
+
+
+def test_onnx_runtime_engine_equals_the_torch_engine_and_resets():
+    from kinectdata.models.engines import OnnxRuntimeEngine, TorchEngine, onnxruntime_available
+
+    if not onnxruntime_available():
+        pytest.skip("onnxruntime and onnxscript not installed")
+    net = make_net()
+    audio, first = features(15).numpy(), np.zeros(D, np.float32)
+    engines = [TorchEngine(net), OnnxRuntimeEngine(net)]
+    for _ in range(2):  # the second pass after reset() must repeat the first
+        poses = [first, first]
+        for k in range(15):
+            poses = [e.step(audio[k], p) for e, p in zip(engines, poses)]
+            np.testing.assert_allclose(poses[1], poses[0], atol=2e-6)
+        for e in engines:
+            e.reset()
+
+
+def test_weights_are_buffers_that_move_with_the_module():
+    stream = StreamingYalta(make_net())
+    assert "lstm1.cells.0.weight" in stream.state_dict() and "fc2.bias" in stream.state_dict()
+    moved = StreamingYalta(make_net()).to(torch.float64)
+    x, first = features(3).double(), torch.zeros(D, dtype=torch.float64)
+    state = moved.initial_state()
+    assert state[0].dtype == torch.float64
+    pose, *state = moved(x[0], first, *state)
+    expected = stream_run(stream, features(3), torch.zeros(D))[0]
+    assert pose.dtype == torch.float64
+    np.testing.assert_allclose(pose.numpy(), expected.numpy(), atol=1e-6)

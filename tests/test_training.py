@@ -72,25 +72,61 @@ def test_checkpoints_load_without_unpickling(trained_run, tmp_path):
 
 
 def test_a_resumed_run_equals_an_uninterrupted_one(sample_dataset, tmp_path):
-    """With gradient noise on and predicted feedback, so every random generator must be restored."""
+    """With gradient noise on and predicted feedback, so every random generator must be restored;
+    resumed once after an interruption (with the run's own settings) and once to train longer."""
     config = TrainConfig(**{**TINY_TRAINING, "units": 16, "epochs": 3, "noise_eta": 1e-4, "clip_norm": 1.0})
     whole = train(sample_dataset, tmp_path / "whole", config)
     part = train(sample_dataset, tmp_path / "part", config, stop_after=1)
     assert len(part) == 1 and not (tmp_path / "part" / "model.pt").exists()
-    resumed = train(sample_dataset, tmp_path / "part", config, resume=True)
-    assert [r["train_loss"] for r in resumed] == [r["train_loss"] for r in whole]
-    assert [r["val_smape"] for r in resumed] == [r["val_smape"] for r in whole]
+    resumed = train(sample_dataset, tmp_path / "part", resume=True)
+    shorter = dataclasses.replace(config, epochs=2)
+    train(sample_dataset, tmp_path / "longer", shorter)
+    longer = train(sample_dataset, tmp_path / "longer", config, resume=True)
+    assert json.loads((tmp_path / "longer" / "config.json").read_text())["train"]["epochs"] == 3
     a = torch.load(tmp_path / "whole" / "model.pt", weights_only=True)["model"]
-    b = torch.load(tmp_path / "part" / "model.pt", weights_only=True)["model"]
-    assert a.keys() == b.keys() and all(torch.equal(a[k], b[k]) for k in a)
+    for name, history in (("part", resumed), ("longer", longer)):
+        assert [r["train_loss"] for r in history] == [r["train_loss"] for r in whole]
+        assert [r["val_smape"] for r in history] == [r["val_smape"] for r in whole]
+        b = torch.load(tmp_path / name / "model.pt", weights_only=True)["model"]
+        assert a.keys() == b.keys() and all(torch.equal(a[k], b[k]) for k in a), name
 
 
 def test_a_run_folder_is_never_overwritten_and_resume_checks_the_configuration(trained_run, sample_dataset):
     run, _ = trained_run
     with pytest.raises(KinectDataError, match="already holds a run; use --resume"):
         train(sample_dataset, run, TrainConfig(**TINY_TRAINING))
-    with pytest.raises(KinectDataError, match="another configuration or dataset; cannot resume"):
+    with pytest.raises(KinectDataError, match=r"cannot resume with other settings: lr 0.0001 \(the run's: 0.003\)"):
         train(sample_dataset, run, TrainConfig(**{**TINY_TRAINING, "lr": 1e-4}), resume=True)
+    with pytest.raises(KinectDataError, match="has trained 2 epochs already, more than 1"):
+        train(sample_dataset, run, TrainConfig(**{**TINY_TRAINING, "epochs": 1}), resume=True)
+
+
+def test_resume_refuses_another_dataset(trained_run, sample_dataset, tmp_path):
+    import shutil
+
+    run, _ = trained_run
+    other = tmp_path / "other"
+    shutil.copytree(sample_dataset, other)
+    manifest = json.loads((other / "manifest.json").read_text())
+    manifest["build_key"] = "0" * 32
+    (other / "manifest.json").write_text(json.dumps(manifest))
+    with pytest.raises(KinectDataError, match="cannot resume on .*other: the run was trained on"):
+        train(other, run, resume=True)
+
+
+def test_damaged_run_files_are_named(trained_run, tmp_path):
+    import shutil
+
+    run = tmp_path / "run"
+    shutil.copytree(trained_run[0], run)
+    config = json.loads((run / "config.json").read_text())
+    config["model"]["units"] = 33
+    (run / "config.json").write_text(json.dumps(config))
+    with pytest.raises(KinectDataError, match="model.pt: does not match the model of .*config.json"):
+        load_model(run)
+    (run / "config.json").write_text("{not json")
+    with pytest.raises(KinectDataError, match="config.json: not valid JSON"):
+        load_model(run)
 
 
 def test_settings_are_validated(sample_dataset, tmp_path):
@@ -105,7 +141,9 @@ def test_settings_are_validated(sample_dataset, tmp_path):
     assert not (tmp_path / "r").exists()
 
 
-def test_defaults_are_the_papers():
+def test_defaults_are_the_papers_and_its_authors_code():
+    """The paper: Adam 1e-4, 150 steps, batches of 50, 10 epochs, "gradient noise"; the noise's
+    eta 0.01 is the authors' later code's, gamma 0.55 Neelakantan et al.'s."""
     c = TrainConfig()
     assert (c.lr, c.sequence, c.batch_size, c.epochs, c.noise_eta, c.noise_gamma) == (1e-4, 150, 50, 10, 0.01, 0.55)
     assert (c.units, c.feedback, c.clip_norm) == (500, "predicted", None)

@@ -5,7 +5,10 @@ torch is imported inside the commands, so the rest of the command line works wit
 
 from __future__ import annotations
 
+import dataclasses
+
 import click
+from click.core import ParameterSource
 
 from ..errors import KinectDataError
 
@@ -163,11 +166,21 @@ def train_baseline(data, out, resume, **options) -> None:
     default: Adam 1e-4, MSE, sequences of 150, batches of 50, 10 epochs, annealed gradient noise).
 
     Writes into --out: config.json, checkpoint.pt (each epoch, atomically), log.csv, loss.png,
-    and at the end model.pt and stream.ts (TorchScript of the streaming network)."""
+    and at the end model.pt and stream.ts (TorchScript of the streaming network). With --resume
+    the run's own settings are used; --epochs (to train longer) and --device may be given."""
     _torch_or_fail()
     from ..training.train import train
 
-    history = train(data, out, make_train_config(**options), resume=resume, progress=lambda r: click.echo(_row(r)))
+    config = make_train_config(**options)
+    if resume:  # the run's settings, with what was typed on the command line checked against them
+        from ..training.run import TrainConfig, read_config
+
+        ctx = click.get_current_context()
+        typed = {
+            k: v for k, v in config.to_dict().items() if ctx.get_parameter_source(k) == ParameterSource.COMMANDLINE
+        }
+        config = dataclasses.replace(TrainConfig(**read_config(out)["train"]), **typed)
+    history = train(data, out, config, resume=resume, progress=lambda r: click.echo(_row(r)))
     click.echo(f"run: {out} ({len(history)} epochs; log.csv, loss.png, model.pt, stream.ts)")
 
 
@@ -180,8 +193,8 @@ def train_baseline(data, out, resume, **options) -> None:
     "--silence",
     default=5.0,
     show_default=True,
-    type=click.FloatRange(min=0, min_open=True),
-    help="Seconds of silence inserted for the silence test.",
+    type=click.FloatRange(min=2),
+    help="Seconds of silence inserted for the silence test (the first second lets the motion settle).",
 )
 def evaluate_command(run_dir, data, split, out, silence) -> None:
     """Score a run as the paper does: SMAPE (%) free-running without and with reset, on normalised

@@ -129,15 +129,52 @@ def _packed(lstm: nn.LSTM) -> tuple[list[torch.Tensor], list[torch.Tensor]]:
     return weights, biases
 
 
-def _folded_convs(net: YaltaNet) -> tuple[list[torch.Tensor], list[torch.Tensor]]:
-    """Convolution weights and biases with the (evaluation-mode) batch normalisation folded in."""
-    weights, biases = [], []
-    modules = list(net.convs)
-    for conv, bn in zip(modules[0::3], modules[1::3]):
-        scale = bn.weight / torch.sqrt(bn.running_var + bn.eps)
-        weights.append((conv.weight * scale[:, None, None, None]).detach().clone())
-        biases.append(((conv.bias - bn.running_mean) * scale + bn.bias).detach().clone())
-    return weights, biases
+def _folded_conv(conv: nn.Conv2d, bn: nn.BatchNorm2d) -> nn.Conv2d:
+    """A convolution with the (evaluation-mode) batch normalisation after it folded in."""
+    folded = nn.Conv2d(conv.in_channels, conv.out_channels, conv.kernel_size)
+    scale = bn.weight / torch.sqrt(bn.running_var + bn.eps)
+    with torch.no_grad():
+        folded.weight.copy_(conv.weight * scale[:, None, None, None])
+        folded.bias.copy_((conv.bias - bn.running_mean) * scale + bn.bias)
+    return folded.requires_grad_(False)
+
+
+class _Affine(nn.Module):
+    """y = W x + b for one vector x, W stored in the layout fastest at batch 1 for its precision:
+    float32 as [inputs, outputs] (x @ W: about 1.2x faster in torch than W @ x, and ONNX Runtime
+    pre-packs it, where W @ x is several times slower), float16 as [outputs, inputs] (addmv: the
+    half-precision x @ W is slow on CPUs). Returns x's dtype."""
+
+    def __init__(self, weight: torch.Tensor, bias: torch.Tensor, dtype: torch.dtype):
+        super().__init__()
+        self.vector_matrix = dtype == torch.float32
+        w = weight.detach().t() if self.vector_matrix else weight.detach()
+        self.register_buffer("weight", w.contiguous().to(dtype))
+        self.register_buffer("bias", bias.detach().clone().to(dtype))
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        if self.vector_matrix:
+            return (x.to(self.weight.dtype) @ self.weight + self.bias).to(x.dtype)
+        return torch.addmv(self.bias, self.weight, x.to(self.weight.dtype)).to(x.dtype)
+
+
+class _PackedLSTM(nn.Module):
+    """A stacked LSTM stepped one frame at a time: x [inputs], h and c [layers, units]."""
+
+    def __init__(self, lstm: nn.LSTM, dtype: torch.dtype):
+        super().__init__()
+        self.cells = nn.ModuleList(_Affine(w, b, dtype) for w, b in zip(*_packed(lstm)))
+
+    def forward(self, x: torch.Tensor, h: torch.Tensor, c: torch.Tensor):
+        hs: list[torch.Tensor] = []
+        cs: list[torch.Tensor] = []
+        for k, cell in enumerate(self.cells):
+            i, f, g, o = cell(torch.cat([x, h[k]])).chunk(4)
+            ck = torch.sigmoid(f) * c[k] + torch.sigmoid(i) * torch.tanh(g)
+            x = torch.sigmoid(o) * torch.tanh(ck)
+            hs.append(x)
+            cs.append(ck)
+        return x, torch.stack(hs), torch.stack(cs)
 
 
 class StreamingYalta(nn.Module):
@@ -148,39 +185,28 @@ class StreamingYalta(nn.Module):
     the convolutions and each LSTM layer is one matrix-vector product. With ``precision="float16"``
     the LSTM and fc weights are stored in half precision: half the memory traffic per frame,
     which is what limits batch-1 speed on a CPU, at a cost measured in ``benchmarks/bench_model.py``.
+    Weights are buffers: ``.to(device)`` moves them, ``state_dict()`` holds them.
     """
 
     def __init__(self, net: YaltaNet, precision: str = "float32"):
         super().__init__()
         if precision not in ("float32", "float16"):
             raise ValueError(f"precision must be float32 or float16, not {precision!r}")
-        self.units = net.config.units
-        self.output_dim = net.config.output_dim
-        self.activation = net.config.activation
-        self.conv_w, self.conv_b = _folded_convs(net)
+        net = net.eval()
         dtype = torch.float16 if precision == "float16" else torch.float32
-        # The fastest batch-1 layout differs: float32 weights stored [inputs, outputs] (x @ W, about
-        # 1.2x faster in torch, and ONNX Runtime can pre-pack them: W @ x there is several times
-        # slower); float16 weights [outputs, inputs] (addmv; x @ W in half is slow on CPUs).
-        self.vector_matrix = precision == "float32"
-        w1, b1 = _packed(net.lstm1)
-        w2, b2 = _packed(net.lstm2)
-        self.w1 = [self._layout(w, dtype) for w in w1]
-        self.b1 = [b.to(dtype) for b in b1]
-        self.w2 = [self._layout(w, dtype) for w in w2]
-        self.b2 = [b.to(dtype) for b in b2]
-        self.fc1_w = self._layout(net.fc1[0].weight.detach(), dtype)
-        self.fc1_b = net.fc1[0].bias.detach().clone().to(dtype)
-        self.fc2_w = self._layout(net.fc2.weight.detach(), dtype)
-        self.fc2_b = net.fc2.bias.detach().clone().to(dtype)
-
-    @torch.jit.unused
-    def _layout(self, w: torch.Tensor, dtype: torch.dtype) -> torch.Tensor:
-        return (w.t() if self.vector_matrix else w).contiguous().to(dtype)
+        self.units = net.config.units
+        self.activation = net.config.activation
+        modules = list(net.convs)
+        self.convs = nn.ModuleList(_folded_conv(c, bn) for c, bn in zip(modules[0::3], modules[1::3]))
+        self.lstm1 = _PackedLSTM(net.lstm1, dtype)
+        self.fc1 = _Affine(net.fc1[0].weight, net.fc1[0].bias, dtype)
+        self.lstm2 = _PackedLSTM(net.lstm2, dtype)
+        self.fc2 = _Affine(net.fc2.weight, net.fc2.bias, dtype)
 
     @torch.jit.export
     def initial_state(self) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor]:
-        z = torch.zeros(3, self.units)
+        like = self.convs[0].weight  # float32 even with float16 LSTM weights, whose states stay float32
+        z = torch.zeros(3, self.units, device=like.device, dtype=like.dtype)
         return z, z.clone(), z.clone(), z.clone()
 
     def _act(self, x: torch.Tensor) -> torch.Tensor:
@@ -189,26 +215,6 @@ class StreamingYalta(nn.Module):
         if self.activation == "relu":
             return torch.relu(x)
         return torch.nn.functional.elu(x)
-
-    def _matvec(self, b: torch.Tensor, w: torch.Tensor, x: torch.Tensor) -> torch.Tensor:
-        """The layer's outputs W x + b for x [inputs], in w's precision, returned as float32."""
-        if self.vector_matrix:
-            return (x.to(w.dtype) @ w + b).float()
-        return torch.addmv(b, w, x.to(w.dtype)).float()
-
-    def _cells(
-        self, ws: list[torch.Tensor], bs: list[torch.Tensor], x: torch.Tensor, h: torch.Tensor, c: torch.Tensor
-    ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
-        hs: list[torch.Tensor] = []
-        cs: list[torch.Tensor] = []
-        for k in range(len(ws)):
-            gates = self._matvec(bs[k], ws[k], torch.cat([x, h[k]]))
-            i, f, g, o = gates.chunk(4)
-            ck = torch.sigmoid(f) * c[k] + torch.sigmoid(i) * torch.tanh(g)
-            x = torch.sigmoid(o) * torch.tanh(ck)
-            hs.append(x)
-            cs.append(ck)
-        return x, torch.stack(hs), torch.stack(cs)
 
     def forward(
         self,
@@ -220,9 +226,9 @@ class StreamingYalta(nn.Module):
         c2: torch.Tensor,
     ):
         x = features[None]
-        for k in range(len(self.conv_w)):
-            x = self._act(torch.nn.functional.conv2d(x, self.conv_w[k], self.conv_b[k]))
-        hidden, h1, c1 = self._cells(self.w1, self.b1, x.reshape(-1), h1, c1)
-        code = self._act(self._matvec(self.fc1_b, self.fc1_w, hidden))
-        hidden, h2, c2 = self._cells(self.w2, self.b2, torch.cat([code, previous]), h2, c2)
-        return self._matvec(self.fc2_b, self.fc2_w, hidden), h1, c1, h2, c2
+        for conv in self.convs:
+            x = self._act(conv(x))
+        hidden, h1, c1 = self.lstm1(x.reshape(-1), h1, c1)
+        code = self._act(self.fc1(hidden))
+        hidden, h2, c2 = self.lstm2(torch.cat([code, previous]), h2, c2)
+        return self.fc2(hidden), h1, c1, h2, c2

@@ -5,8 +5,9 @@ given the true pose of the recording's first frame as the previous pose, and fro
 own outputs. Two ways, as in the paper's tables:
 
 - **without reset**: the LSTM states carry over the whole recording;
-- **with reset**: every ``sequence`` frames (the training sequence length) the states are zeroed
-  and the previous pose is the true one again, exactly as each training sequence starts.
+- **with reset**: every ``sequence`` frames (the training sequence length) the LSTM states are
+  zeroed, as at the start of each training sequence; the model keeps being fed its own poses
+  (the paper resets the state only, and its "with reset" scores are the worse ones).
 
 SMAPE (:func:`~kinectdata.training.metrics.smape`, percent, 0/0 counted as 0) compares frames
 1..T-1 with the real poses over valid components, on the normalised targets and on the
@@ -21,7 +22,6 @@ paper's Figure 7: the motion stops); the silent frames' features must all be ide
 
 from __future__ import annotations
 
-import json
 import platform
 import time
 from pathlib import Path
@@ -31,7 +31,6 @@ import h5py
 import numpy as np
 import torch
 
-from ..dataset.build import MANIFEST
 from ..errors import KinectDataError
 from ..features.stft import StftConfig, stft_features
 from ..models.engines import make_engine, onnxruntime_available
@@ -40,7 +39,7 @@ from ..normalization import Normalizer
 from ..plots import trajectories
 from ..targets import TargetSpec
 from .metrics import motion_energy, smape
-from .run import load_model
+from .run import interface_mismatch, load_model, read_manifest, write_json
 
 SILENCE_S = 5.0
 
@@ -60,21 +59,18 @@ def _recordings(dataset: Path, manifest: dict, split: str) -> list[dict[str, Any
 
 
 def free_run(net: YaltaNet, audio: np.ndarray, first_pose: np.ndarray, reset_every: int | None = None) -> np.ndarray:
-    """Poses [T-1, D] for frames 1..T-1 of features [T, 1, 129, 5], starting from the true pose of
-    frame 0; with ``reset_every`` = L, states restart every L frames from ``first_pose[k]``,
-    where ``first_pose`` is then the [T, D] true poses."""
+    """Poses [T-1, D] for frames 1..T-1 of features [T, 1, 129, 5], starting from the true pose
+    [D] of frame 0 and then fed the model's own outputs. With ``reset_every`` = L every LSTM
+    state is zeroed every L frames (the paper's "with reset"); the fed-back pose carries on."""
     x = torch.from_numpy(np.ascontiguousarray(audio[1:]))[None]
+    previous = torch.from_numpy(np.asarray(first_pose, np.float32)[None])
+    pieces = []
     with torch.no_grad():
-        if reset_every is None:
-            codes, _ = net.encode(x)
-            poses, _ = net.decode(codes, torch.from_numpy(first_pose[None]), "predicted")
-            return poses[0].numpy()
-        pieces = []
-        for s in range(0, x.shape[1], reset_every):
-            codes, _ = net.encode(x[:, s : s + reset_every])
-            previous = torch.from_numpy(first_pose[s][None])  # the true pose before frame s + 1
+        for s in range(0, x.shape[1], reset_every or x.shape[1]):
+            codes, _ = net.encode(x[:, s : s + (reset_every or x.shape[1])])
             poses, _ = net.decode(codes, previous, "predicted")
             pieces.append(poses[0].numpy())
+            previous = poses[:, -1]
     return np.concatenate(pieces)
 
 
@@ -125,6 +121,11 @@ def silence_test(net: YaltaNet, features_config: dict, rec: dict, fps: float, se
     silence, after a second to settle, with the energy outside it."""
     cfg = StftConfig.from_dict(features_config)
     n_silent = int(round(seconds * fps))
+    settle = int(round(fps))  # the motion is given a second to stop
+    if n_silent < 2 * settle:
+        raise KinectDataError(
+            f"the silence test needs at least 2 s of silence (1 s to settle, then measured), not {seconds:g} s"
+        )
     starts = np.round(np.arange(n_silent) * cfg.sample_rate / fps).astype(np.int64)
     silent, _ = stft_features(np.zeros(int(starts[-1]) + cfg.slice_samples, np.float32), starts, cfg)
     identical = bool((silent == silent[0]).all())
@@ -133,7 +134,6 @@ def silence_test(net: YaltaNet, features_config: dict, rec: dict, fps: float, se
     generated = free_run(net, audio, rec["current"][0])  # frames 1..T-1
     energy = motion_energy(generated)  # index i: the change into frame i + 1 of the combined features
     begin, end = mid - 1, mid - 1 + n_silent  # the silence, in those indices
-    settle = min(int(round(fps)), n_silent // 2)  # the motion is given a second to stop
     inside = np.zeros(energy.size, bool)
     inside[begin + settle : end] = True
     outside = np.ones(energy.size, bool)
@@ -169,16 +169,11 @@ def evaluate(
     pairs whose forward time is measured (default :func:`default_engines`)."""
     run, dataset = Path(run), Path(dataset)
     net, config = load_model(run)
-    try:
-        manifest = json.loads((dataset / MANIFEST).read_text())
-    except OSError as exc:
-        raise KinectDataError(f"{dataset}: not a dataset (no readable {MANIFEST})") from exc
-    if (
-        manifest["normalisation"] != config["dataset"]["normalisation"]
-        or manifest["config"]["target"] != config["dataset"]["target"]
-    ):
+    manifest = read_manifest(dataset)
+    differ = interface_mismatch(config, dataset, manifest)
+    if differ:
         raise KinectDataError(
-            f"{dataset}: its targets or normalisation differ from those {run} was trained on "
+            f"{dataset}: its {', '.join(differ)} differ from those {run} was trained on "
             f"({config['dataset']['path']}); scores would be meaningless"
         )
     recordings = _recordings(dataset, manifest, split)
@@ -202,8 +197,7 @@ def evaluate(
     for mode, reset in (("without_reset", None), ("with_reset", sequence)):
         generated, real, masks = [], [], []
         for rec in recordings:
-            pose0 = rec["current"] if reset else rec["current"][0]
-            g = free_run(net, rec["input"], pose0, reset)
+            g = free_run(net, rec["input"], rec["current"][0], reset)
             generated.append(g)
             real.append(rec["current"][1:])
             masks.append(rec["mask"][1:])
@@ -243,7 +237,7 @@ def evaluate(
     )
     results["silence_test"] = sil
     results["figures"] = [str(fig6), str(fig7)]
-    (out / "results.json").write_text(json.dumps(results, indent=2, default=float) + "\n")
+    write_json(out / "results.json", results)
     return results
 
 
@@ -268,12 +262,12 @@ def format_results(results: dict[str, Any]) -> str:
     for name, t in results["forward_time"].items():
         lines.append(
             f"  forward time   {t['median_ms']:.3f} ms median, {t['p95_ms']:.3f} ms p95 per frame "
-            f"(batch 1, streaming, {name}, {t['device']}, {t['threads']} threads)"
+            f"(batch 1, streaming, {name}, {t['device']}, {t['threads']} thread{'' if t['threads'] == 1 else 's'})"
         )
     sil = results["silence_test"]
     lines.append(
         f"  silence test   {sil['silence_seconds']:g} s inserted in {sil['recording']}: motion energy inside "
-        f"{sil['energy_inside']:.3g} vs outside {sil['energy_outside']:.3g} (ratio {sil['energy_ratio']:.3f}); "
+        f"{sil['energy_inside']:.3g} vs outside {sil['energy_outside']:.3g} (ratio {sil['energy_ratio']:.2g}); "
         f"silent features identical: {sil['silent_features_identical']} (all {sil['silent_feature_value']:g})"
     )
     lines.append("  figures        " + ", ".join(results["figures"]))

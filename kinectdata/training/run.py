@@ -19,6 +19,7 @@ from typing import Any
 import torch
 
 from ..atomic import atomic_output
+from ..dataset.build import MANIFEST
 from ..errors import KinectDataError
 from ..models.yalta import YaltaConfig, YaltaNet
 
@@ -82,16 +83,56 @@ class TrainConfig:
 
 
 def write_json(path: Path, doc: Any) -> None:
+    """Write ``doc`` as indented JSON, atomically."""
     with atomic_output(path) as tmp:
         tmp.write_text(json.dumps(doc, indent=2) + "\n")
 
 
-def read_config(run: str | Path) -> dict[str, Any]:
-    path = Path(run) / CONFIG
+def _read_json(folder: str | Path, name: str, what: str) -> dict[str, Any]:
+    path = Path(folder) / name
     try:
         return json.loads(path.read_text())
     except OSError as exc:
-        raise KinectDataError(f"{run}: not a training run (no readable {CONFIG}: {exc.strerror or exc})") from exc
+        raise KinectDataError(f"{folder}: not {what} (no readable {name}: {exc.strerror or exc})") from exc
+    except ValueError as exc:
+        raise KinectDataError(f"{path}: not valid JSON ({exc})") from exc
+
+
+def read_config(run: str | Path) -> dict[str, Any]:
+    """A run folder's config.json; errors name the file."""
+    return _read_json(run, CONFIG, "a training run")
+
+
+def read_manifest(dataset: str | Path) -> dict[str, Any]:
+    """A dataset folder's manifest.json; errors name the file."""
+    return _read_json(dataset, MANIFEST, "a dataset")
+
+
+def dataset_summary(dataset: Path, manifest: dict[str, Any]) -> dict[str, Any]:
+    """What a run keeps of its dataset: enough to read features and write poses without it."""
+    cfg = manifest["config"]
+    return {
+        "path": str(Path(dataset).resolve()),
+        "build_key": manifest["build_key"],
+        "fps": cfg["fps"],
+        "sample_rate": cfg["sample_rate"],
+        "features": cfg["features"],
+        "target": cfg["target"],
+        "root_centre": cfg["root_centre"],
+        "normalisation": manifest["normalisation"],
+        "feature_shape": manifest["feature_shape"],
+        "target_dim": manifest["target_dim"],
+    }
+
+
+MODEL_INTERFACE = ("fps", "sample_rate", "features", "feature_shape", "target", "root_centre", "normalisation")
+"""What a dataset must share with a run's for the run's scores on it to mean anything."""
+
+
+def interface_mismatch(run_config: dict[str, Any], dataset: Path, manifest: dict[str, Any]) -> list[str]:
+    """The :data:`MODEL_INTERFACE` keys in which a dataset differs from the run's own."""
+    summary = dataset_summary(dataset, manifest)
+    return [k for k in MODEL_INTERFACE if summary[k] != run_config["dataset"][k]]
 
 
 def save_checkpoint(path: Path, state: dict[str, Any]) -> None:
@@ -115,6 +156,9 @@ def load_model(run: str | Path) -> tuple[YaltaNet, dict[str, Any]]:
     """The trained network of a run (evaluation mode, CPU) and the run's configuration."""
     config = read_config(run)
     state = load_checkpoint(Path(run) / MODEL)
-    net = YaltaNet(YaltaConfig.from_dict(config["model"]))
-    net.load_state_dict(state["model"])
+    try:
+        net = YaltaNet(YaltaConfig.from_dict(config["model"]))
+        net.load_state_dict(state["model"])
+    except (KeyError, TypeError, ValueError, RuntimeError) as exc:
+        raise KinectDataError(f"{Path(run) / MODEL}: does not match the model of {Path(run) / CONFIG} ({exc})") from exc
     return net.eval(), config

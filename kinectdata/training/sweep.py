@@ -19,7 +19,7 @@ from typing import Any
 from ..atomic import atomic_output
 from ..errors import KinectDataError
 from .evaluate import evaluate
-from .run import CHECKPOINT, LOG, MODEL, TrainConfig
+from .run import CHECKPOINT, LOG, MODEL, TrainConfig, read_config, read_manifest
 from .train import train
 
 VARIANTS: dict[str, dict[str, Any]] = {
@@ -63,11 +63,14 @@ def sweep(
     if unknown:
         raise KinectDataError(f"unknown variant(s) {unknown}; known: {', '.join(VARIANTS)}")
     out = Path(out)
+    manifest = read_manifest(dataset)
     rows = []
     for name in names:
         config = dataclasses.replace(base, **VARIANTS[name])
         run = out / _slug(name)
-        if not (run / MODEL).exists():  # a finished variant of an interrupted sweep is kept
+        if (run / MODEL).exists():  # a finished variant of an interrupted sweep is kept, if it is this one
+            _check_finished(run, config, manifest)
+        else:
             train(dataset, run, config, resume=(run / CHECKPOINT).exists())
         with open(run / LOG) as f:
             minutes = sum(float(r["seconds"]) for r in csv.DictReader(f)) / 60
@@ -87,6 +90,18 @@ def sweep(
             progress(name, row)
     _write_tables(out, rows, base)
     return rows
+
+
+def _check_finished(run: Path, config: TrainConfig, manifest: dict[str, Any]) -> None:
+    saved = read_config(run)
+    differ = [k for k, v in config.to_dict().items() if saved["train"].get(k) != v]
+    if saved["dataset"]["build_key"] != manifest["build_key"]:
+        differ.append("dataset")
+    if differ:
+        raise KinectDataError(
+            f"{run}: holds a finished run whose {', '.join(differ)} differ from this sweep's; "
+            "remove it or sweep into another folder"
+        )
 
 
 def _write_tables(out: Path, rows: list[dict[str, Any]], base: TrainConfig) -> None:

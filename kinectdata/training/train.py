@@ -31,7 +31,6 @@ import torch
 from torch.utils.data import DataLoader
 
 from ..atomic import atomic_output
-from ..dataset.build import MANIFEST
 from ..dataset.windows import WindowDataset
 from ..errors import KinectDataError
 from ..models.export import export_torchscript, stream_metadata
@@ -39,7 +38,19 @@ from ..models.yalta import YaltaConfig, YaltaNet
 from ..normalization import Normalizer
 from ..plots import loss_curves
 from .metrics import masked_mse, smape
-from .run import CHECKPOINT, CONFIG, LOG, MODEL, STREAM, TrainConfig, load_checkpoint, save_checkpoint, write_json
+from .run import (
+    CHECKPOINT,
+    CONFIG,
+    LOG,
+    MODEL,
+    STREAM,
+    TrainConfig,
+    dataset_summary,
+    load_checkpoint,
+    read_manifest,
+    save_checkpoint,
+    write_json,
+)
 
 LOG_FIELDS = ["epoch", "step", "train_loss", "val_loss", "val_smape", "seconds", "frames_per_second"]
 
@@ -52,30 +63,6 @@ def _deterministic():
         yield
     finally:
         torch.use_deterministic_algorithms(previous)
-
-
-def dataset_summary(dataset: Path, manifest: dict[str, Any]) -> dict[str, Any]:
-    """What a run keeps of its dataset: enough to read features and write poses without it."""
-    cfg = manifest["config"]
-    return {
-        "path": str(dataset.resolve()),
-        "build_key": manifest["build_key"],
-        "fps": cfg["fps"],
-        "sample_rate": cfg["sample_rate"],
-        "features": cfg["features"],
-        "target": cfg["target"],
-        "root_centre": cfg["root_centre"],
-        "normalisation": manifest["normalisation"],
-        "feature_shape": manifest["feature_shape"],
-        "target_dim": manifest["target_dim"],
-    }
-
-
-def _read_manifest(dataset: Path) -> dict[str, Any]:
-    try:
-        return json.loads((dataset / MANIFEST).read_text())
-    except OSError as exc:
-        raise KinectDataError(f"{dataset}: not a dataset (no readable {MANIFEST}: {exc.strerror or exc})") from exc
 
 
 def _start_pose(dataset: Path, manifest: dict[str, Any]) -> list[float]:
@@ -92,6 +79,28 @@ def _start_pose(dataset: Path, manifest: dict[str, Any]) -> list[float]:
             total += np.where(mask, f["current"][rows].astype(np.float64), 0.0).sum(axis=0)
             count += mask.sum(axis=0)
     return (total / np.maximum(count, 1)).tolist()
+
+
+RESUMABLE_CHANGES = ("epochs", "device")
+"""Settings a resumed run may change: neither alters what the finished epochs computed."""
+
+
+def _resumed_config(run: Path, saved: dict[str, Any], asked: TrainConfig | None) -> TrainConfig:
+    """The configuration to resume with: the run's own, with only epochs and device changeable."""
+    own = TrainConfig(**saved)
+    if asked is None:
+        return own
+    differ = [
+        f"{k} {getattr(asked, k)!r} (the run's: {getattr(own, k)!r})"
+        for k in saved
+        if k not in RESUMABLE_CHANGES and getattr(asked, k) != getattr(own, k)
+    ]
+    if differ:
+        raise KinectDataError(
+            f"{run}: cannot resume with other settings: {'; '.join(differ)}; only "
+            f"{' and '.join(RESUMABLE_CHANGES)} may change"
+        )
+    return asked
 
 
 def _batches(windows: WindowDataset, config: TrainConfig, generator: torch.Generator | None) -> DataLoader:
@@ -170,17 +179,28 @@ def train(
     Args:
         dataset: a folder written by ``build-dataset``.
         out: the run folder (created; must not hold a run unless ``resume``).
-        config: :class:`TrainConfig` (default: the paper's settings).
-        resume: continue the run in ``out`` from its checkpoint (same configuration).
+        config: :class:`TrainConfig` (default: the paper's settings; when resuming, the run's own).
+        resume: continue the run in ``out`` from its checkpoint, on the same dataset. Only
+            ``epochs`` (to train longer) and ``device`` may differ from the run's settings.
         stop_after: stop after this epoch (as an interruption would; the run stays resumable).
         progress: called with each epoch's log row.
 
     Returns:
         The log rows of all epochs so far.
     """
-    config = config or TrainConfig()
     dataset, run = Path(dataset), Path(out)
-    manifest = _read_manifest(dataset)
+    manifest = read_manifest(dataset)
+    state = None
+    if resume:
+        state = load_checkpoint(run / CHECKPOINT)
+        saved = json.loads(state["config"])
+        config = _resumed_config(run, saved["train"], config)
+        if saved["dataset"]["build_key"] != manifest["build_key"]:
+            raise KinectDataError(
+                f"{run}: cannot resume on {dataset}: the run was trained on {saved['dataset']['path']} "
+                f"(build key {saved['dataset']['build_key']}, this dataset's is {manifest['build_key']})"
+            )
+    config = config or TrainConfig()
     device = config.resolved_device()
     model_config = YaltaConfig(
         output_dim=manifest["target_dim"],
@@ -207,18 +227,17 @@ def train(
         noise = torch.Generator().manual_seed(config.seed + 2)
         history: list[dict] = []
         step = 0
-        if resume:
-            state = load_checkpoint(run / CHECKPOINT)
-            saved = json.loads(state["config"])
-            same_data = saved["dataset"]["build_key"] == run_config["dataset"]["build_key"]
-            if saved["train"] != run_config["train"] or not same_data:
-                raise KinectDataError(f"{run}: the run was made with another configuration or dataset; cannot resume")
+        if state is not None:
+            run_config["dataset"]["start_pose"] = saved["dataset"]["start_pose"]
+            write_json(run / CONFIG, run_config)  # with the new epochs or device, if changed
             net.load_state_dict(state["model"])
             optimizer.load_state_dict(state["optimizer"])
             order.set_state(state["order_rng"])
             noise.set_state(state["noise_rng"])
             torch.set_rng_state(state["torch_rng"])
             history, step = json.loads(state["history"]), int(state["step"])
+            if len(history) > config.epochs:
+                raise KinectDataError(f"{run}: has trained {len(history)} epochs already, more than {config.epochs}")
         else:
             if (run / CHECKPOINT).exists() or (run / MODEL).exists():
                 raise KinectDataError(f"{run}: already holds a run; use --resume to continue it or another folder")
