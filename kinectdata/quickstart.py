@@ -45,7 +45,7 @@ QUICK_TRAINING = {
     "stride": 10,
     "batch_size": 10,
     "epochs": 3,
-    "lr": 3e-4,
+    "lr": 2e-4,
     "noise_eta": 0.0,
 }
 """The quickstart's training: small batches and no gradient noise so that three epochs on four
