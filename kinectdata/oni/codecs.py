@@ -1,0 +1,293 @@
+"""Decoders of the frame codecs OpenNI writes into ``.oni`` files, as numpy functions.
+
+=========  ==============================================================================
+FourCC     payload
+=========  ==============================================================================
+``NONE``   raw pixels (little-endian)
+``16zP``   16-bit values, "16z" delta coded
+``16zT``   u16 table size N, N u16 table entries, then a 16z stream of indices into the table
+``Im8z``   8-bit values (an RGB888 image's bytes, interleaved), "8z" delta coded
+``JPEG``   a JPEG image (decoded by Pillow: ``pip install kinectdata[jpeg]``)
+=========  ==============================================================================
+
+The 16z and 8z streams are byte codes read in order: nibble pairs of small differences, runs of
+repeats and escapes carrying larger differences or absolute values (OpenNI's
+``XnStreamCompression.cpp``). Where a code starts depends on the codes before it, so a plain
+decoder is a loop over every byte, far too slow in Python for 640x480 at 30 fps. These decoders
+are vectorised instead: every byte that may open a multi-byte code (an escape) is a candidate;
+which candidates really open a code is settled by iterating the rule "a candidate is a code
+unless a real code just before it covers it" over the candidates only (a handful of iterations,
+with an exact sequential pass for pathological chains); after that each code's outputs are laid
+out with cumulative sums and the values follow from one more cumulative sum, restarted at every
+absolute value.
+"""
+
+from __future__ import annotations
+
+import io
+
+import numpy as np
+
+from ..errors import KinectDataError
+
+CODECS = ("NONE", "16zP", "16zT", "Im8z", "JPEG")
+
+
+class CodecError(KinectDataError):
+    """A frame's payload is not valid for its codec (the caller adds file, stream and frame)."""
+
+
+def fourcc(code: int) -> str:
+    """The four characters of a FourCC code (``c1 | c2<<8 | c3<<16 | c4<<24``)."""
+    return int(code).to_bytes(4, "little").decode("latin-1")
+
+
+# -- code starts --------------------------------------------------------------------------------
+
+_JACOBI_ROUNDS = 48
+
+
+def _code_starts(n: int, candidates: np.ndarray, lengths: np.ndarray) -> np.ndarray:
+    """Which of the bytes 0..n-1 start a code.
+
+    Every byte starts a one-byte code unless it is covered by a real multi-byte code before it.
+    ``candidates`` [M] (ascending) are the bytes that would open a code of ``lengths`` [M] (2 or
+    3) bytes if they start one; a candidate is real unless a real candidate 1 or 2 bytes before
+    covers it.
+
+    Returns:
+        [n] bool, True where a code starts.
+    """
+    m = candidates.size
+    real = np.ones(m, bool)
+    if m:
+        # the candidate just before (1 or 2 bytes) that could cover each one
+        k = np.arange(m)
+        gap1 = np.zeros(m, bool)
+        gap1[1:] = candidates[1:] - candidates[:-1] == 1
+        prev1 = np.where(gap1, k - 1, -1)
+        # two bytes before: either the previous candidate (gap 2) or the one before that (gaps 1+1)
+        gap2a = np.zeros(m, bool)
+        gap2a[1:] = candidates[1:] - candidates[:-1] == 2
+        gap2b = np.zeros(m, bool)
+        gap2b[2:] = candidates[2:] - candidates[:-2] == 2
+        prev2 = np.where(gap2a, k - 1, np.where(gap2b, k - 2, -1))
+        long2 = np.zeros(m, bool)
+        ok2 = prev2 >= 0
+        long2[ok2] = lengths[prev2[ok2]] == 3
+        has1, has2 = prev1 >= 0, ok2 & long2
+        p1, p2 = np.maximum(prev1, 0), np.maximum(prev2, 0)
+        for _ in range(_JACOBI_ROUNDS):  # causal recurrence: converges in (longest chain + 1) rounds
+            new = ~((has1 & real[p1]) | (has2 & real[p2]))
+            if np.array_equal(new, real):
+                break
+            real = new
+        else:  # a chain longer than the rounds (only adversarial data): settle it in order
+            real = np.zeros(m, bool)
+            covered = -1
+            for i, (c, length) in enumerate(zip(candidates.tolist(), lengths.tolist())):
+                if c > covered:
+                    real[i] = True
+                    covered = c + length - 1
+    starts = np.ones(n, bool)
+    rc, rl = candidates[real], lengths[real]
+    starts[rc + 1] = False
+    starts[rc[rl == 3] + 2] = False
+    return starts
+
+
+def _expand(
+    first: int,
+    deltas: np.ndarray,
+    reps: np.ndarray,
+    reset_at: np.ndarray,
+    reset_to: np.ndarray,
+    count: int,
+    bits: int,
+    what: str,
+    table: np.ndarray | None = None,
+) -> np.ndarray:
+    """The ``count`` output values from per-code slots.
+
+    Each code has two slots ([C, 2] arrays, flattened in order): slot value = previous value -
+    ``deltas``, except at the flat slot indices ``reset_at`` where it is ``reset_to``; a slot is
+    output ``reps`` times (0: unused, 2n: a run). The first output is ``first``. Values wrap to
+    ``bits`` bits and, with a ``table``, are indices into it.
+    """
+    flat = deltas.ravel()
+    if reset_at.size:  # fold each reset into the differences: the correction landing on its value
+        flat[reset_at] = 0
+        before = np.cumsum(np.add.reduceat(flat, np.concatenate([[0], reset_at]), dtype=np.int64)[:-1])
+        needed = first - before - reset_to  # the total correction the values need from each reset on
+        flat[reset_at] = np.diff(needed, prepend=0)
+    values = first - np.cumsum(flat)  # int32 is enough: |sum| <= 4 * 63 * pixels
+    values &= (1 << bits) - 1
+    reps = reps.ravel()
+    if int(reps.sum(dtype=np.int64)) + 1 < count:
+        raise CodecError(f"{what}: {int(reps.sum(dtype=np.int64)) + 1} values decoded, {count} expected")
+    out = np.empty(values.size + 1, np.uint16 if bits == 16 else np.uint8)
+    out[0], out[1:] = first, values
+    if table is not None:
+        if int(out.max(initial=0)) >= table.size:
+            raise CodecError(f"{what}: an index points past the {table.size}-entry value table")
+        out = table[out]
+    return np.repeat(out, np.concatenate([[1], reps]))[:count]
+
+
+def _slots(table: np.ndarray, codes: np.ndarray) -> np.ndarray:
+    """Rows of a [256, 2] int32 table for each code byte, as a new [C, 2] array. (Gathering
+    the rows as single int64 values is several times faster than numpy's row gather.)"""
+    return table.view(np.int64).ravel()[codes].view(np.int32).reshape(-1, 2)
+
+
+def _need(what: str, have: int, need: int) -> None:
+    if have < need:
+        raise CodecError(f"{what}: the payload ends early ({have} bytes, {need} needed)")
+
+
+def _padded(body: np.ndarray) -> np.ndarray:
+    """The bytes with two zeros appended, so a code cut off by the end can be looked at."""
+    pad = np.zeros(body.size + 2, np.uint8)
+    pad[: body.size] = body
+    return pad
+
+
+# -- 16z ----------------------------------------------------------------------------------------
+# Per code byte: the two slots' differences and repeat counts. A pair byte (< 0xE0) holds two
+# nibbles, each "value -= nibble - 6"; a low nibble D means no second value, F an escape in the
+# following byte(s) (it fills slot 1). 0xE0 + n repeats the value 2n times; 0xFF is an escape
+# alone (slot 0).
+
+_D16 = np.zeros((256, 2), np.int32)
+_R16 = np.zeros((256, 2), np.int32)
+for _b in range(0xE0):
+    _hi, _lo = _b >> 4, _b & 0x0F
+    _D16[_b, 0], _R16[_b, 0] = _hi - 6, 1
+    if _lo != 0x0D:
+        _R16[_b, 1] = 1
+        _D16[_b, 1] = _lo - 6 if _lo != 0x0F else 0
+for _b in range(0xE0, 0xFF):
+    _R16[_b, 0] = 2 * (_b - 0xE0)
+_R16[0xFF, 0] = 1
+
+
+def decode_16z(payload: bytes, count: int, *, table: bool, what: str = "16z frame") -> np.ndarray:
+    """Decode a ``16zP`` (``table=False``) or ``16zT`` payload into ``count`` uint16 values.
+
+    Outputs beyond ``count`` (some writers leave a trailing byte) are dropped; fewer is an error.
+
+    Raises:
+        CodecError: the payload is cut short, makes too few values, or (16zT) indexes past its table.
+    """
+    buf = np.frombuffer(payload, np.uint8)
+    pos, lut = 0, None
+    if table:
+        _need(what, buf.size, 2)
+        size = int(buf[0]) | int(buf[1]) << 8
+        _need(what, buf.size, 2 + 2 * size)
+        lut = buf[2 : 2 + 2 * size].view("<u2").astype(np.uint16)
+        pos = 2 + 2 * size
+    _need(what, buf.size, pos + 2)
+    first = int(buf[pos]) | int(buf[pos + 1]) << 8
+    body = buf[pos + 2 :]
+    n, pad = body.size, _padded(body)
+    opens = np.flatnonzero(((body < 0xE0) & ((body & 0x0F) == 0x0F)) | (body == 0xFF))
+    esc = pad[opens + 1]
+    lengths = 2 + (esc < 0x80).astype(np.int64)
+    starts = _code_starts(n + 2, opens, lengths)[:n]
+    real = starts[opens]
+    rc, rlen, resc = opens[real], lengths[real], esc[real]
+    if rlen.size and rc[-1] + rlen[-1] > n:
+        raise CodecError(f"{what}: the payload ends inside an escape (byte {rc[-1]} of {n})")
+    codes = np.flatnonzero(starts)
+    b = body[codes]
+    deltas, reps = _slots(_D16, b), _slots(_R16, b)
+    slot = 2 * np.searchsorted(codes, rc) + (body[rc] != 0xFF)  # flat slot of each escape
+    small = resc >= 0x80
+    deltas.ravel()[slot[small]] = resc[small].astype(np.int32) - 192
+    big = ~small
+    reset_to = (resc[big].astype(np.int64) << 8) | pad[rc[big] + 2]
+    return _expand(first, deltas, reps, slot[big], reset_to, count, 16, what, lut)
+
+
+# -- 8z -----------------------------------------------------------------------------------------
+# A pair byte (< 0xE0): two nibble differences; low nibble D: none second; F: the next byte is an
+# absolute value (slot 1). 0xE0..0xEF: runs. 0xF0..0xFF: an absolute value made of its low nibble
+# and the next byte's high nibble (slot 0), then by the next byte's low nibble a difference, an
+# absolute third byte (F) or nothing (D) (slot 1).
+
+_D8 = np.zeros((256, 2), np.int32)
+_R8 = np.zeros((256, 2), np.int32)
+for _b in range(0xE0):
+    _hi, _lo = _b >> 4, _b & 0x0F
+    _D8[_b, 0], _R8[_b, 0] = _hi - 6, 1
+    if _lo != 0x0D:
+        _R8[_b, 1] = 1
+        _D8[_b, 1] = _lo - 6 if _lo != 0x0F else 0
+for _b in range(0xE0, 0xF0):
+    _R8[_b, 0] = 2 * (_b - 0xE0)
+_R8[0xF0:, 0] = 1
+
+
+def decode_8z(payload: bytes, count: int, *, what: str = "Im8z frame") -> np.ndarray:
+    """Decode an ``Im8z`` payload into ``count`` uint8 values (extra outputs dropped)."""
+    buf = np.frombuffer(payload, np.uint8)
+    _need(what, buf.size, 1)
+    body = buf[1:]
+    n, pad = body.size, _padded(body)
+    nxt = pad[1 : n + 1]
+    opens = np.flatnonzero(((body < 0xE0) & ((body & 0x0F) == 0x0F)) | (body >= 0xF0))
+    high = body[opens] >= 0xF0
+    lengths = np.where(high & ((nxt[opens] & 0x0F) == 0x0F), 3, 2)
+    starts = _code_starts(n + 2, opens, lengths)[:n]
+    real = starts[opens]
+    rc, rlen = opens[real], lengths[real]
+    if rlen.size and rc[-1] + rlen[-1] > n:
+        raise CodecError(f"{what}: the payload ends inside a code (byte {rc[-1]} of {n})")
+    codes = np.flatnonzero(starts)
+    b = body[codes]
+    deltas, reps = _slots(_D8, b), _slots(_R8, b)
+    # pair with low nibble F: slot 1 is the next byte, absolute
+    pf = np.flatnonzero((b < 0xE0) & ((b & 0x0F) == 0x0F))
+    at = [2 * pf + 1]
+    to = [pad[codes[pf] + 1]]
+    # 0xF?: slot 0 absolute; slot 1 by the next byte's low nibble
+    hi = np.flatnonzero(b >= 0xF0)
+    second = pad[codes[hi] + 1]
+    at.append(2 * hi)
+    to.append(((b[hi] & 0x0F) << 4) | (second >> 4))
+    lo2 = second & 0x0F
+    d2 = (lo2 != 0x0D) & (lo2 != 0x0F)
+    deltas[hi[d2], 1] = lo2[d2].astype(np.int32) - 6
+    reps[hi[lo2 != 0x0D], 1] = 1
+    a2 = lo2 == 0x0F
+    at.append(2 * hi[a2] + 1)
+    to.append(pad[codes[hi[a2]] + 2])
+    reset_at = np.concatenate(at)
+    order = np.argsort(reset_at, kind="stable")
+    reset_to = np.concatenate(to).astype(np.int64)[order]
+    return _expand(int(buf[0]), deltas, reps, reset_at[order], reset_to, count, 8, what)
+
+
+# -- JPEG and raw -------------------------------------------------------------------------------
+
+
+def decode_jpeg(payload: bytes, *, what: str = "JPEG frame") -> np.ndarray:
+    """A JPEG frame as uint8 [H, W, 3] (or [H, W] for greyscale), decoded by Pillow."""
+    try:
+        from PIL import Image
+    except ImportError:
+        raise CodecError(f"{what}: JPEG frames need Pillow: pip install 'kinectdata[jpeg]'") from None
+    try:
+        with Image.open(io.BytesIO(payload)) as im:
+            im.load()
+            return np.asarray(im)
+    except (OSError, ValueError) as exc:
+        raise CodecError(f"{what}: not a readable JPEG image ({exc})") from exc
+
+
+def decode_raw(payload: bytes, dtype: np.dtype, count: int, *, what: str = "raw frame") -> np.ndarray:
+    """``count`` values of ``dtype`` (little-endian) from a ``NONE`` payload (extra bytes dropped)."""
+    dtype = np.dtype(dtype).newbyteorder("<")
+    _need(what, len(payload), count * dtype.itemsize)
+    return np.frombuffer(payload, dtype, count).astype(dtype.newbyteorder("="))

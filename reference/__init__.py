@@ -1,0 +1,6 @@
+"""Independent references the tests and benchmarks check kinectdata against (not shipped).
+
+- :mod:`.oni_python`: OpenNI's ``.oni`` codecs as plain loops, and a recording writer;
+- :mod:`.openni`: the real OpenNI libraries (1.x and 2), driven through a small C++ tool and
+  the ``openni`` Python bindings, when they are installed.
+"""

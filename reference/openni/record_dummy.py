@@ -1,0 +1,34 @@
+"""Record OpenNI2's Dummy device to an .oni file (run as a child process: OpenNI2 may crash
+while unloading, after the file is complete and this has printed "recorded").
+
+usage: record_dummy.py OPENNI2_DIR OUT.oni SECONDS [--color] [--lossy]
+"""
+
+import sys
+import time
+
+from openni import openni2
+
+
+def main(argv: list[str]) -> None:
+    folder, out, seconds = argv[0], argv[1], float(argv[2])
+    color, lossy = "--color" in argv, "--lossy" in argv
+    openni2.initialize(folder)
+    device = openni2.Device(b"Dummy")
+    streams = [device.create_depth_stream()] + ([device.create_color_stream()] if color else [])
+    recorder = openni2.Recorder(out.encode())
+    for i, stream in enumerate(streams):
+        recorder.attach(stream, allow_lossy_compression=lossy and i > 0)
+        stream.start()
+    recorder.start()
+    started = time.monotonic()
+    while time.monotonic() - started < seconds:
+        streams[0].read_frame()
+    recorder.stop()
+    for stream in streams:
+        stream.stop()
+    print("recorded", flush=True)
+
+
+if __name__ == "__main__":
+    main(sys.argv[1:])
