@@ -2,12 +2,15 @@
 
 from __future__ import annotations
 
+import sys
 from pathlib import Path
 
 import pytest
 
 DATA = Path(__file__).parent / "data"
 REPO = Path(__file__).parent.parent
+if str(REPO) not in sys.path:  # the independent references in reference/ (not shipped)
+    sys.path.append(str(REPO))  # appended: the installed kinectdata still comes first
 
 
 @pytest.fixture

@@ -14,6 +14,7 @@ from kinectdata.cli import main
 COMMANDS = [
     "info",
     "formats",
+    "oni",
     "align",
     "build-dataset",
     "inspect",

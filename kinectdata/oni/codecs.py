@@ -282,7 +282,7 @@ def decode_jpeg(payload: bytes, *, what: str = "JPEG frame") -> np.ndarray:
         with Image.open(io.BytesIO(payload)) as im:
             im.load()
             return np.asarray(im)
-    except (OSError, ValueError) as exc:
+    except Exception as exc:  # Pillow raises OSError, SyntaxError, DecompressionBombError...
         raise CodecError(f"{what}: not a readable JPEG image ({exc})") from exc
 
 

@@ -144,10 +144,14 @@ class OniStream:
 
     @property
     def frame_layout(self) -> tuple[tuple[int, ...], np.dtype]:
-        """Shape and dtype of a decoded frame: depth uint16 [H, W], RGB uint8 [H, W, 3]..."""
+        """Shape and dtype of a decoded frame: depth uint16 [H, W], RGB uint8 [H, W, 3]...
+
+        Raises:
+            ValueError: the stream's properties give no resolution.
+        """
         res = self.resolution
         if res is None:
-            raise OniError(f"stream {self.name!r} has no resolution (no xnMapOutputMode property)")
+            raise ValueError(f"stream {self.name!r} has no resolution (no xnMapOutputMode property)")
         dtype, channels = _LAYOUTS.get(self.pixel_format, (np.uint16 if self.kind == "depth" else np.uint8, 1))
         if self.kind == "depth":
             dtype, channels = np.uint16, 1
@@ -415,7 +419,10 @@ _GEOMETRY = ("xnMapOutputMode", "xnCropping", "oniPixelFormat", "xnPixelFormat")
 
 def decode_frame(stream: OniStream, payload, what: str) -> np.ndarray:
     """A frame's payload decoded by the stream's codec into :attr:`OniStream.frame_layout`."""
-    shape, dtype = stream.frame_layout
+    try:
+        shape, dtype = stream.frame_layout
+    except ValueError as exc:
+        raise CodecError(f"{what}: {exc}") from None
     count = int(np.prod(shape))
     codec = stream.codec
     if codec == "16zT" or codec == "16zP":
