@@ -284,14 +284,21 @@ def align_files(
     schema: str | None = None,
     body: str | None = None,
     sample_rate: int = DEFAULT_SAMPLE_RATE,
+    timeline: str | Path | None = None,
     **options: Any,
 ) -> AlignedRecording:
     """Read a recording and an audio file, align them (:func:`align`) and write ``out`` (HDF5).
 
-    ``format``, ``schema`` and ``body`` go to the reader; other options to :func:`align`.
-    Nothing is written when anything fails.
+    ``format``, ``schema`` and ``body`` go to the reader; ``timeline``, an ``.oni`` recorded
+    with the skeleton, gives its frames that recording's depth timestamps
+    (:func:`kinectdata.oni.skeleton.retime`); other options go to :func:`align`. Nothing is
+    written when anything fails.
     """
     motion = read_motion(recording, format=format, schema=schema, body=body)
+    if timeline is not None:
+        from .oni.skeleton import retime
+
+        motion = retime(motion, timeline)
     audio = load_audio(audio_path, sample_rate=sample_rate)
     result = align(motion, audio, **options)
     result.provenance["motion"].update({"path": str(recording), "sha256": file_sha256(recording)})
@@ -301,6 +308,7 @@ def align_files(
         "schema": schema,
         "body": body,
         "sample_rate": sample_rate,
+        "timeline": None if timeline is None else str(timeline),
         **{k: v for k, v in options.items()},
     }
     if out is not None:

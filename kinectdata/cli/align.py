@@ -80,6 +80,14 @@ class OffsetType(click.ParamType):
     "longer gaps stay masked and are reported.",
 )
 @click.option(
+    "--timeline",
+    default=None,
+    type=click.Path(dir_okay=False, path_type=str),
+    metavar="FILE.oni",
+    help="An .oni recorded with the skeleton: its depth frames' timestamps become the skeleton's "
+    "times (one skeleton frame per depth frame).",
+)
+@click.option(
     "--min-coverage",
     default=DEFAULT_MIN_COVERAGE,
     show_default=True,
@@ -99,6 +107,7 @@ def align(
     max_offset,
     min_confidence,
     max_gap,
+    timeline,
     min_coverage,
 ) -> None:
     """Align a skeleton RECORDING with its AUDIO and write them to one HDF5 file.
@@ -116,6 +125,7 @@ def align(
         schema=schema,
         body=body,
         sample_rate=sample_rate,
+        timeline=timeline,
         fps=fps,
         offset=offset,
         max_gap=max_gap,

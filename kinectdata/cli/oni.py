@@ -62,4 +62,42 @@ def export_command(file, stream, out, start, end, compression) -> None:
     )
 
 
+@oni.command("skeleton")
+@click.argument("file", type=click.Path(dir_okay=False))
+@click.option("-o", "--out", required=True, type=click.Path(dir_okay=False), help="Canonical skeleton CSV to write.")
+@click.option(
+    "--nite",
+    "nite_dir",
+    default=None,
+    type=click.Path(file_okay=False),
+    help="Folder with libNiTE2.so and its NiTE2/ data (default: $NITE2_REDIST64, ./NiTE2, /usr/lib...).",
+)
+@click.option("--user", type=int, default=None, help="NiTE user id. Default: the user tracked longest.")
+def skeleton_command(file, out, nite_dir, user) -> None:
+    """Track the dancer in FILE with NiTE2's user tracker (not shipped with kinectdata: it must be
+    installed) and write the 15-joint skeleton (metres, quaternions x, y, z, w) as canonical CSV,
+    its times the recording's own depth timestamps in seconds."""
+    from tqdm import tqdm
+
+    from ..formats.csv_writer import write_csv
+    from ..oni.skeleton import track_skeleton
+
+    with tqdm(unit="frame", desc="tracking", disable=None) as bar:
+
+        def progress(done: int, total: int) -> None:
+            bar.total = total
+            bar.update(done - bar.n)
+
+        motion = track_skeleton(file, nite_dir=nite_dir, user=user, progress=progress)
+    origin_s = motion.metadata["time_origin"]["value"] / 1e6
+    write_csv(
+        motion,
+        out,
+        "canonical",
+        time_origin=origin_s,
+        comments={"tracked_by": "NiTE2 user tracker", "source": str(file), "user": str(motion.metadata["user"])},
+    )
+    click.echo(f"wrote {out}: {motion.n_frames} frames of user {motion.metadata['user']} ({motion.duration:.2f} s)")
+
+
 COMMANDS = [oni]
