@@ -31,9 +31,9 @@ def main() -> None:
 
 
 def _register() -> None:
-    from . import align, dataset, info, oni, quickstart, synth, train
+    from . import align, capture, dataset, info, oni, quickstart, synth, train
 
-    for module in (info, oni, align, dataset, train, synth, quickstart):
+    for module in (info, oni, capture, align, dataset, train, synth, quickstart):
         for command in module.COMMANDS:
             main.add_command(command)
 

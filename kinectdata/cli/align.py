@@ -25,7 +25,7 @@ class OffsetType(click.ParamType):
 
 @click.command()
 @click.argument("recording", type=click.Path(dir_okay=True, path_type=str))
-@click.argument("audio", type=click.Path(dir_okay=False, path_type=str))
+@click.argument("audio", required=False, type=click.Path(dir_okay=False, path_type=str))
 @click.option(
     "-o",
     "--out",
@@ -116,23 +116,34 @@ def align(
     after making quaternions sign-continuous), short tracking gaps are filled and flagged, the
     audio is read (WAV, FLAC, OGG, MP3...), mixed to mono and resampled, and both are trimmed to
     the span they share. A summary is printed.
+
+    RECORDING may be a take folder written by `kinectdata capture` (no AUDIO then): its skeleton
+    and audio are aligned with the offset from the take's clock stamps.
     """
-    result = align_files(
-        recording,
-        audio,
-        out,
-        format=format_,
-        schema=schema,
-        body=body,
-        sample_rate=sample_rate,
-        timeline=timeline,
-        fps=fps,
-        offset=offset,
-        max_gap=max_gap,
-        min_coverage=min_coverage,
-        max_offset=max_offset,
-        min_confidence=min_confidence,
-    )
+    from ..capture.take import align_take, is_take
+
+    common = {
+        "format": format_,
+        "schema": schema,
+        "body": body,
+        "sample_rate": sample_rate,
+        "timeline": timeline,
+        "fps": fps,
+        "max_gap": max_gap,
+        "min_coverage": min_coverage,
+    }
+    if is_take(recording):
+        if audio is not None:
+            raise click.UsageError("a take folder brings its own audio; give no AUDIO")
+        if offset != "auto":
+            raise click.UsageError("a take's offset comes from its clock stamps; give no --offset")
+        result = align_take(recording, out, **common)
+    elif audio is None:
+        raise click.UsageError("missing AUDIO (only a take folder brings its own)")
+    else:
+        result = align_files(
+            recording, audio, out, offset=offset, max_offset=max_offset, min_confidence=min_confidence, **common
+        )
     click.echo(format_summary(result))
     click.echo(f"wrote {out}")
 

@@ -68,7 +68,7 @@ def find_nite(nite_dir: str | os.PathLike | None = None) -> Path:
     )
 
 
-def _openni2_dir() -> Path:
+def openni2_dir() -> Path:
     """A folder with libOpenNI2.so and OpenNI2/Drivers, as the ``openni`` bindings want it."""
     for d in (os.environ.get("OPENNI2_REDIST64"), os.environ.get("OPENNI2_REDIST"), *OPENNI2_LIBRARY_DIRS):
         if d and (Path(d) / "libOpenNI2.so").exists() and (Path(d) / "OpenNI2" / "Drivers").is_dir():
@@ -132,6 +132,25 @@ def nite_motion(frames: Sequence[TrackedFrame], source: str, user: int | None = 
     )
 
 
+def tracked_users(tracker, frame, nite2) -> dict[int, np.ndarray]:
+    """Per user whose skeleton NiTE2 tracks in ``frame``, [15, 9] joint rows (see
+    :class:`TrackedFrame`); tracking is started for users that just appeared."""
+    users = {}
+    for u in frame.users:
+        if u.is_new():
+            tracker.start_skeleton_tracking(u.id)
+        elif u.skeleton.state == nite2.SkeletonState.NITE_SKELETON_TRACKED:
+            joints = (u.skeleton.joints[k] for k in range(NITE_JOINTS))
+            users[int(u.id)] = np.array(
+                [
+                    [j.position.x, j.position.y, j.position.z, j.positionConfidence]
+                    + [j.orientation.x, j.orientation.y, j.orientation.z, j.orientation.w, j.orientationConfidence]
+                    for j in joints
+                ]
+            )
+    return users
+
+
 def track_skeleton(
     path: str | os.PathLike,
     *,
@@ -157,7 +176,7 @@ def track_skeleton(
         raise KinectDataError(
             "skeleton tracking needs the openni Python bindings: pip install 'kinectdata[openni]'"
         ) from None
-    openni2.initialize(str(_openni2_dir()))
+    openni2.initialize(str(openni2_dir()))
     nite2.initialize(str(nite_folder))
     device = openni2.Device.open_file(str(path).encode())
     device.playback.repeat = False
@@ -167,27 +186,7 @@ def track_skeleton(
     try:
         while len(frames) < total:
             frame = tracker.read_frame()
-            users = {}
-            for u in frame.users:
-                if u.is_new():
-                    tracker.start_skeleton_tracking(u.id)
-                elif u.skeleton.state == nite2.SkeletonState.NITE_SKELETON_TRACKED:
-                    users[int(u.id)] = np.array(
-                        [
-                            [
-                                j.position.x,
-                                j.position.y,
-                                j.position.z,
-                                j.positionConfidence,
-                                j.orientation.x,
-                                j.orientation.y,
-                                j.orientation.z,
-                                j.orientation.w,
-                                j.orientationConfidence,
-                            ]
-                            for j in (u.skeleton.joints[k] for k in range(NITE_JOINTS))
-                        ]
-                    )
+            users = tracked_users(tracker, frame, nite2)
             frames.append(TrackedFrame(int(frame.timestamp), int(frame.frameIndex), users))
             if progress:
                 progress(len(frames), total)

@@ -1,0 +1,93 @@
+"""The OpenNI2 side of a capture, run in its own process (``python -m kinectdata.capture.openni_session
+SETTINGS.json``): OpenNI2 drivers may crash while the library unloads at process exit, after
+the recording is complete, and that must not take the capture command down with it.
+
+It opens the device, records depth (and colour) to the ``.oni`` with OpenNI2's recorder, reads
+every depth frame to note when it arrived on the monotonic clock, runs NiTE2's user tracker
+when asked and available, and writes a status JSON: the frames it saw (device timestamps and
+arrival times), the skeleton's tracked frames, and what went wrong. The parent
+(:mod:`.take`) turns that into ``take.json``.
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+
+def run(settings: dict[str, Any]) -> dict[str, Any]:
+    from openni import openni2
+
+    from ..oni.skeleton import tracked_users
+
+    status: dict[str, Any] = {"frames": [], "skeleton": None, "skeleton_problem": None}
+    openni2.initialize(settings["openni2_dir"])
+    uri = settings.get("device")
+    device = openni2.Device(uri.encode() if uri else None)
+    info = device.get_device_info()
+    status["device"] = {
+        "uri": info.uri.decode("latin-1"),
+        "vendor": info.vendor.decode("latin-1"),
+        "name": info.name.decode("latin-1"),
+    }
+    depth = device.create_depth_stream()
+    streams = [depth]
+    if settings.get("color"):
+        streams.append(device.create_color_stream())
+    recorder = openni2.Recorder(settings["oni"].encode())
+    for i, stream in enumerate(streams):
+        recorder.attach(stream, allow_lossy_compression=bool(settings.get("lossy")) and i > 0)
+    tracker = nite2 = None
+    if settings.get("nite_dir"):
+        try:
+            from openni import nite2 as _nite2
+
+            _nite2.initialize(settings["nite_dir"])
+            nite2, tracker = _nite2, _nite2.UserTracker(device)
+        except Exception as exc:  # NiTE2's own errors (missing data files, licence...)
+            status["skeleton_problem"] = f"NiTE2 could not start: {exc}"
+    recorder.start()  # before the streams: the first frame read is then the first recorded
+    for stream in streams:
+        stream.start()
+    tracked = []
+    started = time.monotonic()
+    while time.monotonic() - started < settings["duration"]:
+        if tracker is not None:
+            frame = tracker.read_frame()
+            arrived = time.monotonic()
+            stamp, index = int(frame.timestamp), int(frame.frameIndex)
+            users = {u: rows.tolist() for u, rows in tracked_users(tracker, frame, nite2).items()}
+            tracked.append([stamp, index, users])
+        else:
+            frame = depth.read_frame()
+            arrived = time.monotonic()
+            stamp, index = int(frame.timestamp), int(frame.frameIndex)
+        status["frames"].append([stamp, index, arrived])
+    recorder.stop()
+    for stream in streams:
+        stream.stop()
+    if tracker is not None:
+        status["skeleton"] = tracked
+    return status
+
+
+def main(argv: list[str]) -> None:
+    settings = json.loads(Path(argv[0]).read_text())
+    try:
+        status = run(settings)
+    except Exception as exc:  # reported to the parent, which names the device and the take
+        status = {"error": f"{type(exc).__name__}: {exc}"}
+    out = Path(settings["status"])
+    tmp = out.with_suffix(".partial")
+    tmp.write_text(json.dumps(status, default=lambda o: o.tolist() if isinstance(o, np.ndarray) else str(o)))
+    tmp.replace(out)
+    print("captured", flush=True)
+
+
+if __name__ == "__main__":
+    main(sys.argv[1:])

@@ -1,0 +1,182 @@
+"""kinectdata capture: OpenNI2's Dummy device, audio on the same clock, and align TAKE/."""
+
+from __future__ import annotations
+
+import json
+import threading
+import time
+import warnings
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+import soundfile as sf
+from click.testing import CliRunner
+
+from kinectdata.capture.take import _oni_zero_clock, align_take, capture_take, read_take
+from kinectdata.cli import main
+from kinectdata.errors import KinectDataError
+from kinectdata.formats.csv_writer import write_csv
+from kinectdata.oni import OniFile
+from kinectdata.oni.skeleton import TrackedFrame, nite_motion
+from reference import openni as openni_ref
+
+
+@pytest.fixture(scope="module")
+def openni2():
+    missing = openni_ref.openni2_missing()
+    if missing:
+        pytest.skip(f"OpenNI2 not usable here: {missing}")
+
+
+class FakeInput:
+    """Stands in for sounddevice.InputStream: delivers a 440 Hz tone in real time, with the
+    stream clock 1000 s ahead of the monotonic clock, as PortAudio's may be."""
+
+    def __init__(self, device, samplerate, channels, dtype, callback):
+        self.rate, self.channels, self.callback = samplerate, channels, callback
+        self.running = False
+
+    def start(self):
+        self.running = True
+        self.t0 = time.monotonic()
+        self.thread = threading.Thread(target=self._run, daemon=True)
+        self.thread.start()
+
+    def _run(self):
+        block, n = 480, 0
+        while self.running:
+            due = self.t0 + (n + 1) * block / self.rate
+            time.sleep(max(0.0, due - time.monotonic()))
+            t = (n * block + np.arange(block)) / self.rate
+            data = np.repeat((0.1 * np.sin(2 * np.pi * 440 * t)).astype(np.float32)[:, None], self.channels, 1)
+            info = SimpleNamespace(
+                inputBufferAdcTime=1000 + n * block / self.rate, currentTime=1000 + time.monotonic() - self.t0
+            )
+            self.callback(data, block, info, None)
+            n += 1
+
+    def stop(self):
+        self.running = False
+        self.thread.join()
+
+    def close(self):
+        pass
+
+
+def test_the_oni_time_zero_is_placed_by_the_least_delayed_frame():
+    rng = np.random.default_rng(0)
+    device_us = 5_000_000 + np.arange(40) * 33_333 + rng.integers(-40, 40, 40)  # the device's clock and jitter
+    zero_clock = 100.0  # the clock time at which the first recorded frame was captured
+    arrival = zero_clock + (device_us - device_us[0]) / 1e6 + 0.004 + rng.uniform(0, 0.01, 40)
+    arrival[17] = zero_clock + (device_us[17] - device_us[0]) / 1e6 + 0.001  # the quickest delivery
+    frames = [[int(d), i, float(a)] for i, (d, a) in enumerate(zip(device_us, arrival))]
+    file_us = (device_us - device_us[0]).astype(np.uint64)
+    clock, matched = _oni_zero_clock(frames, file_us, "t.oni")
+    assert matched == 40 and clock == pytest.approx(zero_clock + 0.001, abs=1e-9)
+    clock, matched = _oni_zero_clock(frames[2:], file_us, "t.oni")  # the session missed the first two
+    assert matched == 38 and clock == pytest.approx(zero_clock + 0.001, abs=1e-9)
+
+
+def test_capture_from_the_dummy_device(openni2, tmp_path):
+    before = time.monotonic()
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        doc = capture_take(tmp_path / "take", device="Dummy", duration_s=0.8)
+    after = time.monotonic()
+    assert read_take(tmp_path / "take") == doc
+    assert doc["device"]["uri"] == "Dummy" and doc["audio"] is None and doc["offset_s"] is None
+    with OniFile(tmp_path / "take" / "take.oni") as oni:
+        assert not oni.truncated and oni.stream("depth").n_frames == doc["oni"]["depth_frames"] >= 10
+    assert doc["oni"]["frames_matched_to_clock"] >= doc["oni"]["depth_frames"] - 1
+    assert before < doc["oni"]["zero_clock_s"] < after
+    if doc["skeleton"] is None:
+        assert any("NiTE2" in p for p in doc["problems"])
+        with pytest.raises(KinectDataError, match="this take has no skeleton .* `kinectdata oni skeleton"):
+            align_take(tmp_path / "take", tmp_path / "a.h5")
+    with pytest.raises(KinectDataError, match="already holds a take"):
+        capture_take(tmp_path / "take", device="Dummy", duration_s=0.5)
+
+
+def test_a_take_with_audio_aligns_without_an_offset_guess(openni2, tmp_path):
+    take = tmp_path / "take"
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        streams = []
+        doc = capture_take(
+            take,
+            device="Dummy",
+            duration_s=1.5,
+            audio_device="fake",
+            audio_stream_factory=lambda **kw: streams.append(FakeInput(**kw)) or streams[-1],
+        )
+    audio = doc["audio"]
+    assert audio["first_sample_clock_s"] == pytest.approx(streams[0].t0, abs=0.002)  # from the stream's own clock
+    samples, rate = sf.read(take / "take.wav")
+    assert rate == 48000 and samples.shape[0] == audio["frames"] and samples.shape[0] / rate > 1.4
+    # the audio started first (the sensor is opened after it), by a fraction of a second
+    assert doc["offset_s"] == pytest.approx(doc["oni"]["zero_clock_s"] - audio["first_sample_clock_s"])
+    assert 0 < doc["offset_s"] < 5
+    # a skeleton made afterwards (as `oni skeleton` would), one frame per depth frame, .oni-stamped
+    with OniFile(take / "take.oni") as oni:
+        stamps = oni.stream("depth").timestamps_us
+    rng = np.random.default_rng(0)
+    frames = [
+        TrackedFrame(
+            int(t),
+            i + 1,
+            {
+                1: np.c_[
+                    rng.normal(0, 300, (15, 3)) + [0, 0, 2500],
+                    np.ones(15),
+                    np.tile([0, 0, 0, 1.0], (15, 1)),
+                    np.ones(15),
+                ]
+            },
+        )
+        for i, t in enumerate(stamps[3:])
+    ]
+    motion = nite_motion(frames, str(take / "take.oni"))
+    write_csv(motion, take / "take.csv", "canonical", time_origin=float(stamps[3]) / 1e6)
+    result = CliRunner().invoke(main, ["align", str(take), "-o", str(tmp_path / "a.h5")])
+    assert result.exit_code == 0, result.output
+    from kinectdata.aligned import AlignedRecording
+
+    rec = AlignedRecording.load(tmp_path / "a.h5", audio=False)
+    expected = doc["oni"]["zero_clock_s"] + float(stamps[3]) / 1e6 - audio["first_sample_clock_s"]
+    assert rec.offset["source"] == "given" and rec.offset["seconds"] == pytest.approx(expected, abs=1e-9)
+    result = CliRunner().invoke(main, ["align", str(take), str(take / "take.wav"), "-o", str(tmp_path / "b.h5")])
+    assert result.exit_code == 2 and "a take folder brings its own audio" in result.output
+
+
+def test_a_failed_capture_leaves_nothing(openni2, tmp_path):
+    with pytest.raises(KinectDataError, match="OpenNI2 device NoSuchSensor"):
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            capture_take(tmp_path / "take", device="NoSuchSensor", duration_s=0.5)
+    assert list((tmp_path / "take").iterdir()) == []
+
+
+def test_capture_command(openni2, tmp_path):
+    result = CliRunner().invoke(main, ["capture", "--device", "Dummy", "--duration", "0.5", "-o", str(tmp_path / "t")])
+    assert result.exit_code == 0, result.output
+    assert "depth frames (depth) from Dummy" in result.output and "take.json" in result.output
+    assert json.loads((tmp_path / "t" / "take.json").read_text())["format"] == "kinectdata.take"
+    assert CliRunner().invoke(main, ["capture", "--list"]).exit_code == 0
+
+
+def test_real_audio_capture_where_an_input_exists(tmp_path):
+    from kinectdata.capture.audio import AudioCapture, input_devices
+
+    try:
+        devices = input_devices()
+    except KinectDataError as exc:
+        pytest.skip(f"no audio capture here: {exc}")
+    if not devices:
+        pytest.skip("no audio input device on this machine")
+    capture = AudioCapture(tmp_path / "a.wav", devices[0]["index"], int(devices[0]["sample_rate"]))
+    capture.start()
+    time.sleep(0.5)
+    capture.stop()
+    assert capture.frames > 0 and capture.first_sample_clock_s is not None
+    assert sf.info(tmp_path / "a.wav").frames == capture.frames
