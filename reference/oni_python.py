@@ -218,7 +218,8 @@ PIXEL_FORMATS = {"depth": (100, 4), "image": (200, 1), "ir": (203, 4)}  # (oniPi
 @dataclass
 class StreamSpec:
     """A stream to write: ``frames`` [N, H, W] or [N, H, W, 3], with timestamps (us) and 1-based
-    frame numbers (default 0, 33333... and 1..N)."""
+    frame numbers (default 0, 33333... and 1..N); ``added_late``: its node is added just before
+    its first frame, after other streams' data began."""
 
     name: str
     kind: str
@@ -228,6 +229,7 @@ class StreamSpec:
     timestamps_us: list[int] | None = None
     frame_numbers: list[int] | None = None
     extra_properties: dict = field(default_factory=dict)
+    added_late: bool = False  # its node is added after the recording's data began (OpenNI 1.x allows it)
 
 
 def _string(s: str) -> bytes:
@@ -271,11 +273,9 @@ def write_oni(
     added_type = 0x02 if version <= (1, 0, 0, 4) else 0x0C if version <= (1, 0, 0, 5) else 0x0D
     w = _Writer(old32)
     w.buf += b"NI10" + struct.pack("<BBHIQI", *version, 2**64 - 1, len(streams))
-    added, payloads, last = {}, {}, {}
-    for node, s in enumerate(streams, start=1):
-        n = len(s.frames)
-        s.timestamps_us = s.timestamps_us or [round(i * 1e6 / s.fps) for i in range(n)]
-        s.frame_numbers = s.frame_numbers or list(range(1, n + 1))
+    added, payloads, last, data_begin = {}, {}, {}, {}
+
+    def add_node(node: int, s: StreamSpec) -> None:
         codec = int.from_bytes(s.codec.encode("latin-1"), "little")
         fields = _string(s.name) + struct.pack("<II", NODE_TYPES[s.kind], codec)
         if added_type != 0x02:
@@ -297,18 +297,30 @@ def write_oni(
                 w.record(0x03, node, _string(name) + struct.pack("<Iq", 8, value))
             else:
                 w.record(0x06, node, _string(name) + struct.pack("<I", len(value)) + value)
-        payloads[node] = [ENCODERS[s.codec](f) for f in s.frames]
-    data_begin = {}
-    for node in added:
+
+    def begin_data(node: int) -> None:
         w.record(0x09, node, b"")
         data_begin[node] = w.record(0x08, node, struct.pack("<IQ", 0, 0))
-    seek = {node: [] for node in added}
+
+    for node, s in enumerate(streams, start=1):
+        n = len(s.frames)
+        s.timestamps_us = s.timestamps_us or [round(i * 1e6 / s.fps) for i in range(n)]
+        s.frame_numbers = s.frame_numbers or list(range(1, n + 1))
+        payloads[node] = [ENCODERS[s.codec](f) for f in s.frames]
+        if not s.added_late:
+            add_node(node, s)
+    for node in list(added):
+        begin_data(node)
+    seek = {node: [] for node in range(1, len(streams) + 1)}
     order = sorted(
         ((s.timestamps_us[i], node, i) for node, s in enumerate(streams, start=1) for i in range(len(s.frames))),
         key=lambda t: (t[0], t[1]),
     )
     for ts, node, i in order:
         s = streams[node - 1]
+        if node not in added:  # a stream added while recording: its records come just before its data
+            add_node(node, s)
+            begin_data(node)
         pos = w.record(0x0A, node, struct.pack("<QI", ts, s.frame_numbers[i]), payloads[node][i], last.get(node, 0))
         last[node] = pos
         seek[node].append((ts, pos))

@@ -72,10 +72,10 @@ def test_the_oni_time_zero_is_placed_by_the_least_delayed_frame():
     arrival[17] = zero_clock + (device_us[17] - device_us[0]) / 1e6 + 0.001  # the quickest delivery
     frames = [[int(d), i, float(a)] for i, (d, a) in enumerate(zip(device_us, arrival))]
     file_us = (device_us - device_us[0]).astype(np.uint64)
-    clock, matched = _oni_zero_clock(frames, file_us, "t.oni")
-    assert matched == 40 and clock == pytest.approx(zero_clock + 0.001, abs=1e-9)
-    clock, matched = _oni_zero_clock(frames[2:], file_us, "t.oni")  # the session missed the first two
-    assert matched == 38 and clock == pytest.approx(zero_clock + 0.001, abs=1e-9)
+    clock, matched, shift = _oni_zero_clock(frames, file_us, "t.oni")
+    assert matched == 40 and clock == pytest.approx(zero_clock + 0.001, abs=1e-9) and shift == device_us[0]
+    clock, matched, shift = _oni_zero_clock(frames[2:], file_us, "t.oni")  # the session missed the first two
+    assert matched == 38 and clock == pytest.approx(zero_clock + 0.001, abs=1e-9) and shift == device_us[0]
 
 
 def test_capture_from_the_dummy_device(openni2, tmp_path):
@@ -180,3 +180,46 @@ def test_real_audio_capture_where_an_input_exists(tmp_path):
     capture.stop()
     assert capture.frames > 0 and capture.first_sample_clock_s is not None
     assert sf.info(tmp_path / "a.wav").frames == capture.frames
+
+
+def fake_session(tracked_users_by_frame):
+    """A stand-in for the OpenNI2 child process: records OpenNI2's Dummy device for real, and
+    reports its frames on a device clock 5 s ahead of the file's, with a live tracker's output."""
+
+    def run(take, device, duration_s, color, lossy, nite_folder):
+        openni_ref.record_dummy(take / "take.oni", duration_s)
+        with OniFile(take / "take.oni") as oni:
+            stamps = oni.stream("depth").timestamps_us.astype(int)
+        now = time.monotonic()
+        frames = [[int(t) + 5_000_000, i, now + t / 1e6 + 0.002] for i, t in enumerate(stamps)]
+        skeleton = [[int(t) + 5_000_000, i, tracked_users_by_frame(i)] for i, t in enumerate(stamps)]
+        return {"device": {"uri": "Dummy", "vendor": "", "name": ""}, "frames": frames, "skeleton": skeleton}
+
+    return run
+
+
+def test_a_live_skeleton_is_put_on_the_oni_timeline(openni2, tmp_path, monkeypatch):
+    import kinectdata.capture.take as take_module
+
+    rows = np.c_[np.zeros((15, 3)) + [0, 0, 2500], np.ones(15), np.tile([0, 0, 0, 1.0], (15, 1)), np.ones(15)]
+    monkeypatch.setattr(take_module, "_run_session", fake_session(lambda i: {3: rows.tolist()} if i >= 4 else {}))
+    monkeypatch.setattr(take_module, "find_nite", lambda nite_dir=None: tmp_path)
+    doc = capture_take(tmp_path / "take", device="Dummy", duration_s=0.6)
+    with OniFile(tmp_path / "take" / "take.oni") as oni:
+        stamps = oni.stream("depth").timestamps_us
+    from kinectdata.formats import read_motion
+
+    skeleton = read_motion(tmp_path / "take" / "take.csv")
+    assert doc["skeleton"]["frames"] == len(stamps) - 4 and doc["skeleton"]["user"] == 3
+    assert skeleton.metadata["time_origin"]["value"] == pytest.approx(stamps[4] / 1e6)  # .oni time, not the device's
+    np.testing.assert_allclose(skeleton.times, (stamps[4:] - stamps[4]) / 1e6, atol=1e-6)
+
+
+def test_nobody_tracked_keeps_the_recording(openni2, tmp_path, monkeypatch):
+    import kinectdata.capture.take as take_module
+
+    monkeypatch.setattr(take_module, "_run_session", fake_session(lambda i: {}))
+    monkeypatch.setattr(take_module, "find_nite", lambda nite_dir=None: tmp_path)
+    doc = capture_take(tmp_path / "take", device="Dummy", duration_s=0.4)
+    assert doc["skeleton"] is None and any("tracked no skeleton" in p for p in doc["problems"])
+    assert (tmp_path / "take" / "take.oni").is_file() and (tmp_path / "take" / "take.json").is_file()

@@ -138,6 +138,41 @@ def test_a_pathological_escape_chain_is_settled_exactly():
     np.testing.assert_array_equal(decode_16z(payload, expected.size, table=False), expected)
 
 
+@settings(max_examples=300, deadline=None)
+@given(
+    table=st.lists(st.integers(0, 65535), min_size=1, max_size=20),
+    first=st.integers(0, 255),
+    body=BODIES,
+    fraction=st.floats(0.0, 1.0),
+)
+def test_16zt_decoder_matches_openni_up_to_any_frame_size(table, first, body, fraction):
+    """A frame ends at its size: what the stream holds beyond it (a writer's trailing byte, an
+    index past the table) does not matter."""
+    payload = (
+        len(table).to_bytes(2, "little") + np.array(table, "<u2").tobytes() + bytes([first % len(table), 0]) + body
+    )
+    try:  # the stream of indices, by OpenNI's loop (16zT is 16z on indices, looked up after)
+        indices = ref.decode_16z(payload[2 + 2 * len(table) :], 10**9, False)
+    except IndexError:
+        return  # cut inside a code: covered by the 16z test
+    count = max(1, int(fraction * indices.size))
+    if int(indices[:count].max()) >= len(table):
+        with pytest.raises(CodecError, match="past the"):
+            decode_16z(payload, count, table=True)
+        return
+    np.testing.assert_array_equal(decode_16z(payload, count, table=True), np.array(table, np.uint16)[indices[:count]])
+
+
+def test_damaged_sizes_cannot_make_the_decoders_allocate_without_bound():
+    with pytest.raises(CodecError, match="more than any encoding of the frame"):
+        decode_16z(b"\x00\x00" + b"\xfe" * 10_000_000, 640 * 480, table=False)
+    with pytest.raises(CodecError, match="more than any encoding of the frame"):
+        decode_8z(b"\x00" + b"\xef" * 10_000, 100)
+    # within the limit, runs far longer than the frame stop at the frame
+    out = decode_16z(b"\x07\x00" + b"\xfe" * 300, 1000, table=False)
+    np.testing.assert_array_equal(out, np.full(1000, 7, np.uint16))
+
+
 # -- the container: layouts, versions, dropped frames ------------------------------------------
 
 
@@ -193,6 +228,80 @@ def test_a_damaged_seek_table_falls_back_to_walking_the_records(tmp_path):
         assert oni.index_source == "scan" and oni.problems == []
     np.testing.assert_array_equal(read_all(tmp_path / "s.oni", "depth")[0], depth)
     np.testing.assert_array_equal(read_all(tmp_path / "s.oni", "image")[0], image)
+
+
+def test_dropped_frames_from_timestamps_when_numbers_run_on(tmp_path):
+    """OpenNI's recorders number the frames they receive: a drop shows only in the timestamps."""
+    depth, _ = scene(5)
+    stamps = [0, 33_333, 133_333, 166_667, 200_000]  # two frames missing after the second
+    write_oni(tmp_path / "d.oni", [StreamSpec("Depth", "depth", "16zT", depth, timestamps_us=stamps)])
+    with OniFile(tmp_path / "d.oni") as oni:
+        assert oni.stream("depth").dropped_frames == 2
+
+
+def test_a_stream_added_while_recording_is_found(tmp_path):
+    depth, image = scene(6)
+    write_oni(
+        tmp_path / "late.oni",
+        [
+            StreamSpec("Depth", "depth", "16zT", depth),
+            StreamSpec(
+                "Image", "image", "NONE", image, timestamps_us=[100_000 + 33_333 * k for k in range(5)], added_late=True
+            ),
+        ],
+    )
+    with OniFile(tmp_path / "late.oni") as oni:
+        assert oni.index_source == "scan" and not oni.problems
+        assert [s.kind for s in oni.streams] == ["depth", "image"]
+    np.testing.assert_array_equal(read_all(tmp_path / "late.oni", "image")[0], image)
+
+
+def seek_table_of(data: bytes, node: int) -> int:
+    return data.find(b"NIR\0\x0e\x00\x00\x00" + node.to_bytes(4, "little"))
+
+
+def test_damaged_seek_tables_and_records_never_escape_as_other_errors(tmp_path):
+    depth, image = scene(4)
+    data = write_oni(None, [StreamSpec("Depth", "depth", "16zT", depth), StreamSpec("Image", "image", "NONE", image)])
+    # the depth table points at the image stream's records
+    bad = bytearray(data)
+    depth_table, image_table = seek_table_of(data, 1), seek_table_of(data, 2)
+    bad[depth_table + 28 + 20 + 12 : depth_table + 28 + 20 + 20] = data[
+        image_table + 28 + 20 + 12 : image_table + 28 + 20 + 20
+    ]
+    (tmp_path / "a.oni").write_bytes(bytes(bad))
+    with OniFile(tmp_path / "a.oni") as oni:
+        assert oni.index_source == "scan"
+    np.testing.assert_array_equal(read_all(tmp_path / "a.oni", "depth")[0], depth)
+    # a seek table whose size is not a whole number of entries
+    bad = bytearray(data)
+    bad[image_table + 16 : image_table + 20] = (4 * 20 + 7).to_bytes(4, "little")
+    (tmp_path / "b.oni").write_bytes(bytes(bad))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", OniWarning)
+        with OniFile(tmp_path / "b.oni") as oni:
+            assert oni.index_source == "scan"
+            assert oni.stream("depth").n_frames == 4
+    # an absurd resolution
+    bad = bytearray(data)
+    mode = bad.find(b"xnMapOutputMode\0") + 16 + 4
+    bad[mode : mode + 8] = b"\xff" * 8
+    (tmp_path / "c.oni").write_bytes(bytes(bad))
+    with OniFile(tmp_path / "c.oni") as oni:
+        with pytest.raises(OniError, match=r"c\.oni: Depth frame 1 .* not plausible"):
+            oni.read_frame(oni.stream("depth"), 0)
+
+
+def test_a_frame_record_with_short_fields_stops_the_walk_there(tmp_path):
+    depth, _ = scene(5)
+    data = bytearray(write_oni(None, [StreamSpec("Depth", "depth", "16zT", depth)], finish=False))
+    third = [i for i in range(len(data)) if data.startswith(b"NIR\0\x0a\x00\x00\x00", i)][2]
+    data[third + 12 : third + 16] = (28 + 4).to_bytes(4, "little")  # fields size: too short for ts + number
+    (tmp_path / "s.oni").write_bytes(bytes(data))
+    with pytest.warns(OniWarning, match="shorter than its fields"):
+        oni = OniFile(tmp_path / "s.oni")
+    with oni:
+        assert oni.stream("depth").n_frames == 2
 
 
 # -- files cut short or damaged ----------------------------------------------------------------

@@ -47,25 +47,30 @@ FORMAT = "kinectdata.take"
 CLOCK = "monotonic (time.monotonic), seconds"
 
 
-def _oni_zero_clock(frames: list[list], oni_stamps: np.ndarray, source: str) -> tuple[float, int]:
-    """(clock seconds of the .oni's time 0, frames matched): the session's frames (device
-    timestamp us, index, arrival clock s) matched to the file's depth timestamps."""
+def _oni_zero_clock(frames: list[list], oni_stamps: np.ndarray, source: str) -> tuple[float, int, float]:
+    """(clock seconds of the .oni's time 0, frames matched, device timestamp in us of the .oni's
+    first frame): the session's frames (device timestamp us, index, arrival clock s) matched to
+    the file's depth timestamps, which OpenNI2 rebases to start at 0.
+
+    The shift between the two timestamp series is the one that lines up the most frames (frame
+    j read = file frame k, for the first 30 of each); ties go to the earliest pairing, which is
+    right because the session starts the recorder before the streams, so the first frame it
+    reads is the first recorded. With a perfectly regular device clock a session that missed
+    the first frames could not be told apart from one that did not; real clocks jitter.
+    """
     device = np.array([f[0] for f in frames], np.float64)
     arrival = np.array([f[2] for f in frames], np.float64)
     file_us = oni_stamps.astype(np.float64)
     if device.size == 0 or file_us.size == 0:
         raise KinectDataError(f"{source}: no depth frame was recorded")
-    # the device timestamp of the file's first frame: the shift that lines up the most frames
-    # (frame j read = file frame k, for the first few of each; ties go to the earliest pairing,
-    # which is the right one when the recorder starts before the streams deliver anything)
-    pairs = sorted(((j, k) for j in range(min(10, device.size)) for k in range(min(10, file_us.size))), key=sum)
+    pairs = sorted(((j, k) for j in range(min(30, device.size)) for k in range(min(30, file_us.size))), key=sum)
     best, shift = -1, device[0] - file_us[0]
     for j, k in pairs:
         candidate = device[j] - file_us[k]
         matched = int(np.isin(np.round(device - candidate), np.round(file_us)).sum())
         if matched > best:
             best, shift = matched, candidate
-    return float(np.min(arrival - (device - shift) / 1e6)), best
+    return float(np.min(arrival - (device - shift) / 1e6)), best, float(shift)
 
 
 def capture_take(
@@ -126,7 +131,12 @@ def capture_take(
                     raise KinectDataError(f"{take / ONI}: the recording is incomplete ({'; '.join(oni.problems)})")
                 depth = oni.stream("depth")
                 stamps, n_frames, streams = depth.timestamps_us.copy(), depth.n_frames, [s.kind for s in oni.streams]
-        zero_clock, matched = _oni_zero_clock(status["frames"], stamps, str(take / ONI))
+        zero_clock, matched, shift = _oni_zero_clock(status["frames"], stamps, str(take / ONI))
+        if len(status["frames"]) != n_frames:
+            problems.append(
+                f"the session read {len(status['frames'])} depth frames, the recorder wrote {n_frames}: "
+                "the clock placement assumes they begin with the same frame"
+            )
         doc: dict[str, Any] = {
             "format": FORMAT,
             "format_version": 1,
@@ -138,6 +148,7 @@ def capture_take(
                 "streams": streams,
                 "depth_frames": n_frames,
                 "zero_clock_s": zero_clock,
+                "frames_read": len(status["frames"]),
                 "frames_matched_to_clock": matched,
             },
             "skeleton": None,
@@ -146,7 +157,10 @@ def capture_take(
             "problems": problems,
         }
         if status.get("skeleton") is not None:
-            doc["skeleton"] = _write_skeleton(take, status["skeleton"])
+            try:  # the device's timestamps, rebased like the .oni's
+                doc["skeleton"] = _write_skeleton(take, status["skeleton"], shift)
+            except KinectDataError as exc:  # nobody tracked: the recording and the music are kept
+                problems.append(f"no skeleton: {exc}")
         elif status.get("skeleton_problem"):
             problems.append(status["skeleton_problem"])
         if audio is not None:
@@ -206,10 +220,15 @@ def _run_session(take: Path, device, duration_s, color, lossy, nite_folder) -> d
     return status
 
 
-def _write_skeleton(take: Path, tracked: list) -> dict[str, Any]:
+def _write_skeleton(take: Path, tracked: list, shift_us: float) -> dict[str, Any]:
+    """take.csv from the live tracker's frames, whose device timestamps minus ``shift_us`` are
+    the .oni's."""
     from ..formats.csv_writer import write_csv
 
-    frames = [TrackedFrame(int(t), int(i), {int(u): np.array(j) for u, j in users.items()}) for t, i, users in tracked]
+    frames = [
+        TrackedFrame(int(round(t - shift_us)), int(i), {int(u): np.array(j) for u, j in users.items()})
+        for t, i, users in tracked
+    ]
     motion = nite_motion(frames, str(take / ONI))
     origin_s = motion.metadata["time_origin"]["value"] / 1e6
     write_csv(motion, take / CSV, "canonical", time_origin=origin_s, comments={"tracked_by": "NiTE2 (live)"})
@@ -245,6 +264,9 @@ def align_take(take_dir: str | os.PathLike, out: str | os.PathLike | None = None
     from ..formats import read_motion
 
     take = Path(take_dir)
+    if options.get("timeline") is not None:
+        raise KinectDataError(f"{take}: a take's skeleton is already on its .oni's timeline; give no --timeline")
+    options.pop("timeline", None)
     doc = read_take(take)
     skeleton = take / (doc["skeleton"]["file"] if doc.get("skeleton") else CSV)
     if not skeleton.is_file():

@@ -137,6 +137,8 @@ def align(
             raise click.UsageError("a take folder brings its own audio; give no AUDIO")
         if offset != "auto":
             raise click.UsageError("a take's offset comes from its clock stamps; give no --offset")
+        if timeline is not None:
+            raise click.UsageError("a take's skeleton is already on its .oni's timeline; give no --timeline")
         result = align_take(recording, out, **common)
     elif audio is None:
         raise click.UsageError("missing AUDIO (only a take folder brings its own)")

@@ -115,23 +115,27 @@ def _expand(
     ``bits`` bits and, with a ``table``, are indices into it.
     """
     flat = deltas.ravel()
+    mask = (1 << bits) - 1  # everything only matters modulo 2**bits
     if reset_at.size:  # fold each reset into the differences: the correction landing on its value
         flat[reset_at] = 0
         before = np.cumsum(np.add.reduceat(flat, np.concatenate([[0], reset_at]), dtype=np.int64)[:-1])
         needed = first - before - reset_to  # the total correction the values need from each reset on
-        flat[reset_at] = np.diff(needed, prepend=0)
-    values = first - np.cumsum(flat)  # int32 is enough: |sum| <= 4 * 63 * pixels
-    values &= (1 << bits) - 1
-    reps = reps.ravel()
-    if int(reps.sum(dtype=np.int64)) + 1 < count:
-        raise CodecError(f"{what}: {int(reps.sum(dtype=np.int64)) + 1} values decoded, {count} expected")
-    out = np.empty(values.size + 1, np.uint16 if bits == 16 else np.uint8)
-    out[0], out[1:] = first, values
+        flat[reset_at] = np.diff(needed, prepend=0) & mask
+    values = first - np.cumsum(flat)  # int32 may wrap: the low bits stay right
+    values &= mask
+    reps = np.concatenate([[1], reps.ravel()])
+    ends = np.cumsum(reps, dtype=np.int64)
+    if ends[-1] < count:
+        raise CodecError(f"{what}: {int(ends[-1])} values decoded, {count} expected")
+    used = int(np.searchsorted(ends, count)) + 1  # the slots that make the first `count` outputs
+    out = np.empty(used, np.uint16 if bits == 16 else np.uint8)
+    out[0], out[1:] = first, values[: used - 1]
+    reps = reps[:used]
     if table is not None:
-        if int(out.max(initial=0)) >= table.size:
+        if int(out[reps > 0].max(initial=0)) >= table.size:
             raise CodecError(f"{what}: an index points past the {table.size}-entry value table")
-        out = table[out]
-    return np.repeat(out, np.concatenate([[1], reps]))[:count]
+        out = table.take(out, mode="clip")  # unused slots may hold anything
+    return np.repeat(out, reps)[:count]
 
 
 def _slots(table: np.ndarray, codes: np.ndarray) -> np.ndarray:
@@ -143,6 +147,13 @@ def _slots(table: np.ndarray, codes: np.ndarray) -> np.ndarray:
 def _need(what: str, have: int, need: int) -> None:
     if have < need:
         raise CodecError(f"{what}: the payload ends early ({have} bytes, {need} needed)")
+
+
+def _not_too_long(what: str, have: int, most: int) -> None:
+    """Refuse a payload longer than any encoding of the frame (a damaged size field), before the
+    per-byte arrays are made."""
+    if have > most:
+        raise CodecError(f"{what}: the payload is {have} bytes, more than any encoding of the frame ({most})")
 
 
 def _padded(body: np.ndarray) -> np.ndarray:
@@ -188,6 +199,7 @@ def decode_16z(payload: bytes, count: int, *, table: bool, what: str = "16z fram
         lut = buf[2 : 2 + 2 * size].view("<u2").astype(np.uint16)
         pos = 2 + 2 * size
     _need(what, buf.size, pos + 2)
+    _not_too_long(what, buf.size - pos, 3 * count + 16)  # an escape per value is 3 bytes
     first = int(buf[pos]) | int(buf[pos + 1]) << 8
     body = buf[pos + 2 :]
     n, pad = body.size, _padded(body)
@@ -233,6 +245,7 @@ def decode_8z(payload: bytes, count: int, *, what: str = "Im8z frame") -> np.nda
     """Decode an ``Im8z`` payload into ``count`` uint8 values (extra outputs dropped)."""
     buf = np.frombuffer(payload, np.uint8)
     _need(what, buf.size, 1)
+    _not_too_long(what, buf.size, 2 * count + 16)  # the encoder's worst is 3 bytes per 2 values
     body = buf[1:]
     n, pad = body.size, _padded(body)
     nxt = pad[1 : n + 1]

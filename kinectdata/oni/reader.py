@@ -14,6 +14,7 @@ says where and why the walk stopped. Frames are decoded on demand (:mod:`.codecs
 
 from __future__ import annotations
 
+import math
 import mmap
 import os
 import warnings
@@ -55,6 +56,9 @@ _LAYOUTS = {
     "YUYV": (np.uint8, 2),
     "JPEG": (np.uint8, 3),
 }
+
+
+MAX_FRAME_VALUES = 1 << 28  # 268 M values: far beyond any sensor, so a damaged size is refused
 
 
 class OniWarning(UserWarning):
@@ -171,11 +175,17 @@ class OniStream:
 
     @property
     def dropped_frames(self) -> int:
-        """Frames missing between the first and the last recorded one (gaps in frame numbers)."""
+        """Frames missing between the first and the last recorded one: from gaps in the frame
+        numbers, or, where the numbers run on (OpenNI's recorders number the frames they receive),
+        from timestamp intervals of about k nominal periods (k - 1 frames missing)."""
         if self.n_frames < 2:
             return 0
-        steps = np.diff(self.frame_numbers.astype(np.int64))
-        return int(np.clip(steps - 1, 0, None).sum())
+        by_number = np.clip(np.diff(self.frame_numbers.astype(np.int64)) - 1, 0, None)
+        by_time = np.zeros_like(by_number)
+        if self.fps:
+            periods = np.diff(self.timestamps_us.astype(np.float64)) * self.fps / 1e6
+            by_time = np.where(periods > 1.5, np.round(periods) - 1, 0).astype(np.int64)
+        return int(np.maximum(by_number, by_time).sum())
 
     def gaps(self, factor: float = 1.5) -> list[tuple[int, float]]:
         """(frame number after the gap, gap in seconds) where consecutive timestamps are more than
@@ -246,79 +256,85 @@ class OniFile:
         while position < self.size:
             try:
                 rec = self.layout.read(self._data, position, self.source)
+                if rec.type in (R.NEW_DATA, R.END, R.NODE_REMOVED, R.SEEK_TABLE):
+                    first_data = position
+                    break
+                self._header_record(rec, by_node, seek_positions)
             except OniError as exc:
                 self._stop(str(exc))
-                break
-            if rec.type in R.NODE_ADDED_TYPES:
-                added = R.parse_node_added(rec, self.layout, self.source)
-                kind = R.NODE_TYPES.get(added.node_type, f"type {added.node_type}")
-                stream = OniStream(rec.node, added.name, kind, fourcc(added.codec), recorded_frames=added.frames)
-                by_node[rec.node] = stream
-                self.streams.append(stream)
-                seek_positions[rec.node] = added.seek_table_position
-            elif rec.type in R.PROPERTY_TYPES and rec.node in by_node:
-                name, value = R.parse_property(rec, self.source)
-                by_node[rec.node].properties[name] = value
-            elif rec.type == R.NODE_DATA_BEGIN and rec.node in by_node:
-                frames, _ = R.parse_data_begin(rec, self.source)
-                if by_node[rec.node].recorded_frames is None and frames:  # 1.0.0.4 files count here
-                    by_node[rec.node].recorded_frames = frames
-            elif rec.type in (R.NEW_DATA, R.END, R.NODE_REMOVED, R.SEEK_TABLE):
-                first_data = position
                 break
             position = rec.end
         if first_data is None:
             if not self.problems:
                 self._stop(f"{self.source}: byte {position}: the file ends before any frame or END record")
             return
-        if self._index_from_seek_tables(by_node, seek_positions):
+        # a node added after the data began (OpenNI 1.x allows it) has an id above those seen so far
+        added_later = self.header.max_node_id > max(by_node, default=0)
+        if not added_later and self._index_from_seek_tables(by_node, seek_positions):
             self.index_source = "seek table"
             return
         self._scan(first_data, by_node)
+
+    def _header_record(self, rec: R.Record, by_node: dict[int, OniStream], seek_positions: dict) -> bool:
+        """Take in a NODE_ADDED, property or NODE_DATA_BEGIN record; False for any other."""
+        if rec.type in R.NODE_ADDED_TYPES:
+            added = R.parse_node_added(rec, self.layout, self.source)
+            kind = R.NODE_TYPES.get(added.node_type, f"type {added.node_type}")
+            stream = OniStream(rec.node, added.name, kind, fourcc(added.codec), recorded_frames=added.frames)
+            by_node[rec.node] = stream
+            self.streams.append(stream)
+            seek_positions[rec.node] = added.seek_table_position
+        elif rec.type in R.PROPERTY_TYPES and rec.node in by_node:
+            name, value = R.parse_property(rec, self.source)
+            by_node[rec.node].properties[name] = value
+        elif rec.type == R.NODE_DATA_BEGIN and rec.node in by_node:
+            frames, _ = R.parse_data_begin(rec, self.source)
+            if by_node[rec.node].recorded_frames is None and frames:  # 1.0.0.4 files count here
+                by_node[rec.node].recorded_frames = frames
+        else:
+            return False
+        return True
 
     def _stop(self, why: str) -> None:
         self.truncated = True
         self.problems.append(why)
 
     def _index_from_seek_tables(self, by_node: dict[int, OniStream], seek_positions: dict[int, int | None]) -> bool:
-        """Fill the frame index from every data stream's seek table; False if any is unusable."""
-        tables = {}
-        for node, stream in by_node.items():
-            seek = seek_positions.get(node)
-            if stream.kind in ("device",) and not stream.recorded_frames:
-                continue
-            if not seek or seek >= self.size:
-                return False
-            try:
+        """Fill the frame index from every data stream's seek table; False (nothing changed) if
+        any table is missing, damaged or disagrees with the records it points at."""
+        index = {}
+        try:
+            for node, stream in by_node.items():
+                seek = seek_positions.get(node)
+                if stream.kind == "device" and not stream.recorded_frames:
+                    continue
+                if not seek or seek >= self.size:
+                    return False
                 rec = self.layout.read(self._data, seek, self.source)
-            except OniError:
-                return False
-            if rec.type != R.SEEK_TABLE or rec.node != node:
-                return False
-            entries = R.parse_seek_table(self._data, rec, self.layout, self.source)[1:]
-            entries = [e for e in entries if e[2]]  # holes (frame numbers never recorded) have no position
-            if stream.recorded_frames is not None and len(entries) != stream.recorded_frames:
-                return False
-            if any(e[2] >= self.size for e in entries) or len({e[1] for e in entries}) > 1:
-                return False  # a damaged table, or properties changing mid-stream: walk the records
-            tables[node] = entries
-        for node, entries in tables.items():
-            stream = by_node[node]
-            stream.positions = np.array([e[2] for e in entries], np.int64)
-            stream.timestamps_us = np.array([e[0] for e in entries], np.uint64)
-            # the frame numbers are in the records; read them (one small read per frame)
-            numbers = np.empty(len(entries), np.uint32)
-            for i, pos in enumerate(stream.positions.tolist()):
-                try:
+                if rec.type != R.SEEK_TABLE or rec.node != node:
+                    return False
+                entries = R.parse_seek_table(self._data, rec, self.layout, self.source)[1:]
+                entries = [e for e in entries if e[2]]  # holes (frame numbers never recorded) have no position
+                if stream.recorded_frames is not None and len(entries) != stream.recorded_frames:
+                    return False
+                if len({e[1] for e in entries}) > 1:
+                    return False  # properties change mid-stream: walk the records
+                numbers = []
+                for stamp, _, pos in entries:  # each frame's record must be there and agree
                     rec = self.layout.read(self._data, pos, self.source)
-                except OniError:
-                    return False
-                if rec.type != R.NEW_DATA or rec.node != node:
-                    return False
-                timestamp, numbers[i] = R.parse_new_data(rec, self.source)
-                if timestamp != entries[i][0]:
-                    return False
-            stream.frame_numbers = numbers
+                    if rec.type != R.NEW_DATA or rec.node != node:
+                        return False
+                    timestamp, number = R.parse_new_data(rec, self.source)
+                    if timestamp != stamp:
+                        return False
+                    numbers.append(number)
+                index[node] = (numbers, [e[0] for e in entries], [e[2] for e in entries])
+        except OniError:
+            return False
+        for node, (numbers, stamps, positions) in index.items():
+            by_node[node].frame_numbers = np.array(numbers, np.uint32)
+            by_node[node].timestamps_us = np.array(stamps, np.uint64)
+            by_node[node].positions = np.array(positions, np.int64)
         return True
 
     def _scan(self, position: int, by_node: dict[int, OniStream]) -> None:
@@ -328,24 +344,27 @@ class OniFile:
         while position < self.size:
             try:
                 rec = self.layout.read(self._data, position, self.source)
+                if rec.type == R.NEW_DATA and rec.node in index:
+                    timestamp, number = R.parse_new_data(rec, self.source)
+                    index[rec.node].append((number, timestamp, position))
+                elif rec.type in R.NODE_ADDED_TYPES:  # a stream added while recording
+                    self._header_record(rec, by_node, {})
+                    index.setdefault(rec.node, [])
+                elif rec.type in R.PROPERTY_TYPES and rec.node in by_node:
+                    name, value = R.parse_property(rec, self.source)
+                    stream = by_node[rec.node]
+                    if index[rec.node] and stream.properties.get(name, value) != value and name in _GEOMETRY:
+                        self._stop(
+                            f"{self.source}: byte {position}: stream {stream.name!r} changes {name} after "
+                            f"{len(index[rec.node])} frames; frames from there on are not read"
+                        )
+                        break
+                    stream.properties[name] = value
+                elif rec.type == R.END:
+                    ended = True
+                    break
             except OniError as exc:
                 self._stop(f"{exc}; frames before it are read")
-                break
-            if rec.type == R.NEW_DATA and rec.node in index:
-                timestamp, number = R.parse_new_data(rec, self.source)
-                index[rec.node].append((number, timestamp, position))
-            elif rec.type in R.PROPERTY_TYPES and rec.node in by_node:
-                name, value = R.parse_property(rec, self.source)
-                stream = by_node[rec.node]
-                if index[rec.node] and stream.properties.get(name, value) != value and name in _GEOMETRY:
-                    self._stop(
-                        f"{self.source}: byte {position}: stream {stream.name!r} changes {name} after "
-                        f"{len(index[rec.node])} frames; frames from there on are not read"
-                    )
-                    break
-                stream.properties[name] = value
-            elif rec.type == R.END:
-                ended = True
                 break
             position = rec.end
         else:
@@ -423,7 +442,9 @@ def decode_frame(stream: OniStream, payload, what: str) -> np.ndarray:
         shape, dtype = stream.frame_layout
     except ValueError as exc:
         raise CodecError(f"{what}: {exc}") from None
-    count = int(np.prod(shape))
+    count = math.prod(int(d) for d in shape)
+    if not 0 < count <= MAX_FRAME_VALUES:
+        raise CodecError(f"{what}: a {shape[1]}x{shape[0]} frame is not plausible (damaged xnMapOutputMode?)")
     codec = stream.codec
     if codec == "16zT" or codec == "16zP":
         values = decode_16z(payload, count, table=codec == "16zT", what=what)

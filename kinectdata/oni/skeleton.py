@@ -12,7 +12,12 @@ joints. :func:`oni_timeline` and :func:`retime` give a skeleton recorded beside 
 
 from __future__ import annotations
 
+import json
 import os
+import subprocess
+import sys
+import tempfile
+import time
 import warnings
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
@@ -69,10 +74,33 @@ def find_nite(nite_dir: str | os.PathLike | None = None) -> Path:
 
 
 def openni2_dir() -> Path:
-    """A folder with libOpenNI2.so and OpenNI2/Drivers, as the ``openni`` bindings want it."""
-    for d in (os.environ.get("OPENNI2_REDIST64"), os.environ.get("OPENNI2_REDIST"), *OPENNI2_LIBRARY_DIRS):
-        if d and (Path(d) / "libOpenNI2.so").exists() and (Path(d) / "OpenNI2" / "Drivers").is_dir():
-            return Path(d)
+    """A folder with ``libOpenNI2.so`` and ``OpenNI2/Drivers``, as the ``openni`` bindings want:
+    ``$OPENNI2_REDIST64`` or ``$OPENNI2_REDIST`` when set, a system folder that has both, or a
+    cache folder of links to Debian's ``libopenni2-0`` files (``libOpenNI2.so.0``).
+
+    Raises:
+        KinectDataError: OpenNI2 is not installed.
+    """
+    for variable in ("OPENNI2_REDIST64", "OPENNI2_REDIST"):
+        folder = os.environ.get(variable)
+        if folder and (Path(folder) / "libOpenNI2.so").exists() and (Path(folder) / "OpenNI2" / "Drivers").is_dir():
+            return Path(folder)
+    for d in map(Path, OPENNI2_LIBRARY_DIRS):
+        if not (d / "OpenNI2" / "Drivers").is_dir():
+            continue
+        if (d / "libOpenNI2.so").exists():
+            return d
+        if (d / "libOpenNI2.so.0").exists():
+            cache = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "kinectdata" / "openni2"
+            try:
+                cache.mkdir(parents=True, exist_ok=True)
+            except OSError:
+                cache = Path(tempfile.gettempdir()) / f"kinectdata-openni2-{os.getuid()}"
+                cache.mkdir(exist_ok=True)
+            for link, target in (("libOpenNI2.so", d / "libOpenNI2.so.0"), ("OpenNI2", d / "OpenNI2")):
+                if not (cache / link).exists():
+                    (cache / link).symlink_to(target)
+            return cache
     raise KinectDataError(
         "OpenNI2 is not installed (no libOpenNI2.so with an OpenNI2/Drivers folder in "
         + ", ".join(OPENNI2_LIBRARY_DIRS)
@@ -157,9 +185,15 @@ def track_skeleton(
     nite_dir: str | os.PathLike | None = None,
     user: int | None = None,
     progress: Callable[[int, int], None] | None = None,
+    timeout_s: float | None = None,
 ) -> Motion:
     """Run NiTE2's user tracker over a recording's playback; the tracked body as a Motion
     (:func:`nite_motion`).
+
+    The tracker runs in a child process (:mod:`.nite_session`) that reports each frame as it is
+    tracked: OpenNI2's file playback can stall at the end of a recording (or anywhere, on some
+    machines), so the child is stopped after ``timeout_s`` (default: 30 s plus ten times the
+    recording's duration) and the frames tracked until then are used, with a warning.
 
     Raises:
         KinectDataError: the ``openni`` bindings, OpenNI2 or NiTE2 are missing (the message says
@@ -168,31 +202,43 @@ def track_skeleton(
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", OniWarning)
         with OniFile(path) as oni:
-            total = oni.stream("depth").n_frames
+            depth = oni.stream("depth")
+            total, duration = depth.n_frames, depth.duration_s
     nite_folder = find_nite(nite_dir)
     try:
-        from openni import nite2, openni2
+        import openni  # noqa: F401
     except ImportError:
         raise KinectDataError(
             "skeleton tracking needs the openni Python bindings: pip install 'kinectdata[openni]'"
         ) from None
-    openni2.initialize(str(openni2_dir()))
-    nite2.initialize(str(nite_folder))
-    device = openni2.Device.open_file(str(path).encode())
-    device.playback.repeat = False
-    device.playback.speed = -1.0  # as fast as the tracker can go
-    tracker = nite2.UserTracker(device)
-    frames: list[TrackedFrame] = []
-    try:
-        while len(frames) < total:
-            frame = tracker.read_frame()
-            users = tracked_users(tracker, frame, nite2)
-            frames.append(TrackedFrame(int(frame.timestamp), int(frame.frameIndex), users))
-            if progress:
-                progress(len(frames), total)
-    finally:
-        tracker.close()
-        device.close()
+    timeout_s = 30.0 + 10.0 * duration if timeout_s is None else timeout_s
+    with tempfile.TemporaryDirectory() as tmp:
+        out = Path(tmp) / "frames.jsonl"
+        settings = {"openni2_dir": str(openni2_dir()), "nite_dir": str(nite_folder), "oni": str(path), "frames": total}
+        command = [sys.executable, "-m", "kinectdata.oni.nite_session", json.dumps(settings), str(out)]
+        child = subprocess.Popen(command, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+        deadline = time.monotonic() + timeout_s
+        while child.poll() is None and time.monotonic() < deadline:
+            time.sleep(0.2)
+            if progress and out.exists():
+                progress(sum(1 for _ in out.open()), total)
+        stalled = child.poll() is None
+        if stalled:
+            child.kill()
+        stderr = child.communicate()[1]
+        lines = out.read_text().splitlines() if out.exists() else []
+    frames = []
+    for line in lines:
+        try:
+            stamp, index, users = json.loads(line)
+        except ValueError:  # the last line, cut by the kill
+            break
+        frames.append(TrackedFrame(stamp, index, {int(u): np.array(j) for u, j in users.items()}))
+    if not frames:
+        reason = "stalled" if stalled else f"failed (exit {child.returncode}): {stderr.strip()[-400:]}"
+        raise KinectDataError(f"{path}: NiTE2 tracking {reason}")
+    if len(frames) < total:
+        warnings.warn(f"{path}: NiTE2 tracked {len(frames)} of {total} frames before playback stopped", stacklevel=2)
     return nite_motion(frames, str(path), user)
 
 

@@ -25,7 +25,6 @@ import numpy as np
 HERE = Path(__file__).parent
 SOURCE = HERE / "onitool.cpp"
 INCLUDE = Path("/usr/include/ni")
-OPENNI2_LIBDIR = Path("/usr/lib/x86_64-linux-gnu")
 CACHE = Path(tempfile.gettempdir()) / "kinectdata-reference"
 
 
@@ -105,24 +104,16 @@ def record(
             raise RuntimeError(f"onitool record failed: {done.stderr.strip()}")
 
 
-def _openni2_dir() -> Path:
-    """A folder the ``openni`` bindings can initialise from (links to Debian's OpenNI2)."""
-    folder = CACHE / "openni2"
-    folder.mkdir(parents=True, exist_ok=True)
-    for link, target in (
-        ("libOpenNI2.so", OPENNI2_LIBDIR / "libOpenNI2.so.0"),
-        ("OpenNI2", OPENNI2_LIBDIR / "OpenNI2"),
-    ):
-        if not (folder / link).exists():
-            (folder / link).symlink_to(target)
-    return folder
-
-
 def openni2_missing() -> str | None:
     """Why OpenNI2's Dummy device cannot be used here (None: it can)."""
-    if not (OPENNI2_LIBDIR / "libOpenNI2.so.0").is_file():
-        return "OpenNI2 missing (apt-get install libopenni2-0)"
-    if not (OPENNI2_LIBDIR / "OpenNI2" / "Drivers" / "libDummyDevice.so").exists():
+    from kinectdata.errors import KinectDataError
+    from kinectdata.oni.skeleton import openni2_dir
+
+    try:
+        folder = openni2_dir()
+    except KinectDataError as exc:
+        return str(exc)
+    if not (folder / "OpenNI2" / "Drivers" / "libDummyDevice.so").exists():
         return "OpenNI2's Dummy device driver missing (libopenni2-0)"
     try:
         import openni  # noqa: F401
@@ -134,8 +125,10 @@ def openni2_missing() -> str | None:
 def record_dummy(out: str | os.PathLike, seconds: float = 1.0, *, color: bool = False, lossy: bool = False) -> None:
     """Record OpenNI2's Dummy device (depth 320x240 16zT; with ``color`` also RGB, JPEG when
     ``lossy``) for about ``seconds`` into ``out``, in a child process."""
+    from kinectdata.oni.skeleton import openni2_dir
+
     done = subprocess.run(
-        [sys.executable, str(HERE / "record_dummy.py"), str(_openni2_dir()), str(out), str(seconds)]
+        [sys.executable, str(HERE / "record_dummy.py"), str(openni2_dir()), str(out), str(seconds)]
         + (["--color"] if color else [])
         + (["--lossy"] if lossy else []),
         capture_output=True,
