@@ -124,18 +124,32 @@ def _expand(
     values = first - np.cumsum(flat)  # int32 may wrap: the low bits stay right
     values &= mask
     reps = np.concatenate([[1], reps.ravel()])
-    ends = np.cumsum(reps, dtype=np.int64)
-    if ends[-1] < count:
-        raise CodecError(f"{what}: {int(ends[-1])} values decoded, {count} expected")
-    used = int(np.searchsorted(ends, count)) + 1  # the slots that make the first `count` outputs
+    total = int(reps.sum(dtype=np.int64))
+    if total < count:
+        raise CodecError(f"{what}: {total} values decoded, {count} expected")
+    used = _slots_needed(reps, total - count)
     out = np.empty(used, np.uint16 if bits == 16 else np.uint8)
     out[0], out[1:] = first, values[: used - 1]
     reps = reps[:used]
     if table is not None:
-        if int(out[reps > 0].max(initial=0)) >= table.size:
+        # an unused slot (repeat count 0) repeats the value before it, so the largest retained
+        # value is the largest output
+        if int(out.max()) >= table.size:
             raise CodecError(f"{what}: an index points past the {table.size}-entry value table")
-        out = table.take(out, mode="clip")  # unused slots may hold anything
+        out = table[out]
     return np.repeat(out, reps)[:count]
+
+
+def _slots_needed(reps: np.ndarray, excess: int) -> int:
+    """How many leading slots make the first ``sum(reps) - excess`` outputs (usually all but a
+    few trailing ones; a damaged payload's long tail is cut here, before anything is expanded)."""
+    if excess == 0:
+        return reps.size
+    tail = np.cumsum(reps[::-1][:64], dtype=np.int64)
+    if tail[-1] > excess:  # the cut is in the last 64 slots
+        return reps.size - int(np.searchsorted(tail, excess, side="right"))
+    ends = np.cumsum(reps, dtype=np.int64)
+    return int(np.searchsorted(ends, ends[-1] - excess)) + 1
 
 
 def _slots(table: np.ndarray, codes: np.ndarray) -> np.ndarray:
