@@ -38,8 +38,14 @@ DEFAULT_MIN_COVERAGE = 0.9
 
 
 def file_sha256(path: str | Path) -> str:
-    """Hex SHA-256 of a file's bytes."""
+    """Hex SHA-256 of a file's bytes; of a folder (an OpenPose output folder), of its files' relative
+    names and SHA-256s in sorted order, so renaming, adding or editing any file changes it."""
+    path = Path(path)
     h = hashlib.sha256()
+    if path.is_dir():
+        for member in sorted(p for p in path.rglob("*") if p.is_file()):
+            h.update(f"{member.relative_to(path).as_posix()}\0{file_sha256(member)}\n".encode())
+        return h.hexdigest()
     with open(path, "rb") as f:
         for block in iter(lambda: f.read(1 << 20), b""):
             h.update(block)
@@ -283,18 +289,20 @@ def align_files(
     format: str | None = None,
     schema: str | None = None,
     body: str | None = None,
+    person: str | None = None,
+    video_fps: float | None = None,
     sample_rate: int = DEFAULT_SAMPLE_RATE,
     timeline: str | Path | None = None,
     **options: Any,
 ) -> AlignedRecording:
     """Read a recording and an audio file, align them (:func:`align`) and write ``out`` (HDF5).
 
-    ``format``, ``schema`` and ``body`` go to the reader; ``timeline``, an ``.oni`` recorded
+    ``format``, ``schema``, ``body``, ``person`` and ``video_fps`` go to the reader; ``timeline``, an ``.oni`` recorded
     with the skeleton, gives its frames that recording's depth timestamps
     (:func:`kinectdata.oni.skeleton.retime`); other options go to :func:`align`. Nothing is
     written when anything fails.
     """
-    motion = read_motion(recording, format=format, schema=schema, body=body)
+    motion = read_motion(recording, format=format, schema=schema, body=body, person=person, video_fps=video_fps)
     if timeline is not None:
         from .oni.skeleton import retime
 
@@ -307,6 +315,8 @@ def align_files(
         "format": format,
         "schema": schema,
         "body": body,
+        "person": person,
+        "video_fps": video_fps,
         "sample_rate": sample_rate,
         "timeline": None if timeline is None else str(timeline),
         **{k: v for k, v in options.items()},

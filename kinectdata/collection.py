@@ -1,7 +1,8 @@
 """Finding recording sessions in a folder: a skeleton file and its audio, sharing a name.
 
-A session is ``<name>.<skeleton extension>`` (``.csv``, ``.skeleton``, ``.htr``, ``.json``) with
-``<name>.<audio extension>`` (``.wav``, ``.flac``, ``.ogg``, ``.mp3``) beside it and, for
+A session is ``<name>.<skeleton extension>`` (``.csv``, ``.skeleton``, ``.htr``, ``.json``), or an
+OpenPose output folder ``<name>_openpose/`` (or ``<name>/``) holding ``*_keypoints.json`` files,
+with ``<name>.<audio extension>`` (``.wav``, ``.flac``, ``.ogg``, ``.mp3``) beside it and, for
 synthetic sessions, ``<name>.truth.json`` with the ground truth.
 """
 
@@ -16,6 +17,7 @@ from .errors import KinectDataError
 
 SKELETON_EXTENSIONS = (".csv", ".skeleton", ".htr", ".json")
 AUDIO_EXTENSIONS = (".wav", ".flac", ".ogg", ".mp3")
+OPENPOSE_FOLDER_SUFFIX = "_openpose"
 
 
 @dataclass(frozen=True)
@@ -38,9 +40,14 @@ def find_sessions(folder: str | Path) -> list[Session]:
         raise KinectDataError(f"{folder}: not a folder")
     sessions = []
     for skeleton in sorted(folder.iterdir()):
-        if skeleton.suffix.lower() not in SKELETON_EXTENSIONS or skeleton.name.endswith(".truth.json"):
+        if skeleton.is_dir():
+            if next(skeleton.glob("*_keypoints.json"), None) is None:
+                continue
+            name = skeleton.name.removesuffix(OPENPOSE_FOLDER_SUFFIX)
+        elif skeleton.suffix.lower() not in SKELETON_EXTENSIONS or skeleton.name.endswith(".truth.json"):
             continue
-        name = skeleton.stem
+        else:
+            name = skeleton.stem
         audio = next((folder / f"{name}{ext}" for ext in AUDIO_EXTENSIONS if (folder / f"{name}{ext}").is_file()), None)
         if audio is None:
             continue

@@ -6,7 +6,10 @@ Fitting is streamable: compute :class:`NormStats` per recording (``NormStats.fro
 
 - ``maxabs`` (Yalta et al. 2016, the default): ``offset = 0``, ``scale = 0.9 / max|x|``;
 - ``minmax`` (the authors' later code): ``offset = (min + max) / 2``, ``scale = 1.8 / (max - min)``,
-  i.e. ``y = -0.9 + 1.8 * (x - min) / (max - min)``.
+  i.e. ``y = -0.9 + 1.8 * (x - min) / (max - min)``;
+- ``none``: ``offset = 0``, ``scale = 1``: the values as they are, for targets that are in range
+  by construction (the ``listen_to_dance`` spec's 0..1 coordinates, which a sigmoid output layer
+  must reach: their expected range, :attr:`Normalizer.bounds`, is 0..1).
 
 Degenerate components get ``scale = 1``: one with no valid training value (``offset = 0``; listed
 in :attr:`Normalizer.degenerate`), a constant one under minmax (``offset`` = the constant, so it
@@ -27,7 +30,7 @@ if TYPE_CHECKING:
 
 LIMIT = 0.9
 """Training values are mapped into [-LIMIT, LIMIT]."""
-METHODS = ("maxabs", "minmax")
+METHODS = ("maxabs", "minmax", "none")
 FORMULA = "y = (x - offset) * scale"
 
 
@@ -171,6 +174,11 @@ class Normalizer:
         return int(self.scale.shape[0])
 
     @property
+    def bounds(self) -> tuple[float, float]:
+        """The range normalised values are expected in: -0.9..0.9, or 0..1 for ``none``."""
+        return (0.0, 1.0) if self.method == "none" else (-LIMIT, LIMIT)
+
+    @property
     def degenerate(self) -> tuple[int, ...]:
         """Indices of components with no valid training value (left unscaled)."""
         return tuple(int(i) for i in np.flatnonzero(self.count == 0))
@@ -184,7 +192,9 @@ class Normalizer:
         scale, offset = np.ones(D), np.zeros(D)
         ok = stats.count > 0
         lo, hi = stats.min[ok], stats.max[ok]
-        if method == "maxabs":
+        if method == "none":
+            pass
+        elif method == "maxabs":
             m = np.maximum(np.abs(lo), np.abs(hi))
             scale[ok] = np.where(m > 0, LIMIT / np.where(m > 0, m, 1.0), 1.0)
         else:
@@ -251,10 +261,13 @@ class Normalizer:
         return cls(doc["method"], doc["scale"], doc["offset"], doc["count"], None if names is None else tuple(names))
 
 
-def count_out_of_range(normalized: np.ndarray, mask: np.ndarray | None = None, limit: float = LIMIT) -> np.ndarray:
-    """[D] int64: valid normalised values [N, D] with ``|y| > limit`` (values of other splits, unclipped)."""
+def count_out_of_range(
+    normalized: np.ndarray, mask: np.ndarray | None = None, bounds: tuple[float, float] = (-LIMIT, LIMIT)
+) -> np.ndarray:
+    """[D] int64: valid normalised values [N, D] outside ``bounds`` (values of other splits, unclipped)."""
     y = np.asarray(normalized)
-    out = np.abs(y) > np.asarray(limit, dtype=y.dtype)
+    lo, hi = (np.asarray(b, dtype=y.dtype) for b in bounds)
+    out = (y < lo) | (y > hi)
     if mask is not None:
         out &= np.asarray(mask, dtype=bool)
     return out.reshape(-1, y.shape[-1]).sum(axis=0).astype(np.int64)

@@ -91,3 +91,30 @@ def trajectories(
     axes[0, 0].set_title(title)
     axes[-1, 0].set_xlabel("time (s)")
     return _save(fig, path)
+
+
+def rhythm_plot(report: dict, path: str | Path, title: str = "Autocorrelation of joint trajectories") -> Path:
+    """Each axis's autocorrelation (unitless) against lag (s) from :func:`kinectdata.rhythm.rhythm_report`
+    (Lee et al. 2018's evaluation), its peaks marked, a solid line at the beat period and dotted
+    ones at half and double it. ``report`` may be read back from JSON (missing values as None)."""
+    plt = _pyplot()
+    lags = np.asarray(report["lags_s"], dtype=np.float64)
+    period = report["beat_period_s"]
+    fig, ax = plt.subplots(figsize=(6.4, 4.0))
+    for name, axis in report["axes"].items():
+        values = np.array([np.nan if v is None else v for v in axis["autocorrelation"]], dtype=np.float64)
+        (line,) = ax.plot(lags, values, lw=1.3, label=name)
+        peaks = axis["peaks"]
+        ax.plot([p["lag_s"] for p in peaks], [p["height"] for p in peaks], "v", color=line.get_color(), ms=6)
+    ax.axvline(period, color="0.15", lw=1.2, label=f"beat period {period:.3f} s ({report['beat_period_source']})")
+    multiples = [m * period for m in (0.5, 2.0) if m * period <= lags[-1]]
+    for i, lag in enumerate(multiples):
+        ax.axvline(lag, color="0.45", lw=1.0, ls=":", label="half / double period" if i == 0 else None)
+    ax.axhline(0.0, color="0.7", lw=0.8)
+    ax.set_xlim(0.0, lags[-1])
+    ax.set_xlabel("lag (s)")
+    ax.set_ylabel("autocorrelation (mean over joints)")
+    ax.set_title(title)
+    ax.grid(True, alpha=0.3)
+    ax.legend(loc="best", fontsize=8)
+    return _save(fig, path)

@@ -1,13 +1,23 @@
 """Pose targets: the vector a music-to-dance model regresses, one per motion frame.
 
 A target spec (``schemas/targets/*.json``, validated against ``schemas/target.schema.json``)
-lists the joints whose positions and the joints whose orientations make the vector. Layout of a
-vector of ``D = 3 * len(positions) + 4 * len(orientations)`` values:
+lists the joints whose positions, orientations and limb lengths make the vector. Layout of a vector
+of ``D = C * len(positions) + 4 * len(orientations) + len(limbs)`` values, ``C`` the joint set's
+dimensions (3 for sensor skeletons, 2 for image-plane ones such as ``openpose_mpi``):
 
-- ``[0, 3P)``: positions, ``x, y, z`` per joint (metres, camera space), in the listed order;
-- ``[3P, D)``: orientations, unit quaternions ``qx, qy, qz, qw`` per joint, in the listed order.
+- ``[0, CP)``: positions, ``x, y(, z)`` per joint, in the listed order (metres, camera space; or
+  pixels for 2-D joint sets, or 0..1 with ``position_scale: recording_minmax``);
+- then orientations, unit quaternions ``qx, qy, qz, qw`` per joint, in the listed order (3-D only);
+- then limb lengths: for each listed joint, the distance from it to its parent joint, in the units
+  of the positions (after scaling).
 
-Shipped specs: ``yalta65`` (Yalta et al. 2016, 3 positions + 14 quaternions), ``kinect_v2_full``,
+``position_scale`` (default ``none``): ``recording_minmax`` maps each coordinate axis of the
+positions into 0..1 by its minimum and maximum over all listed joints and all valid frames of
+the recording ("coordinates are min-max normalised per video", Lee et al. 2018); x and y are
+scaled separately, so the image's aspect ratio is not kept.
+
+Shipped specs: ``yalta65`` (Yalta et al. 2016, 3 positions + 14 quaternions), ``listen_to_dance``
+(Lee et al. 2018: 15 OpenPose MPI joints' x, y + 14 limb lengths = 44), ``kinect_v2_full``,
 ``nite_full`` and ``azure_kinect_full``. A user adds another by writing a spec file, with no code.
 """
 
@@ -28,6 +38,7 @@ from .quaternions import make_continuous
 from .resources import load_json, shipped_names, shipped_path, validate
 
 POSITION_AXES = ("x", "y", "z")
+POSITION_SCALES = ("none", "recording_minmax")
 QUATERNION_AXES = ("qx", "qy", "qz", "qw")
 
 
@@ -40,6 +51,9 @@ class TargetSpec:
         joint_set: name of the joint set a motion must use (``kinect_v2``...).
         positions: joints whose positions are components, in vector order.
         orientations: joints whose orientations are components, after all positions.
+        limbs: joints whose distance to their parent joint is a component, after all orientations.
+        dimensions: coordinates per position (the joint set's: 3, or 2 for image-plane joints).
+        position_scale: ``"none"`` or ``"recording_minmax"`` (see the module docstring).
         root: joint used by root-centring (the joint set's ``root`` role unless the file names
             another), or None when there is none.
         description: free text (why these joints).
@@ -51,46 +65,71 @@ class TargetSpec:
     orientations: tuple[str, ...]
     root: str | None = None
     description: str = ""
+    limbs: tuple[str, ...] = ()
+    dimensions: int = 3
+    position_scale: str = "none"
 
     @property
     def dim(self) -> int:
         """Number of components D."""
-        return 3 * len(self.positions) + 4 * len(self.orientations)
+        return self.dimensions * len(self.positions) + 4 * len(self.orientations) + len(self.limbs)
+
+    @property
+    def position_axes(self) -> tuple[str, ...]:
+        """``("x", "y", "z")``, or ``("x", "y")`` for a 2-D joint set."""
+        return POSITION_AXES[: self.dimensions]
 
     @property
     def position_slice(self) -> slice:
-        """Columns of all positions: ``[0, 3P)``."""
-        return slice(0, 3 * len(self.positions))
+        """Columns of all positions: ``[0, CP)``."""
+        return slice(0, self.dimensions * len(self.positions))
 
     @property
     def orientation_slice(self) -> slice:
-        """Columns of all quaternions: ``[3P, D)``."""
-        return slice(3 * len(self.positions), self.dim)
+        """Columns of all quaternions, after the positions."""
+        start = self.position_slice.stop
+        return slice(start, start + 4 * len(self.orientations))
+
+    @property
+    def limb_slice(self) -> slice:
+        """Columns of all limb lengths: the last ``len(limbs)``."""
+        return slice(self.orientation_slice.stop, self.dim)
 
     @property
     def quaternion_slices(self) -> tuple[slice, ...]:
         """Columns ``qx..qw`` of each orientation joint, in the order of :attr:`orientations`."""
-        start = 3 * len(self.positions)
+        start = self.orientation_slice.start
         return tuple(slice(start + 4 * k, start + 4 * k + 4) for k in range(len(self.orientations)))
 
     def columns(self, joint: str, kind: str = "position") -> slice:
-        """Columns of one joint's position (``kind="position"``) or quaternion (``"orientation"``)."""
+        """Columns of one joint's position (``kind="position"``), quaternion (``"orientation"``)
+        or limb length (``"limb"``, a one-column slice)."""
         if kind == "position":
-            k = self.positions.index(joint)
-            return slice(3 * k, 3 * k + 3)
+            k, c = self.positions.index(joint), self.dimensions
+            return slice(c * k, c * k + c)
         if kind == "orientation":
             return self.quaternion_slices[self.orientations.index(joint)]
-        raise ValueError(f"kind must be 'position' or 'orientation', not {kind!r}")
+        if kind == "limb":
+            k = self.limb_slice.start + self.limbs.index(joint)
+            return slice(k, k + 1)
+        raise ValueError(f"kind must be 'position', 'orientation' or 'limb', not {kind!r}")
+
+    def limb_pairs(self) -> list[tuple[str, str]]:
+        """(joint, parent) of each limb, in the order of :attr:`limbs`."""
+        js = load_joint_set(self.joint_set)
+        return [(j, js.names[js.parents[js.index(j)]]) for j in self.limbs]
 
     def component_names(self) -> list[str]:
-        """One name per component: ``["SpineBase.x", ..., "SpineBase.qx", ..., "KneeRight.qw"]``."""
-        return [f"{j}.{a}" for j in self.positions for a in POSITION_AXES] + [
-            f"{j}.{a}" for j in self.orientations for a in QUATERNION_AXES
-        ]
+        """One name per component: ``["SpineBase.x", ..., "SpineBase.qx", ..., "RElbow-RShoulder.length"]``."""
+        return (
+            [f"{j}.{a}" for j in self.positions for a in self.position_axes]
+            + [f"{j}.{a}" for j in self.orientations for a in QUATERNION_AXES]
+            + [f"{j}-{p}.length" for j, p in self.limb_pairs()]
+        )
 
     def to_dict(self) -> dict[str, Any]:
         """The spec as a JSON-able dict in the spec-file format (``from_dict`` reads it back)."""
-        return {
+        d = {
             "name": self.name,
             "description": self.description,
             "joint_set": self.joint_set,
@@ -98,6 +137,9 @@ class TargetSpec:
             "orientations": list(self.orientations),
             "root": self.root,
         }
+        if self.limbs or self.position_scale != "none":  # the 3-D specs' dicts stay as they were
+            d["limbs"], d["position_scale"] = list(self.limbs), self.position_scale
+        return d
 
     @classmethod
     def from_dict(cls, doc: Mapping[str, Any], source: str | Path | None = None) -> TargetSpec:
@@ -116,8 +158,13 @@ def _from_document(doc: dict[str, Any], path: str | Path) -> TargetSpec:
             raise SchemaError(
                 path, f"orientations: {j!r} carries no orientation in {js.name} (joints that do: {with_q})"
             )
-    if not positions and not orientations:
-        raise SchemaError(path, "positions and orientations are both empty: the target would have no component")
+    limbs = _joint_list(doc, "limbs", js, path) if "limbs" in doc else ()
+    for j in limbs:
+        if js.parents[js.index(j)] < 0:
+            raise SchemaError(path, f"limbs: {j!r} is the root of {js.name}: it has no parent, so no limb")
+    if not positions and not orientations and not limbs:
+        raise SchemaError(path, "positions, orientations and limbs are all empty: the target would have no component")
+    scale = doc.get("position_scale", "none")
     root = doc["root"] if "root" in doc else js.roles.get("root")
     if root is not None:
         root = _canonical(js, root, "root", path)
@@ -128,6 +175,9 @@ def _from_document(doc: dict[str, Any], path: str | Path) -> TargetSpec:
         orientations=orientations,
         root=root,
         description=doc.get("description", ""),
+        limbs=limbs,
+        dimensions=js.dimensions,
+        position_scale=scale,
     )
 
 
@@ -136,10 +186,7 @@ def _joint_set(name: str, path: str | Path) -> JointSet:
         raise SchemaError(
             path, f"joint_set: {name!r} is not a shipped joint set (shipped: {', '.join(shipped_joint_sets())})"
         )
-    js = load_joint_set(name)
-    if js.dimensions != 3:
-        raise SchemaError(path, f"joint_set: {name!r} is {js.dimensions}-D; target specs need 3-D joint positions")
-    return js
+    return load_joint_set(name)
 
 
 def _canonical(js: JointSet, joint: str, field: str, path: str | Path) -> str:
@@ -200,6 +247,9 @@ def extract_targets(motion: Motion, spec: TargetSpec, *, root_centre: bool = Fal
     quaternion keeps the source's sign. A dataset build then puts every recording's track of a
     joint in one hemisphere (:mod:`kinectdata.dataset.hemispheres`).
 
+    Limb lengths: the distance between each listed joint and its parent at the same frame, after
+    root-centring and ``position_scale``; invalid where either joint is.
+
     Root-centring (``root_centre=True``): each listed position becomes its offset from the spec's
     root joint at the same frame; the root's own position (when listed) becomes its offset from
     its mean over the recording's first second (the first ``round(fps)`` frames where the root is
@@ -213,8 +263,8 @@ def extract_targets(motion: Motion, spec: TargetSpec, *, root_centre: bool = Fal
         root_centre: centre positions on the root joint as above.
 
     Returns:
-        ``(values, mask)``: values [T, D] float64 (metres, quaternion components), with 0.0
-        wherever the mask is False; mask [T, D] bool, True where the component's joint position
+        ``(values, mask)``: values [T, D] float64 (position units, quaternion components, limb
+        lengths), with 0.0 wherever the mask is False; mask [T, D] bool, True where the component's joint position
         or orientation is valid.
 
     Raises:
@@ -233,6 +283,8 @@ def extract_targets(motion: Motion, spec: TargetSpec, *, root_centre: bool = Fal
     pmask = motion.position_mask[:, pidx]
     if root_centre:
         pos, pmask = _root_centred(motion, spec, pos, pmask)
+    if spec.position_scale == "recording_minmax":
+        pos = _minmax_scaled(pos, pmask)
 
     q = np.zeros((T, 0, 4))
     qmask = np.zeros((T, 0), bool)
@@ -247,10 +299,41 @@ def extract_targets(motion: Motion, spec: TargetSpec, *, root_centre: bool = Fal
         qmask = motion.orientation_mask[:, oidx]
         q = make_continuous(motion.orientations[:, oidx], qmask)
 
-    values = np.concatenate([pos.reshape(T, -1), q.reshape(T, -1)], axis=1)
-    mask = np.concatenate([np.repeat(pmask, 3, axis=1), np.repeat(qmask, 4, axis=1)], axis=1)
+    lengths, lmask = _limb_lengths(motion, spec, pos, pmask)
+    values = np.concatenate([pos.reshape(T, -1), q.reshape(T, -1), lengths], axis=1)
+    mask = np.concatenate([np.repeat(pmask, spec.dimensions, axis=1), np.repeat(qmask, 4, axis=1), lmask], axis=1)
     values[~mask] = 0.0
     return values, mask
+
+
+def _minmax_scaled(pos: np.ndarray, pmask: np.ndarray) -> np.ndarray:
+    """Positions [T, P, C] with each axis mapped into 0..1 by its min and max over the valid ones
+    (an axis with no spread maps to 0)."""
+    valid = pos[pmask]  # [N, C]
+    if not valid.size:
+        return pos
+    lo, hi = valid.min(axis=0), valid.max(axis=0)
+    span = np.where(hi > lo, hi - lo, 1.0)
+    return (pos - lo) / span
+
+
+def _limb_lengths(motion: Motion, spec: TargetSpec, pos: np.ndarray, pmask: np.ndarray):
+    """([T, L] lengths, [T, L] mask) of the spec's limbs, from the (centred, scaled) positions; a
+    joint that is not a listed position is taken from the motion with the same treatment."""
+    T = motion.n_frames
+    if not spec.limbs:
+        return np.zeros((T, 0)), np.zeros((T, 0), bool)
+    missing = [j for pair in spec.limb_pairs() for j in pair if j not in spec.positions]
+    if missing:
+        raise KinectDataError(
+            f"target spec {spec.name!r}: limbs need the positions of {', '.join(sorted(set(missing)))}; "
+            "list them under positions"
+        )
+    k = {j: i for i, j in enumerate(spec.positions)}
+    child = np.array([k[j] for j, _ in spec.limb_pairs()])
+    parent = np.array([k[p] for _, p in spec.limb_pairs()])
+    lengths = np.linalg.norm(pos[:, child] - pos[:, parent], axis=-1)
+    return lengths, pmask[:, child] & pmask[:, parent]
 
 
 def _source(motion: Motion) -> str:
@@ -279,7 +362,7 @@ def _root_centred(
         n = 1
         if motion.n_frames > 1:
             n = max(1, round(1.0 / float(np.median(np.diff(motion.times)))))
-        start = root[valid[:n]].mean(axis=0) if valid.size else np.full(3, np.nan)
+        start = root[valid[:n]].mean(axis=0) if valid.size else np.full(spec.dimensions, np.nan)
         centred[:, k] = root - start
         cmask[:, k] = root_ok
     return centred, cmask

@@ -100,6 +100,18 @@ def test_quickstart_runs_on_the_bundled_samples(tmp_path, monkeypatch):
         assert (tmp_path / "qs" / "run" / name).is_file(), name
 
 
+def test_listen_to_dance_quickstart(tmp_path):
+    pytest.importorskip("torch")
+    result = run("quickstart", "--pipeline", "listen-to-dance", "--out", tmp_path / "qs", "--epochs", 1)
+    assert result.exit_code == 0, result.output
+    assert result.output.count("(clap)") == 4  # every offset from the 2-D clap
+    assert "input [N, 80] float32" in result.output and "current [N, 44] float32" in result.output
+    assert "rhythm real      y peak at the beat period in 100% of recordings (x: 0%)" in result.output
+    for name in ("loss.png", "model.pt", "generated.jsonl", "evaluation/rhythm_real.png"):
+        assert (tmp_path / "qs" / "run" / name).is_file(), name
+    assert run("quickstart", "--pipeline", "listen-to-dance", "--samples", tmp_path).exit_code == 2
+
+
 def test_training_commands_end_to_end(sample_dataset, tmp_path):
     pytest.importorskip("torch")
     runs = tmp_path / "run"

@@ -118,7 +118,7 @@ def test_train_targets_fill_the_range_and_inputs_lie_in_0_1_to_0_9(dataset):
         current, mask, inputs = f["current"][()], f["mask"][()], f["input"][()]
     assert np.abs(current[mask]).max() == pytest.approx(0.9, abs=1e-6)
     assert inputs.min() >= 0.1 - 1e-6 and inputs.max() <= 0.9 + 1e-6
-    assert train[0]["targets_beyond_0.9"] == 0
+    assert train[0]["targets_out_of_range"] == 0
 
 
 def test_splits_are_by_recording_and_complete(dataset):
@@ -366,7 +366,7 @@ def test_inspect_reports_layout_ranges_and_statistics(dataset):
     assert "input [N, 1, 129, 5] float32" in text and "current [N, 65] float32" in text
     assert "input    min 0.1000  max 0.9000" in text
     assert text.count("SpineBase.qw") == 2  # train and test tables
-    assert "beyond +-0.9: 0 values" in text  # the training split
+    assert "out of range: 0 values" in text  # the training split
 
 
 def test_windows_never_cross_recordings_and_carry_previous_and_next(dataset):

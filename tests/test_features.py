@@ -10,7 +10,8 @@ import pytest
 from scipy import signal
 
 import kinectdata.features as features_pkg
-from kinectdata.features import PRESETS, StftConfig, extractor_names, get_extractor, register_extractor, stft_features
+from kinectdata.features import StftConfig, extractor_names, get_extractor, register_extractor, stft_features
+from kinectdata.features.stft import PRESETS
 
 SR = 16000
 SLICE = 534

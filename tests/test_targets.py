@@ -51,6 +51,7 @@ def test_shipped_specs_and_dims():
         "kinect_v2_positions": 75,
         "nite_full": 15 * 3 + 11 * 4,
         "azure_kinect_full": 204,
+        "listen_to_dance": 15 * 2 + 14,
     }
     for name in shipped_target_specs():
         spec = load_target_spec(name)
@@ -107,7 +108,12 @@ def test_spec_file_defaults_root_and_accepts_aliases(tmp_path):
         ({"positions": ["HandLeft", "HandRight", "HandLeft"]}, ["positions", "'HandLeft'", "twice"]),
         ({"joint_set": "kinect_v3"}, ["joint_set", "kinect_v3"]),
         ({"joint_set": "nite"}, ["positions", "'SpineBase'"]),
-        ({"joint_set": "openpose_mpi", "positions": ["head"], "orientations": []}, ["joint_set", "3-D"]),
+        ({"joint_set": "openpose_mpi", "positions": ["Head"], "orientations": ["Head"]}, ["orientations", "'Head'"]),
+        (
+            {"joint_set": "openpose_mpi", "positions": ["Chest"], "orientations": [], "limbs": ["Chest"]},
+            ["limbs", "root"],
+        ),
+        ({"position_scale": "per_frame"}, ["position_scale"]),
         ({"root": "Tail"}, ["root", "'Tail'"]),
         ({"positions": [], "orientations": []}, ["empty"]),
         ({"extra": 1}, ["extra"]),
@@ -260,3 +266,47 @@ def test_wrong_joint_set_and_missing_orientations_are_refused():
     positions_only = TargetSpec("p", "kinect_v2", ("HandLeft",), ())
     values, mask = extract_targets(no_q, positions_only)
     assert values.shape == (5, 3) and mask.all()
+
+
+def test_listen_to_dance_target_scales_each_axis_per_recording_and_adds_limb_lengths():
+    """30 coordinates min-max scaled per axis over the recording, then 14 limb lengths in those
+    units, computed here joint by joint from the joint set's parent links."""
+    js = load_joint_set("openpose_mpi")
+    spec = load_target_spec("listen_to_dance")
+    rng = np.random.default_rng(3)
+    T = 40
+    pos = rng.uniform([100, 50], [1800, 1000], (T, 15, 2))
+    mask = rng.random((T, 15)) > 0.1
+    motion = Motion(np.arange(T) / 30, np.where(mask[..., None], pos, np.nan), js, position_mask=mask)
+    values, vmask = extract_targets(motion, spec)
+    assert values.shape == (T, 44) and spec.component_names()[:2] == ["Head.x", "Head.y"]
+    assert spec.component_names()[30] == "Head-Neck.length"
+    lo = [pos[..., a][mask].min() for a in range(2)]
+    hi = [pos[..., a][mask].max() for a in range(2)]
+    for j, name in enumerate(js.names):
+        for a in range(2):
+            col = 2 * spec.positions.index(name) + a
+            expected = (pos[:, j, a] - lo[a]) / (hi[a] - lo[a])
+            np.testing.assert_allclose(values[mask[:, j], col], expected[mask[:, j]], atol=1e-12)
+            assert not vmask[~mask[:, j], col].any()
+    for k, name in enumerate(spec.limbs):
+        j, p = js.index(name), js.parents[js.index(name)]
+        ok = mask[:, j] & mask[:, p]
+        d = [(pos[:, j, a] - pos[:, p, a]) / (hi[a] - lo[a]) for a in range(2)]
+        np.testing.assert_allclose(values[ok, 30 + k], np.hypot(*d)[ok], atol=1e-12)
+        np.testing.assert_array_equal(vmask[:, 30 + k], ok)
+    valid = values[:, :30][vmask[:, :30]]
+    assert valid.min() == 0.0 and valid.max() == 1.0
+
+
+def test_limbs_need_their_joints_listed_as_positions(tmp_path):
+    path = tmp_path / "spec.json"
+    path.write_text(
+        json.dumps(
+            {"name": "x", "joint_set": "openpose_mpi", "positions": ["Head"], "orientations": [], "limbs": ["Head"]}
+        )
+    )
+    spec = load_target_spec(path)
+    motion = Motion(np.arange(3) / 30, np.ones((3, 15, 2)), load_joint_set("openpose_mpi"))
+    with pytest.raises(KinectDataError, match="limbs need the positions of Neck"):
+        extract_targets(motion, spec)

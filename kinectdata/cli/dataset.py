@@ -7,8 +7,9 @@ from tqdm import tqdm
 
 from ..dataset.build import build_dataset
 from ..dataset.inspect import inspect as inspect_report
+from ..dataset.pipelines import PIPELINES
 from ..dataset.prepare import BuildConfig
-from ..features.stft import PRESETS, StftConfig
+from ..features import PRESETS, StftConfig
 from ..targets import load_target_spec, shipped_target_specs
 
 
@@ -31,21 +32,29 @@ def _floats(ctx, param, value: str | None) -> tuple[float, ...]:
     help="Dataset folder to write (shards + manifest.json). An interrupted build there is resumed.",
 )
 @click.option(
-    "--target",
-    default="yalta65",
+    "--pipeline",
+    default="yalta2016",
     show_default=True,
+    type=click.Choice(sorted(PIPELINES)),
+    help="yalta2016: STFT inputs, yalta65 targets, maxabs (the DCNN + LSTM model). listen-to-dance: "
+    "log-mel inputs, listen_to_dance targets (OpenPose 2-D + limb lengths), no normalisation (the CDHC "
+    "model). --features, --target and --normalisation override its choices.",
+)
+@click.option(
+    "--target",
+    default=None,
     metavar="NAME|FILE",
-    help=f"Target spec: which joints' positions (metres) and quaternions form the target vector. "
-    f"Shipped: {', '.join(shipped_target_specs())}.",
+    help=f"Target spec: which joints' positions, quaternions and limb lengths form the target vector. "
+    f"Shipped: {', '.join(shipped_target_specs())}. Default: the pipeline's.",
 )
 @click.option(
     "--features",
     "preset",
-    default="yalta2016",
-    show_default=True,
+    default=None,
     type=click.Choice(sorted(PRESETS)),
-    help="Audio feature preset: yalta2016 (per-frame 0.1..0.9 power spectrum) or motion_dance "
-    "(dB mapped from -120..5 dB to -0.9..0.9).",
+    help="Audio feature preset: yalta2016 (per-frame 0.1..0.9 power spectrum), motion_dance "
+    "(dB mapped from -120..5 dB to -0.9..0.9) or listen_to_dance (80-band log-mel in 0..1). Default: the "
+    "pipeline's.",
 )
 @click.option(
     "--power",
@@ -55,11 +64,10 @@ def _floats(ctx, param, value: str | None) -> tuple[float, ...]:
 )
 @click.option(
     "--normalisation",
-    default="maxabs",
-    show_default=True,
-    type=click.Choice(["maxabs", "minmax"]),
-    help="Target normalisation into -0.9..0.9, fitted on the training split: maxabs (0.9 / max|x| per "
-    "component, the paper) or minmax.",
+    default=None,
+    type=click.Choice(["maxabs", "minmax", "none"]),
+    help="Target normalisation, fitted on the training split: maxabs (0.9 / max|x| per component, Yalta "
+    "et al.) or minmax into -0.9..0.9, or none (targets already in 0..1). Default: the pipeline's.",
 )
 @click.option(
     "--root-centre",
@@ -136,10 +144,17 @@ def _floats(ctx, param, value: str | None) -> tuple[float, ...]:
     type=click.IntRange(min=1),
     help="Recordings prepared in parallel (processes).",
 )
+@click.option(
+    "--video-fps",
+    default=None,
+    type=click.FloatRange(min=0, min_open=True),
+    help="OpenPose recordings: the videos' frame rate, for recordings that do not give their own.",
+)
 @click.option("--keep-work", is_flag=True, help="Keep the per-recording work files (.work/) after success.")
 def build_dataset_command(
     source,
     out,
+    pipeline,
     target,
     preset,
     power,
@@ -155,17 +170,23 @@ def build_dataset_command(
     max_gap,
     min_coverage,
     jobs,
+    video_fps,
     keep_work,
 ) -> None:
     """Build a training dataset from SOURCE: a recordings manifest (JSON, YAML or CSV with columns
-    recording, audio, split, offset, format, schema, body, name) or a folder of aligned .h5 files
-    or of sessions (skeleton file + audio of the same name).
+    recording, audio, split, offset, format, schema, body, person, video_fps, name) or a folder of
+    aligned .h5 files or of sessions (a skeleton file or OpenPose folder + audio of the same name).
 
-    Each motion frame gets a 1x129x5 STFT input and a normalised pose target; shards (HDF5) and a
-    manifest.json are written atomically, deterministically, and resumably.
+    Each motion frame gets an audio input (1x129x5 STFT, or 80 log-mel bands) and a normalised pose
+    target; shards (HDF5) and a manifest.json are written atomically, deterministically, and resumably.
     """
+    chosen = PIPELINES[pipeline]
+    preset, target = preset or chosen["features"], target or chosen["target"]
+    normalisation = normalisation or chosen["normalisation"]
     features = PRESETS[preset]
     if power is not None:
+        if not isinstance(features, StftConfig):
+            raise click.BadParameter(f"applies to STFT features, not {preset}", param_hint="--power")
         try:
             features = StftConfig.from_dict({**features.to_dict(), "power": power})
         except ValueError as exc:
@@ -193,7 +214,9 @@ def build_dataset_command(
             bar.total = total
             bar.update(done - bar.n)
 
-        manifest = build_dataset(source, out, config, jobs=jobs, progress=progress, keep_work=keep_work)
+        manifest = build_dataset(
+            source, out, config, jobs=jobs, progress=progress, keep_work=keep_work, video_fps=video_fps
+        )
     t = manifest["totals"]
     click.echo(f"wrote {out}: {t['rows']} rows from {t['recordings']} recordings in {t['shards']} shards")
     for split, info in manifest["splits"].items():

@@ -14,9 +14,16 @@ from .options import reader_options
 @click.command()
 @click.argument("recording", type=click.Path(dir_okay=True, path_type=str))
 @reader_options
-def info(recording: str, format_: str | None, schema: str | None, body: str | None) -> None:
+def info(
+    recording: str,
+    format_: str | None,
+    schema: str | None,
+    body: str | None,
+    person: str | None,
+    video_fps: float | None,
+) -> None:
     """Show what a skeleton RECORDING holds: format, joints, frames, timing, tracking."""
-    m = read_motion(recording, format=format_, schema=schema, body=body)
+    m = read_motion(recording, format=format_, schema=schema, body=body, person=person, video_fps=video_fps)
     t = m.timing()
     md = m.metadata
     click.echo(f"file            {recording}")
@@ -25,6 +32,12 @@ def info(recording: str, format_: str | None, schema: str | None, body: str | No
     if "bodies" in md:
         click.echo(
             f"body            {md['body']} of " + ", ".join(f"{b} ({n} frames)" for b, n in md["bodies"].items())
+        )
+    if "people" in md:
+        click.echo(
+            f"person          {md['person']} of "
+            + ", ".join(f"{p} ({n} frames)" for p, n in md["people"].items())
+            + f"; {md['layout']} keypoints at {md['video_fps']:g} fps"
         )
     click.echo(
         f"frames          {m.n_frames} over {m.duration:.3f} s; {t['fps']:.2f} fps (median interval "

@@ -8,7 +8,20 @@ from ..formats import readers
 
 
 def reader_options(f):
-    """--format, --schema and --body, for commands that read a skeleton recording."""
+    """--format, --schema, --body, --person and --video-fps, for commands that read a skeleton recording."""
+    f = click.option(
+        "--video-fps",
+        default=None,
+        type=click.FloatRange(min=0, min_open=True),
+        help="OpenPose output: the video's frame rate (the JSON files carry no timestamps).",
+    )(f)
+    f = click.option(
+        "--person",
+        default=None,
+        metavar="ID",
+        help="OpenPose output: the person to read, as a track id (0, 1, ... in order of first appearance, "
+        "or OpenPose's own person_id). Default: the person seen in the most frames.",
+    )(f)
     f = click.option(
         "--body",
         default=None,

@@ -8,7 +8,6 @@ from __future__ import annotations
 import dataclasses
 
 import click
-from click.core import ParameterSource
 
 from ..errors import KinectDataError
 
@@ -24,35 +23,64 @@ def _torch_or_fail() -> None:
 
 
 def train_options(f):
-    """The training settings, with the paper's defaults."""
+    """The training settings. Options whose default depends on the model show it as
+    "yalta / cdhc" (:data:`kinectdata.training.run.MODEL_DEFAULTS`)."""
     options = [
         click.option(
+            "--model",
+            default=None,
+            type=click.Choice(["yalta", "cdhc"]),
+            help="yalta: the DCNN + deep LSTM of Yalta et al. (2016); cdhc: the encoder-decoder of Lee et al. "
+            "(2018). Default: the dataset's (cdhc for mel features, yalta for STFT).",
+        ),
+        click.option(
             "--units",
-            default=500,
-            show_default=True,
+            default=None,
             type=click.IntRange(min=1),
-            help="LSTM units per layer (the paper: 250, 500, 1000).",
+            help="yalta: LSTM units per layer (the paper: 250, 500, 1000). [default: 500]",
         ),
         click.option(
             "--activation",
-            default="elu",
-            show_default=True,
+            default=None,
             type=click.Choice(["tanh", "relu", "elu"]),
-            help="Activation after each convolution and fc1.",
+            help="yalta: activation after each convolution and fc1. [default: elu]",
         ),
         click.option(
             "--feedback",
-            default="predicted",
-            show_default=True,
+            default=None,
             type=click.Choice(["predicted", "teacher"]),
-            help="Previous pose fed to the decoder: the model's own output (the paper) or the true one.",
+            help="yalta: previous pose fed to the decoder: the model's own output (the paper) or the true one. "
+            "cdhc always trains with the true one (teacher forcing). [default: predicted]",
+        ),
+        click.option(
+            "--channels",
+            default=None,
+            type=click.IntRange(min=1),
+            help="cdhc: width of the audio and skeleton encoders. [default: 256]",
+        ),
+        click.option(
+            "--decoder-channels",
+            default=None,
+            type=click.IntRange(min=1),
+            help="cdhc: width of the fused code and the decoder. [default: 128]",
+        ),
+        click.option(
+            "--dropout",
+            default=None,
+            type=click.FloatRange(0, 1, max_open=True),
+            help="cdhc: dropout after each highway block. [default: 0.05]",
+        ),
+        click.option(
+            "--limb-weight",
+            default=None,
+            type=click.FloatRange(min=0),
+            help="cdhc: weight of the limb-length loss added to the L1 loss. [default: 1]",
         ),
         click.option(
             "--sequence",
-            default=150,
-            show_default=True,
+            default=None,
             type=click.IntRange(min=1),
-            help="Frames per training sequence (at 30 fps, 150 frames = 5 s).",
+            help="Frames per training sequence (at 30 fps, 150 frames = 5 s). [default: 150 / 300]",
         ),
         click.option(
             "--stride",
@@ -61,51 +89,46 @@ def train_options(f):
             help="Frames between training sequence starts. Default: --sequence (no overlap).",
         ),
         click.option(
-            "--batch-size", default=50, show_default=True, type=click.IntRange(min=1), help="Sequences per batch."
+            "--batch-size", default=None, type=click.IntRange(min=1), help="Sequences per batch. [default: 50 / 16]"
         ),
         click.option(
-            "--epochs", default=10, show_default=True, type=click.IntRange(min=1), help="Passes over the data."
+            "--epochs", default=None, type=click.IntRange(min=1), help="Passes over the data. [default: 10 / 20]"
         ),
         click.option(
             "--lr",
-            default=1e-4,
-            show_default=True,
+            default=None,
             type=click.FloatRange(min=0, min_open=True),
-            help="Adam learning rate.",
+            help="Adam learning rate. [default: 1e-4 / 2e-4]",
         ),
         click.option(
             "--noise-eta",
-            default=0.01,
-            show_default=True,
+            default=None,
             type=click.FloatRange(min=0),
-            help="Gradient noise: variance eta / (1 + step)^gamma; 0 turns it off.",
+            help="Gradient noise: variance eta / (1 + step)^gamma; 0 turns it off. [default: 0.01 / 0]",
         ),
         click.option(
             "--noise-gamma",
-            default=0.55,
-            show_default=True,
+            default=None,
             type=click.FloatRange(min=0),
-            help="Gradient noise annealing exponent.",
+            help="Gradient noise annealing exponent. [default: 0.55]",
         ),
         click.option(
             "--clip-norm",
             default=None,
             type=click.FloatRange(min=0, min_open=True),
-            help="Clip the gradient's global norm to this before the noise (default: no clipping).",
+            help="Clip the gradient's global norm to this before the noise. [default: none / 1]",
         ),
         click.option(
             "--seed",
-            default=0,
-            show_default=True,
+            default=None,
             type=click.IntRange(min=0),
-            help="Seed of initialisation, batch order and noise.",
+            help="Seed of initialisation, batch order and noise. [default: 0]",
         ),
         click.option(
             "--device",
-            default="auto",
-            show_default=True,
+            default=None,
             type=click.Choice(["auto", "cpu", "cuda"]),
-            help="auto: CUDA when present, else CPU.",
+            help="auto: CUDA when present, else CPU. [default: auto]",
         ),
     ]
     for option in reversed(options):
@@ -113,38 +136,15 @@ def train_options(f):
     return f
 
 
-def make_train_config(
-    units,
-    activation,
-    feedback,
-    sequence,
-    stride,
-    batch_size,
-    epochs,
-    lr,
-    noise_eta,
-    noise_gamma,
-    clip_norm,
-    seed,
-    device,
-):
-    from ..training.run import TrainConfig
+def make_train_config(model: str | None, data: str | None = None, **settings):
+    """The TrainConfig of the typed settings over the model's defaults; the model defaults to the
+    dataset's (read from ``data``'s manifest)."""
+    from ..models.registry import model_for_features
+    from ..training.run import TrainConfig, read_manifest
 
-    return TrainConfig(
-        units=units,
-        activation=activation,
-        feedback=feedback,
-        sequence=sequence,
-        stride=stride,
-        batch_size=batch_size,
-        epochs=epochs,
-        lr=lr,
-        noise_eta=noise_eta,
-        noise_gamma=noise_gamma,
-        clip_norm=clip_norm,
-        seed=seed,
-        device=device,
-    )
+    if model is None:
+        model = "yalta" if data is None else model_for_features(read_manifest(data)["config"]["features"])
+    return TrainConfig.for_model(model, **settings)
 
 
 def _row(row: dict) -> str:
@@ -162,26 +162,27 @@ def _row(row: dict) -> str:
 @click.option("--resume", is_flag=True, help="Continue the run in --out from its last checkpoint, exactly.")
 @train_options
 def train_baseline(data, out, resume, **options) -> None:
-    """Train the DCNN + deep LSTM of Yalta et al. (2016) on a dataset (the paper's settings by
-    default: Adam 1e-4, MSE, sequences of 150, batches of 50, 10 epochs, annealed gradient noise).
+    """Train a bundled model on a dataset: the DCNN + deep LSTM of Yalta et al. (2016) (the paper's
+    settings by default: Adam 1e-4, MSE, sequences of 150, batches of 50, 10 epochs, annealed
+    gradient noise) or the CDHC encoder-decoder of Lee et al. (2018) (teacher forcing, L1 +
+    limb-length loss; Adam 2e-4, sequences of 300, batches of 16, 20 epochs).
 
     Writes into --out: config.json, checkpoint.pt (each epoch, atomically), log.csv, loss.png,
-    and at the end model.pt and stream.ts (TorchScript of the streaming network). With --resume
-    the run's own settings are used; --epochs (to train longer) and --device may be given."""
+    and at the end model.pt (and for yalta stream.ts, TorchScript of the streaming network). With
+    --resume the run's own settings are used; --epochs (to train longer) and --device may be given."""
     _torch_or_fail()
     from ..training.train import train
 
-    config = make_train_config(**options)
     if resume:  # the run's settings, with what was typed on the command line checked against them
         from ..training.run import TrainConfig, read_config
 
-        ctx = click.get_current_context()
-        typed = {
-            k: v for k, v in config.to_dict().items() if ctx.get_parameter_source(k) == ParameterSource.COMMANDLINE
-        }
+        typed = {k: v for k, v in options.items() if v is not None}
         config = dataclasses.replace(TrainConfig(**read_config(out)["train"]), **typed)
+    else:
+        config = make_train_config(data=data, **options)
     history = train(data, out, config, resume=resume, progress=lambda r: click.echo(_row(r)))
-    click.echo(f"run: {out} ({len(history)} epochs; log.csv, loss.png, model.pt, stream.ts)")
+    files = "log.csv, loss.png, model.pt" + (", stream.ts" if config.model == "yalta" else "")
+    click.echo(f"run: {out} ({len(history)} epochs; {files})")
 
 
 @click.command("evaluate")
@@ -209,7 +210,13 @@ def evaluate_command(run_dir, data, split, out, silence) -> None:
 @click.command("generate")
 @click.option("--run", "run_dir", required=True, type=click.Path(exists=True, file_okay=False), help="Run folder.")
 @click.argument("audio", type=click.Path(dir_okay=False))
-@click.option("-o", "--out", required=True, type=click.Path(dir_okay=False), help="Canonical CSV to write.")
+@click.option(
+    "-o",
+    "--out",
+    required=True,
+    type=click.Path(dir_okay=False),
+    help="File to write: canonical CSV (yalta), OpenPose JSON Lines (cdhc, e.g. dance.jsonl).",
+)
 @click.option(
     "--engine",
     default="torch",
@@ -226,7 +233,8 @@ def evaluate_command(run_dir, data, split, out, silence) -> None:
 )
 def generate_command(run_dir, audio, out, engine, precision) -> None:
     """Generate dance motion for AUDIO (any file libsndfile reads), streaming frame by frame, and
-    write it (metres, unit quaternions) as the canonical CSV that align reads."""
+    write it: a yalta run's (metres, unit quaternions) as the canonical CSV that align reads, a cdhc
+    run's (x, y in 0..1, y down) as OpenPose JSON Lines that the openpose reader reads."""
     _torch_or_fail()
     from ..training.generate import generate
 
@@ -277,6 +285,8 @@ def sweep_command(data, out, only, **options) -> None:
     _torch_or_fail()
     from ..training.sweep import sweep
 
+    if options["model"] not in (None, "yalta"):
+        raise click.UsageError("sweep reproduces the tables of Yalta et al. (2016): it trains the yalta model only")
     variants = None if only is None else [v.strip() for v in only.split(",")]
     rows = sweep(
         data,

@@ -93,7 +93,7 @@ def _shard_attributes(config: BuildConfig, normalizer: Normalizer, split: str, k
         "split": split,
         "fps": config.fps,
         "sample_rate": config.sample_rate,
-        "features": {"extractor": "stft", **config.features},
+        "features": {"extractor": config.feature_config.extractor, **config.features},
         "target_spec": config.target,
         "normalisation": normalizer.to_dict(),
         "root_centre": config.root_centre,
@@ -154,6 +154,7 @@ def build_dataset(
     jobs: int = 1,
     progress: Callable[[int, int], None] | None = None,
     keep_work: bool = False,
+    video_fps: float | None = None,
 ) -> dict[str, Any]:
     """Build a dataset folder from a recordings manifest or folder; returns the manifest.
 
@@ -166,9 +167,10 @@ def build_dataset(
         jobs: recordings prepared in parallel (processes).
         progress: called as ``progress(done, total)`` after each recording.
         keep_work: keep ``.work/`` (the per-recording files) after success.
+        video_fps: the frame rate of OpenPose recordings that do not give their own.
     """
     out = Path(out_dir)
-    entries = read_recordings(source)
+    entries = read_recordings(source, video_fps=video_fps)
     splits = assign_splits(entries, config.split_ratios, config.seed)
     if "train" not in splits.values():
         raise KinectDataError(f"{source}: no recording is in the train split (the normalisation is fitted on it)")
@@ -297,7 +299,7 @@ def _write_shards(
         out_of_range = np.zeros(normalizer.dim, np.int64)
         if path.is_file() and _existing_key(path) == key:
             with h5py.File(path, "r") as f:
-                out_of_range += count_out_of_range(f["current"][()], f["mask"][()])
+                out_of_range += count_out_of_range(f["current"][()], f["mask"][()], normalizer.bounds)
         else:
             with ExitStack() as stack:
                 members = []
@@ -306,7 +308,7 @@ def _write_shards(
                     mask = f["mask"][()]
                     targets = apply_flips(f["targets"][()], flipped_columns(spec, flips[u.name]))
                     current = normalizer.apply(targets, mask)
-                    out_of_range += count_out_of_range(current, mask)
+                    out_of_range += count_out_of_range(current, mask, normalizer.bounds)
                     members.append(
                         ShardRecording(
                             u.name,
@@ -348,7 +350,7 @@ def _write_shards(
                 "recordings": len(shard["units"]),
                 "bytes": path.stat().st_size,
                 "sha256": file_sha256(path),
-                "targets_beyond_0.9": int(out_of_range.sum()),
+                "targets_out_of_range": int(out_of_range.sum()),
             }
         )
     return shards, records

@@ -15,7 +15,7 @@ from __future__ import annotations
 import csv
 import json
 import re
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -40,6 +40,8 @@ class RecordingEntry:
     format: str | None = None
     schema: str | None = None
     body: str | None = None
+    person: str | None = None
+    video_fps: float | None = None
 
     @property
     def aligned(self) -> bool:
@@ -82,6 +84,11 @@ def _read_manifest(path: Path) -> tuple[list[dict[str, Any]], list[int] | None]:
             if None in row:
                 raise SchemaError(path, f"more fields than the header's {len(reader.fieldnames)}", line=line)
             doc = {k.strip(): v.strip() for k, v in row.items() if k and v is not None and v.strip()}
+            if "video_fps" in doc:
+                try:
+                    doc["video_fps"] = float(doc["video_fps"])
+                except ValueError:
+                    raise SchemaError(path, f"video_fps {doc['video_fps']!r} is not a number", line=line) from None
             if "offset" in doc and doc["offset"] != "auto":
                 try:
                     doc["offset"] = float(doc["offset"])
@@ -121,19 +128,40 @@ def _checked_name(name: str, where: str, source: Path) -> str:
 
 
 def _existing(source: Path, base: Path, doc: dict, key: str, where: str, line: int | None) -> Path:
-    """The resolved path of a manifest field naming a file, which must exist."""
+    """The resolved path of a manifest field naming a file (or, for a recording, an OpenPose
+    folder), which must exist."""
     path = (base / doc[key]).resolve()
-    if not path.is_file():
+    if not (path.is_file() or (key == "recording" and path.is_dir())):
         raise SchemaError(source, f"{where}: {key} {doc[key]} does not exist (looked for {path})", line=line)
     return path
 
 
-def read_recordings(source: str | Path) -> list[RecordingEntry]:
+def read_recordings(source: str | Path, *, video_fps: float | None = None) -> list[RecordingEntry]:
     """The recordings listed by a manifest file, or found in a folder, with resolved paths.
 
     Every listed file must exist; errors name the manifest and the record (its line in CSV).
+    ``video_fps`` is given to the OpenPose recordings (folders) that do not state their own.
     """
-    source = Path(source)
+    entries = _read_recordings(Path(source))
+    if video_fps is None:
+        return entries
+    return [replace(e, video_fps=video_fps) if e.video_fps is None and _is_openpose(e) else e for e in entries]
+
+
+def _is_openpose(entry: RecordingEntry) -> bool:
+    if entry.aligned:
+        return False
+    if entry.format is not None:
+        return entry.format == "openpose"
+    from ..formats import detect_format
+
+    try:
+        return detect_format(entry.recording) == "openpose"
+    except KinectDataError:
+        return False  # reported when the recording is read
+
+
+def _read_recordings(source: Path) -> list[RecordingEntry]:
     if source.is_dir():
         aligned = sorted(p for p in source.glob("*.h5") if _is_aligned_file(p))
         if aligned:
@@ -195,6 +223,8 @@ def read_recordings(source: str | Path) -> list[RecordingEntry]:
                 format=d.get("format"),
                 schema=schema,
                 body=d.get("body"),
+                person=None if d.get("person") is None else str(d["person"]),
+                video_fps=None if d.get("video_fps") is None else float(d["video_fps"]),
             )
         )
     return entries

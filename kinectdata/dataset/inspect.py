@@ -4,7 +4,8 @@ For a dataset folder the manifest is validated (``schemas/dataset-manifest.schem
 every shard against the layout and its checksum; then, per split: rows, recordings, the input
 features' range, mean and standard deviation, padded frames, and per target component the range,
 mean and standard deviation over valid values, the share of valid values and how many lie
-beyond ±0.9 (the training split's are inside by construction; other splits may exceed it).
+outside the normalisation's range, ±0.9 (0..1 for ``none``): the training split's are inside by
+construction, other splits may exceed it.
 """
 
 from __future__ import annotations
@@ -19,6 +20,7 @@ import numpy as np
 
 from ..align import file_sha256
 from ..errors import FormatError
+from ..normalization import Normalizer, count_out_of_range
 from ..resources import validate
 from .build import MANIFEST
 from .shards import json_attribute, read_index, validate_shard
@@ -73,6 +75,7 @@ class _SplitStats:
         n, dim = f["current"].shape
         if self.targets is None:
             self.inputs, self.targets, self.beyond = _Moments(1), _Moments(dim), np.zeros(dim, np.int64)
+        bounds = Normalizer.from_dict(json_attribute(f, "normalisation")).bounds
         self.rows += n
         self.recordings += len(read_index(f))
         self.padded += int(f["audio_padded"][()].sum())
@@ -81,7 +84,7 @@ class _SplitStats:
             self.inputs.add(x)
             cur, mask = f["current"][s : s + _ROWS], f["mask"][s : s + _ROWS]
             self.targets.add(cur, mask)
-            self.beyond += (mask & (np.abs(cur) > np.float32(0.9))).sum(axis=0)
+            self.beyond += count_out_of_range(cur, mask, bounds)
 
 
 def _report(name: str, st: _SplitStats, components: list[str], limit: int | None, fitted=None) -> list[str]:
@@ -96,9 +99,9 @@ def _report(name: str, st: _SplitStats, components: list[str], limit: int | None
     valid_share = t.count / st.rows
     lines.append(
         f"  current  min {np.min(t.low):.4f}  max {np.max(t.high):.4f}  valid {100 * valid_share.mean():.2f}%  "
-        f"beyond +-0.9: {int(st.beyond.sum())} values in {int((st.beyond > 0).sum())} components"
+        f"out of range: {int(st.beyond.sum())} values in {int((st.beyond > 0).sum())} components"
     )
-    header = f"  {'component':<22} {'min':>8} {'max':>8} {'mean':>8} {'std':>8} {'valid%':>7} {'>0.9':>6}"
+    header = f"  {'component':<22} {'min':>8} {'max':>8} {'mean':>8} {'std':>8} {'valid%':>7} {'out':>6}"
     if fitted is not None:
         header += f" {'raw min':>10} {'raw max':>10} {'scale':>10}"
     lines.append(header)
@@ -162,7 +165,8 @@ def inspect(path: str | Path, *, components: int | None = 12) -> str:
             f"features   input [N, {', '.join(map(str, manifest['feature_shape']))}] float32: "
             f"{_feature_line(cfg['features'])}",
             f"targets    current [N, {manifest['target_dim']}] float32: spec {spec['name']} "
-            f"({len(spec['positions'])} positions, {len(spec['orientations'])} quaternions)"
+            f"({len(spec['positions'])} positions, {len(spec['orientations'])} quaternions"
+            + (f", {len(spec['limbs'])} limbs)" if spec.get("limbs") else ")")
             + (", root-centred" if cfg["root_centre"] else ""),
             f"normalised {_norm_line(manifest['normalisation'])}, fitted on the train split "
             f"({int(max(manifest['normalisation']['count']))} rows, noisy copies excluded)",
@@ -215,6 +219,12 @@ def inspect(path: str | Path, *, components: int | None = 12) -> str:
 
 
 def _feature_line(cfg: dict[str, Any]) -> str:
+    if cfg.get("extractor") == "mel":
+        return (
+            f"{cfg.get('n_mels')} mel bands ({cfg.get('fmin')}-{cfg.get('fmax')} Hz), {cfg.get('n_fft')}-sample "
+            f"{cfg.get('window')} window centred {cfg.get('centre_offset')} samples into each frame; dB "
+            f"{cfg.get('db_range')} -> 0..1"
+        )
     return (
         f"{cfg.get('n_frames')} STFT frames of {cfg.get('frame_samples')} samples, hop {cfg.get('hop_samples')}, "
         f"{cfg.get('window')} window, {cfg.get('n_fft')}-point FFT; {cfg.get('power')} power, "

@@ -29,7 +29,7 @@ from ..atomic import atomic_output
 from ..audio import AudioReader
 from ..envelopes import audio_envelopes
 from ..errors import KinectDataError
-from ..features.stft import StftConfig
+from ..features import FeatureConfig, feature_config
 from ..features.streaming import StreamingFeatures
 from ..formats import read_motion
 from ..normalization import METHODS, NormStats
@@ -48,9 +48,10 @@ class BuildConfig:
     Attributes:
         fps: motion frames per second.
         sample_rate: Hz of the audio the features are computed from.
-        features: feature configuration, ``StftConfig.to_dict()``.
+        features: feature configuration, ``StftConfig.to_dict()`` or ``MelConfig.to_dict()``.
         target: the target spec, ``TargetSpec.to_dict()``.
-        normalisation: ``maxabs`` (the paper) or ``minmax``.
+        normalisation: ``maxabs`` (Yalta et al.), ``minmax`` or ``none`` (targets already in
+            range, e.g. the listen_to_dance spec's 0..1).
         root_centre: root-centre positions before normalising.
         split_ratios: (train, val, test) shares for recordings without an explicit split.
         seed: for drawn splits and augmentation noise.
@@ -79,28 +80,31 @@ class BuildConfig:
             raise KinectDataError(f"normalisation must be one of {', '.join(METHODS)}, not {self.normalisation!r}")
         if self.compression not in (None, "gzip", "lzf"):
             raise KinectDataError(f"compression must be none, gzip or lzf, not {self.compression!r}")
-        stft = self.stft
-        if stft.sample_rate != self.sample_rate:
+        try:
+            feats = self.feature_config
+        except ValueError as exc:
+            raise KinectDataError(f"invalid feature configuration: {exc}") from None
+        if feats.sample_rate != self.sample_rate:
             raise KinectDataError(
-                f"the features are defined at {stft.sample_rate} Hz ({stft.slice_samples}-sample slices, "
-                f"{stft.frame_samples}-sample STFT frames); building at {self.sample_rate} Hz needs a feature "
+                f"the {feats.extractor} features are defined at {feats.sample_rate} Hz "
+                f"({feats.slice_samples}-sample slices); building at {self.sample_rate} Hz needs a feature "
                 "configuration for that rate"
             )
         period = self.sample_rate / self.fps
-        if abs(stft.slice_samples - period) > 1:
+        if abs(feats.slice_samples - period) > 1:
             raise KinectDataError(
-                f"the features take {stft.slice_samples}-sample slices, one frame at "
-                f"{self.sample_rate / stft.slice_samples:.0f} fps; at {self.fps:g} fps a frame is {period:.1f} "
+                f"the features take {feats.slice_samples}-sample slices, one frame at "
+                f"{self.sample_rate / feats.slice_samples:.0f} fps; at {self.fps:g} fps a frame is {period:.1f} "
                 "samples: use a feature configuration with slices of one frame"
             )
 
     @property
-    def stft(self) -> StftConfig:
-        return StftConfig.from_dict(self.features)
+    def feature_config(self) -> FeatureConfig:
+        return feature_config(self.features)
 
     @property
     def feature_shape(self) -> tuple[int, ...]:
-        return self.stft.output_shape
+        return self.feature_config.output_shape
 
     def to_dict(self) -> dict[str, Any]:
         d = asdict(self)
@@ -180,10 +184,13 @@ def _mean_square(blocks: Iterable[np.ndarray]) -> float:
 
 
 def source_hashes(entry: RecordingEntry) -> dict[str, str]:
-    """SHA-256 of a recording's files by file name: the recording, its audio and its CSV schema
-    file if it has one (an edited schema changes what is read)."""
-    sources = [entry.recording, entry.audio, entry.schema]
-    return {Path(p).name: file_sha256(p) for p in sources if p is not None and Path(p).is_file()}
+    """SHA-256 of a recording's files by file name: the recording (a file or an OpenPose folder), its
+    audio and its CSV schema file if it has one (an edited schema changes what is read)."""
+    hashes = {Path(entry.recording).name: file_sha256(entry.recording)}
+    for p in (entry.audio, entry.schema):
+        if p is not None and Path(p).is_file():
+            hashes[Path(p).name] = file_sha256(p)
+    return hashes
 
 
 def prepare_recording(
@@ -208,7 +215,7 @@ def prepare_recording(
         return [done[v] for v in variants]
 
     spec = TargetSpec.from_dict(config.target)
-    stft = StftConfig.from_dict(config.features)
+    feats = config.feature_config
     sr = config.sample_rate
     cache: Path | None = None  # the resampled audio of the first pass, so the second need not decode again
     if entry.aligned:
@@ -227,7 +234,14 @@ def prepare_recording(
 
         mean_square = _mean_square(blocks()) if snrs else 0.0
     else:
-        source = read_motion(entry.recording, format=entry.format, schema=entry.schema, body=entry.body)
+        source = read_motion(
+            entry.recording,
+            format=entry.format,
+            schema=entry.schema,
+            body=entry.body,
+            person=entry.person,
+            video_fps=entry.video_fps,
+        )
         reader = AudioReader(entry.audio, sr)
         env = None
         if entry.offset == "auto" or snrs:
@@ -282,10 +296,10 @@ def prepare_recording(
             outputs[v] = (
                 f.create_dataset(
                     "input",
-                    shape=(n, *stft.output_shape),
+                    shape=(n, *feats.output_shape),
                     dtype=np.float32,
                     track_times=False,
-                    chunks=(min(256, n), *stft.output_shape),
+                    chunks=(min(256, n), *feats.output_shape),
                 ),
                 f.create_dataset("audio_padded", shape=(n,), dtype=bool, track_times=False),
             )
@@ -298,7 +312,7 @@ def prepare_recording(
 
             return sink
 
-        featurizers = {v: StreamingFeatures(starts, stft, sink_for(v)) for v in variants}
+        featurizers = {v: StreamingFeatures(starts, feats, sink_for(v)) for v in variants}
         rngs = {
             v: np.random.default_rng([config.seed, zlib.crc32(entry.name.encode()), int(round(v * 1000)) & 0xFFFFFFFF])
             for v in variants

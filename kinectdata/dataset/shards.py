@@ -19,8 +19,10 @@ import numpy as np
 
 from .. import __version__
 from ..atomic import atomic_output
-from ..errors import FormatError
+from ..errors import FormatError, KinectDataError
+from ..features import feature_config
 from ..resources import load_json, schemas_dir
+from ..targets import TargetSpec
 
 FORMAT = "kinectdata.shard"
 FORMAT_VERSION = 1
@@ -159,9 +161,11 @@ def validate_shard(path: str | Path) -> dict[str, int]:
                     raise FormatError(path, f"dataset {name!r} has dtype {d.dtype}, expected strings")
             elif d.dtype != _DTYPES[rule["dtype"]]:
                 raise FormatError(path, f"dataset {name!r} has dtype {d.dtype}, expected {rule['dtype']}")
-            if len(d.shape) != len(rule["shape"]):
+            open_ended = rule["shape"][-1] == "..."  # any further axes (checked against an attribute)
+            fixed = rule["shape"][:-1] if open_ended else rule["shape"]
+            if len(d.shape) < len(fixed) or (not open_ended and len(d.shape) != len(fixed)):
                 raise FormatError(path, f"dataset {name!r} has shape {d.shape}, expected {rule['shape']}")
-            for axis, (want, got) in enumerate(zip(rule["shape"], d.shape)):
+            for axis, (want, got) in enumerate(zip(fixed, d.shape)):
                 if isinstance(want, int):
                     ok = want == got
                 else:
@@ -194,7 +198,10 @@ def _check_json_attributes(f: h5py.File, path: Path, sizes: dict[str, int]) -> N
         and isinstance(spec.get("orientations"), list)
     ):
         raise FormatError(path, "attribute 'target_spec' is not a target spec (positions and orientations lists)")
-    dim = 3 * len(spec["positions"]) + 4 * len(spec["orientations"])
+    try:
+        dim = TargetSpec.from_dict(spec).dim
+    except KinectDataError as exc:
+        raise FormatError(path, f"attribute 'target_spec' is not a valid target spec ({exc})") from None
     if dim != sizes["D"]:
         raise FormatError(path, f"'current' has {sizes['D']} components, the target spec {dim}")
     if not (
@@ -204,3 +211,11 @@ def _check_json_attributes(f: h5py.File, path: Path, sizes: dict[str, int]) -> N
         raise FormatError(path, f"attribute 'normalisation' must hold 'scale' and 'offset' lists of {dim} numbers")
     if not isinstance(feats, dict):
         raise FormatError(path, "attribute 'features' is not a feature configuration (a JSON object)")
+    try:
+        shape = feature_config(feats).output_shape
+    except (ValueError, TypeError) as exc:
+        raise FormatError(path, f"attribute 'features' is not a valid feature configuration ({exc})") from None
+    if tuple(f["input"].shape[1:]) != tuple(shape):
+        raise FormatError(
+            path, f"'input' holds frames of shape {list(f['input'].shape[1:])}, the features {list(shape)}"
+        )

@@ -5,10 +5,15 @@ An extractor is a callable ``(samples, starts, config, *, chunk_frames=...) -> (
 ``features`` float32 [N, ...] and ``padded`` bool [N] (see :func:`stft_features`). Built in:
 
 - ``"stft"``: :func:`kinectdata.features.stft.stft_features` with a :class:`StftConfig`
-  (presets in :data:`PRESETS`: ``"yalta2016"``, ``"motion_dance"``).
+  (presets ``"yalta2016"``, ``"motion_dance"``), the Yalta et al. pipeline;
+- ``"mel"``: :func:`kinectdata.features.mel.mel_features` with a :class:`MelConfig` (preset
+  ``"listen_to_dance"``), the Lee et al. pipeline.
 
-Register another one with the decorator ``@register_extractor("mel")`` or the call
-``register_extractor("mel", fn)``; look one up with ``get_extractor(name)``.
+All presets are in :data:`PRESETS`. A configuration's dict names its extractor
+(``"extractor"``; a dict without one is an STFT configuration, as datasets before the mel
+features stored them): :func:`feature_config` reads it back, :func:`compute_features` runs it.
+Register another extractor with the decorator ``@register_extractor("name")`` or the call
+``register_extractor("name", fn)``; look one up with ``get_extractor(name)``.
 """
 
 from __future__ import annotations
@@ -16,9 +21,30 @@ from __future__ import annotations
 from collections.abc import Callable
 from typing import Any
 
-from kinectdata.features.stft import PRESETS, StftConfig, stft_features
+import numpy as np
 
-__all__ = ["PRESETS", "StftConfig", "extractor_names", "get_extractor", "register_extractor", "stft_features"]
+from kinectdata.features.mel import MelConfig, mel_features
+from kinectdata.features.stft import PRESETS as STFT_PRESETS
+from kinectdata.features.stft import StftConfig, stft_features
+
+__all__ = [
+    "PRESETS",
+    "FeatureConfig",
+    "MelConfig",
+    "StftConfig",
+    "compute_features",
+    "extractor_names",
+    "feature_config",
+    "get_extractor",
+    "mel_features",
+    "register_extractor",
+    "stft_features",
+]
+
+FeatureConfig = StftConfig | MelConfig
+PRESETS: dict[str, FeatureConfig] = {**STFT_PRESETS, "listen_to_dance": MelConfig()}
+"""Feature configurations by name: ``yalta2016``, ``motion_dance`` (STFT) and ``listen_to_dance`` (mel)."""
+_CONFIG_TYPES = {"stft": StftConfig, "mel": MelConfig}
 
 Extractor = Callable[..., Any]
 
@@ -59,4 +85,18 @@ def extractor_names() -> list[str]:
     return sorted(_EXTRACTORS)
 
 
+def feature_config(d: dict[str, Any]) -> FeatureConfig:
+    """The configuration object of a stored features dict (its ``"extractor"``, default ``stft``)."""
+    name = d.get("extractor", "stft")
+    if name not in _CONFIG_TYPES:
+        raise ValueError(f"unknown feature extractor {name!r}; known: {', '.join(sorted(_CONFIG_TYPES))}")
+    return _CONFIG_TYPES[name].from_dict(d)
+
+
+def compute_features(samples: np.ndarray, starts: np.ndarray, config: FeatureConfig) -> tuple[np.ndarray, np.ndarray]:
+    """``(features [N, *config.output_shape] float32, padded [N] bool)`` with the config's extractor."""
+    return get_extractor(config.extractor)(samples, starts, config)
+
+
 register_extractor("stft", stft_features)
+register_extractor("mel", mel_features)

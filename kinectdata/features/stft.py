@@ -90,7 +90,7 @@ import dataclasses
 import functools
 import math
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 from numpy.lib.stride_tricks import sliding_window_view
@@ -136,6 +136,8 @@ class StftConfig:
         amin: ``fixed_db``: added to the scaled magnitude before the log (bounds the dB below
             at ``20*log10(amin)``).
     """
+
+    extractor: ClassVar[str] = "stft"
 
     sample_rate: int = 16000
     slice_samples: int = 534
@@ -219,6 +221,11 @@ class StftConfig:
         """Shape of one motion frame's features: ``(1, n_bins, n_frames)`` = (1, 129, 5)."""
         return (1, self.n_bins, self.n_frames)
 
+    @property
+    def span(self) -> tuple[int, int]:
+        """Samples a frame reads, relative to its slice start: ``[0, slice_samples)``."""
+        return 0, self.slice_samples
+
     def to_dict(self) -> dict[str, Any]:
         """A JSON-able dict of every field (tuples as lists); :meth:`from_dict` inverts it exactly."""
         d = dataclasses.asdict(self)
@@ -229,7 +236,10 @@ class StftConfig:
     @classmethod
     def from_dict(cls, d: dict[str, Any]) -> StftConfig:
         """The config of a :meth:`to_dict` dict (also after a JSON round trip). Missing keys take
-        their defaults; unknown keys raise ValueError."""
+        their defaults; unknown keys raise ValueError. An ``"extractor"`` key must say ``"stft"``."""
+        if d.get("extractor", cls.extractor) != cls.extractor:
+            raise ValueError(f"not an STFT configuration (extractor {d['extractor']!r})")
+        d = {k: v for k, v in d.items() if k != "extractor"}
         names = {f.name for f in dataclasses.fields(cls)}
         unknown = sorted(set(d) - names)
         if unknown:

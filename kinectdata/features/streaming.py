@@ -2,7 +2,8 @@
 
 The dataset builder and ``generate`` read audio in blocks (:class:`~kinectdata.audio.AudioReader`);
 :class:`StreamingFeatures` holds only the samples that frames still need, so memory stays
-bounded, and its output equals :func:`~kinectdata.features.stft.stft_features` on the whole audio.
+bounded, and its output equals the extractor's (:func:`~kinectdata.features.compute_features`) on
+the whole audio.
 """
 
 from __future__ import annotations
@@ -11,19 +12,21 @@ from collections.abc import Callable
 
 import numpy as np
 
-from .stft import StftConfig, stft_features
+from . import FeatureConfig, compute_features
 
 
 class StreamingFeatures:
-    """Feeds streamed audio blocks to :func:`stft_features`, keeping only the samples still needed.
+    """Feeds streamed audio blocks to a feature extractor, keeping only the samples still needed.
 
     ``starts`` [N] are absolute sample indices of the frames' slices; a frame is computed as soon
-    as its slice has arrived, the rest at :meth:`finish` (zero-padded and flagged past the end).
+    as the samples it reads (``config.span`` around its start) have arrived, the rest at
+    :meth:`finish` (zero-padded and flagged past the end).
     """
 
-    def __init__(self, starts: np.ndarray, config: StftConfig, sink: Callable[[int, np.ndarray, np.ndarray], None]):
+    def __init__(self, starts: np.ndarray, config: FeatureConfig, sink: Callable[[int, np.ndarray, np.ndarray], None]):
         self.starts, self.config, self.sink = starts, config, sink
-        self.ends = starts + config.slice_samples
+        self.lo, hi = config.span
+        self.ends = starts + hi
         self.k = 0
         self.buffer = np.zeros(0, np.float32)
         self.buffer_start = 0
@@ -33,7 +36,7 @@ class StreamingFeatures:
         ready = int(np.searchsorted(self.ends, self.buffer_start + self.buffer.size, side="right"))
         if ready > self.k:
             self._emit(ready)
-        keep_from = self.starts[self.k] - self.buffer_start if self.k < self.starts.size else self.buffer.size
+        keep_from = self.starts[self.k] + self.lo - self.buffer_start if self.k < self.starts.size else self.buffer.size
         keep_from = int(np.clip(keep_from, 0, self.buffer.size))
         self.buffer = self.buffer[keep_from:]
         self.buffer_start += keep_from
@@ -43,6 +46,6 @@ class StreamingFeatures:
             self._emit(self.starts.size)
 
     def _emit(self, upto: int) -> None:
-        feats, padded = stft_features(self.buffer, self.starts[self.k : upto] - self.buffer_start, self.config)
+        feats, padded = compute_features(self.buffer, self.starts[self.k : upto] - self.buffer_start, self.config)
         self.sink(self.k, feats, padded)
         self.k = upto

@@ -1,12 +1,13 @@
 """Engines that run the streaming network one frame at a time, with its state kept inside.
 
-- ``torch``: :class:`~kinectdata.models.yalta.StreamingYalta`, float32 or float16 weights;
-- ``onnxruntime``: the network exported to ONNX (:func:`~kinectdata.models.export.export_onnx`)
+- ``torch``: :class:`~kinectdata.models.yalta.StreamingYalta`, float32 or float16 weights, or
+  for the cdhc model :class:`~kinectdata.models.cdhc.StreamingCdhc` (float32);
+- ``onnxruntime``: the yalta network exported to ONNX (:func:`~kinectdata.models.export.export_onnx`)
   and run by ONNX Runtime (``pip install kinectdata[export]``), float32. On a CPU at batch 1 it
   is the fastest (``benchmarks/bench_model.py``): it pre-packs the weight matrices.
 
-Both take and return numpy arrays: ``step(features [1, 129, 5], previous [D]) -> pose [D]``,
-normalised poses; :meth:`reset` zeroes the LSTM states.
+All take and return numpy arrays: ``step(features [*feature shape], previous [D]) -> pose [D]``,
+normalised poses; :meth:`reset` zeroes the state (LSTM states, or the causal convolutions' caches).
 """
 
 from __future__ import annotations
@@ -18,6 +19,7 @@ import numpy as np
 import torch
 
 from ..errors import KinectDataError
+from .cdhc import CdhcNet, StreamingCdhc
 from .export import INPUTS, export_onnx
 from .yalta import StreamingYalta, YaltaNet
 
@@ -39,6 +41,26 @@ class TorchEngine:
         with torch.inference_mode():
             pose, *self.state = self.module(torch.from_numpy(features), torch.from_numpy(previous), *self.state)
         return pose.numpy()
+
+
+class CdhcEngine:
+    """The cdhc network one frame at a time (float32), its causal convolutions' caches kept inside."""
+
+    def __init__(self, net: CdhcNet):
+        self.module = StreamingCdhc(net.eval())
+        self.name = "torch float32"
+        self.reset()
+
+    def reset(self) -> None:
+        self.state = self.module.initial_state()
+
+    def step(self, features: np.ndarray, previous: np.ndarray) -> np.ndarray:
+        with torch.inference_mode():
+            audio = torch.from_numpy(np.asarray(features, np.float32))[None]
+            pose, *self.state = self.module(
+                audio, torch.from_numpy(np.asarray(previous, np.float32))[None], *self.state
+            )
+        return pose[0].numpy()
 
 
 class OnnxRuntimeEngine:
@@ -72,8 +94,14 @@ class OnnxRuntimeEngine:
         return pose
 
 
-def make_engine(net: YaltaNet, engine: str = "torch", precision: str = "float32") -> TorchEngine | OnnxRuntimeEngine:
+def make_engine(
+    net: YaltaNet | CdhcNet, engine: str = "torch", precision: str = "float32"
+) -> TorchEngine | OnnxRuntimeEngine | CdhcEngine:
     """A streaming engine for a trained network (see the module docstring)."""
+    if isinstance(net, CdhcNet):
+        if (engine, precision) != ("torch", "float32"):
+            raise KinectDataError("the cdhc model runs on the torch engine with float32 weights only")
+        return CdhcEngine(net)
     if engine == "torch":
         return TorchEngine(net, precision)
     if engine == "onnxruntime":

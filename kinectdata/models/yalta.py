@@ -20,6 +20,7 @@ from __future__ import annotations
 
 from dataclasses import asdict, dataclass
 
+import numpy as np
 import torch
 from torch import nn
 
@@ -232,3 +233,19 @@ class StreamingYalta(nn.Module):
         code = self._act(self.fc1(hidden))
         hidden, h2, c2 = self.lstm2(torch.cat([code, previous]), h2, c2)
         return self.fc2(hidden), h1, c1, h2, c2
+
+
+def free_run(net: YaltaNet, audio: np.ndarray, first_pose: np.ndarray, reset_every: int | None = None) -> np.ndarray:
+    """Poses [T-1, D] for frames 1..T-1 of features [T, 1, 129, 5], starting from the true pose
+    [D] of frame 0 and then fed the model's own outputs. With ``reset_every`` = L every LSTM
+    state is zeroed every L frames (the paper's "with reset"); the fed-back pose carries on."""
+    x = torch.from_numpy(np.ascontiguousarray(audio[1:]))[None]
+    previous = torch.from_numpy(np.asarray(first_pose, np.float32)[None])
+    pieces = []
+    with torch.no_grad():
+        for s in range(0, x.shape[1], reset_every or x.shape[1]):
+            codes, _ = net.encode(x[:, s : s + (reset_every or x.shape[1])])
+            poses, _ = net.decode(codes, previous, "predicted")
+            pieces.append(poses[0].numpy())
+            previous = poses[:, -1]
+    return np.concatenate(pieces)

@@ -7,7 +7,9 @@ Deterministic (seeded) sessions for the quickstart, the tests and model training
 - :func:`sensor_frame_times`, :func:`apply_sensor_defects` (``sensor``): Kinect v2 timing, noise
   and tracking states;
 - :func:`synthesize_recording`, :func:`write_recording` (``recording``): a whole session (audio,
-  skeleton recording, ground truth) and its files.
+  skeleton recording, ground truth) and its files;
+- :func:`synthesize_openpose`, :func:`write_openpose_recording` (``openpose``): the session as
+  OpenPose BODY_25 2-D detections of a video (noise, misses, a passer-by) and its files.
 
 Offset convention (toolkit-wide): ``audio_time = motion_time + offset_s``, motion_time being
 0.0 at the recording's first frame.
@@ -17,12 +19,16 @@ from __future__ import annotations
 
 from .dancer import Body, dance, make_body
 from .music import synthesize_music
+from .openpose import DetectorModel, OpenPoseVideo, PinholeCamera, synthesize_openpose, write_openpose_recording
 from .recording import GENERATOR_VERSION, SynthRecording, regeneration_command, synthesize_recording, write_recording
 from .sensor import SensorModel, SensorOutput, apply_sensor_defects, sensor_frame_times
 
 __all__ = [
     "GENERATOR_VERSION",
     "Body",
+    "DetectorModel",
+    "OpenPoseVideo",
+    "PinholeCamera",
     "SensorModel",
     "SensorOutput",
     "SynthRecording",
@@ -32,6 +38,8 @@ __all__ = [
     "regeneration_command",
     "sensor_frame_times",
     "synthesize_music",
+    "synthesize_openpose",
     "synthesize_recording",
+    "write_openpose_recording",
     "write_recording",
 ]

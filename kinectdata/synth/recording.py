@@ -337,9 +337,7 @@ def write_recording(
         "skeleton": out / f"{name}.csv",
         "truth": out / f"{name}.truth.json",
     }
-    fmt, subtype = AUDIO_FORMATS[audio_format]
-    with atomic_output(paths["audio"]) as tmp:
-        sf.write(tmp, rec.audio, rec.sample_rate, format=fmt, subtype=subtype)
+    write_audio(rec, paths["audio"], audio_format)
     origin = _time_origin(dialect, rec.options["seed"])
     write_csv(rec.written_motion(), paths["skeleton"], dialect, states=rec.states, time_origin=origin)
     truth = {
@@ -350,6 +348,18 @@ def write_recording(
         "skeleton_time_origin": origin,
         "files": {k: p.name for k, p in paths.items()},
     }
-    with atomic_output(paths["truth"]) as tmp:
-        tmp.write_text(json.dumps(truth, indent=2) + "\n", encoding="utf-8")
+    write_truth(truth, paths["truth"])
     return paths
+
+
+def write_audio(rec: SynthRecording, path: Path, audio_format: str) -> None:
+    """The session's audio as a 16-bit ``audio_format`` file (one of :data:`AUDIO_FORMATS`), atomically."""
+    fmt, subtype = AUDIO_FORMATS[audio_format]
+    with atomic_output(path) as tmp:
+        sf.write(tmp, rec.audio, rec.sample_rate, format=fmt, subtype=subtype)
+
+
+def write_truth(truth: dict[str, Any], path: Path) -> None:
+    """A truth document as indented JSON, atomically."""
+    with atomic_output(path) as tmp:
+        tmp.write_text(json.dumps(truth, indent=2) + "\n", encoding="utf-8")

@@ -1,19 +1,23 @@
-"""``evaluate``: a trained run scored on a dataset split as Yalta et al. (2016) score it.
+"""``evaluate``: a trained run scored on a dataset split as Yalta et al. (2016) score it, with the
+rhythm analysis of Lee et al. (2018) and the field's beat metrics.
 
 For every (clean, not noise-augmented) recording of the split the model runs **free**: it is
 given the true pose of the recording's first frame as the previous pose, and from then on its
-own outputs. Two ways, as in the paper's tables:
+own outputs. For the yalta model two ways, as in the paper's tables:
 
 - **without reset**: the LSTM states carry over the whole recording;
 - **with reset**: every ``sequence`` frames (the training sequence length) the LSTM states are
   zeroed, as at the start of each training sequence; the model keeps being fed its own poses
   (the paper resets the state only, and its "with reset" scores are the worse ones).
 
+The cdhc model has no state to reset (its receptive field is fixed): only "without reset".
+
 SMAPE (:func:`~kinectdata.training.metrics.smape`, percent, 0/0 counted as 0) compares frames
 1..T-1 with the real poses over valid components, on the normalised targets and on the
 denormalised ones (metres and quaternion components). Also reported: the per-frame forward time
-of the streaming network at batch 1 (median and 95th percentile, in ms, on the named device; torch
-with float32 and float16 weights, and ONNX Runtime when installed),
+of the streaming network at batch 1 (median and 95th percentile, in ms, on the named device; yalta:
+torch with float32 and float16 weights, and ONNX Runtime when installed; cdhc: one decoder step,
+torch float32),
 plots of generated against real trajectories (the paper's Figure 6), and the **silence test**:
 seconds of silence are inserted into the middle of a recording's features, the model runs
 through it, and the motion energy inside the silence is compared with the energy outside (the
@@ -31,54 +35,53 @@ import h5py
 import numpy as np
 import torch
 
+from ..dataset.shards import read_index
 from ..errors import KinectDataError
-from ..features.stft import StftConfig, stft_features
+from ..features import compute_features, feature_config
+from ..models.cdhc import CdhcNet
 from ..models.engines import make_engine, onnxruntime_available
+from ..models.registry import model_kind
 from ..models.yalta import YaltaNet
 from ..normalization import Normalizer
-from ..plots import trajectories
+from ..plots import rhythm_plot, trajectories
 from ..targets import TargetSpec
 from .metrics import motion_energy, smape
-from .run import interface_mismatch, load_model, read_manifest, write_json
+from .rhythm_eval import rhythm_evaluation, summarize_rhythm
+from .run import interface_mismatch, load_model, model_name, read_manifest, write_json
 
 SILENCE_S = 5.0
 
 
 def _recordings(dataset: Path, manifest: dict, split: str) -> list[dict[str, Any]]:
-    """The split's clean recordings with their rows: input, current, mask."""
+    """The split's clean recordings with their rows (input, current, mask) and their shard index
+    entry's ``info`` (alignment summary, sources)."""
     out = []
     for r in manifest["recordings"]:
         if r["split"] != split or r.get("snr_db") is not None:
             continue
         with h5py.File(dataset / r["shard"], "r") as f:
             rows = slice(r["start"], r["start"] + r["frames"])
+            info = next(x["info"] for x in read_index(f) if x["name"] == r["name"])
             out.append(
-                {"name": r["name"], "input": f["input"][rows], "current": f["current"][rows], "mask": f["mask"][rows]}
+                {
+                    "name": r["name"],
+                    "recording": r["recording"],
+                    "info": info,
+                    "input": f["input"][rows],
+                    "current": f["current"][rows],
+                    "mask": f["mask"][rows],
+                }
             )
     return out
 
 
-def free_run(net: YaltaNet, audio: np.ndarray, first_pose: np.ndarray, reset_every: int | None = None) -> np.ndarray:
-    """Poses [T-1, D] for frames 1..T-1 of features [T, 1, 129, 5], starting from the true pose
-    [D] of frame 0 and then fed the model's own outputs. With ``reset_every`` = L every LSTM
-    state is zeroed every L frames (the paper's "with reset"); the fed-back pose carries on."""
-    x = torch.from_numpy(np.ascontiguousarray(audio[1:]))[None]
-    previous = torch.from_numpy(np.asarray(first_pose, np.float32)[None])
-    pieces = []
-    with torch.no_grad():
-        for s in range(0, x.shape[1], reset_every or x.shape[1]):
-            codes, _ = net.encode(x[:, s : s + (reset_every or x.shape[1])])
-            poses, _ = net.decode(codes, previous, "predicted")
-            pieces.append(poses[0].numpy())
-            previous = poses[:, -1]
-    return np.concatenate(pieces)
-
-
-def forward_times(net: YaltaNet, frames: np.ndarray, engine: str = "torch", precision: str = "float32") -> dict:
+def forward_times(
+    net: YaltaNet | CdhcNet, frames: np.ndarray, engine: str = "torch", precision: str = "float32"
+) -> dict:
     """Per-frame time of a streaming engine (:mod:`~kinectdata.models.engines`) at batch 1 over
-    ``frames`` [N, 1, 129, 5], its own outputs fed back."""
+    ``frames`` (the network's inputs [N, ...]), its own outputs fed back."""
     stepper = make_engine(net, engine, precision)
-    pose = np.zeros(net.config.output_dim, np.float32)
+    pose = np.full(net.config.output_dim, 0.5, np.float32)
     times = []
     for k in range(frames.shape[0]):
         x = np.ascontiguousarray(frames[k], dtype=np.float32)
@@ -115,11 +118,14 @@ def _device_name() -> str:
     return "cpu: " + (platform.processor() or platform.machine())
 
 
-def silence_test(net: YaltaNet, features_config: dict, rec: dict, fps: float, seconds: float = SILENCE_S) -> dict:
+def silence_test(
+    net: YaltaNet | CdhcNet, features_config: dict, rec: dict, fps: float, seconds: float = SILENCE_S
+) -> dict:
     """Insert ``seconds`` of silence in the middle of a recording's features and compare the
     generated motion's energy (mean squared frame-to-frame change, normalised targets) inside the
     silence, after a second to settle, with the energy outside it."""
-    cfg = StftConfig.from_dict(features_config)
+    cfg = feature_config(features_config)
+    kind = model_kind("cdhc" if isinstance(net, CdhcNet) else "yalta")
     n_silent = int(round(seconds * fps))
     settle = int(round(fps))  # the motion is given a second to stop
     if n_silent < 2 * settle:
@@ -127,11 +133,11 @@ def silence_test(net: YaltaNet, features_config: dict, rec: dict, fps: float, se
             f"the silence test needs at least 2 s of silence (1 s to settle, then measured), not {seconds:g} s"
         )
     starts = np.round(np.arange(n_silent) * cfg.sample_rate / fps).astype(np.int64)
-    silent, _ = stft_features(np.zeros(int(starts[-1]) + cfg.slice_samples, np.float32), starts, cfg)
+    silent, _ = compute_features(np.zeros(int(starts[-1]) + cfg.span[1], np.float32), starts, cfg)
     identical = bool((silent == silent[0]).all())
     mid = rec["input"].shape[0] // 2
     audio = np.concatenate([rec["input"][:mid], silent, rec["input"][mid:]])
-    generated = free_run(net, audio, rec["current"][0])  # frames 1..T-1
+    generated = kind.free_run(net, audio, rec["current"][0])  # frames 1..T-1
     energy = motion_energy(generated)  # index i: the change into frame i + 1 of the combined features
     begin, end = mid - 1, mid - 1 + n_silent  # the silence, in those indices
     inside = np.zeros(energy.size, bool)
@@ -185,6 +191,7 @@ def evaluate(
     norm = Normalizer.from_dict(config["dataset"]["normalisation"])
     fps = config["dataset"]["fps"]
     sequence = config["train"]["sequence"]
+    kind = model_kind(model_name(config))
     results: dict[str, Any] = {
         "run": str(run),
         "dataset": str(dataset),
@@ -194,10 +201,14 @@ def evaluate(
     }
     scores = {}
     first = None
-    for mode, reset in (("without_reset", None), ("with_reset", sequence)):
+    free: dict[str, np.ndarray] = {}  # denormalised free runs without reset, for the rhythm analysis
+    modes = (("without_reset", None), ("with_reset", sequence)) if kind.resets else (("without_reset", None),)
+    for mode, reset in modes:
         generated, real, masks = [], [], []
         for rec in recordings:
-            g = free_run(net, rec["input"], rec["current"][0], reset)
+            g = kind.free_run(net, rec["input"], rec["current"][0], reset)
+            if reset is None:
+                free[rec["name"]] = norm.invert(g, spec)
             generated.append(g)
             real.append(rec["current"][1:])
             masks.append(rec["mask"][1:])
@@ -213,7 +224,7 @@ def evaluate(
     frames = rec["input"][: min(timing_frames, rec["input"].shape[0])]
     results["forward_time"] = {
         f"{engine} {precision}": forward_times(net, frames, engine, precision)
-        for engine, precision in (engines or default_engines())
+        for engine, precision in ((engines or default_engines()) if kind.name == "yalta" else [("torch", "float32")])
     }
     names = spec.component_names()
     shown = _shown_components(names)
@@ -237,6 +248,18 @@ def evaluate(
     )
     results["silence_test"] = sil
     results["figures"] = [str(fig6), str(fig7)]
+    real = {r["name"]: (norm.invert(r["current"], spec, mask=r["mask"]), r["mask"]) for r in recordings}
+    per_recording = rhythm_evaluation(recordings, free, real, spec, manifest, fps)
+    results["rhythm"] = {"summary": summarize_rhythm(per_recording), "recordings": per_recording}
+    shown_rhythm = next((name for name, r in per_recording.items() if "real" in r), None)
+    if shown_rhythm is not None:
+        for which in ("real", "generated"):
+            fig = rhythm_plot(
+                per_recording[shown_rhythm][which],
+                out / f"rhythm_{which}.png",
+                title=f"{shown_rhythm}: {which} motion, autocorrelation of joint trajectories",
+            )
+            results["figures"].append(str(fig))
     write_json(out / "results.json", results)
     return results
 
@@ -253,8 +276,7 @@ def format_results(results: dict[str, Any]) -> str:
     lines = [
         f"split {results['split']}: {len(results['recordings'])} recordings, free-running from the first true pose"
     ]
-    for mode in ("without_reset", "with_reset"):
-        v = s[mode]
+    for mode, v in s.items():
         lines.append(
             f"  SMAPE {mode.replace('_', ' '):<14} {v['smape_normalised']:6.2f} % normalised, "
             f"{v['smape_denormalised']:6.2f} % denormalised (0/0 counts as 0)"
@@ -270,5 +292,17 @@ def format_results(results: dict[str, Any]) -> str:
         f"{sil['energy_inside']:.3g} vs outside {sil['energy_outside']:.3g} (ratio {sil['energy_ratio']:.2g}); "
         f"silent features identical: {sil['silent_features_identical']} (all {sil['silent_feature_value']:g})"
     )
+    rhythm = results.get("rhythm", {}).get("summary", {})
+    for which in ("real", "generated"):
+        if which in rhythm:
+            v = rhythm[which]
+            lines.append(
+                f"  rhythm {which:<9} y peak at the beat period in {100 * v['y_peak_at_beat_share']:.0f}% of "
+                f"recordings (x: {100 * v['x_peak_at_beat_share']:.0f}%), y autocorrelation at the beat "
+                f"{v['y_autocorrelation_at_beat']:.2f}; Beat Align Score {v['beat_align_score']:.3f}, "
+                f"F-measure {v['f_measure']:.3f}"
+            )
+    if rhythm.get("unavailable"):
+        lines.append(f"  rhythm         {rhythm['unavailable']} recordings without beats (see results.json)")
     lines.append("  figures        " + ", ".join(results["figures"]))
     return "\n".join(lines)

@@ -1,13 +1,19 @@
 """``generate``: any audio file -> dance motion, streaming, as a robot would run it live.
 
 The audio is read in blocks (:class:`~kinectdata.audio.AudioReader`), the features of each frame
-are computed as soon as its slice has arrived (:class:`~kinectdata.features.streaming.StreamingFeatures`)
+are computed as soon as its audio has arrived (:class:`~kinectdata.features.streaming.StreamingFeatures`)
 and the network steps one frame at a time (an engine of :mod:`~kinectdata.models.engines`: torch
 or ONNX Runtime), its state carried from frame to frame; nothing waits for the end of the audio but the file
 written at the end. The first "previous pose" is the mean training pose. Poses are denormalised
-(metres, unit quaternions) and written as kinectdata's canonical CSV, which ``align`` reads: the
-target spec's joints get their positions and orientations, the joint set's other joints are
-left empty (masked).
+and written in the form the target's joint set is read back from:
+
+- 3-D joint sets (the yalta model): kinectdata's canonical CSV (metres, unit quaternions), which
+  ``align`` reads: the target spec's joints get their positions and orientations, the joint
+  set's other joints are left empty (masked);
+- ``openpose_mpi`` (the cdhc model): OpenPose JSON Lines (:mod:`~kinectdata.formats.openpose_writer`)
+  with x, y in the target's units: 0..1 of the per-recording min-max scaling for
+  ``listen_to_dance``, image axes (y down). The limb lengths are not written (they are the
+  model's own estimate of its skeleton; :func:`generate` returns them in ``timing["limb_lengths"]``).
 """
 
 from __future__ import annotations
@@ -20,9 +26,10 @@ import numpy as np
 
 from ..audio import AudioReader
 from ..errors import KinectDataError
-from ..features.stft import StftConfig
+from ..features import feature_config
 from ..features.streaming import StreamingFeatures
 from ..formats.csv_writer import write_csv
+from ..formats.openpose_writer import write_openpose_jsonl
 from ..jointsets import load_joint_set
 from ..models.engines import make_engine
 from ..motion import Motion
@@ -35,13 +42,12 @@ def _motion(values: np.ndarray, spec: TargetSpec, fps: float, metadata: dict[str
     """A Motion of the spec's joint set from denormalised target vectors [T, D]."""
     js = load_joint_set(spec.joint_set)
     T, J = values.shape[0], len(js)
-    positions = np.full((T, J, 3), np.nan)
-    for i, joint in enumerate(spec.positions):
-        positions[:, js.index(joint)] = values[:, 3 * i : 3 * i + 3]
+    positions = np.full((T, J, spec.dimensions), np.nan)
+    for joint in spec.positions:
+        positions[:, js.index(joint)] = values[:, spec.columns(joint, "position")]
     orientations = np.full((T, J, 4), np.nan)
-    start = 3 * len(spec.positions)
-    for i, joint in enumerate(spec.orientations):
-        orientations[:, js.index(joint)] = values[:, start + 4 * i : start + 4 * i + 4]
+    for joint in spec.orientations:
+        orientations[:, js.index(joint)] = values[:, spec.columns(joint, "orientation")]
     return Motion(
         np.arange(T) / fps, positions, js, orientations=orientations if spec.orientations else None, metadata=metadata
     )
@@ -55,10 +61,12 @@ def generate(
     engine: str = "torch",
     precision: str = "float32",
 ) -> tuple[Motion, dict[str, Any]]:
-    """Generate motion for ``audio`` with a trained run; write canonical CSV to ``out`` if given.
+    """Generate motion for ``audio`` with a trained run; write it to ``out`` if given (canonical
+    CSV, or OpenPose JSON Lines for 2-D targets: see the module docstring).
 
-    ``engine``: ``torch`` (``precision`` float32 or float16 weights) or ``onnxruntime`` (float32).
-    Returns the Motion (times k / fps, metres, unit quaternions) and timing figures.
+    ``engine``: ``torch`` (``precision`` float32 or float16 weights) or ``onnxruntime`` (float32;
+    the yalta model only). Returns the Motion (times k / fps; metres and unit quaternions, or the
+    2-D target's units) and timing figures.
     """
     net, config = load_model(run)
     data = config["dataset"]
@@ -83,7 +91,7 @@ def generate(
             poses[k0 + k] = pose
 
     starts = np.round(np.arange(n) * sr / fps).astype(np.int64)
-    featurizer = StreamingFeatures(starts, StftConfig.from_dict(data["features"]), step)
+    featurizer = StreamingFeatures(starts, feature_config(data["features"]), step)
     started = time.perf_counter()
     for block in reader.blocks():
         featurizer.push(block)
@@ -92,7 +100,9 @@ def generate(
     values = norm.invert(poses, spec)
     metadata = {"format": "generated", "source": str(audio), "run": str(run)}
     motion = _motion(values, spec, fps, metadata)
-    if out is not None:
+    if out is not None and spec.dimensions == 2:
+        write_openpose_jsonl(motion, out)
+    elif out is not None:
         write_csv(
             motion,
             out,
@@ -114,4 +124,9 @@ def generate(
         "step_median_ms": float(np.median(t)),
         "step_p95_ms": float(np.percentile(t, 95)),
     }
+    if spec.limbs:
+        timing["limb_lengths"] = {
+            name: float(np.median(values[:, spec.columns(j, "limb")]))
+            for j, name in zip(spec.limbs, spec.component_names()[spec.limb_slice])
+        }
     return motion, timing

@@ -1,16 +1,17 @@
-"""``train``: the reference model on a kinectdata dataset, deterministic and resumable.
+"""``train``: a bundled model on a kinectdata dataset, deterministic and resumable.
 
-The output layer's bias starts at the mean training pose (maxabs-normalised positions are far
-from centred: a camera-space depth of 2.5 m becomes about 0.88), the rest of the network at
-PyTorch's default initialisation. Each epoch goes over the training split's windows
-(:class:`~kinectdata.dataset.windows.WindowDataset`) in a seeded random order, in batches; the
-loss is the mean squared error over valid target components; after ``backward`` the gradient is
-clipped (if asked) and annealed Gaussian noise is added; Adam steps. Then the validation split
-is scored (loss with the training feedback, and SMAPE free-running from each window's first
-true pose), one row is added to ``log.csv``, and the checkpoint is rewritten atomically with
-everything needed to continue exactly: model, optimiser, step, the batch-order and noise
-generators, history. ``resume=True`` continues a run from its checkpoint and ends with the same
-weights as an uninterrupted run.
+The model (:mod:`kinectdata.models.registry`: ``yalta`` or ``cdhc``) decides the network, how a
+batch is fed (the yalta model's configured feedback; the cdhc model's teacher forcing) and the
+loss (masked MSE; L1 + limb-length). The output layer starts at the mean training pose
+(maxabs-normalised positions are far from centred: a camera-space depth of 2.5 m becomes about
+0.88), the rest of the network at PyTorch's default initialisation. Each epoch goes over the
+training split's windows (:class:`~kinectdata.dataset.windows.WindowDataset`) in a seeded random
+order, in batches; after ``backward`` the gradient is clipped (if asked) and annealed Gaussian
+noise is added (if asked); Adam steps. Then the validation split is scored (loss as in training,
+and SMAPE free-running from each window's first true pose), one row is added to ``log.csv``, and
+the checkpoint is rewritten atomically with everything needed to continue exactly: model,
+optimiser, step, the batch-order and noise generators, history. ``resume=True`` continues a run
+from its checkpoint and ends with the same weights as an uninterrupted run.
 """
 
 from __future__ import annotations
@@ -34,10 +35,10 @@ from ..atomic import atomic_output
 from ..dataset.windows import WindowDataset
 from ..errors import KinectDataError
 from ..models.export import export_torchscript, stream_metadata
-from ..models.yalta import YaltaConfig, YaltaNet
+from ..models.registry import model_kind
 from ..normalization import Normalizer
 from ..plots import loss_curves
-from .metrics import masked_mse, smape
+from .metrics import smape
 from .run import (
     CHECKPOINT,
     CONFIG,
@@ -125,21 +126,28 @@ def _add_gradient_noise(
             p.grad.add_(torch.randn(p.grad.shape, generator=generator).to(p.grad.device) * sigma)
 
 
-def validate(net: YaltaNet, windows: WindowDataset, config: TrainConfig, device: torch.device) -> tuple[float, float]:
-    """(loss with the training feedback, SMAPE in % free-running) over a split's windows."""
+def validate(
+    net: torch.nn.Module, windows: WindowDataset, config: TrainConfig, device: torch.device
+) -> tuple[float, float]:
+    """(loss as in training, SMAPE in % free-running) over a split's windows."""
     if len(windows) == 0:
         return float("nan"), float("nan")
+    kind = model_kind(config.model)
     net.eval()
     losses, weights, generated, real, masks = [], [], [], [], []
     with torch.no_grad():
         for batch in _batches(windows, config, None):
             audio, pose, mask = batch["audio"].to(device), batch["pose"].to(device), batch["mask"].to(device)
             previous = batch["previous"].to(device)
-            pred = net(audio, previous if config.feedback == "teacher" else previous[:, 0], config.feedback)
-            losses.append(float(masked_mse(pred, pose, mask)))
+            pred = kind.predict(net, audio, previous, config.feedback)
+            losses.append(float(kind.loss(net, pred, pose, mask, config)))
             weights.append(float(mask.sum()))
-            free = pred if config.feedback == "predicted" else net(audio, previous[:, 0], "predicted")
-            generated.append(free.cpu().numpy())
+            if config.model == "yalta":
+                free = pred if config.feedback == "predicted" else net(audio, previous[:, 0], "predicted")
+                generated.append(free.cpu().numpy())
+            else:  # one window at a time: the first true pose, then the net's own
+                for a, p in zip(audio.cpu().numpy(), previous.cpu().numpy()):
+                    generated.append(kind.free_run(net, np.concatenate([a[:1], a]), p[0])[None])
             real.append(pose.cpu().numpy())
             masks.append(mask.cpu().numpy())
     net.train()
@@ -174,7 +182,7 @@ def train(
     stop_after: int | None = None,
     progress: Callable[[dict], None] | None = None,
 ) -> list[dict]:
-    """Train the Yalta et al. (2016) network on a dataset folder into the run folder ``out``.
+    """Train a bundled network (``config.model``) on a dataset folder into the run folder ``out``.
 
     Args:
         dataset: a folder written by ``build-dataset``.
@@ -202,12 +210,8 @@ def train(
             )
     config = config or TrainConfig()
     device = config.resolved_device()
-    model_config = YaltaConfig(
-        output_dim=manifest["target_dim"],
-        units=config.units,
-        activation=config.activation,
-        input_shape=tuple(manifest["feature_shape"]),
-    )
+    kind = model_kind(config.model)
+    model_config = kind.config(config, manifest)
     stride = config.stride or config.sequence
     train_windows = WindowDataset(dataset, "train", config.sequence, stride)
     val_windows = WindowDataset(dataset, "val", config.sequence, config.sequence)
@@ -221,7 +225,7 @@ def train(
 
     with _deterministic():
         torch.manual_seed(config.seed)
-        net = YaltaNet(model_config).to(device)
+        net = kind.build(model_config.to_dict()).to(device)
         optimizer = torch.optim.Adam(net.parameters(), lr=config.lr)
         order = torch.Generator().manual_seed(config.seed + 1)
         noise = torch.Generator().manual_seed(config.seed + 2)
@@ -243,8 +247,7 @@ def train(
                 raise KinectDataError(f"{run}: already holds a run; use --resume to continue it or another folder")
             run.mkdir(parents=True, exist_ok=True)
             run_config["dataset"]["start_pose"] = _start_pose(dataset, manifest)
-            with torch.no_grad():  # outputs start at the mean pose, not 0: maxabs targets are far from centred
-                net.fc2.bias.copy_(torch.tensor(run_config["dataset"]["start_pose"]))
+            kind.init_output(net, run_config["dataset"]["start_pose"])
             write_json(run / CONFIG, run_config)
         run_config = json.loads((run / CONFIG).read_text())
         writer = _tensorboard(run)
@@ -255,8 +258,8 @@ def train(
             for batch in _batches(train_windows, config, order):
                 audio, pose, mask = batch["audio"].to(device), batch["pose"].to(device), batch["mask"].to(device)
                 previous = batch["previous"].to(device)
-                pred = net(audio, previous if config.feedback == "teacher" else previous[:, 0], config.feedback)
-                loss = masked_mse(pred, pose, mask)
+                pred = kind.predict(net, audio, previous, config.feedback)
+                loss = kind.loss(net, pred, pose, mask, config)
                 optimizer.zero_grad(set_to_none=True)
                 loss.backward()
                 if config.clip_norm is not None:
@@ -303,14 +306,16 @@ def train(
                 return history
         if writer is not None:
             writer.close()
-    loss_curves(
-        history,
-        run / "loss.png",
-        title=f"{run.name}: {config.units} units, {config.activation}, {config.feedback} feedback",
+    title = (
+        f"{run.name}: {config.units} units, {config.activation}, {config.feedback} feedback"
+        if config.model == "yalta"
+        else f"{run.name}: cdhc, {config.channels}/{config.decoder_channels} channels, L1 + {config.limb_weight:g} limb"
     )
+    loss_curves(history, run / "loss.png", title=title)
     net = net.cpu().eval()
     save_checkpoint(run / MODEL, {"model": net.state_dict(), "config": json.dumps(run_config)})
-    export_torchscript(net, run / STREAM, metadata=stream_metadata(run_config))
+    if config.model == "yalta":  # the streaming LSTM for robots; the cdhc model is run by generate
+        export_torchscript(net, run / STREAM, metadata=stream_metadata(run_config))
     return history
 
 

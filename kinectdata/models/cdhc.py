@@ -1,0 +1,458 @@
+"""The causal dilated highway convolution (CDHC) encoder-decoder of Lee, Kim, Lee (2018),
+"Listen to Dance: Music-driven choreography generation using Autoregressive Encoder-Decoder Network".
+
+Per motion frame t (30 fps), from audio features [T, F] and the previous poses [T, D] (``previous[t]``
+is the pose of frame t-1):
+
+- an audio encoder and a skeleton encoder of the same shape: three 1x1 convolutions (F or D -> C,
+  C -> C, C -> C, ReLU between them; 1x1 for the first too, as in DC-TTS's audio encoder: any
+  temporal context comes from the highway blocks, which keeps every layer's look-back explicit),
+  then highway blocks with dilations 1, 3, 9, 27, 1, 3, 9, 27, 3, 3 (C = 256 channels);
+- gated fusion of the audio code A and the skeleton code S: ``g = sigmoid(1x1 conv(concat(A, S)))``
+  (C channels), ``fused = 1x1 conv to 128 channels of (g * A + (1 - g) * S)``. The paper only says
+  it "fuses the two codes with a 1x1 conv (128 channels)"; our specification asks for the gate;
+- a decoder: highway blocks with dilations 1, 3, 9, 27, 3, 3 at 128 channels, three 128-channel
+  1x1 convolutions each followed by tanh, a 1x1 convolution to D and a sigmoid (targets are
+  normalised into 0..1). 1x1 convolutions are ``nn.Linear`` layers over each frame's channels
+(the same parameters, and the same code for a sequence [B, T, C] and one frame [B, C]).
+
+A highway block is DC-TTS's (Tachibana et al. 2018, and Kyubyong Park's implementation):
+``H = causal dilated conv(X)`` with 2C channels (kernel k, left padding (k-1) * dilation);
+``H1, H2 = split(H)``; each half is layer-normalised over its C channels (separately, with its own
+gain and bias, per frame); ``Y = dropout(sigmoid(H1) * H2 + (1 - sigmoid(H1)) * X)``. Dropout is
+applied there only, to each block's output. Every layer mixes only the present and past frames,
+so output t depends on frames t - R + 1 .. t (R = :attr:`CdhcNet.receptive_field`, 265 frames,
+8.8 s at 30 fps, with the default sizes).
+
+With the default pose layout (D = 44, ``OPENPOSE_MPI_LIMBS``), the first 30 components are the
+``openpose_mpi`` joints' x, y (Head, Neck, RShoulder, RElbow, RWrist, LShoulder, LElbow, LWrist,
+RHip, RKnee, RAnkle, LHip, LKnee, LAnkle, Chest) and the next 14 the lengths of the links from each
+joint but the root Chest to its parent, all in per-video min-max units. :func:`cdhc_loss` is the L1
+loss plus the limb-length loss; :func:`generate` runs the network autoregressively with
+:class:`StreamingCdhc`, one frame at a time with per-layer caches (O(T), not O(T^2)).
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass
+
+import numpy as np
+import torch
+import torch.nn.functional as F
+from torch import nn
+
+from ..errors import KinectDataError
+
+OPENPOSE_MPI_LIMBS = (
+    (0, 1),  # Head-Neck
+    (1, 14),  # Neck-Chest
+    (2, 1),  # RShoulder-Neck
+    (3, 2),  # RElbow-RShoulder
+    (4, 3),  # RWrist-RElbow
+    (5, 1),  # LShoulder-Neck
+    (6, 5),  # LElbow-LShoulder
+    (7, 6),  # LWrist-LElbow
+    (8, 14),  # RHip-Chest
+    (9, 8),  # RKnee-RHip
+    (10, 9),  # RAnkle-RKnee
+    (11, 14),  # LHip-Chest
+    (12, 11),  # LKnee-LHip
+    (13, 12),  # LAnkle-LKnee
+)
+"""The 14 limbs of ``openpose_mpi`` as (joint, parent) indices into its 15 joints."""
+
+
+@dataclass(frozen=True)
+class CdhcConfig:
+    """The network's hyperparameters and the layout of its pose vectors.
+
+    Attributes:
+        output_dim: D, the pose vector's size (44 for the paper's layout).
+        input_dim: F, audio features per frame (mel bands).
+        channels: C, the encoders' width (256 in the paper).
+        decoder_channels: the fused code's and the decoder's width (128).
+        kernel_size: k of every highway block's causal convolution.
+        dropout: dropout probability on each highway block's output (DC-TTS's 0.05).
+        encoder_dilations: one highway block per dilation, in each encoder.
+        decoder_dilations: one highway block per dilation, in the decoder.
+        coordinates: the pose vector starts with this many joint coordinates (15 joints x 2 = 30).
+        joint_dims: coordinates per joint (2: x, y); joint j is components ``joint_dims * j ..``.
+        limbs: (joint, parent) index pairs; limb i's target length is component ``coordinates + i``.
+            Empty: no limb-length loss.
+    """
+
+    output_dim: int
+    input_dim: int
+    channels: int = 256
+    decoder_channels: int = 128
+    kernel_size: int = 3
+    dropout: float = 0.05
+    encoder_dilations: tuple[int, ...] = (1, 3, 9, 27, 1, 3, 9, 27, 3, 3)
+    decoder_dilations: tuple[int, ...] = (1, 3, 9, 27, 3, 3)
+    coordinates: int = 30
+    joint_dims: int = 2
+    limbs: tuple[tuple[int, int], ...] = OPENPOSE_MPI_LIMBS
+
+    def __post_init__(self) -> None:
+        sizes = {k: getattr(self, k) for k in ("output_dim", "input_dim", "channels", "decoder_channels")}
+        sizes |= {"kernel_size": self.kernel_size, "joint_dims": self.joint_dims}
+        for name, value in sizes.items():
+            if value < 1:
+                raise KinectDataError(f"CDHC config: {name} must be positive, not {value}")
+        if not 0.0 <= self.dropout < 1.0:
+            raise KinectDataError(f"CDHC config: dropout must be in [0, 1), not {self.dropout}")
+        for name in ("encoder_dilations", "decoder_dilations"):
+            if any(d < 1 for d in getattr(self, name)):
+                raise KinectDataError(f"CDHC config: {name} must be positive, not {getattr(self, name)}")
+        if self.coordinates < 0 or self.coordinates % self.joint_dims:
+            raise KinectDataError(
+                f"CDHC config: coordinates ({self.coordinates}) must be a multiple of joint_dims ({self.joint_dims})"
+            )
+        if self.coordinates + len(self.limbs) > self.output_dim:
+            raise KinectDataError(
+                f"CDHC config: {self.coordinates} coordinates and {len(self.limbs)} limb lengths do not fit "
+                f"in output_dim {self.output_dim}"
+            )
+        joints = self.coordinates // self.joint_dims
+        for i, (a, b) in enumerate(self.limbs):
+            if not (0 <= a < joints and 0 <= b < joints) or a == b:
+                raise KinectDataError(f"CDHC config: limb {i} ({a}, {b}) must join two of the {joints} joints")
+
+    @property
+    def receptive_field(self) -> int:
+        """Frames an output sees, itself included: 1 + (k - 1) * (encoder + decoder dilations)."""
+        return 1 + (self.kernel_size - 1) * (sum(self.encoder_dilations) + sum(self.decoder_dilations))
+
+    def to_dict(self) -> dict:
+        d = asdict(self)
+        d["encoder_dilations"] = list(self.encoder_dilations)
+        d["decoder_dilations"] = list(self.decoder_dilations)
+        d["limbs"] = [list(pair) for pair in self.limbs]
+        return d
+
+    @classmethod
+    def from_dict(cls, d: dict) -> CdhcConfig:
+        d = dict(d)
+        for name in ("encoder_dilations", "decoder_dilations"):
+            if name in d:
+                d[name] = tuple(d[name])
+        if "limbs" in d:
+            d["limbs"] = tuple(tuple(pair) for pair in d["limbs"])
+        return cls(**d)
+
+
+class CausalConv1d(nn.Conv1d):
+    """A dilated Conv1d over channels-last [B, T, Cin] whose output t sees inputs t - (k-1) * dilation .. t
+    (zeros before frame 0)."""
+
+    def __init__(self, in_channels: int, out_channels: int, kernel_size: int, dilation: int):
+        super().__init__(in_channels, out_channels, kernel_size, dilation=dilation)
+        self.history = (kernel_size - 1) * dilation
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        return super().forward(F.pad(x.transpose(1, 2), (self.history, 0))).transpose(1, 2)
+
+    def step(self, x: torch.Tensor, cache: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """One frame x [B, Cin] and the previous ``history`` inputs [B, Cin, history] -> ([B, Cout], new cache)."""
+        window = torch.cat([cache, x[:, :, None]], dim=2)
+        # the k taps as one matrix product: torch's dilated conv1d is several times slower on one frame
+        taps = window[:, :, :: self.dilation[0]].flatten(1)
+        return F.linear(taps, self.weight.flatten(1), self.bias), window[:, :, 1:]
+
+
+class Highway(nn.Module):
+    """The DC-TTS highway block over [B, T, C] (see the module docstring)."""
+
+    def __init__(self, channels: int, kernel_size: int, dilation: int, dropout: float):
+        super().__init__()
+        self.conv = CausalConv1d(channels, 2 * channels, kernel_size, dilation)
+        self.gate_norm = nn.LayerNorm(channels)
+        self.info_norm = nn.LayerNorm(channels)
+        self.dropout = nn.Dropout(dropout)
+
+    def _mix(self, h: torch.Tensor, x: torch.Tensor) -> torch.Tensor:
+        """H [..., 2C], X [..., C] -> Y [..., C]."""
+        gate, info = h.chunk(2, dim=-1)
+        gate = torch.sigmoid(self.gate_norm(gate))
+        return self.dropout(gate * self.info_norm(info) + (1.0 - gate) * x)
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        return self._mix(self.conv(x), x)
+
+    def step(self, x: torch.Tensor, cache: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """One frame x [B, C] and the conv's cache -> ([B, C], new cache)."""
+        h, cache = self.conv.step(x, cache)
+        return self._mix(h, x), cache
+
+
+def _highways(channels: int, dilations: tuple[int, ...], config: CdhcConfig) -> nn.ModuleList:
+    return nn.ModuleList(Highway(channels, config.kernel_size, d, config.dropout) for d in dilations)
+
+
+def _run_blocks(
+    blocks: nn.ModuleList, x: torch.Tensor, caches: list[torch.Tensor] | None
+) -> tuple[torch.Tensor, list[torch.Tensor]]:
+    """Highway blocks over a sequence [B, T, C] (caches None) or one frame [B, C] with one cache per block."""
+    if caches is None:
+        for block in blocks:
+            x = block(x)
+        return x, []
+    new = []
+    for block, cache in zip(blocks, caches):
+        x, cache = block.step(x, cache)
+        new.append(cache)
+    return x, new
+
+
+class Encoder(nn.Module):
+    """Three 1x1 convolutions (ReLU between them) and highway blocks: [B, T, in] -> [B, T, C].
+
+    1x1 convolutions are ``nn.Linear`` over the channels of each frame (the same parameters).
+    """
+
+    def __init__(self, in_channels: int, config: CdhcConfig):
+        super().__init__()
+        c = config.channels
+        self.convs = nn.Sequential(nn.Linear(in_channels, c), nn.ReLU(), nn.Linear(c, c), nn.ReLU(), nn.Linear(c, c))
+        self.blocks = _highways(c, config.encoder_dilations, config)
+
+    def forward(
+        self, x: torch.Tensor, caches: list[torch.Tensor] | None = None
+    ) -> tuple[torch.Tensor, list[torch.Tensor]]:
+        """A sequence [B, T, in] -> ([B, T, C], []), or one frame [B, in] and the blocks' caches ->
+        ([B, C], new caches)."""
+        return _run_blocks(self.blocks, self.convs(x), caches)
+
+
+class Decoder(nn.Module):
+    """Gated fusion of the two codes, highway blocks, three 1x1 convs each followed by tanh, a 1x1
+    conv to D and a sigmoid: audio and skeleton codes [B, T, C] -> poses [B, T, D] in 0..1."""
+
+    def __init__(self, config: CdhcConfig):
+        super().__init__()
+        c, cd = config.channels, config.decoder_channels
+        self.gate = nn.Linear(2 * c, c)
+        self.fuse = nn.Linear(c, cd)
+        self.blocks = _highways(cd, config.decoder_dilations, config)
+        self.convs = nn.Sequential(*[m for _ in range(3) for m in (nn.Linear(cd, cd), nn.Tanh())])
+        self.output = nn.Linear(cd, config.output_dim)
+
+    def forward(
+        self, audio: torch.Tensor, skeleton: torch.Tensor, caches: list[torch.Tensor] | None = None
+    ) -> tuple[torch.Tensor, list[torch.Tensor]]:
+        """Codes [B, T, C] -> ([B, T, D], []), or one frame of codes [B, C] and the blocks' caches ->
+        ([B, D], new caches)."""
+        g = torch.sigmoid(self.gate(torch.cat([audio, skeleton], dim=-1)))
+        x, caches = _run_blocks(self.blocks, self.fuse(g * audio + (1.0 - g) * skeleton), caches)
+        return torch.sigmoid(self.output(self.convs(x))), caches
+
+
+class CdhcNet(nn.Module):
+    """The encoder-decoder for training and sequence evaluation (see the module docstring).
+
+    With the default sizes, F = 80 and D = 44, it has 9,004,332 parameters.
+    """
+
+    def __init__(self, config: CdhcConfig):
+        super().__init__()
+        self.config = config
+        self.audio_encoder = Encoder(config.input_dim, config)
+        self.skeleton_encoder = Encoder(config.output_dim, config)
+        self.decoder = Decoder(config)
+
+    @property
+    def receptive_field(self) -> int:
+        """Frames (at the motion rate) that output t depends on: t - R + 1 .. t, in both inputs."""
+        return self.config.receptive_field
+
+    def forward(self, audio: torch.Tensor, previous: torch.Tensor) -> torch.Tensor:
+        """Poses from audio features and the previous poses (teacher forcing).
+
+        Args:
+            audio: [B, T, F] features, frame t at the motion's frame t.
+            previous: [B, T, D], ``previous[:, t]`` the pose of frame t-1 (the true poses shifted
+                by one frame, the first being a start pose).
+
+        Returns:
+            [B, T, D] poses in 0..1; frame t depends only on ``audio[:, :t+1]`` and ``previous[:, :t+1]``.
+        """
+        _check_inputs(self.config, audio, previous)
+        a, _ = self.audio_encoder(audio)
+        s, _ = self.skeleton_encoder(previous)
+        return self.decoder(a, s)[0]
+
+
+def _check_inputs(config: CdhcConfig, audio: torch.Tensor, previous: torch.Tensor) -> None:
+    if audio.dim() != 3 or audio.shape[-1] != config.input_dim or audio.shape[1] < 1:
+        raise KinectDataError(f"CDHC input: audio must be [B, T >= 1, {config.input_dim}], not {list(audio.shape)}")
+    if previous.dim() != 3 or previous.shape[-1] != config.output_dim or previous.shape[:2] != audio.shape[:2]:
+        raise KinectDataError(
+            f"CDHC input: previous poses must be [B, T, D] = {[*audio.shape[:2], config.output_dim]}, "
+            f"not {list(previous.shape)}"
+        )
+
+
+class StreamingCdhc(nn.Module):
+    """:class:`CdhcNet` one frame at a time, each causal convolution keeping its last (k-1) * dilation
+    inputs in a cache carried by the caller.
+
+    ``forward(audio [B, F], previous [B, D], audio_caches, pose_caches)`` returns the pose [B, D]
+    and the new caches; start with :meth:`initial_state` (zeros: the zero padding before frame 0 of
+    :class:`CdhcNet`). The audio encoder does not depend on the poses: when the whole audio is known,
+    its codes can come from one parallel pass and :meth:`decode` does the rest. Results equal
+    :meth:`CdhcNet.forward` over the same sequences up to float rounding. The network is shared,
+    not copied, and evaluated in its current mode: call ``net.eval()`` first.
+    """
+
+    def __init__(self, net: CdhcNet):
+        super().__init__()
+        self.net = net
+
+    def initial_state(self, batch: int = 1) -> tuple[list[torch.Tensor], list[torch.Tensor]]:
+        """Zero caches for a batch, one [B, channels, history] tensor per highway block: (audio
+        encoder's, skeleton encoder's and decoder's)."""
+        like = self.net.decoder.output.weight
+
+        def zeros(blocks) -> list[torch.Tensor]:
+            return [like.new_zeros(batch, b.conv.in_channels, b.conv.history) for b in blocks]
+
+        pose_blocks = [*self.net.skeleton_encoder.blocks, *self.net.decoder.blocks]
+        return zeros(self.net.audio_encoder.blocks), zeros(pose_blocks)
+
+    def decode(
+        self, code: torch.Tensor, previous: torch.Tensor, pose_caches: list[torch.Tensor]
+    ) -> tuple[torch.Tensor, list[torch.Tensor]]:
+        """One frame from its audio code [B, C] and the previous pose [B, D] -> ([B, D] pose, new caches)."""
+        n = len(self.net.skeleton_encoder.blocks)
+        s, skeleton_caches = self.net.skeleton_encoder(previous, pose_caches[:n])
+        pose, decoder_caches = self.net.decoder(code, s, pose_caches[n:])
+        return pose, skeleton_caches + decoder_caches
+
+    def forward(
+        self,
+        audio: torch.Tensor,
+        previous: torch.Tensor,
+        audio_caches: list[torch.Tensor],
+        pose_caches: list[torch.Tensor],
+    ) -> tuple[torch.Tensor, list[torch.Tensor], list[torch.Tensor]]:
+        code, audio_caches = self.net.audio_encoder(audio, audio_caches)
+        pose, pose_caches = self.decode(code, previous, pose_caches)
+        return pose, audio_caches, pose_caches
+
+
+def generate(net: CdhcNet, audio: torch.Tensor | np.ndarray, first_pose: torch.Tensor | np.ndarray) -> np.ndarray:
+    """Dance for a whole audio feature sequence, autoregressively.
+
+    The previous pose at frame 0 is ``first_pose``, at frame t the network's own output at t-1.
+    The audio codes come from one pass of the (causal) audio encoder, then
+    :meth:`StreamingCdhc.decode` steps frame by frame, in evaluation mode (no dropout; the net's
+    mode is restored after), on the net's device and dtype.
+
+    Args:
+        net: a trained network.
+        audio: [T, F] features at the motion's frame rate.
+        first_pose: [D], normalised (e.g. the mean training pose).
+
+    Returns:
+        [T, D] float32 poses in 0..1.
+    """
+    config = net.config
+    like = net.decoder.output.weight
+    audio = torch.as_tensor(audio).to(like)
+    pose = torch.as_tensor(first_pose).to(like)
+    if audio.dim() != 2 or audio.shape[1] != config.input_dim or len(audio) < 1:
+        raise KinectDataError(f"CDHC generate: audio must be [T >= 1, {config.input_dim}], not {list(audio.shape)}")
+    if pose.shape != (config.output_dim,):
+        raise KinectDataError(f"CDHC generate: first_pose must be [{config.output_dim}], not {list(pose.shape)}")
+    stream = StreamingCdhc(net)
+    was_training = net.training
+    net.eval()
+    try:
+        with torch.inference_mode():
+            codes, _ = net.audio_encoder(audio[None])
+            _, caches = stream.initial_state()
+            poses = torch.empty(len(audio), config.output_dim, dtype=like.dtype, device=like.device)
+            pose = pose[None]
+            for t in range(len(audio)):
+                pose, caches = stream.decode(codes[:, t], pose, caches)
+                poses[t] = pose[0]
+    finally:
+        net.train(was_training)
+    return poses.float().cpu().numpy()
+
+
+def init_output_bias(net: CdhcNet, mean_pose: torch.Tensor | np.ndarray) -> None:
+    """Set the last convolution's bias to logit(``mean_pose`` clipped to 0.01..0.99), so that a net
+    whose last layer's input is near zero starts at the mean pose. ``mean_pose``: [D] in 0..1."""
+    mean = np.asarray(torch.as_tensor(mean_pose).detach().cpu(), dtype=np.float64)
+    if mean.shape != (net.config.output_dim,):
+        raise KinectDataError(f"CDHC mean pose must be [{net.config.output_dim}], not {list(mean.shape)}")
+    if not np.isfinite(mean).all():
+        bad = np.flatnonzero(~np.isfinite(mean)).tolist()
+        raise KinectDataError(f"CDHC mean pose: components {bad} are not finite (never valid in the data?)")
+    p = np.clip(mean, 0.01, 0.99)
+    with torch.no_grad():
+        net.decoder.output.bias.copy_(torch.from_numpy(np.log(p / (1.0 - p))))
+
+
+def _limb_ends(config: CdhcConfig, device: torch.device) -> tuple[torch.Tensor, torch.Tensor]:
+    """The limbs' joint and parent indices, [L] each."""
+    ends = torch.tensor(config.limbs, dtype=torch.long, device=device).reshape(-1, 2)
+    return ends[:, 0], ends[:, 1]
+
+
+def limb_lengths(poses: torch.Tensor, config: CdhcConfig) -> torch.Tensor:
+    """[..., D] poses -> [..., L] Euclidean lengths of the config's limbs, from the coordinates."""
+    joints = poses[..., : config.coordinates].unflatten(-1, (-1, config.joint_dims))
+    a, b = _limb_ends(config, poses.device)
+    return torch.linalg.vector_norm(joints[..., a, :] - joints[..., b, :], dim=-1)
+
+
+def cdhc_loss(
+    pred: torch.Tensor,
+    target: torch.Tensor,
+    mask: torch.Tensor | None,
+    config: CdhcConfig,
+    limb_weight: float = 1.0,
+) -> tuple[torch.Tensor, dict[str, torch.Tensor]]:
+    """The L1 loss plus the limb-length loss, over valid values (differentiable).
+
+    - ``l1``: mean |pred - target| over the valid components (all D, limb lengths included);
+    - ``limb``: mean |length of limb i from pred's coordinates - target's limb length i| over the
+      (frame, limb) pairs where both joints' target coordinates and the target length are valid.
+
+    A part with no valid value is 0. Invalid target values (NaN or anything) do not reach the loss
+    or its gradient.
+
+    Args:
+        pred, target: [..., D] poses.
+        mask: [..., D] bool, True where the target is valid (None: all valid).
+        limb_weight: weight of the limb part in the total.
+
+    Returns:
+        (``l1 + limb_weight * limb``, {"l1": ..., "limb": ...}), scalar tensors.
+    """
+    if pred.shape != target.shape or pred.shape[-1] != config.output_dim:
+        raise KinectDataError(
+            f"CDHC loss: prediction {list(pred.shape)} and target {list(target.shape)} must both be [..., "
+            f"{config.output_dim}]"
+        )
+    mask = torch.ones_like(target, dtype=torch.bool) if mask is None else mask.to(torch.bool)
+    if mask.shape != target.shape:
+        raise KinectDataError(f"CDHC loss: mask {list(mask.shape)} must match the target {list(target.shape)}")
+    target = torch.where(mask, target, torch.zeros_like(target))
+    l1 = _masked_mean((pred - target).abs(), mask)
+    if not config.limbs:
+        return l1, {"l1": l1, "limb": torch.zeros_like(l1)}
+    joint_valid = mask[..., : config.coordinates].unflatten(-1, (-1, config.joint_dims)).all(dim=-1)
+    a, b = _limb_ends(config, mask.device)
+    span = slice(config.coordinates, config.coordinates + len(config.limbs))
+    limb_valid = joint_valid[..., a] & joint_valid[..., b] & mask[..., span]
+    limb = _masked_mean((limb_lengths(pred, config) - target[..., span]).abs(), limb_valid)
+    return l1 + limb_weight * limb, {"l1": l1, "limb": limb}
+
+
+def _masked_mean(values: torch.Tensor, mask: torch.Tensor) -> torch.Tensor:
+    """Mean of ``values`` where ``mask``; 0 when nothing is valid."""
+    total = torch.where(mask, values, torch.zeros_like(values)).sum()
+    return total / mask.sum().clamp(min=1).to(values.dtype)
