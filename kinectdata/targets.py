@@ -160,8 +160,12 @@ def _from_document(doc: dict[str, Any], path: str | Path) -> TargetSpec:
             )
     limbs = _joint_list(doc, "limbs", js, path) if "limbs" in doc else ()
     for j in limbs:
-        if js.parents[js.index(j)] < 0:
+        parent = js.parents[js.index(j)]
+        if parent < 0:
             raise SchemaError(path, f"limbs: {j!r} is the root of {js.name}: it has no parent, so no limb")
+        for end in (j, js.names[parent]):
+            if end not in positions:
+                raise SchemaError(path, f"limbs: the limb {j}-{js.names[parent]} needs {end!r} under positions")
     if not positions and not orientations and not limbs:
         raise SchemaError(path, "positions, orientations and limbs are all empty: the target would have no component")
     scale = doc.get("position_scale", "none")
@@ -247,8 +251,10 @@ def extract_targets(motion: Motion, spec: TargetSpec, *, root_centre: bool = Fal
     quaternion keeps the source's sign. A dataset build then puts every recording's track of a
     joint in one hemisphere (:mod:`kinectdata.dataset.hemispheres`).
 
-    Limb lengths: the distance between each listed joint and its parent at the same frame, after
-    root-centring and ``position_scale``; invalid where either joint is.
+    Limb lengths: the distance between each listed joint and its parent at the same frame, in the
+    units of the positions after ``position_scale`` (each axis divided by its scale); computed
+    before root-centring (which moves the root into another frame of reference than its
+    children); invalid where either joint is.
 
     Root-centring (``root_centre=True``): each listed position becomes its offset from the spec's
     root joint at the same frame; the root's own position (when listed) becomes its offset from
@@ -279,12 +285,11 @@ def extract_targets(motion: Motion, spec: TargetSpec, *, root_centre: bool = Fal
         )
     T = motion.n_frames
     pidx = [js.index(j) for j in spec.positions]
-    pos = motion.positions[:, pidx]
-    pmask = motion.position_mask[:, pidx]
-    if root_centre:
-        pos, pmask = _root_centred(motion, spec, pos, pmask)
+    raw, raw_mask = motion.positions[:, pidx], motion.position_mask[:, pidx]
+    pos, pmask = _root_centred(motion, spec, raw, raw_mask) if root_centre else (raw, raw_mask)
+    span = np.ones(spec.dimensions)
     if spec.position_scale == "recording_minmax":
-        pos = _minmax_scaled(pos, pmask)
+        pos, span = _minmax_scaled(pos, pmask)
 
     q = np.zeros((T, 0, 4))
     qmask = np.zeros((T, 0), bool)
@@ -299,36 +304,29 @@ def extract_targets(motion: Motion, spec: TargetSpec, *, root_centre: bool = Fal
         qmask = motion.orientation_mask[:, oidx]
         q = make_continuous(motion.orientations[:, oidx], qmask)
 
-    lengths, lmask = _limb_lengths(motion, spec, pos, pmask)
+    lengths, lmask = _limb_lengths(spec, raw / span, raw_mask)
     values = np.concatenate([pos.reshape(T, -1), q.reshape(T, -1), lengths], axis=1)
     mask = np.concatenate([np.repeat(pmask, spec.dimensions, axis=1), np.repeat(qmask, 4, axis=1), lmask], axis=1)
     values[~mask] = 0.0
     return values, mask
 
 
-def _minmax_scaled(pos: np.ndarray, pmask: np.ndarray) -> np.ndarray:
+def _minmax_scaled(pos: np.ndarray, pmask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Positions [T, P, C] with each axis mapped into 0..1 by its min and max over the valid ones
-    (an axis with no spread maps to 0)."""
+    (an axis with no spread maps to 0), and the [C] spans divided by."""
     valid = pos[pmask]  # [N, C]
     if not valid.size:
-        return pos
+        return pos, np.ones(pos.shape[-1])
     lo, hi = valid.min(axis=0), valid.max(axis=0)
     span = np.where(hi > lo, hi - lo, 1.0)
-    return (pos - lo) / span
+    return (pos - lo) / span, span
 
 
-def _limb_lengths(motion: Motion, spec: TargetSpec, pos: np.ndarray, pmask: np.ndarray):
-    """([T, L] lengths, [T, L] mask) of the spec's limbs, from the (centred, scaled) positions; a
-    joint that is not a listed position is taken from the motion with the same treatment."""
-    T = motion.n_frames
+def _limb_lengths(spec: TargetSpec, pos: np.ndarray, pmask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """([T, L] lengths, [T, L] mask) of the spec's limbs from positions [T, P, C] of its joints."""
+    T = pos.shape[0]
     if not spec.limbs:
         return np.zeros((T, 0)), np.zeros((T, 0), bool)
-    missing = [j for pair in spec.limb_pairs() for j in pair if j not in spec.positions]
-    if missing:
-        raise KinectDataError(
-            f"target spec {spec.name!r}: limbs need the positions of {', '.join(sorted(set(missing)))}; "
-            "list them under positions"
-        )
     k = {j: i for i, j in enumerate(spec.positions)}
     child = np.array([k[j] for j, _ in spec.limb_pairs()])
     parent = np.array([k[p] for _, p in spec.limb_pairs()])

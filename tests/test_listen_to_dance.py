@@ -149,6 +149,10 @@ def test_generate_writes_openpose_json_lines_the_reader_reads(cdhc_run, sessions
     motion = read_motion(out, video_fps=30.0)
     assert motion.joint_set.name == "openpose_mpi" and motion.n_frames == int(12.0 * 30)
     assert motion.position_mask.all() and 0 <= np.nanmin(motion.positions) and np.nanmax(motion.positions) <= 1
+    result = run_cli("generate", "--run", run, sessions / "dance_11.flac", "-o", tmp_path / "dance.csv")
+    assert result.exit_code == 1 and "written as OpenPose JSON Lines; name the file .jsonl" in result.output
+    result = run_cli("export", "--run", run, "-o", tmp_path / "x.onnx")
+    assert result.exit_code == 1 and "export writes the yalta model's streaming network; this run is cdhc" in result.output
 
 
 def test_evaluate_reports_rhythm_with_the_real_motion_peaking_at_the_beat(cdhc_run, ltd_dataset, tmp_path):
@@ -184,7 +188,37 @@ def test_the_model_follows_the_dataset_and_mismatches_are_refused(ltd_dataset, s
         train(sample_dataset, tmp_path / "b", TrainConfig.for_model("cdhc", epochs=1))
     result = run_cli("sweep", "--data", ltd_dataset, "--out", tmp_path / "s", "--model", "cdhc")
     assert result.exit_code == 2 and "yalta model only" in result.output
+    result = run_cli("sweep", "--data", ltd_dataset, "--out", tmp_path / "s")
+    assert result.exit_code == 2 and "is a cdhc dataset" in result.output
     assert PIPELINES["listen-to-dance"]["model"] == "cdhc"
+
+
+def test_cdhc_needs_0_1_targets_without_root_centring(sessions, tmp_path):
+    from kinectdata.training.run import TrainConfig
+    from kinectdata.training.train import train
+
+    for option, words in ((["--normalisation", "minmax"], "covers 0..1"), (["--root-centre"], "without --root-centre")):
+        out = tmp_path / option[0].strip("-")
+        args = ["build-dataset", sessions, "-o", out, "--pipeline", "listen-to-dance", "--video-fps", 30]
+        assert run_cli(*args, "--split-ratios", "1,1,1", *option).exit_code == 0
+        with pytest.raises(KinectDataError, match=words):
+            train(out, tmp_path / f"run-{option[0]}", TrainConfig.for_model("cdhc", epochs=1))
+
+
+def test_masked_previous_poses_become_the_mean_pose_for_cdhc(ltd_dataset):
+    from kinectdata.dataset.windows import WindowDataset
+    from kinectdata.models.registry import model_kind
+
+    windows = WindowDataset(ltd_dataset, "train", 60)
+    item = windows[0]
+    assert item["previous_mask"].shape == item["previous"].shape
+    start = np.full(44, 0.5, np.float32)
+    filled = model_kind("cdhc").fill_previous(item["previous"], item["previous_mask"], start)
+    m = item["previous_mask"].numpy()
+    assert (~m).any()  # the synthetic detector misses joints
+    np.testing.assert_array_equal(filled.numpy()[~m], 0.5)
+    np.testing.assert_array_equal(filled.numpy()[m], item["previous"].numpy()[m])
+    assert model_kind("yalta").fill_previous(item["previous"], item["previous_mask"], start) is item["previous"]
 
 
 def test_a_manifest_gives_person_and_video_fps_per_recording(sessions, tmp_path):
@@ -220,3 +254,17 @@ def test_an_edited_keypoint_file_changes_the_build(sessions, tmp_path):
     frame.write_text(json.dumps(doc))
     second = build_dataset(src, tmp_path / "ds", config, video_fps=30.0)
     assert first["build_key"] != second["build_key"]
+
+
+def test_beats_come_from_the_ground_truth_also_for_aligned_recordings(sessions, tmp_path):
+    """An aligned .h5 names the audio it came from; that audio's truth file gives the beats,
+    shifted to the recording's first frame."""
+    from kinectdata.training.rhythm_eval import recording_beats
+
+    aligned = tmp_path / "a.h5"
+    rec = align_files(sessions / "dance_11_openpose", sessions / "dance_11.flac", aligned, video_fps=30.0)
+    truth = json.loads((sessions / "dance_11.truth.json").read_text())
+    start = rec.summary["audio_trimmed_start_s"]
+    beats, source, why = recording_beats({"recording": str(aligned)}, {"alignment": rec.summary}, 300, 30.0, 16000)
+    assert source == "ground truth" and why is None
+    np.testing.assert_allclose(beats, np.array(truth["beat_times_s"]) - start)

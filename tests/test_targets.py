@@ -301,12 +301,27 @@ def test_listen_to_dance_target_scales_each_axis_per_recording_and_adds_limb_len
 
 def test_limbs_need_their_joints_listed_as_positions(tmp_path):
     path = tmp_path / "spec.json"
-    path.write_text(
-        json.dumps(
-            {"name": "x", "joint_set": "openpose_mpi", "positions": ["Head"], "orientations": [], "limbs": ["Head"]}
-        )
-    )
-    spec = load_target_spec(path)
-    motion = Motion(np.arange(3) / 30, np.ones((3, 15, 2)), load_joint_set("openpose_mpi"))
-    with pytest.raises(KinectDataError, match="limbs need the positions of Neck"):
-        extract_targets(motion, spec)
+    doc = {"name": "x", "joint_set": "openpose_mpi", "positions": ["Head"], "orientations": [], "limbs": ["Head"]}
+    path.write_text(json.dumps(doc))
+    with pytest.raises(SchemaError, match=r"spec.json: limbs: the limb Head-Neck needs 'Neck' under positions"):
+        load_target_spec(path)
+
+
+def test_limb_lengths_are_true_lengths_when_root_centred():
+    """Root-centring moves the root into its own frame of reference; the limbs to it keep their length."""
+    js = load_joint_set("openpose_mpi")
+    rng = np.random.default_rng(5)
+    pos = rng.uniform(0, 500, (20, 15, 2))
+    motion = Motion(np.arange(20) / 30, pos, js)
+    spec = load_target_spec("listen_to_dance")
+    plain, _ = extract_targets(motion, spec)
+    centred, _ = extract_targets(motion, spec, root_centre=True)
+    span_plain = pos.reshape(-1, 2).max(0) - pos.reshape(-1, 2).min(0)
+    chest, rhip = js.index("Chest"), js.index("RHip")
+    k = spec.limbs.index("RHip")
+    np.testing.assert_allclose(plain[:, 30 + k], np.hypot(*((pos[:, rhip] - pos[:, chest]) / span_plain).T))
+    # centred: the same pixel differences over the centred coordinates' spans
+    c = pos - pos[:, chest : chest + 1]
+    c[:, chest] = pos[:, chest] - pos[:, chest].mean(axis=0)  # its mean over the first second (all 20 frames)
+    span_c = c.reshape(-1, 2).max(0) - c.reshape(-1, 2).min(0)
+    np.testing.assert_allclose(centred[:, 30 + k], np.hypot(*((pos[:, rhip] - pos[:, chest]) / span_c).T))

@@ -285,8 +285,15 @@ def sweep_command(data, out, only, **options) -> None:
     _torch_or_fail()
     from ..training.sweep import sweep
 
-    if options["model"] not in (None, "yalta"):
-        raise click.UsageError("sweep reproduces the tables of Yalta et al. (2016): it trains the yalta model only")
+    from ..models.registry import model_for_features
+    from ..training.run import read_manifest
+
+    dataset_model = model_for_features(read_manifest(data)["config"]["features"])
+    if options["model"] not in (None, "yalta") or dataset_model != "yalta":
+        raise click.UsageError(
+            "sweep reproduces the tables of Yalta et al. (2016): it trains the yalta model only, on an STFT "
+            f"dataset{'' if dataset_model == 'yalta' else f' ({data} is a {dataset_model} dataset)'}"
+        )
     variants = None if only is None else [v.strip() for v in only.split(",")]
     rows = sweep(
         data,

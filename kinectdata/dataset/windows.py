@@ -3,7 +3,7 @@
 Item i of :class:`WindowDataset` is a window of ``length`` frames starting at frame s of one
 recording (never crossing into another): ``audio`` [L, 1, 129, 5], ``pose`` [L, D] (the targets
 at frames s..s+L-1), ``previous`` [L, D] (at s-1..s+L-2), ``next`` [L, D] (at s+1..s+L), ``mask``
-[L, D] for ``pose``, ``padded`` [L]. Windows start every ``stride`` frames from frame 1 (so the
+[L, D] for ``pose``, ``previous_mask`` [L, D] for ``previous``, ``padded`` [L]. Windows start every ``stride`` frames from frame 1 (so the
 first has a previous pose) and end by the recording's second-to-last frame (so the last has a
 next one). Each window is one contiguous read per dataset; files are opened lazily in each
 DataLoader worker process.
@@ -63,12 +63,14 @@ class WindowDataset(Dataset):
         f = self._file(shard)
         L = self.length
         current = f["current"][row - 1 : row + L + 1]  # previous, the window and next in one read
+        mask = f["mask"][row - 1 : row + L]
         return {
             "audio": torch.from_numpy(f["input"][row : row + L]),
             "pose": torch.from_numpy(current[1 : L + 1].copy()),
             "previous": torch.from_numpy(current[:L].copy()),
             "next": torch.from_numpy(current[2:].copy()),
-            "mask": torch.from_numpy(f["mask"][row : row + L]),
+            "mask": torch.from_numpy(mask[1:].copy()),
+            "previous_mask": torch.from_numpy(mask[:L].copy()),
             "padded": torch.from_numpy(f["audio_padded"][row : row + L]),
         }
 

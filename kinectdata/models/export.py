@@ -125,6 +125,13 @@ def export_run(run: str | Path, path: str | Path, fmt: str | None = None, precis
         raise KinectDataError(f"export format must be one of {', '.join(FORMATS)}, not {fmt!r}")
     if fmt == "onnx" and precision != "float32":
         raise KinectDataError("ONNX export is float32 only (ONNX Runtime runs float32 fastest on CPUs)")
+    from ..training.run import model_name, read_config
+
+    if model_name(read_config(run)) != "yalta":
+        raise KinectDataError(
+            f"{run}: export writes the yalta model's streaming network; this run is {model_name(read_config(run))} "
+            "(run it with kinectdata generate)"
+        )
     net, config = load_model(run)
     metadata = stream_metadata(config, precision)
     if fmt == "onnx":

@@ -7,9 +7,10 @@ need of a model, so that those stay one loop each.
   teacher forcing (the true previous poses) in training, L1 + limb-length loss, autoregressive
   generation.
 
-A kind builds its network from the training settings and the dataset's manifest, runs it on a
-training batch, scores that, sets the output layer to start at the mean pose, and runs it free
-over a recording (given the true first pose, then its own outputs).
+A kind builds its network from the training settings and the dataset's manifest, says what a
+masked previous pose becomes, runs it on a training batch, scores that, sets the output layer to
+start at the mean pose, and runs it free over a recording (given the true first pose, then its own
+outputs).
 """
 
 from __future__ import annotations
@@ -49,6 +50,10 @@ class YaltaKind:
     def build(self, config: dict[str, Any]) -> YaltaNet:
         return YaltaNet(YaltaConfig.from_dict(config))
 
+    def fill_previous(self, previous, mask, start_pose):
+        """Masked previous poses stay as the dataset stores them (0: the centre of -0.9..0.9)."""
+        return previous
+
     def predict(self, net: YaltaNet, audio, previous, feedback: str) -> torch.Tensor:
         """[B, L, D] from a batch: ``previous`` [B, L, D] the true poses before each frame."""
         return net(audio, previous if feedback == "teacher" else previous[:, 0], feedback)
@@ -81,6 +86,17 @@ class CdhcKind:
         spec = TargetSpec.from_dict(manifest["config"]["target"])
         if spec.orientations:
             raise KinectDataError(f"the cdhc model regresses coordinates and limb lengths; {spec.name} has quaternions")
+        if manifest["normalisation"]["method"] != "none" or spec.position_scale != "recording_minmax":
+            raise KinectDataError(
+                f"the cdhc model's sigmoid output covers 0..1: it needs targets scaled into 0..1 per recording "
+                f"(position_scale recording_minmax, normalisation none, as --pipeline listen-to-dance builds); "
+                f"this dataset's are {spec.position_scale} and {manifest['normalisation']['method']}"
+            )
+        if manifest["config"].get("root_centre"):
+            raise KinectDataError(
+                "the cdhc model's limb loss measures limbs between its output coordinates; root-centred "
+                "coordinates put the root in another frame of reference than its children: build without --root-centre"
+            )
         index = {j: i for i, j in enumerate(spec.positions)}
         return CdhcConfig(
             output_dim=manifest["target_dim"],
@@ -95,6 +111,14 @@ class CdhcKind:
 
     def build(self, config: dict[str, Any]) -> CdhcNet:
         return CdhcNet(CdhcConfig.from_dict(config))
+
+    def fill_previous(self, previous, mask, start_pose):
+        """Masked previous values (stored as 0, a real coordinate in 0..1) become the mean training
+        pose's, so teacher forcing never shows a joint jumping to the image's corner."""
+        if isinstance(previous, torch.Tensor):
+            start = torch.as_tensor(start_pose, dtype=previous.dtype, device=previous.device)
+            return torch.where(mask, previous, start)
+        return np.where(mask, previous, np.asarray(start_pose, dtype=np.asarray(previous).dtype))
 
     def predict(self, net: CdhcNet, audio, previous, feedback: str) -> torch.Tensor:
         return net(audio, previous)  # teacher forcing: the true pose of each previous frame

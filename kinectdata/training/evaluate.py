@@ -137,7 +137,7 @@ def silence_test(
     identical = bool((silent == silent[0]).all())
     mid = rec["input"].shape[0] // 2
     audio = np.concatenate([rec["input"][:mid], silent, rec["input"][mid:]])
-    generated = kind.free_run(net, audio, rec["current"][0])  # frames 1..T-1
+    generated = kind.free_run(net, audio, rec.get("first_pose", rec["current"][0]))  # frames 1..T-1
     energy = motion_energy(generated)  # index i: the change into frame i + 1 of the combined features
     begin, end = mid - 1, mid - 1 + n_silent  # the silence, in those indices
     inside = np.zeros(energy.size, bool)
@@ -185,13 +185,15 @@ def evaluate(
     recordings = _recordings(dataset, manifest, split)
     if not recordings:
         raise KinectDataError(f"{dataset}: the {split} split holds no recording")
+    kind = model_kind(model_name(config))
+    for rec in recordings:  # the true first pose; the cdhc model gets the mean pose where it is masked
+        rec["first_pose"] = kind.fill_previous(rec["current"][0], rec["mask"][0], config["dataset"]["start_pose"])
     out = Path(out) if out is not None else run / "evaluation"
     out.mkdir(parents=True, exist_ok=True)
     spec = TargetSpec.from_dict(config["dataset"]["target"])
     norm = Normalizer.from_dict(config["dataset"]["normalisation"])
     fps = config["dataset"]["fps"]
     sequence = config["train"]["sequence"]
-    kind = model_kind(model_name(config))
     results: dict[str, Any] = {
         "run": str(run),
         "dataset": str(dataset),
@@ -206,7 +208,7 @@ def evaluate(
     for mode, reset in modes:
         generated, real, masks = [], [], []
         for rec in recordings:
-            g = kind.free_run(net, rec["input"], rec["current"][0], reset)
+            g = kind.free_run(net, rec["input"], rec["first_pose"], reset)
             if reset is None:
                 free[rec["name"]] = norm.invert(g, spec)
             generated.append(g)

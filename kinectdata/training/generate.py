@@ -72,6 +72,10 @@ def generate(
     data = config["dataset"]
     fps, sr = data["fps"], data["sample_rate"]
     spec = TargetSpec.from_dict(data["target"])
+    wanted = (".jsonl", ".json") if spec.dimensions == 2 else (".csv",)
+    if out is not None and Path(out).suffix.lower() not in wanted:
+        kind = "OpenPose JSON Lines" if spec.dimensions == 2 else "canonical CSV"
+        raise KinectDataError(f"{out}: this run's motion is written as {kind}; name the file {wanted[0]}")
     norm = Normalizer.from_dict(data["normalisation"])
     reader = AudioReader(audio, sr)
     n = int(np.floor(reader.n_samples / sr * fps + 1e-9))

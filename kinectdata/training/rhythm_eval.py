@@ -2,9 +2,10 @@
 
 For each recording of the split, the music's beats on the recording's motion clock (frame k at k / fps):
 
-- **ground truth** when the recording's audio has a ``<name>.truth.json`` beside it with
-  ``beat_times_s`` on the audio clock (``kinectdata synth`` writes one), shifted by the audio time
-  of the recording's first frame (its alignment's ``audio_trimmed_start_s``);
+- **ground truth** when the recording's audio (for an aligned ``.h5``: the audio it was aligned
+  from, as its provenance names it) has a ``<name>.truth.json`` beside it with ``beat_times_s`` on
+  the audio clock (``kinectdata synth`` writes one), shifted by the audio time of the recording's
+  first frame (its alignment's ``audio_trimmed_start_s``);
 - else the **beat tracker** (:func:`kinectdata.rhythm.music_beats`, librosa) on the recording's
   audio over the same span;
 - else none, and the report says why (audio moved away, librosa not installed).
@@ -23,6 +24,7 @@ import json
 from pathlib import Path
 from typing import Any
 
+import h5py
 import numpy as np
 
 from ..aligned import audio_blocks
@@ -43,8 +45,9 @@ def recording_beats(entry: dict[str, Any], info: dict[str, Any], frames: int, fp
     """(beat times [B] s on the recording's motion clock, source, None) or (None, None, why not)."""
     start = float(info.get("alignment", {}).get("audio_trimmed_start_s", 0.0))
     audio = entry.get("audio")
-    if audio is not None:
-        truth = Path(audio).with_name(Path(audio).name.rsplit(".", 1)[0] + ".truth.json")
+    source_audio = audio if audio is not None else _aligned_from(entry["recording"])
+    if source_audio is not None:
+        truth = Path(source_audio).with_name(Path(source_audio).name.rsplit(".", 1)[0] + ".truth.json")
         if truth.is_file():
             try:
                 beats = np.asarray(json.loads(truth.read_text())["beat_times_s"], np.float64)
@@ -63,6 +66,20 @@ def recording_beats(entry: dict[str, Any], info: dict[str, Any], frames: int, fp
     except (KinectDataError, OSError) as exc:
         return None, None, str(exc)
     return beats, "beat tracker", None
+
+
+def _aligned_from(aligned: str) -> Path | None:
+    """The audio file an aligned ``.h5`` was made from (its provenance path, as given or relative to
+    the ``.h5``'s folder), or None."""
+    try:
+        with h5py.File(aligned, "r") as f:
+            path = json.loads(f.attrs["provenance"])["audio"]["path"]
+    except (OSError, KeyError, ValueError, TypeError):
+        return None
+    for candidate in (Path(path), Path(aligned).parent / path):
+        if candidate.is_file():
+            return candidate
+    return None
 
 
 def motion_rhythm(

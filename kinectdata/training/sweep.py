@@ -94,7 +94,8 @@ def sweep(
 
 def _check_finished(run: Path, config: TrainConfig, manifest: dict[str, Any]) -> None:
     saved = read_config(run)
-    differ = [k for k, v in config.to_dict().items() if saved["train"].get(k) != v]
+    own = TrainConfig(**saved["train"]).to_dict()  # settings added since the run was made take their defaults
+    differ = [k for k, v in config.to_dict().items() if own[k] != v]
     if saved["dataset"]["build_key"] != manifest["build_key"]:
         differ.append("dataset")
     if differ:

@@ -127,9 +127,14 @@ def _add_gradient_noise(
 
 
 def validate(
-    net: torch.nn.Module, windows: WindowDataset, config: TrainConfig, device: torch.device
+    net: torch.nn.Module,
+    windows: WindowDataset,
+    config: TrainConfig,
+    device: torch.device,
+    start_pose: list[float] | None = None,
 ) -> tuple[float, float]:
-    """(loss as in training, SMAPE in % free-running) over a split's windows."""
+    """(loss as in training, SMAPE in % free-running) over a split's windows; ``start_pose`` [D]
+    stands in for masked previous values (the cdhc model)."""
     if len(windows) == 0:
         return float("nan"), float("nan")
     kind = model_kind(config.model)
@@ -139,6 +144,8 @@ def validate(
         for batch in _batches(windows, config, None):
             audio, pose, mask = batch["audio"].to(device), batch["pose"].to(device), batch["mask"].to(device)
             previous = batch["previous"].to(device)
+            if start_pose is not None:
+                previous = kind.fill_previous(previous, batch["previous_mask"].to(device), start_pose)
             pred = kind.predict(net, audio, previous, config.feedback)
             losses.append(float(kind.loss(net, pred, pose, mask, config)))
             weights.append(float(mask.sum()))
@@ -250,6 +257,7 @@ def train(
             kind.init_output(net, run_config["dataset"]["start_pose"])
             write_json(run / CONFIG, run_config)
         run_config = json.loads((run / CONFIG).read_text())
+        start_pose = run_config["dataset"]["start_pose"]
         writer = _tensorboard(run)
         net.train()
         params = list(net.parameters())
@@ -257,7 +265,9 @@ def train(
             started, frames, total, weight = time.perf_counter(), 0, 0.0, 0.0
             for batch in _batches(train_windows, config, order):
                 audio, pose, mask = batch["audio"].to(device), batch["pose"].to(device), batch["mask"].to(device)
-                previous = batch["previous"].to(device)
+                previous = kind.fill_previous(
+                    batch["previous"].to(device), batch["previous_mask"].to(device), start_pose
+                )
                 pred = kind.predict(net, audio, previous, config.feedback)
                 loss = kind.loss(net, pred, pose, mask, config)
                 optimizer.zero_grad(set_to_none=True)
@@ -270,7 +280,7 @@ def train(
                 frames += pose.shape[0] * pose.shape[1]
                 total += loss.item() * float(mask.sum())
                 weight += float(mask.sum())
-            val_loss, val_smape = validate(net, val_windows, config, device)
+            val_loss, val_smape = validate(net, val_windows, config, device, start_pose)
             seconds = time.perf_counter() - started
             row = {
                 "epoch": epoch,
