@@ -225,7 +225,7 @@ def _zscore(x: np.ndarray) -> np.ndarray:
     return (x - x.mean()) / s if s > 0 else x * 0.0
 
 
-def _xcorr_estimate(motion: Motion, env: AudioEnvelopes, max_offset: float | None) -> OffsetEstimate:
+def xcorr_estimate(motion: Motion, env: AudioEnvelopes, max_offset: float | None) -> OffsetEstimate:
     from scipy import ndimage, signal
 
     rate = ONSET_RATE
@@ -284,7 +284,7 @@ def estimate_offset(
     clap = _clap_estimate(m_claps, a_claps, max_offset) if m_claps and a_claps else None
     if clap is not None and clap.confidence >= min_confidence:
         return clap
-    xcorr = _xcorr_estimate(motion, env, max_offset)
+    xcorr = xcorr_estimate(motion, env, max_offset)
     if xcorr.confidence >= min_confidence:
         return xcorr
     lines = []

@@ -25,6 +25,8 @@ COMMANDS = [
     "generate",
     "export",
     "sweep",
+    "render",
+    "report",
 ]
 
 

@@ -219,7 +219,11 @@ def test_generated_csv_reads_back_and_aligns(trained_run, tmp_path):
     comments = back.metadata["file_metadata"]
     assert comments["generated_by"] == "kinectdata generate" and comments["target_spec"] == "yalta65"
     js = back.joint_set
-    assert back.position_mask[:, js.index("HandLeft")].all() and not back.position_mask[:, js.index("Head")].any()
+    assert back.position_mask[:, js.index("HandLeft")].all()
+    # the rest skeleton places what the orientations reach (the head from the neck's frame), not the feet
+    assert back.position_mask[:, js.index("Head")].all() and not back.position_mask[:, js.index("FootLeft")].any()
+    neck, head = back.positions[:, js.index("Neck")], back.positions[:, js.index("Head")]
+    assert np.all(head[:, 1] > neck[:, 1])  # upright: the head above the neck
     np.testing.assert_allclose(
         back.positions[:, js.index("HandLeft")], motion.positions[:, js.index("HandLeft")], atol=1e-6
     )

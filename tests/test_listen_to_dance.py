@@ -152,7 +152,9 @@ def test_generate_writes_openpose_json_lines_the_reader_reads(cdhc_run, sessions
     result = run_cli("generate", "--run", run, sessions / "dance_11.flac", "-o", tmp_path / "dance.csv")
     assert result.exit_code == 1 and "written as OpenPose JSON Lines; name the file .jsonl" in result.output
     result = run_cli("export", "--run", run, "-o", tmp_path / "x.onnx")
-    assert result.exit_code == 1 and "export writes the yalta model's streaming network; this run is cdhc" in result.output
+    assert (
+        result.exit_code == 1 and "export writes the yalta model's streaming network; this run is cdhc" in result.output
+    )
 
 
 def test_evaluate_reports_rhythm_with_the_real_motion_peaking_at_the_beat(cdhc_run, ltd_dataset, tmp_path):

@@ -283,10 +283,9 @@ def sweep_command(data, out, only, **options) -> None:
     """Train and evaluate the variants of the paper's Tables 3-5 (TanH/ReLU/ELU, 250/1000 units,
     50/100 steps) and write OUT/results.md with the paper's columns beside its figures."""
     _torch_or_fail()
-    from ..training.sweep import sweep
-
     from ..models.registry import model_for_features
     from ..training.run import read_manifest
+    from ..training.sweep import sweep
 
     dataset_model = model_for_features(read_manifest(data)["config"]["features"])
     if options["model"] not in (None, "yalta") or dataset_model != "yalta":

@@ -39,6 +39,7 @@ from ..align import file_sha256
 from ..atomic import atomic_output
 from ..errors import KinectDataError
 from ..normalization import Normalizer, NormStats, count_out_of_range
+from ..skeleton import merge_bone_offsets
 from ..targets import TargetSpec
 from .hemispheres import apply_flips, flipped_columns, reference_orientations, track_flips
 from .inputs import SPLITS, RecordingEntry, assign_splits, read_recordings
@@ -224,6 +225,7 @@ def build_dataset(
         "normalisation": normalizer.to_dict(),
         "normalisation_stats": train_stats.to_dict(),
         "orientation_reference": {j: [float(v) for v in q] for j, q in zip(spec.orientations, reference)},
+        "skeleton": merge_bone_offsets([u.skeleton for u in train_units]),
         "feature_shape": list(config.feature_shape),
         "target_dim": normalizer.dim,
         "shards": shards,

@@ -47,6 +47,19 @@ class RecordingEntry:
     def aligned(self) -> bool:
         return self.audio is None
 
+    def read_motion(self):
+        """The skeleton recording, read with this entry's reading options (not for aligned files)."""
+        from ..formats import read_motion
+
+        return read_motion(
+            self.recording,
+            format=self.format,
+            schema=self.schema,
+            body=self.body,
+            person=self.person,
+            video_fps=self.video_fps,
+        )
+
     def to_dict(self) -> dict[str, Any]:
         return {k: v for k, v in asdict(self).items() if v is not None}
 

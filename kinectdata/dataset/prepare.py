@@ -31,13 +31,13 @@ from ..envelopes import audio_envelopes
 from ..errors import KinectDataError
 from ..features import FeatureConfig, feature_config
 from ..features.streaming import StreamingFeatures
-from ..formats import read_motion
 from ..normalization import METHODS, NormStats
+from ..skeleton import bone_offsets
 from ..targets import TargetSpec, extract_targets
 from .hemispheres import orientation_stats
 from .inputs import RecordingEntry
 
-WORK_FORMAT = "kinectdata.work.2"  # 2: units carry orientation statistics
+WORK_FORMAT = "kinectdata.work.3"  # 2: units carry orientation statistics; 3: and bone offsets
 _BLOCK = 160_000  # samples per block when streaming in-memory audio (10 s at 16 kHz)
 
 
@@ -130,6 +130,7 @@ class Unit:
     stats: dict[str, Any]
     orientations: dict[str, Any]  # hemispheres.orientation_stats of the targets
     info: dict[str, Any] = field(default_factory=dict)
+    skeleton: dict[str, Any] = field(default_factory=dict)  # kinectdata.skeleton.bone_offsets of the motion
 
     def to_dict(self) -> dict[str, Any]:
         return asdict(self)
@@ -234,14 +235,7 @@ def prepare_recording(
 
         mean_square = _mean_square(blocks()) if snrs else 0.0
     else:
-        source = read_motion(
-            entry.recording,
-            format=entry.format,
-            schema=entry.schema,
-            body=entry.body,
-            person=entry.person,
-            video_fps=entry.video_fps,
-        )
+        source = entry.read_motion()
         reader = AudioReader(entry.audio, sr)
         env = None
         if entry.offset == "auto" or snrs:
@@ -269,6 +263,7 @@ def prepare_recording(
     values, mask = extract_targets(motion, spec, root_centre=config.root_centre)
     stats = NormStats.from_arrays(values, mask, spec.component_names()).to_dict()
     orientations = orientation_stats(values, mask, spec)
+    skeleton = bone_offsets(motion, spec)
     info = {"sources": hashes, "paths": sources, "offset": offset, "alignment": summary}
     units = {
         v: Unit(
@@ -281,6 +276,7 @@ def prepare_recording(
             stats=stats,
             orientations=orientations,
             info={**info, "augmentation": None if v is None else {"white_noise_snr_db": v}},
+            skeleton=skeleton,
         )
         for v in variants
     }

@@ -1,9 +1,10 @@
 """Training windows for PyTorch: L consecutive frames of one recording, with the poses around them.
 
 Item i of :class:`WindowDataset` is a window of ``length`` frames starting at frame s of one
-recording (never crossing into another): ``audio`` [L, 1, 129, 5], ``pose`` [L, D] (the targets
-at frames s..s+L-1), ``previous`` [L, D] (at s-1..s+L-2), ``next`` [L, D] (at s+1..s+L), ``mask``
-[L, D] for ``pose``, ``previous_mask`` [L, D] for ``previous``, ``padded`` [L]. Windows start every ``stride`` frames from frame 1 (so the
+recording (never crossing into another): ``audio`` [L, *feature shape] ([L, 1, 129, 5] STFT or
+[L, 80] mel), ``pose`` [L, D] (the targets at frames s..s+L-1), ``previous`` [L, D] (at
+s-1..s+L-2), ``next`` [L, D] (at s+1..s+L), ``mask`` [L, D] for ``pose``, ``previous_mask`` [L, D]
+for ``previous``, ``padded`` [L]. Windows start every ``stride`` frames from frame 1 (so the
 first has a previous pose) and end by the recording's second-to-last frame (so the last has a
 next one). Each window is one contiguous read per dataset; files are opened lazily in each
 DataLoader worker process.

@@ -230,6 +230,7 @@ def evaluate(
     }
     names = spec.component_names()
     shown = _shown_components(names)
+    unit = "0..1 of the recording's range" if norm.method == "none" else "normalised value"
     fig6 = trajectories(
         rec["current"][1:, shown],
         generated[:, shown],
@@ -237,6 +238,7 @@ def evaluate(
         fps,
         out / "trajectories.png",
         title=f"{rec['name']}: generated (free-running) against real",
+        unit=unit,
     )
     sil = silence_test(net, config["dataset"]["features"], rec, fps, silence_seconds)
     fig7 = trajectories(
@@ -246,6 +248,7 @@ def evaluate(
         fps,
         out / "silence.png",
         title=f"{rec['name']} with {silence_seconds:g} s of silence inserted",
+        unit=unit,
         shade=sil["silence_span_s"],
     )
     results["silence_test"] = sil

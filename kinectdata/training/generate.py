@@ -8,8 +8,10 @@ written at the end. The first "previous pose" is the mean training pose. Poses a
 and written in the form the target's joint set is read back from:
 
 - 3-D joint sets (the yalta model): kinectdata's canonical CSV (metres, unit quaternions), which
-  ``align`` reads: the target spec's joints get their positions and orientations, the joint
-  set's other joints are left empty (masked);
+  ``align`` reads: the target spec's joints get their orientations, and every joint the
+  orientations reach gets a position by forward kinematics over the dataset's rest skeleton
+  (:mod:`kinectdata.skeleton`; runs on datasets built before it have the listed positions only);
+  other joints are left empty (masked);
 - ``openpose_mpi`` (the cdhc model): OpenPose JSON Lines (:mod:`~kinectdata.formats.openpose_writer`)
   with x, y in the target's units: 0..1 of the per-recording min-max scaling for
   ``listen_to_dance``, image axes (y down). The limb lengths are not written (they are the
@@ -34,17 +36,24 @@ from ..jointsets import load_joint_set
 from ..models.engines import make_engine
 from ..motion import Motion
 from ..normalization import Normalizer
+from ..skeleton import rebuild_positions
 from ..targets import TargetSpec
 from .run import load_model
 
 
-def _motion(values: np.ndarray, spec: TargetSpec, fps: float, metadata: dict[str, Any]) -> Motion:
-    """A Motion of the spec's joint set from denormalised target vectors [T, D]."""
+def _motion(
+    values: np.ndarray, spec: TargetSpec, fps: float, metadata: dict[str, Any], skeleton: dict | None = None
+) -> Motion:
+    """A Motion of the spec's joint set from denormalised target vectors [T, D]; with the dataset's
+    ``skeleton`` (bone offsets) every joint its orientations reach gets a position
+    (:func:`kinectdata.skeleton.rebuild_positions`), else only the spec's listed joints."""
     js = load_joint_set(spec.joint_set)
     T, J = values.shape[0], len(js)
     positions = np.full((T, J, spec.dimensions), np.nan)
     for joint in spec.positions:
         positions[:, js.index(joint)] = values[:, spec.columns(joint, "position")]
+    if skeleton:
+        positions, _ = rebuild_positions(values, spec, skeleton)
     orientations = np.full((T, J, 4), np.nan)
     for joint in spec.orientations:
         orientations[:, js.index(joint)] = values[:, spec.columns(joint, "orientation")]
@@ -103,7 +112,7 @@ def generate(
     seconds = time.perf_counter() - started
     values = norm.invert(poses, spec)
     metadata = {"format": "generated", "source": str(audio), "run": str(run)}
-    motion = _motion(values, spec, fps, metadata)
+    motion = _motion(values, spec, fps, metadata, data.get("skeleton"))
     if out is not None and spec.dimensions == 2:
         write_openpose_jsonl(motion, out)
     elif out is not None:

@@ -160,6 +160,7 @@ def dataset_summary(dataset: Path, manifest: dict[str, Any]) -> dict[str, Any]:
         "normalisation": manifest["normalisation"],
         "feature_shape": manifest["feature_shape"],
         "target_dim": manifest["target_dim"],
+        "skeleton": manifest.get("skeleton", {}),  # bone offsets for drawing generated poses (none before v0.1 builds)
     }
 
 

@@ -321,7 +321,12 @@ def train(
         if config.model == "yalta"
         else f"{run.name}: cdhc, {config.channels}/{config.decoder_channels} channels, L1 + {config.limb_weight:g} limb"
     )
-    loss_curves(history, run / "loss.png", title=title)
+    loss_name = (
+        "mean squared error (normalised targets)"
+        if config.model == "yalta"
+        else f"L1 + {config.limb_weight:g} x limb-length L1 (0..1 targets)"
+    )
+    loss_curves(history, run / "loss.png", title=title, loss_name=loss_name)
     net = net.cpu().eval()
     save_checkpoint(run / MODEL, {"model": net.state_dict(), "config": json.dumps(run_config)})
     if config.model == "yalta":  # the streaming LSTM for robots; the cdhc model is run by generate

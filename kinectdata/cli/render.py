@@ -1,0 +1,104 @@
+"""``kinectdata render``: a skeleton animation (MP4 with the music, or GIF)."""
+
+from __future__ import annotations
+
+import click
+
+from .options import reader_options
+
+
+class SizeType(click.ParamType):
+    """WIDTHxHEIGHT in pixels."""
+
+    name = "WIDTHxHEIGHT"
+
+    def convert(self, value, param, ctx):
+        if isinstance(value, tuple):
+            return value
+        try:
+            width, height = (int(v) for v in value.lower().split("x"))
+        except ValueError:
+            self.fail(f"{value!r} is not WIDTHxHEIGHT in pixels, e.g. 640x480", param, ctx)
+        return width, height
+
+
+@click.command()
+@click.argument("motion", type=click.Path(path_type=str))
+@click.option(
+    "-o",
+    "--out",
+    required=True,
+    type=click.Path(dir_okay=False, path_type=str),
+    help="Animation to write: .mp4 (H.264 with the music as AAC; needs imageio-ffmpeg, pip install "
+    "'kinectdata[video]') or .gif (no sound). Written atomically: nothing appears if anything fails.",
+)
+@click.option(
+    "--audio",
+    default=None,
+    type=click.Path(dir_okay=False, path_type=str),
+    help="Music for the MP4 (WAV, FLAC, OGG, MP3...), its first sample at the motion's first frame, cut to "
+    "--start..--end. Default: an aligned .h5's own audio (MOTION's, else OTHER's).",
+)
+@click.option(
+    "--compare",
+    default=None,
+    type=click.Path(path_type=str),
+    metavar="OTHER",
+    help="A second motion drawn to the right on the same time axis (0 at each one's first frame), e.g. "
+    "generated against real. The shorter one stays frozen on its last frame, captioned 'ended', until the "
+    "longer one ends. Both must be 2-D or both 3-D.",
+)
+@click.option(
+    "--start", default=0.0, show_default=True, type=click.FloatRange(min=0), help="First time drawn, in seconds."
+)
+@click.option(
+    "--end",
+    default=None,
+    type=click.FloatRange(min=0, min_open=True),
+    help="Draw up to this time, in seconds. Default: the end of the (longer) motion.",
+)
+@click.option(
+    "--fps",
+    default=None,
+    type=click.FloatRange(min=0, min_open=True),
+    help="Output frames per second; each shows the motion's nearest frame. Default: MOTION's rate, at most 30.",
+)
+@click.option(
+    "--size",
+    default="640x480",
+    show_default=True,
+    type=SizeType(),
+    help="Pixels of each panel (a comparison is twice as wide); even numbers for MP4.",
+)
+@reader_options
+def render(motion, out, audio, compare, start, end, fps, size, format_, schema, body, person, video_fps) -> None:
+    """Draw MOTION as a skeleton animation: any readable recording, an aligned .h5 or generated motion
+    (CSV, OpenPose JSON Lines). 3-D skeletons (metres) are seen by a fixed raised camera looking the way
+    the sensor looks, over a floor grid; 2-D ones (pixels) on image axes, y down. --format applies to
+    MOTION, the other reader options to MOTION and OTHER where their format takes them."""
+    from tqdm import tqdm
+
+    from ..render import load_inputs, render_animation
+
+    paths = [motion] if compare is None else [motion, compare]
+    with_audio = out.lower().endswith(".mp4") and audio is None
+    options = {"schema": schema, "body": body, "person": person, "video_fps": video_fps}
+    inputs = load_inputs(paths, with_audio=with_audio, format=format_, **options)
+    with tqdm(unit="frame", desc="rendering", disable=None) as bar:
+
+        def progress(done: int, total: int) -> None:
+            bar.total = total
+            bar.update(done - bar.n)
+
+        result = render_animation(inputs, out, start=start, end=end, fps=fps, audio=audio, size=size, progress=progress)
+    width, height = result["size"]
+    click.echo(
+        f"wrote {out}: {result['frames']} frames at {result['fps']:g} fps ({result['start']:.3f} to "
+        f"{result['end']:.3f} s), {width}x{height}, "
+        + (f"sound from {result['audio']}" if result["audio"] else "no sound")
+    )
+    for source in result["ended"]:
+        click.echo(f"{source} ends before the clip: shown frozen on its last frame after that")
+
+
+COMMANDS = [render]

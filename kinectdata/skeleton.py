@@ -1,0 +1,126 @@
+"""A rest skeleton for a target spec, and the joint positions it gives back from a target's orientations.
+
+A target such as ``yalta65`` holds three positions and fourteen orientations: a model trained on it
+generates where the body is and how its bones turn, not where every joint is. To draw or retarget
+that, the bones need lengths and directions in their joints' frames. They are measured from the
+recordings a dataset is built from (:func:`bone_offsets`, then :func:`merge_bone_offsets` over the
+training split; stored in the dataset manifest as ``skeleton``):
+
+- for each joint j with parent p, the offset ``p_j - p_p`` (metres) seen in a frame that turns with the
+  body: p's orientation (``"parent"``: Kinect's and the synthetic dancer's convention, where a
+  joint's frame points at its child) or j's own (``"self"``: where a joint's orientation describes
+  the bone that ends at it), whichever gives the steadier local vector over the recording
+  (smaller median distance from the median vector); the offset is that median vector;
+- offsets whose spread exceeds a quarter of the bone's length are left out (no frame explains them).
+
+:func:`rebuild_positions` then runs forward kinematics from the target's root position:
+``p_j = p_p + R @ offset_j``, R the chosen frame's rotation at that frame, for every joint it can
+reach that the target does not position itself; the target's own positions (a model's outputs,
+e.g. the hands of ``yalta65``) are kept as they are.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from .motion import Motion
+from .targets import TargetSpec
+
+MAX_SPREAD = 0.25
+"""An offset is kept when its median deviation is under this share of its length."""
+
+
+def bone_offsets(motion: Motion, spec: TargetSpec) -> dict[str, dict[str, Any]]:
+    """Per joint of the motion's joint set that the spec's orientations can place: ``{"frame":
+    "parent"|"self", "offset": [x, y, z] metres in that frame, "spread": metres, "count": frames}``."""
+    if motion.orientations is None or not spec.orientations or spec.dimensions != 3:
+        return {}
+    js = motion.joint_set
+    out = {}
+    for j, name in enumerate(js.names):
+        p = js.parents[j]
+        if p < 0:
+            continue
+        best = None
+        for kind, k in (("parent", p), ("self", j)):
+            if js.names[k] not in spec.orientations:
+                continue
+            ok = motion.position_mask[:, j] & motion.position_mask[:, p] & motion.orientation_mask[:, k]
+            if ok.sum() < 3:
+                continue
+            bone = motion.positions[ok, j] - motion.positions[ok, p]
+            local = Rotation.from_quat(motion.orientations[ok, k]).inv().apply(bone)
+            centre = np.median(local, axis=0)
+            spread = float(np.median(np.linalg.norm(local - centre, axis=1)))
+            if best is None or spread < best["spread"]:
+                best = {"frame": kind, "offset": centre.tolist(), "spread": spread, "count": int(ok.sum())}
+        if best is not None and best["spread"] <= MAX_SPREAD * np.linalg.norm(best["offset"]):
+            out[name] = best
+    return out
+
+
+def merge_bone_offsets(per_recording: list[dict[str, dict[str, Any]]]) -> dict[str, dict[str, Any]]:
+    """One skeleton from several recordings' :func:`bone_offsets`: per joint the frame most
+    recordings chose, and the count-weighted mean of their offsets in it."""
+    merged = {}
+    names = sorted({n for rec in per_recording for n in rec})
+    for name in names:
+        entries = [rec[name] for rec in per_recording if name in rec]
+        frames = [e["frame"] for e in entries]
+        frame = max(("parent", "self"), key=frames.count)
+        chosen = [e for e in entries if e["frame"] == frame]
+        weights = np.array([e["count"] for e in chosen], float)
+        offset = np.average([e["offset"] for e in chosen], axis=0, weights=weights)
+        merged[name] = {
+            "frame": frame,
+            "offset": [float(v) for v in offset],
+            "spread": float(np.average([e["spread"] for e in chosen], weights=weights)),
+            "count": int(weights.sum()),
+        }
+    return merged
+
+
+def rebuild_positions(
+    values: np.ndarray, spec: TargetSpec, skeleton: dict[str, dict[str, Any]]
+) -> tuple[np.ndarray, np.ndarray]:
+    """Joint positions [T, J, 3] (NaN where not placed) and their mask [T, J] from target vectors
+    [T, D] in target units (metres, unit quaternions), by forward kinematics from the spec's root."""
+    from .jointsets import load_joint_set
+
+    js = load_joint_set(spec.joint_set)
+    T, J = values.shape[0], len(js)
+    positions = np.full((T, J, 3), np.nan)
+    for name in spec.positions:
+        positions[:, js.index(name)] = values[:, spec.columns(name, "position")]
+    quats = {name: values[:, spec.columns(name, "orientation")] for name in spec.orientations}
+    placed = {js.names[j] for j in range(J) if np.isfinite(positions[:, j]).all()}
+    order = _parents_first(js)
+    for j in order:
+        name, p = js.names[j], js.parents[j]
+        bone = skeleton.get(name)
+        if p < 0 or bone is None or name in placed or js.names[p] not in placed:
+            continue  # the target's own positions (the model's output) are kept as they are
+        frame = js.names[p] if bone["frame"] == "parent" else name
+        if frame not in quats:
+            continue
+        q = quats[frame]
+        ok = np.isfinite(q).all(axis=1) & (np.linalg.norm(np.nan_to_num(q), axis=1) > 0)  # masked: zeros or NaN
+        rotated = np.full((T, 3), np.nan)
+        if ok.any():
+            rotated[ok] = Rotation.from_quat(q[ok]).apply(np.asarray(bone["offset"]))
+        positions[:, j] = positions[:, p] + rotated
+        placed.add(name)
+    return positions, np.isfinite(positions).all(axis=-1)
+
+
+def _parents_first(js) -> list[int]:
+    depth = []
+    for j in range(len(js)):
+        d, k = 0, j
+        while js.parents[k] >= 0:
+            d, k = d + 1, js.parents[k]
+        depth.append(d)
+    return sorted(range(len(js)), key=lambda j: depth[j])
