@@ -65,9 +65,8 @@ def main() -> None:
             write_report(tmp / "ds", tmp / "r.html", sources=sources)
             seconds = time.perf_counter() - start
             size = (tmp / "r.html").stat().st_size / 1e6
-            print(
-                f"  report of 3 recordings ({'re-reading' if sources else 'without'} sources): {seconds:.2f} s, {size:.1f} MB"
-            )
+            how = "re-reading" if sources else "without"
+            print(f"  report of 3 recordings ({how} sources): {seconds:.2f} s, {size:.1f} MB")
 
 
 if __name__ == "__main__":
