@@ -1,4 +1,5 @@
-"""Run every benchmark module (``bench_*.py``) in this folder, or those named on the command line."""
+"""Run every benchmark module (``bench_*.py``) in this folder, or those named on the command line,
+then print the headline figures of all of them as one table (:mod:`.summary`)."""
 
 from __future__ import annotations
 
@@ -20,12 +21,16 @@ def machine() -> str:
 
 
 def main(argv: list[str]) -> None:
+    from .summary import table
+
     here = Path(__file__).parent
     names = argv or sorted(p.stem for p in here.glob("bench_*.py"))
     print(f"machine: {machine()}")
     for name in names:
         print(f"\n== {name} ==")
         importlib.import_module(f"benchmarks.{name}").main()
+    print(f"\n== summary ==\nmachine: {machine()}\n")
+    print(table())
 
 
 if __name__ == "__main__":

@@ -23,6 +23,8 @@ from kinectdata.formats import read_motion
 from kinectdata.formats.csv_writer import write_csv
 from kinectdata.offset import estimate_offset
 
+from .summary import record
+
 DURATION_S = 600.0
 
 
@@ -32,6 +34,7 @@ def _timed(label: str, fn, seconds_of_media: float, frames: int | None = None):
     dt = time.perf_counter() - t0
     extra = f", {frames / dt:,.0f} frames/s" if frames else ""
     print(f"  {label:<44} {dt:7.3f} s   {seconds_of_media / dt:8.0f}x real time{extra}")
+    record("align", label, f"{seconds_of_media / dt:.0f}x real time")
     return out
 
 
@@ -76,6 +79,7 @@ def main() -> None:
         print(f"  aligned file: {(tmp / 'out.h5').stat().st_size / 1e6:.1f} MB")
     peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
     print(f"  peak resident memory of the steps above: {peak:.0f} MB")
+    record("align", "peak resident memory, 10-minute session", f"{peak:.0f} MB")
 
 
 if __name__ == "__main__":

@@ -17,6 +17,8 @@ import tempfile
 import time
 from pathlib import Path
 
+from .summary import record
+
 DURATIONS_S = (120.0, 300.0, 600.0)
 _CHILD = """
 import os, sys, json
@@ -91,6 +93,8 @@ def main() -> None:
                 build, process, peak = _run_child(recordings, out)
                 span = json.loads((out / "manifest.json").read_text())["totals"]["rows"] / 30.0
                 label = "auto" if offset == "auto" else "given"
+                what = f"build {duration / 60:.0f} min, offset {label}, one core"
+                record("dataset", what, f"{span / build:.0f}x real time, peak {peak:.0f} MB")
                 print(
                     f"  {duration / 60:7.0f} min {label:>7} {build:8.2f} {span / build:12.0f} {process:10.2f}"
                     f" {span / process:12.0f} {peak:8.0f}"

@@ -28,6 +28,8 @@ from kinectdata.features import PRESETS, StftConfig, stft_features
 from kinectdata.features.stft import _gather, _normalised_spectra, _plan
 from kinectdata.synth.music import synthesize_music
 
+from .summary import record
+
 DURATION_S = 600.0
 SAMPLE_RATE = 16000
 FPS = 30
@@ -135,6 +137,8 @@ def main() -> None:
         )
         print(f"    per-frame loop          {dt_loop:7.3f} s  {seconds / dt_loop:7.0f}x real time")
         met = "met" if seconds / dt >= 1500 and dt_loop / dt >= 5 else "MISSED"
+        record("features", f"{name} STFT, one core", f"{seconds / dt:.0f}x real time")
+        record("features", f"{name} against the per-frame reference", f"{dt_loop / dt:.1f}x faster")
         print(f"    ratio                   {dt_loop / dt:7.1f}x faster than the loop  (targets 1500x, 5x: {met})")
         print(f"    CPU time / wall time    {threads:7.2f}  (1 = one core busy; less when other processes compete)")
         print(f"    max |difference|        {err:.2e} (loop in float64: the accuracy of the float32 output)")

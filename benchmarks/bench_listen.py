@@ -30,6 +30,8 @@ from kinectdata.models.engines import make_engine
 from kinectdata.synth import synthesize_openpose, synthesize_recording, write_openpose_recording
 from kinectdata.synth.openpose import write_openpose_folder
 
+from .summary import record
+
 
 def _openpose(tmp: Path) -> None:
     rec = synthesize_recording(seed=7, duration_s=102.0)
@@ -40,6 +42,7 @@ def _openpose(tmp: Path) -> None:
     motion = read_motion(folder, video_fps=30.0)
     seconds = time.perf_counter() - start
     people = motion.metadata["people"]
+    record("reading", "OpenPose folder (BODY_25, tracked)", f"{n / seconds:.0f} frames/s")
     print(
         f"  OpenPose folder: {n} frame files ({len(people)} tracks) read in {seconds:.2f} s, {n / seconds:.0f} frames/s"
     )
@@ -70,6 +73,7 @@ def _mel() -> None:
     mel_features(audio, starts, PRESETS["listen_to_dance"])
     seconds = time.perf_counter() - start
     print(f"  mel features: 600 s of audio in {seconds:.2f} s, {600 / seconds:.0f}x real time")
+    record("features", "listen_to_dance log-mel, one core", f"{600 / seconds:.0f}x real time")
 
 
 def _cdhc() -> None:
@@ -92,6 +96,8 @@ def _cdhc() -> None:
         f"  CDHC training: {params / 1e6:.1f} M parameters, {16 * 300 / np.median(times[1:]):.0f} frames/s "
         f"({torch.get_num_threads()} threads)"
     )
+    step = np.median(times[1:])
+    record("training", "cdhc step, batch 16 x 300 (9.0 M parameters)", f"{step:.2f} s ({16 * 300 / step:.0f} frames/s)")
     net.eval()
     song = np.random.default_rng(1).random((1800, 80), dtype=np.float32)
     start = time.perf_counter()
@@ -103,6 +109,7 @@ def _cdhc() -> None:
         started = time.perf_counter()
         pose = engine.step(song[k], pose)
         steps.append(time.perf_counter() - started)
+    record("generation", "cdhc streaming, per frame", f"{np.median(steps[10:]) * 1e3:.2f} ms")
     print(
         f"  CDHC generation: 60 s (1800 frames) in {whole:.2f} s ({60 / whole:.0f}x real time); streaming "
         f"{np.median(steps[10:]) * 1e3:.2f} ms per frame median, p95 {np.percentile(steps[10:], 95) * 1e3:.2f} ms"

@@ -32,6 +32,8 @@ from kinectdata.training.metrics import masked_mse
 from kinectdata.training.run import TrainConfig
 from kinectdata.training.train import _add_gradient_noise
 
+from .summary import record
+
 D = 65
 WARMUP, FRAMES = 100, 1500
 
@@ -125,6 +127,8 @@ def latency() -> None:
                 rows["ONNX Runtime float32"] = onnx
             for name, (median, p95) in rows.items():
                 mark = "  <= 2 ms" if units == 500 and median <= 2.0 else ""
+                if units == 500 and name != "YaltaNet one frame per call (torch LSTM)":
+                    record("generation", f"yalta 500 units, {name}, per frame", f"{median:.2f} ms (p95 {p95:.2f})")
                 print(f"  {units:>4} units  {name:<44} {median:6.3f} / {p95:6.3f}{mark}")
         error = half_precision_error(_net(500))
         print(f"  float16 weights: max deviation from float32 over 300 fed-back frames {error:.1e}")
@@ -163,6 +167,11 @@ def training_throughput(steps: int = 2) -> None:
         frames = config.batch_size * config.sequence
         rate = frames / seconds
         print(f"  {feedback:<9} feedback: {seconds:6.2f} s per batch of {frames} frames = {rate:7.0f} frames/s")
+        record(
+            "training",
+            f"yalta step, batch {config.batch_size} x {config.sequence}, {feedback} feedback",
+            f"{seconds:.2f} s ({rate:.0f} frames/s)",
+        )
 
 
 def main() -> None:

@@ -25,6 +25,8 @@ import numpy as np
 
 from kinectdata.oni import OniFile
 
+from .summary import record
+
 sys.path.append(str(Path(__file__).resolve().parent.parent))  # reference/: independent implementations
 from reference import openni as openni_ref  # noqa: E402
 from reference.oni_python import StreamSpec, write_oni  # noqa: E402
@@ -118,6 +120,8 @@ def main() -> None:
                 theirs = frames / seconds
                 line += f", OpenNI {theirs:7.1f} frames/s, ratio {fps / theirs:.2f}"
             line += f"; open {opened * 1000:.1f} ms"
+            ratio = f", {fps / theirs:.2f}x OpenNI" if missing is None else ""
+            record(".oni", f"decode {label} {WIDTH}x{HEIGHT}, one core", f"{fps:.1f} frames/s{ratio}")
             if label == "16zT depth":
                 line += "  (target: >= 200 frames/s)"
             print(line)

@@ -25,6 +25,8 @@ from kinectdata.report import write_report
 from kinectdata.synth import synthesize_recording, write_openpose_recording
 from kinectdata.targets import load_target_spec
 
+from .summary import record
+
 SAMPLES = Path(__file__).parent.parent / "sample_data"
 
 
@@ -38,6 +40,7 @@ def main() -> None:
     kinect = read_motion(SAMPLES / "synth_001.csv")
     frames, rate = _frames(SkeletonRenderer([kinect]))
     print(f"  render 3-D (25 joints, 640x480): {rate:.0f} frames/s")
+    record("render", "3-D skeleton frame, 640x480", f"{rate:.0f} frames/s")
     with tempfile.TemporaryDirectory() as tmp:
         tmp = Path(tmp)
         paths = write_openpose_recording(synthesize_recording(seed=11, duration_s=12.0), tmp, "op")
