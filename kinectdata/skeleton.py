@@ -84,10 +84,14 @@ def merge_bone_offsets(per_recording: list[dict[str, dict[str, Any]]]) -> dict[s
 
 
 def rebuild_positions(
-    values: np.ndarray, spec: TargetSpec, skeleton: dict[str, dict[str, Any]]
+    values: np.ndarray, spec: TargetSpec, skeleton: dict[str, dict[str, Any]], *, root_centred: bool = False
 ) -> tuple[np.ndarray, np.ndarray]:
     """Joint positions [T, J, 3] (NaN where not placed) and their mask [T, J] from target vectors
-    [T, D] in target units (metres, unit quaternions), by forward kinematics from the spec's root."""
+    [T, D] in target units (metres, unit quaternions), by forward kinematics from the spec's root.
+
+    ``root_centred``: the targets were root-centred (:func:`kinectdata.targets.extract_targets`):
+    the other listed positions are offsets from the root at the same frame, so the root's position
+    is added back to them (the root itself stays relative to its first second)."""
     from .jointsets import load_joint_set
 
     js = load_joint_set(spec.joint_set)
@@ -95,6 +99,11 @@ def rebuild_positions(
     positions = np.full((T, J, 3), np.nan)
     for name in spec.positions:
         positions[:, js.index(name)] = values[:, spec.columns(name, "position")]
+    if root_centred and spec.root in spec.positions:
+        root = positions[:, js.index(spec.root)].copy()
+        for name in spec.positions:
+            if name != spec.root:
+                positions[:, js.index(name)] += root
     quats = {name: values[:, spec.columns(name, "orientation")] for name in spec.orientations}
     placed = {js.names[j] for j in range(J) if np.isfinite(positions[:, j]).all()}
     order = _parents_first(js)

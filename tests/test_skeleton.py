@@ -62,3 +62,18 @@ def test_positions_only_targets_have_no_skeleton():
     motion = synthesize_recording(seed=3, duration_s=10.0).true_motion
     assert bone_offsets(motion, load_target_spec("kinect_v2_positions")) == {}
     assert merge_bone_offsets([]) == {}
+
+
+def test_root_centred_targets_are_put_back_around_the_root():
+    """With root-centring the hands are offsets from the root at each frame: the rebuilt hands must
+    sit on the rebuilt wrists even when the dancer travels."""
+    motion = synthesize_recording(seed=3, duration_s=10.0).true_motion
+    motion.positions[:, :, 0] += np.linspace(0, 2.0, motion.n_frames)[:, None]  # travel 2 m sideways
+    skeleton = bone_offsets(motion, YALTA)
+    values, _ = extract_targets(motion, YALTA, root_centre=True)
+    positions, placed = rebuild_positions(values, YALTA, skeleton, root_centred=True)
+    js = motion.joint_set
+    hand, wrist = js.index("HandRight"), js.index("WristRight")
+    gap = np.linalg.norm(positions[:, hand] - positions[:, wrist], axis=-1)
+    true_gap = np.linalg.norm(motion.positions[:, hand] - motion.positions[:, wrist], axis=-1)
+    np.testing.assert_allclose(gap, true_gap, atol=1e-9)

@@ -243,6 +243,9 @@ def generate_command(run_dir, audio, out, engine, precision) -> None:
         f"wrote {out}: {timing['frames']} frames ({motion.duration:.2f} s) in {timing['seconds']:.2f} s "
         f"({timing['x_real_time']:.0f}x real time; network step {timing['step_median_ms']:.3f} ms median)"
     )
+    if motion.joint_set.dimensions == 2:
+        fps = 1 / float(motion.times[1] - motion.times[0]) if motion.n_frames > 1 else 30.0
+        click.echo(f"  (OpenPose JSON Lines hold no frame rate: read or render it with --video-fps {fps:g})")
 
 
 @click.command("export")

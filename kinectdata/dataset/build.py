@@ -138,7 +138,7 @@ def _complete(out: Path, build_key: str) -> dict[str, Any] | None:
         manifest = json.loads((out / MANIFEST).read_text())
     except (OSError, ValueError):
         return None
-    if manifest.get("build_key") != build_key:
+    if manifest.get("build_key") != build_key or "skeleton" not in manifest:  # built before rest skeletons: redo
         return None
     for shard in manifest["shards"]:
         path = out / shard["file"]

@@ -42,7 +42,12 @@ from .run import load_model
 
 
 def _motion(
-    values: np.ndarray, spec: TargetSpec, fps: float, metadata: dict[str, Any], skeleton: dict | None = None
+    values: np.ndarray,
+    spec: TargetSpec,
+    fps: float,
+    metadata: dict[str, Any],
+    skeleton: dict | None = None,
+    root_centred: bool = False,
 ) -> Motion:
     """A Motion of the spec's joint set from denormalised target vectors [T, D]; with the dataset's
     ``skeleton`` (bone offsets) every joint its orientations reach gets a position
@@ -53,7 +58,7 @@ def _motion(
     for joint in spec.positions:
         positions[:, js.index(joint)] = values[:, spec.columns(joint, "position")]
     if skeleton:
-        positions, _ = rebuild_positions(values, spec, skeleton)
+        positions, _ = rebuild_positions(values, spec, skeleton, root_centred=root_centred)
     orientations = np.full((T, J, 4), np.nan)
     for joint in spec.orientations:
         orientations[:, js.index(joint)] = values[:, spec.columns(joint, "orientation")]
@@ -112,7 +117,7 @@ def generate(
     seconds = time.perf_counter() - started
     values = norm.invert(poses, spec)
     metadata = {"format": "generated", "source": str(audio), "run": str(run)}
-    motion = _motion(values, spec, fps, metadata, data.get("skeleton"))
+    motion = _motion(values, spec, fps, metadata, data.get("skeleton"), data["root_centre"])
     if out is not None and spec.dimensions == 2:
         write_openpose_jsonl(motion, out)
     elif out is not None:
