@@ -42,6 +42,8 @@ from .motion import Motion
 FORMAT = "kinectdata.aligned"
 FORMAT_VERSION = 1
 _MAX_ARRAY_IN_ATTRIBUTE = 1024
+_DAMAGE = (OSError, KeyError, ValueError, TypeError, RuntimeError, IndexError)
+"""What h5py (bad signatures, truncated heaps) and the checks of odd values raise on a damaged file."""
 
 
 def _jsonable(value: Any) -> Any:
@@ -131,51 +133,84 @@ class AlignedRecording:
 
     @classmethod
     def load(cls, path: str | Path, *, audio: bool = True) -> AlignedRecording:
-        """Read a file written by :meth:`save`; FormatError if it is not one. With
-        ``audio=False`` the audio is left in the file (``audio`` is empty; see :func:`audio_blocks`)."""
+        """Read a file written by :meth:`save`; FormatError naming the file if it is not one or is
+        damaged. With ``audio=False`` the audio is left in the file (``audio`` is empty; see
+        :func:`audio_blocks`)."""
         path = Path(path)
         try:
             f = h5py.File(path, "r")
-        except OSError as exc:
+        except _DAMAGE as exc:
             raise FormatError(path, f"not a readable HDF5 file ({exc})") from exc
         with f:
-            if f.attrs.get("format") != FORMAT:
-                raise FormatError(
-                    path, f"not a kinectdata aligned recording (format attribute {f.attrs.get('format')!r})"
-                )
-            version = int(f.attrs.get("format_version", -1))
-            if version != FORMAT_VERSION:
-                raise FormatError(
-                    path, f"aligned-recording format version {version}; this kinectdata reads {FORMAT_VERSION}"
-                )
             try:
-                js = _joint_set(f)
-                g = f["motion"]
-                has_q = "orientations" in g
-                motion = Motion(
-                    times=g["times"][()],
-                    positions=g["positions"][()],
-                    joint_set=js,
-                    position_mask=g["position_mask"][()],
-                    confidence=g["confidence"][()],
-                    orientations=g["orientations"][()] if has_q else None,
-                    orientation_mask=g["orientation_mask"][()] if has_q else None,
-                    metadata=json.loads(f.attrs.get("metadata", "{}")),
-                )
-                return cls(
-                    motion=motion,
-                    audio=f["audio/samples"][()] if audio else np.zeros(0, np.float32),
-                    sample_rate=int(f.attrs["sample_rate"]),
-                    fps=float(f.attrs["fps"]),
-                    position_interpolated=g["position_interpolated"][()],
-                    orientation_interpolated=g["orientation_interpolated"][()] if has_q else None,
-                    offset=json.loads(f.attrs["offset"]),
-                    provenance=json.loads(f.attrs["provenance"]),
-                    summary=json.loads(f.attrs["summary"]),
-                    gaps=json.loads(f.attrs["gaps"]),
-                )
-            except (KeyError, ValueError) as exc:
-                raise FormatError(path, f"damaged aligned recording: {exc}") from exc
+                return cls._read(f, path, audio)
+            except _DAMAGE as exc:
+                raise FormatError(path, f"damaged aligned recording ({type(exc).__name__}: {exc})") from exc
+
+    @classmethod
+    def _read(cls, f: h5py.File, path: Path, audio: bool) -> AlignedRecording:
+        fmt = f.attrs.get("format")
+        if not (isinstance(fmt, str) and fmt == FORMAT):
+            raise FormatError(path, f"not a kinectdata aligned recording (format attribute {_show(fmt)})")
+        version = f.attrs.get("format_version", -1)
+        if not (isinstance(version, (int, np.integer)) and version == FORMAT_VERSION):
+            raise FormatError(
+                path, f"aligned-recording format version {_show(version)}; this kinectdata reads {FORMAT_VERSION}"
+            )
+        fps, sample_rate = float(f.attrs["fps"]), int(f.attrs["sample_rate"])
+        if not (0 < fps < np.inf and sample_rate > 0):
+            raise FormatError(path, f"fps {fps:g} and sample_rate {sample_rate} must be positive")
+        g = f["motion"]
+        has_q = "orientations" in g
+        motion = Motion(
+            times=g["times"][()],
+            positions=g["positions"][()],
+            joint_set=_joint_set(f),
+            position_mask=g["position_mask"][()],
+            confidence=g["confidence"][()],
+            orientations=g["orientations"][()] if has_q else None,
+            orientation_mask=g["orientation_mask"][()] if has_q else None,
+            metadata=_json_attribute(f, path, "metadata", dict, "{}"),
+        )
+        if not np.allclose(motion.times, np.arange(motion.n_frames) / fps, rtol=0, atol=1e-9):
+            raise FormatError(path, f"motion/times are not k / fps for the fps attribute {fps:g}")
+        flags = {"position_interpolated": g["position_interpolated"][()]}
+        if has_q:
+            flags["orientation_interpolated"] = g["orientation_interpolated"][()]
+        for name, flag in flags.items():
+            if flag.shape != motion.position_mask.shape or flag.dtype != bool:
+                raise FormatError(path, f"motion/{name} is {flag.dtype} {flag.shape}, expected bool [N, J]")
+        samples = f["audio/samples"][()] if audio else np.zeros(0, np.float32)
+        if samples.ndim != 1 or samples.dtype.kind != "f":
+            raise FormatError(path, f"audio/samples is {samples.dtype} {samples.shape}, expected float [S]")
+        return cls(
+            motion=motion,
+            audio=samples,
+            sample_rate=sample_rate,
+            fps=fps,
+            position_interpolated=flags["position_interpolated"],
+            orientation_interpolated=flags.get("orientation_interpolated"),
+            offset=_json_attribute(f, path, "offset", dict),
+            provenance=_json_attribute(f, path, "provenance", dict),
+            summary=_json_attribute(f, path, "summary", dict),
+            gaps=_json_attribute(f, path, "gaps", list),
+        )
+
+
+def _json_attribute(f: h5py.File, path: Path, key: str, kind: type, default: str | None = None) -> Any:
+    value = f.attrs[key] if default is None else f.attrs.get(key, default)
+    try:
+        parsed = json.loads(value)
+    except (TypeError, ValueError) as exc:
+        raise FormatError(path, f"attribute {key!r} is not JSON text ({exc})") from None
+    if not isinstance(parsed, kind):
+        raise FormatError(path, f"attribute {key!r} must hold a JSON {'object' if kind is dict else 'array'}")
+    return parsed
+
+
+def _show(value: Any, limit: int = 60) -> str:
+    text = repr(value)
+    return text if len(text) <= limit else text[: limit - 3] + "..."
 
 
 def _joint_set(f: h5py.File) -> JointSet:

@@ -1,25 +1,77 @@
-"""Write files atomically: readers never see a half-written output.
+"""Write files atomically and durably: readers never see a half-written output.
 
-Output goes to a temporary file in the destination folder, is flushed to disk and then renamed
-over the destination in one step (``os.replace``); on any error the temporary file is removed and
-the destination is left as it was.
+Output goes to a temporary file in the destination folder (``.NAME.XXXX.partial``), is flushed to
+disk and then renamed over the destination in one step (``os.replace``); the folder is flushed
+after the rename, so that a finished output survives a power cut and outputs become durable in the
+order they were renamed (a dataset's shards before its manifest). A process killed at any point
+(``kill -9`` included) leaves the old destination or the new one, and at worst a ``.partial`` file.
+
+On any error the temporary file is removed and the destination is left as it was; a write that
+fails because the disk is full (or the file outgrows what the process may write) is raised as a
+:class:`~kinectdata.errors.KinectDataError` naming the destination.
 """
 
 from __future__ import annotations
 
+import errno
 import os
+import re
 import tempfile
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
+import h5py
+
 from .errors import KinectDataError
+
+DISK_FULL = frozenset({errno.ENOSPC, errno.EDQUOT, errno.EFBIG})
+"""Error numbers of a write refused for lack of room: no space, over quota, file too large."""
 
 
 def _umask() -> int:
     mask = os.umask(0)
     os.umask(mask)
     return mask
+
+
+def write_failure(path: str | os.PathLike[str], exc: BaseException) -> KinectDataError | None:
+    """The error to raise when ``exc`` is a write to ``path`` refused for lack of room, else None.
+
+    h5py reports some refused writes as a RuntimeError whose message holds ``errno = 28``; the
+    error number is read from there when the exception has none.
+    """
+    code = getattr(exc, "errno", None)
+    if code is None and isinstance(exc, (OSError, RuntimeError)):
+        found = re.search(r"errno = (\d+)", str(exc))
+        code = int(found.group(1)) if found else None
+    if code not in DISK_FULL:
+        return None
+    return KinectDataError(
+        f"{path}: could not be written: the disk is full or the file is larger than allowed "
+        f"({os.strerror(code)}); nothing was left in its place, free some space and run again"
+    )
+
+
+def sync_folder(folder: str | os.PathLike[str]) -> None:
+    """Flush a folder's entries (renames, removals) to disk; a no-op where folders cannot be opened."""
+    if os.name != "posix":
+        return
+    fd = os.open(folder, os.O_RDONLY)
+    try:
+        os.fsync(fd)
+    finally:
+        os.close(fd)
+
+
+def remove(path: str | os.PathLike[str]) -> None:
+    """Delete ``path`` if it exists, durably: the removal reaches the disk before what follows."""
+    path = Path(path)
+    try:
+        path.unlink()
+    except FileNotFoundError:
+        return
+    sync_folder(path.parent)
 
 
 @contextmanager
@@ -39,6 +91,22 @@ def atomic_output(path: str | os.PathLike[str]) -> Iterator[Path]:
         with open(tmp, "rb") as f:
             os.fsync(f.fileno())
         os.replace(tmp, path)
-    except BaseException:
+        sync_folder(path.parent)
+    except BaseException as exc:
         tmp.unlink(missing_ok=True)
+        failure = write_failure(path, exc)
+        if failure is not None:
+            raise failure from exc
         raise
+
+
+@contextmanager
+def atomic_hdf5(path: str | os.PathLike[str]) -> Iterator[h5py.File]:
+    """:func:`atomic_output` for a new HDF5 file: yields it open for writing.
+
+    The file has no chunk cache: HDF5 crashes the process (a segmentation fault) when it closes a
+    file whose cached chunks it could not write, as on a full disk; without the cache every write
+    reaches the file at once and a refused one is an ordinary error where it is made.
+    """
+    with atomic_output(path) as tmp, h5py.File(tmp, "w", rdcc_nbytes=0) as f:
+        yield f

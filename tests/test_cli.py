@@ -18,6 +18,7 @@ COMMANDS = [
     "align",
     "build-dataset",
     "inspect",
+    "verify",
     "synth",
     "quickstart",
     "train-baseline",

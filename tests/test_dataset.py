@@ -247,11 +247,16 @@ def test_augmented_copies_only_in_train_with_the_same_targets(tmp_path):
 
 def test_explicit_splits_and_manifest_formats(tmp_path):
     rows = [("synth_001", "train"), ("synth_002", "val"), ("synth_003", "test")]
-    lines = ["recording,audio,split,offset"] + [f"{SAMPLES}/{n}.csv,{SAMPLES}/{n}.flac,{s},auto" for n, s in rows]
+    (tmp_path / "sessions").mkdir()
+    for name, _ in rows:  # under the manifests' folder: their paths are relative to it
+        for ext in (".csv", ".flac"):
+            shutil.copy(SAMPLES / f"{name}{ext}", tmp_path / "sessions" / f"{name}{ext}")
+    lines = ["recording,audio,split,offset"] + [f"sessions/{n}.csv,sessions/{n}.flac,{s},auto" for n, s in rows]
     (tmp_path / "recs.csv").write_text("\n".join(lines) + "\n")
     entries = read_recordings(tmp_path / "recs.csv")
     assert [(e.name, e.split) for e in entries] == rows
-    docs = [{"recording": f"{SAMPLES}/{n}.csv", "audio": f"{SAMPLES}/{n}.flac", "split": s} for n, s in rows]
+    assert [e.recording for e in entries] == [str((tmp_path / "sessions" / f"{n}.csv").resolve()) for n, _ in rows]
+    docs = [{"recording": f"sessions/{n}.csv", "audio": f"sessions/{n}.flac", "split": s} for n, s in rows]
     (tmp_path / "recs.json").write_text(json.dumps(docs))
     import yaml
 
@@ -482,7 +487,7 @@ def test_a_failing_recording_in_a_parallel_build_is_a_clear_error(tmp_path):
     docs.append({"recording": str(SAMPLES / "synth_003.csv"), "audio": "short.wav", "offset": 0.0})
     (tmp_path / "recs.json").write_text(json.dumps(docs))
     with pytest.raises(KinectDataError, match=r"recording 'synth_003' of .*recs\.json: .*short\.wav.*covers only"):
-        build_dataset(tmp_path / "recs.json", tmp_path / "ds", config(), jobs=2)
+        build_dataset(tmp_path / "recs.json", tmp_path / "ds", config(), jobs=2, allow_outside_paths=True)
     assert not (tmp_path / "ds" / "manifest.json").exists()
 
 
@@ -494,7 +499,7 @@ def test_a_failed_rebuild_keeps_the_previous_dataset(dataset, tmp_path):
         json.dumps([{"recording": str(SAMPLES / "synth_001.csv"), "audio": "nowhere.flac"}])
     )
     with pytest.raises(SchemaError, match="does not exist"):
-        build_dataset(tmp_path / "recs.json", copy, config())
+        build_dataset(tmp_path / "recs.json", copy, config(), allow_outside_paths=True)
     assert _files_bytes(copy) == _files_bytes(out)
 
 
@@ -531,11 +536,11 @@ def test_only_val_and_test_or_the_same_files_twice_are_refused(tmp_path):
     ]
     (tmp_path / "a.json").write_text(json.dumps(rows))
     with pytest.raises(KinectDataError, match="no recording is in the train split"):
-        build_dataset(tmp_path / "a.json", tmp_path / "ds", config())
+        build_dataset(tmp_path / "a.json", tmp_path / "ds", config(), allow_outside_paths=True)
     twice = [rows[0] | {"split": "train"}, rows[0] | {"split": "test", "name": "again"}]
     (tmp_path / "b.json").write_text(json.dumps(twice))
     with pytest.raises(KinectDataError, match=r"'synth_001' \(train\) and 'again' \(test\) are the same files"):
-        build_dataset(tmp_path / "b.json", tmp_path / "ds", config())
+        build_dataset(tmp_path / "b.json", tmp_path / "ds", config(), allow_outside_paths=True)
 
 
 def test_an_edited_schema_file_is_read_again(tmp_path):
@@ -553,10 +558,10 @@ def test_an_edited_schema_file_is_read_again(tmp_path):
         }
     ]
     (tmp_path / "recs.json").write_text(json.dumps(rec))
-    first = build_dataset(tmp_path / "recs.json", tmp_path / "ds", config())
+    first = build_dataset(tmp_path / "recs.json", tmp_path / "ds", config(), allow_outside_paths=True)
     schema["position"] = {"columns": ["x", "y", "z"], "unit": "cm"}
     (tmp_path / "mine.json").write_text(json.dumps(schema))
-    second = build_dataset(tmp_path / "recs.json", tmp_path / "ds", config())
+    second = build_dataset(tmp_path / "recs.json", tmp_path / "ds", config(), allow_outside_paths=True)
     assert first["build_key"] != second["build_key"]
     assert second["normalisation"]["scale"][0] == pytest.approx(
         100 * first["normalisation"]["scale"][0]

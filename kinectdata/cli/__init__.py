@@ -31,9 +31,9 @@ def main() -> None:
 
 
 def _register() -> None:
-    from . import align, capture, dataset, info, oni, quickstart, render, report, synth, train
+    from . import align, capture, dataset, info, oni, quickstart, render, report, synth, train, verify
 
-    for module in (info, oni, capture, align, dataset, train, synth, quickstart, report, render):
+    for module in (info, oni, capture, align, dataset, verify, train, synth, quickstart, report, render):
         for command in module.COMMANDS:
             main.add_command(command)
 

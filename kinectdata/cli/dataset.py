@@ -6,6 +6,7 @@ import click
 from tqdm import tqdm
 
 from ..dataset.build import build_dataset
+from ..dataset.executors import EXECUTORS, make_executor
 from ..dataset.inspect import inspect as inspect_report
 from ..dataset.pipelines import PIPELINES
 from ..dataset.prepare import BuildConfig
@@ -142,7 +143,22 @@ def _floats(ctx, param, value: str | None) -> tuple[float, ...]:
     default=1,
     show_default=True,
     type=click.IntRange(min=1),
-    help="Recordings prepared in parallel (processes).",
+    help="Recordings prepared in parallel (processes; --executor local).",
+)
+@click.option(
+    "--executor",
+    default="local",
+    show_default=True,
+    type=click.Choice(list(EXECUTORS)),
+    help="Where recordings are prepared: local (this machine, --jobs processes) or dask (one task per recording "
+    "on a running Dask cluster, at --scheduler; pip install 'kinectdata[dask]'). Dask workers must see the "
+    "recordings and --out at the same paths (a shared filesystem). The output is the same bytes either way.",
+)
+@click.option(
+    "--scheduler",
+    default=None,
+    metavar="ADDRESS",
+    help="--executor dask: the Dask scheduler's address, e.g. tcp://10.0.0.5:8786.",
 )
 @click.option(
     "--video-fps",
@@ -151,6 +167,12 @@ def _floats(ctx, param, value: str | None) -> tuple[float, ...]:
     help="OpenPose recordings: the videos' frame rate, for recordings that do not give their own.",
 )
 @click.option("--keep-work", is_flag=True, help="Keep the per-recording work files (.work/) after success.")
+@click.option(
+    "--allow-outside-paths",
+    is_flag=True,
+    help="Let a recordings manifest name files outside its own folder (absolute paths, .., symbolic links "
+    "leading out); refused by default.",
+)
 def build_dataset_command(
     source,
     out,
@@ -170,8 +192,11 @@ def build_dataset_command(
     max_gap,
     min_coverage,
     jobs,
+    executor,
+    scheduler,
     video_fps,
     keep_work,
+    allow_outside_paths,
 ) -> None:
     """Build a training dataset from SOURCE: a recordings manifest (JSON, YAML or CSV with columns
     recording, audio, split, offset, format, schema, body, person, video_fps, name) or a folder of
@@ -180,6 +205,7 @@ def build_dataset_command(
     Each motion frame gets an audio input (1x129x5 STFT, or 80 log-mel bands) and a normalised pose
     target; shards (HDF5) and a manifest.json are written atomically, deterministically, and resumably.
     """
+    runner = make_executor(executor, jobs=jobs, scheduler=scheduler)
     chosen = PIPELINES[pipeline]
     preset, target = preset or chosen["features"], target or chosen["target"]
     normalisation = normalisation or chosen["normalisation"]
@@ -215,7 +241,14 @@ def build_dataset_command(
             bar.update(done - bar.n)
 
         manifest = build_dataset(
-            source, out, config, jobs=jobs, progress=progress, keep_work=keep_work, video_fps=video_fps
+            source,
+            out,
+            config,
+            executor=runner,
+            progress=progress,
+            keep_work=keep_work,
+            video_fps=video_fps,
+            allow_outside_paths=allow_outside_paths,
         )
     t = manifest["totals"]
     click.echo(f"wrote {out}: {t['rows']} rows from {t['recordings']} recordings in {t['shards']} shards")

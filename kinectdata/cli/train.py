@@ -181,8 +181,11 @@ def train_baseline(data, out, resume, **options) -> None:
     else:
         config = make_train_config(data=data, **options)
     history = train(data, out, config, resume=resume, progress=lambda r: click.echo(_row(r)))
-    files = "log.csv, loss.png, model.pt" + (", stream.ts" if config.model == "yalta" else "")
-    click.echo(f"run: {out} ({len(history)} epochs; {files})")
+    from ..training.distributed import World
+
+    if World.from_environment().main:  # under torchrun, one line from rank 0
+        files = "log.csv, loss.png, model.pt" + (", stream.ts" if config.model == "yalta" else "")
+        click.echo(f"run: {out} ({len(history)} epochs; {files})")
 
 
 @click.command("evaluate")

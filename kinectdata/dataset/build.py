@@ -26,7 +26,6 @@ import json
 import re
 import shutil
 from collections.abc import Callable
-from concurrent.futures import ProcessPoolExecutor
 from contextlib import ExitStack
 from pathlib import Path
 from typing import Any
@@ -36,11 +35,12 @@ import numpy as np
 
 from .. import __version__
 from ..align import file_sha256
-from ..atomic import atomic_output
+from ..atomic import atomic_output, remove
 from ..errors import KinectDataError
 from ..normalization import Normalizer, NormStats, count_out_of_range
 from ..skeleton import merge_bone_offsets
 from ..targets import TargetSpec
+from .executors import Executor, LocalExecutor
 from .hemispheres import apply_flips, flipped_columns, reference_orientations, track_flips
 from .inputs import SPLITS, RecordingEntry, assign_splits, read_recordings
 from .prepare import BuildConfig, Unit, prepare_recording, source_hashes
@@ -54,7 +54,7 @@ WORK = ".work"
 
 
 def _prepare(task: tuple) -> list[dict[str, Any]]:
-    """Prepare one recording (in a worker process when --jobs > 1); errors name the recording."""
+    """Prepare one recording (perhaps in a worker process or on a Dask worker); errors name the recording."""
     entry, config, work, snrs, hashes, source = task
     try:
         return [u.to_dict() for u in prepare_recording(entry, config, work, snrs, hashes)]
@@ -138,7 +138,9 @@ def _complete(out: Path, build_key: str) -> dict[str, Any] | None:
         manifest = json.loads((out / MANIFEST).read_text())
     except (OSError, ValueError):
         return None
-    if manifest.get("build_key") != build_key or "skeleton" not in manifest:  # built before rest skeletons: redo
+    if not isinstance(manifest, dict) or manifest.get("build_key") != build_key:
+        return None
+    if "skeleton" not in manifest:  # built before rest skeletons: redo
         return None
     for shard in manifest["shards"]:
         path = out / shard["file"]
@@ -153,9 +155,11 @@ def build_dataset(
     config: BuildConfig,
     *,
     jobs: int = 1,
+    executor: Executor | None = None,
     progress: Callable[[int, int], None] | None = None,
     keep_work: bool = False,
     video_fps: float | None = None,
+    allow_outside_paths: bool = False,
 ) -> dict[str, Any]:
     """Build a dataset folder from a recordings manifest or folder; returns the manifest.
 
@@ -165,13 +169,20 @@ def build_dataset(
         out_dir: the dataset folder (created; an earlier build's files there are resumed or
             replaced).
         config: what to build (:class:`BuildConfig`).
-        jobs: recordings prepared in parallel (processes).
+        jobs: recordings prepared in parallel (processes on this machine).
+        executor: where to prepare the recordings (:mod:`.executors`; default: this machine with
+            ``jobs`` processes); a Dask cluster's workers must see ``out_dir`` and the recordings
+            at the same paths.
         progress: called as ``progress(done, total)`` after each recording.
         keep_work: keep ``.work/`` (the per-recording files) after success.
         video_fps: the frame rate of OpenPose recordings that do not give their own.
+        allow_outside_paths: let a recordings manifest name files outside its folder (absolute
+            paths, ``..``, symbolic links leading out); refused by default.
     """
     out = Path(out_dir)
-    entries = read_recordings(source, video_fps=video_fps)
+    if executor is not None and jobs != 1:
+        raise KinectDataError(f"give either jobs ({jobs}) or an executor ({executor}), not both")
+    entries = read_recordings(source, video_fps=video_fps, allow_outside_paths=allow_outside_paths)
     splits = assign_splits(entries, config.split_ratios, config.seed)
     if "train" not in splits.values():
         raise KinectDataError(f"{source}: no recording is in the train split (the normalisation is fitted on it)")
@@ -194,8 +205,8 @@ def build_dataset(
     for partial in work.glob(".*.partial"):
         partial.unlink()
     snrs = {e.name: config.augment_snr if splits[e.name] == "train" else () for e in entries}
-    tasks = [(e, config, str(work), snrs[e.name], hashes[e.name], str(source)) for e in entries]
-    units = _prepare_all(tasks, jobs, progress)
+    tasks = [(e, config, str(work.resolve()), snrs[e.name], hashes[e.name], str(source)) for e in entries]
+    units = _prepare_all(tasks, work, executor or LocalExecutor(jobs), progress)
 
     spec = TargetSpec.from_dict(config.target)
     train_units = [u for u in units if splits[u.recording] == "train" and u.snr_db is None]
@@ -205,7 +216,7 @@ def build_dataset(
         NormStats.from_dict(u.stats).negated(flipped_columns(spec, flips[u.name])) for u in train_units
     )
     normalizer = Normalizer.fit(train_stats, config.normalisation)
-    (out / MANIFEST).unlink(missing_ok=True)  # shards change from here: the folder is incomplete until the end
+    remove(out / MANIFEST)  # shards change from here: the folder is incomplete until the end
     shards, records = _write_shards(out, units, splits, config, normalizer, flips)
     manifest = {
         "format": DATASET_FORMAT,
@@ -258,19 +269,18 @@ def _refuse_duplicates(entries: list[RecordingEntry], hashes: dict[str, dict[str
         seen[content] = e.name
 
 
-def _prepare_all(tasks: list[tuple], jobs: int, progress: Callable[[int, int], None] | None) -> list[Unit]:
-    units: list[Unit] = []
-    if jobs > 1 and len(tasks) > 1:
-        with ProcessPoolExecutor(max_workers=jobs) as pool:
-            for i, result in enumerate(pool.map(_prepare, tasks)):
-                units += [Unit(**u) for u in result]
-                if progress:
-                    progress(i + 1, len(tasks))
-    else:
-        for i, task in enumerate(tasks):
-            units += [Unit(**u) for u in _prepare(task)]
-            if progress:
-                progress(i + 1, len(tasks))
+def _prepare_all(
+    tasks: list[tuple], work: Path, executor: Executor, progress: Callable[[int, int], None] | None
+) -> list[Unit]:
+    """The units of every recording, in task order, prepared by ``executor`` into ``work``."""
+    names = [f"recording {entry.name!r} of {source}" for entry, *_, source in tasks]
+    units = [Unit(**u) for result in executor.map(_prepare, tasks, names, progress) for u in result]
+    missing = [u.file for u in units if not (work / u.file).is_file()]
+    if missing:  # workers on other machines wrote them where this one cannot see
+        raise KinectDataError(
+            f"{work}: the workers wrote {', '.join(missing[:3])}{' ...' if len(missing) > 3 else ''} but they are not "
+            "here: the dataset folder must be on a filesystem the workers share, at the same path"
+        )
     return units
 
 

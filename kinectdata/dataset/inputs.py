@@ -140,22 +140,40 @@ def _checked_name(name: str, where: str, source: Path) -> str:
     return name
 
 
-def _existing(source: Path, base: Path, doc: dict, key: str, where: str, line: int | None) -> Path:
+def _existing(source: Path, base: Path, doc: dict, key: str, where: str, line: int | None, allow_outside: bool) -> Path:
     """The resolved path of a manifest field naming a file (or, for a recording, an OpenPose
-    folder), which must exist."""
+    folder), which must exist and, unless ``allow_outside``, be relative and stay inside ``base``
+    once ``..`` and symbolic links are resolved."""
     path = (base / doc[key]).resolve()
+    if not allow_outside:
+        why = None
+        if Path(doc[key]).is_absolute():
+            why = "is an absolute path"
+        elif not path.is_relative_to(base.resolve()):
+            why = f"leads outside the manifest's folder {base} (to {path})"
+        if why is not None:
+            raise SchemaError(
+                source,
+                f"{where}: {key} {doc[key]} {why}: paths in a manifest are relative to its folder and stay inside "
+                "it (--allow-outside-paths, or allow_outside_paths=True, allows others)",
+                line=line,
+            )
     if not (path.is_file() or (key == "recording" and path.is_dir())):
         raise SchemaError(source, f"{where}: {key} {doc[key]} does not exist (looked for {path})", line=line)
     return path
 
 
-def read_recordings(source: str | Path, *, video_fps: float | None = None) -> list[RecordingEntry]:
+def read_recordings(
+    source: str | Path, *, video_fps: float | None = None, allow_outside_paths: bool = False
+) -> list[RecordingEntry]:
     """The recordings listed by a manifest file, or found in a folder, with resolved paths.
 
-    Every listed file must exist; errors name the manifest and the record (its line in CSV).
-    ``video_fps`` is given to the OpenPose recordings (folders) that do not state their own.
+    Every listed file must exist and, unless ``allow_outside_paths``, be given relative to the
+    manifest's folder and lie inside it (no absolute paths, no ``..`` or symbolic link leading out);
+    errors name the manifest, the record (its line in CSV) and the path. ``video_fps`` is given to
+    the OpenPose recordings (folders) that do not state their own.
     """
-    entries = _read_recordings(Path(source))
+    entries = _read_recordings(Path(source), allow_outside_paths)
     if video_fps is None:
         return entries
     return [replace(e, video_fps=video_fps) if e.video_fps is None and _is_openpose(e) else e for e in entries]
@@ -174,7 +192,7 @@ def _is_openpose(entry: RecordingEntry) -> bool:
         return False  # reported when the recording is read
 
 
-def _read_recordings(source: Path) -> list[RecordingEntry]:
+def _read_recordings(source: Path, allow_outside: bool) -> list[RecordingEntry]:
     if source.is_dir():
         aligned = sorted(p for p in source.glob("*.h5") if _is_aligned_file(p))
         if aligned:
@@ -214,7 +232,7 @@ def _read_recordings(source: Path) -> list[RecordingEntry]:
     for i, d in enumerate(docs):
         where = f"recordings[{i}]" if lines is None else f"line {lines[i]}"
         line = None if lines is None else lines[i]
-        recording = _existing(source, base, d, "recording", where, line)
+        recording = _existing(source, base, d, "recording", where, line, allow_outside)
         if "audio" not in d and not _is_aligned_file(recording):
             raise SchemaError(
                 source, f"{where}: {d['recording']} needs an 'audio' (it is not an aligned .h5)", line=line
@@ -225,12 +243,12 @@ def _read_recordings(source: Path) -> list[RecordingEntry]:
         seen[name] = where
         schema = d.get("schema")
         if schema is not None and (base / schema).suffix.lower() == ".json":
-            schema = str(_existing(source, base, d, "schema", where, line))
+            schema = str(_existing(source, base, d, "schema", where, line, allow_outside))
         entries.append(
             RecordingEntry(
                 name=name,
                 recording=str(recording),
-                audio=str(_existing(source, base, d, "audio", where, line)) if "audio" in d else None,
+                audio=str(_existing(source, base, d, "audio", where, line, allow_outside)) if "audio" in d else None,
                 split=d.get("split"),
                 offset=d.get("offset", "auto"),
                 format=d.get("format"),

@@ -1,7 +1,8 @@
 """``inspect``: what a dataset or one shard holds, checked against its layout, with statistics.
 
-For a dataset folder the manifest is validated (``schemas/dataset-manifest.schema.json``) and
-every shard against the layout and its checksum; then, per split: rows, recordings, the input
+A dataset folder is first checked as ``verify`` does (:func:`.verify.verify_dataset`: the manifest
+against its schema, every shard against the layout, its checksum and the manifest's account of
+it), a shard file against the layout; then, per split: rows, recordings, the input
 features' range, mean and standard deviation, padded frames, and per target component the range,
 mean and standard deviation over valid values, the share of valid values and how many lie
 outside the normalisation's range, ±0.9 (0..1 for ``none``): the training split's are inside by
@@ -10,7 +11,6 @@ construction, other splits may exceed it.
 
 from __future__ import annotations
 
-import json
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -18,12 +18,9 @@ from typing import Any
 import h5py
 import numpy as np
 
-from ..align import file_sha256
-from ..errors import FormatError
 from ..normalization import Normalizer, count_out_of_range
-from ..resources import validate
-from .build import MANIFEST
 from .shards import json_attribute, read_index, validate_shard
+from .verify import verified_manifest
 
 _ROWS = 4096  # rows read at a time
 
@@ -124,17 +121,6 @@ def _report(name: str, st: _SplitStats, components: list[str], limit: int | None
     return lines
 
 
-def _cross_check(manifest_path: Path, shard: Path, sizes: dict, index: list[dict], listed: list[dict]) -> None:
-    """The manifest's account of a shard must be the shard's own index."""
-    own = [(r["name"], r["start"], r["length"]) for r in index]
-    said = [(r["name"], r["start"], r["frames"]) for r in listed]
-    if own != said:
-        raise FormatError(
-            manifest_path,
-            f"its recordings in {shard.name} ({said[:3]}...) differ from the shard's own index ({own[:3]}...)",
-        )
-
-
 def _components(spec: dict[str, Any]) -> list[str]:
     from ..targets import TargetSpec
 
@@ -142,20 +128,12 @@ def _components(spec: dict[str, Any]) -> list[str]:
 
 
 def inspect(path: str | Path, *, components: int | None = 12) -> str:
-    """A report on a dataset folder or a shard file (raises FormatError when either is damaged)."""
+    """A report on a dataset folder or a shard file (raises FormatError or SchemaError, the first
+    problem found, when either is damaged)."""
     path = Path(path)
-    manifest_path = path / MANIFEST
     if path.is_dir():
-        if not manifest_path.is_file():
-            raise FormatError(path, "no manifest.json: not a dataset, or a build that did not finish (run it again)")
-        try:
-            manifest = json.loads(manifest_path.read_text())
-        except ValueError as exc:
-            raise FormatError(manifest_path, f"invalid JSON ({exc})") from exc
-        validate(manifest, "dataset-manifest.schema.json", manifest_path)
-        shards = [(s["split"], path / s["file"], s["sha256"]) for s in manifest["shards"]]
-        if len({s["file"] for s in manifest["shards"]}) != len(shards):
-            raise FormatError(manifest_path, "a shard is listed twice")
+        manifest = verified_manifest(path)
+        shards = [(s["split"], path / s["file"]) for s in manifest["shards"]]
         cfg = manifest["config"]
         spec = cfg["target"]
         lines = [
@@ -180,13 +158,14 @@ def inspect(path: str | Path, *, components: int | None = 12) -> str:
                 f"shards {', '.join(info['shards']) or '-'}"
             )
     else:
+        validate_shard(path)
         with h5py.File(path, "r") as f:
             split = str(f.attrs["split"])
             spec = json_attribute(f, "target_spec")
             norm = json_attribute(f, "normalisation")
             feats = json_attribute(f, "features")
             n_in = f["input"].shape
-        shards = [(split, path, None)]
+        shards = [(split, path)]
         lines = [
             f"shard      {path} (layout version 1, valid)",
             f"input      {list(n_in)} float32: {_feature_line(feats)}",
@@ -194,22 +173,9 @@ def inspect(path: str | Path, *, components: int | None = 12) -> str:
         ]
     names = _components(spec)
     per_split: dict[str, _SplitStats] = {}
-    listed = None if not path.is_dir() else manifest["recordings"]
-    for split, shard, checksum in shards:
-        sizes = validate_shard(shard)
-        if checksum is not None and file_sha256(shard) != checksum:
-            raise FormatError(shard, "checksum differs from the manifest's: the shard was changed or damaged")
+    for split, shard in shards:
         with h5py.File(shard, "r") as f:
-            if listed is not None:
-                _cross_check(
-                    manifest_path, shard, sizes, read_index(f), [r for r in listed if r["shard"] == shard.name]
-                )
             per_split.setdefault(split, _SplitStats()).add_shard(f)
-    if listed is not None and sum(st.rows for st in per_split.values()) != manifest["totals"]["rows"]:
-        raise FormatError(
-            manifest_path,
-            f"totals.rows is {manifest['totals']['rows']}, the shards hold {sum(st.rows for st in per_split.values())}",
-        )
     stats = None
     if path.is_dir():
         stats = manifest["normalisation_stats"], manifest["normalisation"]

@@ -13,9 +13,11 @@ from __future__ import annotations
 
 import hashlib
 import json
+import os
+import tempfile
 import zlib
 from collections.abc import Iterable, Iterator
-from contextlib import ExitStack
+from contextlib import ExitStack, contextmanager
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
@@ -25,7 +27,7 @@ import numpy as np
 
 from ..align import file_sha256, plan_timeline, resample_onto, resolve_offset, summarize
 from ..aligned import AlignedRecording, audio_blocks
-from ..atomic import atomic_output
+from ..atomic import atomic_hdf5, write_failure
 from ..audio import AudioReader
 from ..envelopes import audio_envelopes
 from ..errors import KinectDataError
@@ -162,12 +164,32 @@ def _read_unit(path: Path) -> Unit | None:
         return None  # damaged or foreign: recomputed
 
 
+@contextmanager
+def _scratch(work_dir: Path, name: str) -> Iterator[Path]:
+    """A new temporary file ``work_dir/.NAME.XXXX.partial``, removed at the end whatever happens.
+
+    Its name is unique, so a worker orphaned by a killed build never shares it with a rerun."""
+    fd, path = tempfile.mkstemp(prefix=f".{name}.", suffix=".partial", dir=work_dir)
+    os.close(fd)
+    try:
+        yield Path(path)
+    finally:
+        Path(path).unlink(missing_ok=True)
+
+
 def _tee(blocks: Iterable[np.ndarray], path: Path) -> Iterator[np.ndarray]:
-    """Pass blocks through while appending them to ``path`` as raw float32."""
-    with open(path, "wb") as f:
-        for block in blocks:
-            f.write(np.asarray(block, np.float32).tobytes())
-            yield block
+    """Pass blocks through while appending them to ``path`` as raw float32; a full disk raises a
+    KinectDataError naming ``path``."""
+    try:
+        with open(path, "wb") as f:
+            for block in blocks:
+                f.write(np.asarray(block, np.float32).tobytes())
+                yield block
+    except OSError as exc:
+        failure = write_failure(path, exc)
+        if failure is None:
+            raise
+        raise failure from exc
 
 
 def _raw_blocks(path: Path, block: int = _BLOCK) -> Iterator[np.ndarray]:
@@ -208,13 +230,29 @@ def prepare_recording(
     """
     work_dir = Path(work_dir)
     variants: list[float | None] = [None, *snrs]
-    sources = [entry.recording] + ([] if entry.audio is None else [entry.audio])
     hashes = source_hashes(entry) if hashes is None else hashes
     keys = {v: unit_key(entry, hashes, config, v) for v in variants}
     done = {v: _read_unit(work_dir / f"{variant_name(entry.name, v)}.h5") for v in variants}
     if all(u is not None and u.key == keys[v] for v, u in done.items()):
         return [done[v] for v in variants]
+    with ExitStack() as scratch:
+        units = _prepare_variants(entry, config, work_dir, keys, hashes, scratch)
+    return [units[v] for v in variants]
 
+
+def _prepare_variants(
+    entry: RecordingEntry,
+    config: BuildConfig,
+    work_dir: Path,
+    keys: dict[float | None, str],
+    hashes: dict[str, str],
+    scratch: ExitStack,
+) -> dict[float | None, Unit]:
+    """Compute and write the work file of every variant in ``keys`` (SNR in dB, None for the clean
+    audio, to its unit key); temporary files are entered in ``scratch``, which removes them."""
+    variants = list(keys)
+    snrs = tuple(v for v in variants if v is not None)
+    sources = [entry.recording] + ([] if entry.audio is None else [entry.audio])
     spec = TargetSpec.from_dict(config.target)
     feats = config.feature_config
     sr = config.sample_rate
@@ -239,7 +277,7 @@ def prepare_recording(
         reader = AudioReader(entry.audio, sr)
         env = None
         if entry.offset == "auto" or snrs:
-            cache = work_dir / f".{entry.name}.audio-f32.partial"
+            cache = scratch.enter_context(_scratch(work_dir, f"{entry.name}.audio-f32"))
             env = audio_envelopes(_tee(reader.blocks(), cache), sr)
         offset = resolve_offset(source, env, entry.offset)
         tl = plan_timeline(
@@ -283,8 +321,7 @@ def prepare_recording(
     with ExitStack() as stack:
         outputs = {}
         for v, unit in units.items():
-            tmp = stack.enter_context(atomic_output(work_dir / unit.file))
-            f = stack.enter_context(h5py.File(tmp, "w"))
+            f = stack.enter_context(atomic_hdf5(work_dir / unit.file))
             f.attrs["format"] = WORK_FORMAT
             f.attrs["unit"] = json.dumps(unit.to_dict(), default=str)
             f.create_dataset("targets", data=values, track_times=False)
@@ -323,6 +360,4 @@ def prepare_recording(
                     featurizer.push((block + sigma * rngs[v].standard_normal(block.size)).astype(np.float32))
         for featurizer in featurizers.values():
             featurizer.finish()
-    if cache is not None:
-        cache.unlink(missing_ok=True)
-    return [units[v] for v in variants]
+    return units

@@ -10,6 +10,9 @@ chunks. :func:`validate_shard` checks a file against the layout.
 from __future__ import annotations
 
 import json
+import signal
+import subprocess
+import sys
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -18,7 +21,7 @@ import h5py
 import numpy as np
 
 from .. import __version__
-from ..atomic import atomic_output
+from ..atomic import atomic_hdf5
 from ..errors import FormatError, KinectDataError
 from ..features import feature_config
 from ..resources import load_json, schemas_dir
@@ -75,7 +78,7 @@ def write_shard(
         kw["compression"] = compression
         kw["shuffle"] = True
 
-    with atomic_output(path) as tmp, h5py.File(tmp, "w") as f:
+    with atomic_hdf5(path) as f:
         f.attrs["format"] = FORMAT
         f.attrs["format_version"] = FORMAT_VERSION
         for key, value in attributes.items():
@@ -108,83 +111,180 @@ def write_shard(
         g.create_dataset("info", data=np.array(infos, dtype=h5py.string_dtype()), **kw)
 
 
+_DAMAGE = (OSError, KeyError, ValueError, TypeError, RuntimeError)
+"""What h5py raises on a damaged file (bad signatures or checksums, truncated heaps, odd types)."""
+
+
 def read_index(f: h5py.File) -> list[dict[str, Any]]:
-    """The recordings of an open shard: ``name``, ``start``, ``length``, ``info`` (dict)."""
-    g = f["recordings"]
-    names = [n.decode() if isinstance(n, bytes) else str(n) for n in g["name"][()]]
-    infos = [json.loads(i.decode() if isinstance(i, bytes) else i) for i in g["info"][()]]
-    return [
-        {"name": n, "start": int(s), "length": int(ln), "info": i}
-        for n, s, ln, i in zip(names, g["start"][()], g["length"][()], infos)
-    ]
+    """The recordings of an open shard: ``name``, ``start``, ``length``, ``info`` (dict).
+
+    Raises:
+        FormatError: naming the shard, when the index cannot be read or an entry is not a UTF-8
+            name with a JSON object as info.
+    """
+    try:
+        g = f["recordings"]
+        columns = [g[k][()] for k in ("name", "start", "length", "info")]
+    except _DAMAGE as exc:
+        raise FormatError(f.filename, f"cannot read the recordings index ({exc})") from None
+    if any(np.ndim(c) != 1 or len(c) != len(columns[0]) for c in columns):
+        shapes = ", ".join(f"{k} {np.shape(c)}" for k, c in zip(("name", "start", "length", "info"), columns))
+        raise FormatError(f.filename, f"the recordings index columns must be lists of one length, found {shapes}")
+    index = []
+    for i, (name, start, length, info) in enumerate(zip(*columns)):
+        try:
+            entry = {"name": _text(name), "start": int(start), "length": int(length), "info": json.loads(_text(info))}
+        except (ValueError, TypeError) as exc:  # UnicodeDecodeError and JSONDecodeError are ValueErrors
+            raise FormatError(f.filename, f"recordings[{i}] cannot be read ({exc})") from None
+        if not isinstance(entry["info"], dict):
+            raise FormatError(f.filename, f"recordings[{i}] info is not a JSON object")
+        index.append(entry)
+    return index
+
+
+def _text(value: Any) -> str:
+    return value.decode() if isinstance(value, bytes) else str(value)
 
 
 def json_attribute(f: h5py.File, key: str) -> Any:
-    value = f.attrs[key]
-    return json.loads(value.decode() if isinstance(value, bytes) else value)
+    """An attribute of an open shard holding JSON text, parsed; FormatError naming the shard if it
+    is missing or not JSON."""
+    try:
+        value = f.attrs[key]
+        return json.loads(value.decode() if isinstance(value, bytes) else value)
+    except _DAMAGE as exc:  # KeyError: missing; TypeError: not text; ValueError: not JSON or not UTF-8
+        raise FormatError(f.filename, f"attribute {key!r} is not JSON text ({exc})") from None
 
 
 _DTYPES = {"float32": np.float32, "int64": np.int64, "bool": np.bool_}
+_ATTRIBUTE_TYPES = {
+    "string": (str,),
+    "json": (str, bytes),
+    "integer": (int, np.integer),
+    "number": (int, float, np.integer, np.floating),
+    "boolean": (bool, np.bool_),
+}
 
 
-def validate_shard(path: str | Path) -> dict[str, int]:
+ISOLATION_TIMEOUT_S = 120.0
+"""Longest the child process of :func:`validate_shard` may take to read a shard's structure."""
+
+_CHILD = """
+import json, sys
+sys.path.insert(0, sys.argv[1])
+from kinectdata.dataset.shards import validate_shard
+from kinectdata.errors import FormatError
+try:
+    print(json.dumps({"sizes": validate_shard(sys.argv[2], isolated=False)}))
+except FormatError as exc:
+    print(json.dumps({"reason": exc.reason}))
+"""
+
+
+def validate_shard(path: str | Path, *, isolated: bool = True) -> dict[str, int]:
     """Check a shard against the layout; returns its sizes ``{"N", "D", "R", ...}``.
 
+    The HDF5 library itself can crash or loop forever on some damaged files (libhdf5 2.0 on a
+    corrupted global heap collection or object header), which no exception handling contains:
+    with ``isolated`` (the default) the check runs in a child process, so that such a file is a
+    FormatError too, at the cost of starting a Python interpreter (about 0.2 s).
+
     Raises:
-        FormatError: naming the shard and the attribute or dataset that is wrong.
+        FormatError: naming the shard and the attribute or dataset that is wrong, or what HDF5
+            reported about a damaged file.
     """
     path = Path(path)
+    if isolated:
+        return _validate_in_child(path)
     spec = layout()
     try:
         f = h5py.File(path, "r")
-    except OSError as exc:
+    except _DAMAGE as exc:
         raise FormatError(path, f"not a readable HDF5 file ({exc})") from exc
     with f:
-        for key, rule in spec["attributes"].items():
-            if key not in f.attrs:
-                raise FormatError(path, f"missing attribute {key!r} ({rule.get('description', rule['type'])})")
-            value = f.attrs[key]
-            if "const" in rule and value != rule["const"]:
-                raise FormatError(path, f"attribute {key!r} is {value!r}, expected {rule['const']!r}")
-            if rule["type"] == "json":
-                try:
-                    json_attribute(f, key)
-                except (TypeError, ValueError) as exc:
-                    raise FormatError(path, f"attribute {key!r} is not JSON ({exc})") from exc
-        sizes: dict[str, int] = {}
-        for name, rule in spec["datasets"].items():
-            if name not in f or not isinstance(f[name], h5py.Dataset):
-                raise FormatError(path, f"missing dataset {name!r}")
-            d = f[name]
-            if rule["dtype"] == "string":
-                if d.dtype.kind not in "OSU":
-                    raise FormatError(path, f"dataset {name!r} has dtype {d.dtype}, expected strings")
-            elif d.dtype != _DTYPES[rule["dtype"]]:
-                raise FormatError(path, f"dataset {name!r} has dtype {d.dtype}, expected {rule['dtype']}")
-            open_ended = rule["shape"][-1] == "..."  # any further axes (checked against an attribute)
-            fixed = rule["shape"][:-1] if open_ended else rule["shape"]
-            if len(d.shape) < len(fixed) or (not open_ended and len(d.shape) != len(fixed)):
-                raise FormatError(path, f"dataset {name!r} has shape {d.shape}, expected {rule['shape']}")
-            for axis, (want, got) in enumerate(zip(fixed, d.shape)):
-                if isinstance(want, int):
-                    ok = want == got
-                else:
-                    ok = sizes.setdefault(want, got) == got
-                if not ok:
-                    raise FormatError(path, f"dataset {name!r} axis {axis} is {got}, expected {sizes.get(want, want)}")
-        index = read_index(f)
-        expected = 0
-        for i, r in enumerate(index):
-            where = f"recordings[{i}] ({r['name']})"
-            if r["length"] <= 0:
-                raise FormatError(path, f"{where} has {r['length']} rows")
-            if r["start"] != expected:
-                raise FormatError(path, f"{where} starts at row {r['start']}, expected {expected}")
-            expected += r["length"]
-        if expected != sizes["N"]:
-            raise FormatError(path, f"the recordings cover {expected} rows, the shard has {sizes['N']}")
-        _check_json_attributes(f, path, sizes)
+        try:
+            return _validate(f, path, spec)
+        except _DAMAGE as exc:
+            raise FormatError(path, f"damaged HDF5 file ({type(exc).__name__}: {exc})") from exc
+
+
+def _validate_in_child(path: Path) -> dict[str, int]:
+    package_root = str(Path(__file__).resolve().parents[2])  # the child imports this same kinectdata
+    command = [sys.executable, "-c", _CHILD, package_root, str(path)]
+    try:
+        child = subprocess.run(command, capture_output=True, text=True, timeout=ISOLATION_TIMEOUT_S)
+    except subprocess.TimeoutExpired:
+        message = f"the HDF5 library did not finish reading the file's structure in {ISOLATION_TIMEOUT_S:g} s"
+        raise FormatError(path, message + " (a damaged file?)") from None
+    if child.returncode == 0:
+        answer = json.loads(child.stdout.splitlines()[-1])
+        if "reason" in answer:
+            raise FormatError(path, answer["reason"])
+        return answer["sizes"]
+    if "Traceback" in child.stderr:  # a Python error in the check itself: a bug, not the file
+        raise RuntimeError(f"checking {path} failed in the child process:\n{child.stderr}")
+    how = f"signal {signal.Signals(-child.returncode).name}" if child.returncode < 0 else f"exit {child.returncode}"
+    raise FormatError(path, f"reading the file's structure crashed the HDF5 library ({how}): the file is damaged")
+
+
+def _validate(f: h5py.File, path: Path, spec: dict[str, Any]) -> dict[str, int]:
+    for key, rule in spec["attributes"].items():
+        if key not in f.attrs:
+            raise FormatError(path, f"missing attribute {key!r} ({rule.get('description', rule['type'])})")
+        value = f.attrs[key]
+        if not _has_type(value, rule["type"]):
+            raise FormatError(path, f"attribute {key!r} is {_show(value)}, expected {rule['type']}")
+        if "const" in rule and value != rule["const"]:
+            raise FormatError(path, f"attribute {key!r} is {_show(value)}, expected {rule['const']!r}")
+        if rule["type"] == "json":
+            json_attribute(f, key)
+    sizes: dict[str, int] = {}
+    for name, rule in spec["datasets"].items():
+        if name not in f or not isinstance(f[name], h5py.Dataset):
+            raise FormatError(path, f"missing dataset {name!r}")
+        d = f[name]
+        if rule["dtype"] == "string":
+            if d.dtype.kind not in "OSU":
+                raise FormatError(path, f"dataset {name!r} has dtype {d.dtype}, expected strings")
+        elif d.dtype != _DTYPES[rule["dtype"]]:
+            raise FormatError(path, f"dataset {name!r} has dtype {d.dtype}, expected {rule['dtype']}")
+        open_ended = rule["shape"][-1] == "..."  # any further axes (checked against an attribute)
+        fixed = rule["shape"][:-1] if open_ended else rule["shape"]
+        if len(d.shape) < len(fixed) or (not open_ended and len(d.shape) != len(fixed)):
+            raise FormatError(path, f"dataset {name!r} has shape {d.shape}, expected {rule['shape']}")
+        for axis, (want, got) in enumerate(zip(fixed, d.shape)):
+            if isinstance(want, int):
+                ok = want == got
+            else:
+                ok = sizes.setdefault(want, got) == got
+            if not ok:
+                raise FormatError(path, f"dataset {name!r} axis {axis} is {got}, expected {sizes.get(want, want)}")
+    index = read_index(f)
+    expected = 0
+    for i, r in enumerate(index):
+        where = f"recordings[{i}] ({r['name']})"
+        if r["length"] <= 0:
+            raise FormatError(path, f"{where} has {r['length']} rows")
+        if r["start"] != expected:
+            raise FormatError(path, f"{where} starts at row {r['start']}, expected {expected}")
+        expected += r["length"]
+    if expected != sizes["N"]:
+        raise FormatError(path, f"the recordings cover {expected} rows, the shard has {sizes['N']}")
+    _check_json_attributes(f, path, sizes)
     return sizes
+
+
+def _has_type(value: Any, kind: str) -> bool:
+    if not isinstance(value, _ATTRIBUTE_TYPES[kind]):
+        return False
+    if kind in ("integer", "number") and isinstance(value, bool):
+        return False
+    return kind != "number" or bool(np.isfinite(value))
+
+
+def _show(value: Any, limit: int = 60) -> str:
+    text = repr(value)
+    return text if len(text) <= limit else text[: limit - 3] + "..."
 
 
 def _check_json_attributes(f: h5py.File, path: Path, sizes: dict[str, int]) -> None:
@@ -200,7 +300,7 @@ def _check_json_attributes(f: h5py.File, path: Path, sizes: dict[str, int]) -> N
         raise FormatError(path, "attribute 'target_spec' is not a target spec (positions and orientations lists)")
     try:
         dim = TargetSpec.from_dict(spec).dim
-    except KinectDataError as exc:
+    except (KinectDataError, KeyError, TypeError, ValueError) as exc:
         raise FormatError(path, f"attribute 'target_spec' is not a valid target spec ({exc})") from None
     if dim != sizes["D"]:
         raise FormatError(path, f"'current' has {sizes['D']} components, the target spec {dim}")
@@ -213,7 +313,7 @@ def _check_json_attributes(f: h5py.File, path: Path, sizes: dict[str, int]) -> N
         raise FormatError(path, "attribute 'features' is not a feature configuration (a JSON object)")
     try:
         shape = feature_config(feats).output_shape
-    except (ValueError, TypeError) as exc:
+    except (KeyError, TypeError, ValueError) as exc:
         raise FormatError(path, f"attribute 'features' is not a valid feature configuration ({exc})") from None
     if tuple(f["input"].shape[1:]) != tuple(shape):
         raise FormatError(

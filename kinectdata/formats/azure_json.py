@@ -38,7 +38,7 @@ from ..errors import FormatError
 from ..jointsets import JointSet, load_joint_set
 from ..motion import Motion
 from ..quaternions import split_missing_and_normalise, wxyz_to_xyzw
-from .common import choose_body, count_bodies, read_text
+from .common import choose_body, count_bodies, first_bad_time, read_text
 from .registry import register_reader
 
 
@@ -249,13 +249,19 @@ def read_azure_json(path: Path, *, body: str | None = None) -> Motion:
             pos_lists.append(entry["joint_positions"])
             ori_lists.append(entry["joint_orientations"])
 
-    stamps_arr = np.array(stamps)
-    back = np.flatnonzero(np.diff(stamps_arr) <= 0)
-    if back.size:
-        f = int(back[0]) + 1
-        raise FormatError(
-            path, f"timestamp_usec {stamps[f]} is not after the previous frame's {stamps[f - 1]}", frame=f
-        )
+    first = stamps[0]
+    # Python numbers subtract exactly (int64 arrays would wrap); device clocks run to ~1e12 us
+    times = np.array([t - first for t in stamps], dtype=np.float64) / 1e6
+    f = first_bad_time(times)
+    if f is not None:
+        if stamps[f] <= stamps[f - 1]:
+            message = f"timestamp_usec {stamps[f]} is not after the previous frame's {stamps[f - 1]}"
+        else:
+            message = (
+                f"timestamp_usec {stamps[f]}, counted from the first frame's {first}, overflows or does not come "
+                "after the previous frame's in 64-bit floating point (is the first timestamp damaged?)"
+            )
+        raise FormatError(path, message, frame=f)
 
     bodies_meta = count_bodies(ids)
     body = choose_body(path, bodies_meta, body, n_frames=len(frames))
@@ -264,11 +270,12 @@ def read_azure_json(path: Path, *, body: str | None = None) -> Motion:
     quats = _numbers(path, ori_lists, where, "joint_orientations", 4, names)
     chosen = np.array([i for i, b in enumerate(ids) if b == body])
     frame_idx = np.array([where[i][0] for i in chosen])
-    unit, present, bad = split_missing_and_normalise(wxyz_to_xyzw(quats[chosen]))
+    with np.errstate(over="ignore"):  # the norm of huge values overflows to inf: not a unit quaternion
+        unit, present, bad = split_missing_and_normalise(wxyz_to_xyzw(quats[chosen]))
     if bad.any():
         o, j = np.argwhere(bad)[0]
         f, b = where[chosen[o]]
-        norm = float(np.linalg.norm(quats[chosen[o], j]))
+        norm = math.hypot(*quats[chosen[o], j])  # inf, not an overflow warning, for huge values
         raise FormatError(path, f"bodies[{b}].joint_orientations[{j}] ({names[j]}) has norm {norm:.4g}, not 1", frame=f)
 
     T = len(frames)
@@ -285,9 +292,8 @@ def read_azure_json(path: Path, *, body: str | None = None) -> Motion:
     orientation_mask = np.zeros((T, J), bool)
     orientation_mask[frame_idx] = present
 
-    first = stamps[0]
     return Motion(
-        times=(stamps_arr - first) / 1e6,  # subtract first: device clocks run to ~1e12 us
+        times=times,
         positions=positions,
         joint_set=joint_set,
         position_mask=position_mask,

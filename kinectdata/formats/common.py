@@ -1,10 +1,12 @@
-"""Pieces every reader needs: reading a text file, choosing one body among several."""
+"""Pieces every reader needs: reading a text file, choosing one body among several, checking times."""
 
 from __future__ import annotations
 
 from collections import Counter
 from collections.abc import Iterable
 from pathlib import Path
+
+import numpy as np
 
 from ..errors import FormatError
 
@@ -49,3 +51,16 @@ def choose_body(path: Path, frames_per_body: dict[str, int], body: str | None, *
         listing = ", ".join(f"{b} ({n} frames)" for b, n in frames_per_body.items())
         raise FormatError(path, f"no body with id {body!r}; the file has: {listing}", **where)
     return body
+
+
+def first_bad_time(times: np.ndarray) -> int | None:
+    """Index of the first of ``times`` [T] (seconds from the first frame) that is not finite or
+    not after the one before, else None.
+
+    A file's timestamps can each be valid and still not make usable times: counted from a
+    damaged first stamp, or over a huge span, float64 overflows or merges neighbouring frames.
+    """
+    with np.errstate(invalid="ignore"):
+        bad = ~np.isfinite(times)
+        bad[1:] |= ~(np.diff(times) > 0)
+    return int(np.argmax(bad)) if bad.any() else None

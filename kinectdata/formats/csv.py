@@ -11,8 +11,11 @@ Writing is :mod:`.csv_writer`, over the same schemas.
 
 from __future__ import annotations
 
+import csv
+import math
 import re
 from array import array
+from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -20,10 +23,10 @@ import numpy as np
 import pandas as pd
 
 from ..errors import FormatError, KinectDataError
-from ..jointsets import JointSet, find_joint_set, load_joint_set
+from ..jointsets import JointSet, find_joint_set, load_joint_set, shipped_joint_sets
 from ..motion import Motion
 from ..quaternions import reorder, split_missing_and_normalise
-from .common import choose_body, count_bodies, read_text
+from .common import choose_body, count_bodies, first_bad_time, read_text
 from .csv_schema import JOINT, CsvSchema, joint_set_of, load_csv_schema, shipped_csv_schemas
 from .registry import register_reader
 
@@ -71,12 +74,12 @@ class _Table:
         if not columns:
             return
         missing_text = sorted(self.schema.missing_values)
-        names = list(range(len(self.names) + (1 if self.schema.get("trailing_delimiter") else 0)))
         reader = pd.read_csv(
             self.path,
             sep=self.schema.delimiter,
             header=None,
-            names=names,
+            names=list(range(len(self.names))),
+            index_col=False,  # a trailing delimiter's empty field is dropped, whether or not the first row has one
             usecols=[self._position[c] for c in columns],
             skiprows=set(self.skipped),
             chunksize=_CHUNK_ROWS,
@@ -88,18 +91,17 @@ class _Table:
             dtype={self._position[c]: str for c in text},
             skip_blank_lines=False,
             low_memory=False,
+            quoting=csv.QUOTE_NONE,  # rows and fields as the first pass split them: a stray quote spans no lines
+            encoding_errors="replace",  # cp1252 leaves 5 bytes undefined; the first pass replaced them too
         )
         parts: dict[str, list] = {c: [] for c in columns}
-        start = 0
-        for chunk in reader:
-            lines = self.lines[start : start + len(chunk)]
+        for chunk, lines in self._chunks(reader):
             for c in columns:
                 series = chunk[self._position[c]]
                 if c in text:
-                    parts[c].append(series.fillna("").astype(str).str.strip().to_numpy(dtype=object))
+                    parts[c].append(_unquote(series.fillna("").astype(str)).to_numpy(dtype=object))
                 else:
                     parts[c].append(self._convert(series, c, lines))
-            start += len(chunk)
         for c in columns:
             if c in text:
                 self._texts[c] = np.concatenate(parts[c]) if parts[c] else np.zeros(0, object)
@@ -107,6 +109,26 @@ class _Table:
                 values = [v for v, _ in parts[c]]
                 masks = [m for _, m in parts[c]]
                 self._numbers[c] = (np.concatenate(values), np.concatenate(masks))
+
+    def _chunks(self, reader: Iterator[pd.DataFrame]) -> Iterator[tuple[pd.DataFrame, np.ndarray]]:
+        """pandas' chunks with the line numbers of their rows, checking that pandas finds the rows the
+        first pass found (the line numbers of every error depend on it)."""
+        start = 0
+        while True:
+            at = int(self.lines[min(start, len(self.lines) - 1)])
+            try:
+                chunk = next(reader)
+            except StopIteration:
+                break
+            except pd.errors.ParserError as exc:
+                raise FormatError(self.path, f"cannot parse the rows from here on ({exc})", line=at) from None
+            if start + len(chunk) > len(self.lines):
+                break
+            yield chunk, self.lines[start : start + len(chunk)]
+            start += len(chunk)
+        if start != len(self.lines):
+            message = "the CSV parser and the line scan disagree on the rows from here on (a stray line end?)"
+            raise FormatError(self.path, message, line=at)
 
     def _convert(self, series: pd.Series, column: str, lines: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """([n] float64 values, [n] bool missing) of one chunk of a numeric column, checking every cell.
@@ -119,11 +141,12 @@ class _Table:
             values = series.to_numpy(dtype=np.float64, copy=True)
             missing = np.isnan(values)
         else:
-            values = pd.to_numeric(series, errors="coerce").to_numpy(dtype=np.float64, copy=True)
+            # as text: pandas keeps integers beyond 64 bits as Python ints, which to_numeric cannot convert
+            values = pd.to_numeric(series.astype(str), errors="coerce").to_numpy(dtype=np.float64, copy=True)
             missing = np.zeros(values.shape, bool)
             failed = np.flatnonzero(np.isnan(values))
             if failed.size:  # look at the text only where conversion failed
-                text = series.iloc[failed].fillna("").astype(str).str.strip()
+                text = _unquote(series.iloc[failed].fillna("").astype(str))
                 is_missing = text.isin(self.schema.missing_values).to_numpy()
                 missing[failed[is_missing]] = True
                 retry = pd.to_numeric(text.mask(is_missing, "0"), errors="coerce").to_numpy(dtype=np.float64)
@@ -146,6 +169,11 @@ class _Table:
         return self._texts[column]
 
 
+def _unquote(cells: pd.Series) -> pd.Series:
+    """Cells without surrounding blanks and double quotes (as :func:`_split_fields` reads the header)."""
+    return cells.str.strip().str.strip('"').str.strip()
+
+
 def _describe_bad_cell(cell: str) -> str:
     low = cell.lower()
     if low in ("nan", "-nan", "+nan", "na", "n/a", "null", "none"):
@@ -157,7 +185,10 @@ def _describe_bad_cell(cell: str) -> str:
         return f"infinite value {cell!r}"
     if cell == "":
         return "empty cell"
-    return f"non-numeric value {cell!r}"
+    shown = repr(cell if len(cell) <= 40 else cell[:37] + "...")
+    if _is_number(cell) and math.isinf(float(cell)):
+        return f"{shown} is beyond the range of 64-bit floating point"
+    return f"non-numeric value {shown}"
 
 
 def _read_lines(path: Path) -> list[str]:
@@ -200,7 +231,8 @@ def _scan(path: Path, schema: CsvSchema, joint_set: JointSet | None, encoding: s
     data = array("q")
     bad_row: tuple[int, int] | None = None
     try:
-        f = open(path, encoding=encoding, newline=None)
+        # UTF-8 must decode (else the caller falls back to cp1252, which leaves 5 bytes undefined: replaced)
+        f = open(path, encoding=encoding, errors="strict" if encoding.startswith("utf") else "replace", newline=None)
     except OSError as exc:
         raise FormatError(path, f"cannot read file: {exc.strerror or exc}") from exc
     with f:
@@ -251,12 +283,16 @@ def _resolve_joint_set(schema: CsvSchema, table_names: list[str] | None, meta: d
     if spec != "auto":
         return load_joint_set(spec)
     if "joint_set" in meta:
-        try:
-            return load_joint_set(meta["joint_set"])
-        except KinectDataError as exc:
+        # shipped names only (the writer writes no other): a file must not make the reader open other files
+        name = meta["joint_set"]
+        if name not in shipped_joint_sets():
+            shown = name if len(name) <= 40 else name[:37] + "..."
             raise FormatError(
-                path, f"the file's '# joint_set: {meta['joint_set']}' line names no known joint set"
-            ) from exc
+                path,
+                f"the file's '# joint_set: {shown}' line names no known joint set "
+                f"(shipped: {', '.join(shipped_joint_sets())})",
+            )
+        return load_joint_set(name)
     rx = _template_regex(schema.document["position"]["columns"][0])
     mapping = schema.joint_names_in_file
     found = [mapping.get(m.group("joint"), m.group("joint")) for c in table_names or [] if (m := rx.match(c))]
@@ -575,7 +611,8 @@ def _build_motion(path: Path, schema: CsvSchema, joint_set: JointSet, parts: tup
         order = schema.document["orientation"]["order"]
         q_missing = ~np.isfinite(quats).all(axis=-1)
         gated = schema.document["orientation"].get("gated_by_tracking", True)
-        unit, present, bad = split_missing_and_normalise(reorder(np.nan_to_num(quats), order))
+        with np.errstate(over="ignore"):  # the norm of huge values overflows to inf: not a unit quaternion
+            unit, present, bad = split_missing_and_normalise(reorder(np.nan_to_num(quats), order))
         bad &= ~q_missing & joint_set.orientation_mask[None, :]
         if gated:
             bad &= position_mask  # junk written for untracked joints is expected, and masked
@@ -587,7 +624,7 @@ def _build_motion(path: Path, schema: CsvSchema, joint_set: JointSet, parts: tup
             raise FormatError(
                 path,
                 f"orientation of joint {joint_set.names[j]!r} is not a unit quaternion "
-                f"(norm {np.linalg.norm(quats[f, j]):.3f}; is the quaternion order {order} right?)",
+                f"(norm {math.hypot(*quats[f, j]):.3f}; is the quaternion order {order} right?)",
                 line=int(lines[f] if lines.ndim == 1 else lines[f, j]),
                 column=column,
             )
@@ -603,8 +640,19 @@ def _build_motion(path: Path, schema: CsvSchema, joint_set: JointSet, parts: tup
     }
     if "fps" in schema.document["time"]:
         metadata["nominal_fps"] = schema.document["time"]["fps"]
+    times = (t_raw - t_raw[0]) * scale
+    bad_time = first_bad_time(times)
+    if bad_time is not None:
+        unit = schema.document["time"].get("unit", "frame")
+        raise FormatError(
+            path,
+            f"time {t_raw[bad_time]:g} {unit}, counted from the first frame's {t_raw[0]:g} {unit}, overflows or "
+            "does not come after the frame before in 64-bit floating point (is the first time damaged?)",
+            line=int(lines[bad_time] if lines.ndim == 1 else lines[bad_time].min()),
+            column=schema.document["time"].get("column"),
+        )
     return Motion(
-        times=(t_raw - t_raw[0]) * scale,
+        times=times,
         positions=pos,
         joint_set=joint_set,
         position_mask=position_mask,

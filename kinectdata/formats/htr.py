@@ -44,7 +44,7 @@ from ..errors import FormatError
 from ..jointsets import JointSet, find_cycle
 from ..motion import Motion
 from ..quaternions import make_continuous
-from .common import read_text
+from .common import first_bad_time, read_text
 from .registry import register_reader
 
 BOGUS = 9e6
@@ -260,7 +260,7 @@ def _segment_data(
             raise FormatError(path, f"segment {name!r} has no frames", line=sec.line)
         tables.append(_table(path, sec, 8, f"segment {name!r}"))
     frames = tables[0][:, 0]
-    if frames[0] != round(frames[0]):
+    if not np.isfinite(frames[0]) or frames[0] != round(frames[0]):
         raise FormatError(path, f"frame number {frames[0]:g} is not a whole number", line=blocks[0].lines[0])
     steps = np.flatnonzero(np.diff(frames) != 1)
     if steps.size:
@@ -386,20 +386,35 @@ def read_htr(path: Path) -> Motion:
     base_bad = _bogus(base).any(axis=-1)  # [J]
     bad = _bogus(values).any(axis=-1) | base_bad  # [T, J]
     parents = [-1 if p is None else index[p] for p in parent_names]
-    positions, quats = _forward_kinematics(
-        np.where(base_bad[:, None], 0.0, base),
-        np.where(bad[..., None], 0.0, values),
-        parents,
-        order,
-        degrees,
-        to_m,
-        bad,
-    )
+    with np.errstate(over="ignore", invalid="ignore"):  # an overflow is reported below
+        positions, quats = _forward_kinematics(
+            np.where(base_bad[:, None], 0.0, base),
+            np.where(bad[..., None], 0.0, values),
+            parents,
+            order,
+            degrees,
+            to_m,
+            bad,
+        )
     valid = ~bad
+    overflow = valid & ~np.isfinite(positions).all(axis=-1)
+    if overflow.any():
+        t, j = np.argwhere(overflow)[0]
+        raise FormatError(
+            path,
+            f"segment {names[j]!r} lies beyond 64-bit floating point in frame {frames[t]:g} "
+            f"(CalibrationUnits {units} times ScaleFactor {scale:g})",
+            line=blocks[names[j]].lines[t],
+        )
     quats = make_continuous(quats, valid)
+    with np.errstate(over="ignore"):
+        times = (frames - frames[0]) / fps
+    if first_bad_time(times) is not None:
+        message = f"DataFrameRate {fps:g} makes {len(frames)} frames last beyond 64-bit floating point"
+        raise FormatError(path, message, line=by_key["dataframerate"][1])
 
     return Motion(
-        times=(frames - frames[0]) / fps,
+        times=times,
         positions=positions,
         joint_set=JointSet.custom("htr", names, parent_names),
         position_mask=valid,

@@ -26,6 +26,7 @@ are checked for the body read. Errors name the 1-based line.
 
 from __future__ import annotations
 
+import math
 import re
 from pathlib import Path
 
@@ -222,10 +223,11 @@ def read_ntu(path: Path, *, body: str | None = None) -> Motion:
     if bad.any():
         b, j = np.argwhere(bad)[0]
         raise lines.error(f"tracking state {state[b, j]:g} is not 0, 1 or 2", starts[chosen[b]] + j, int(frames[b]))
-    unit, present, bad = split_missing_and_normalise(wxyz_to_xyzw(block[..., 7:11]))
+    with np.errstate(over="ignore"):  # the norm of huge values overflows to inf: not a unit quaternion
+        unit, present, bad = split_missing_and_normalise(wxyz_to_xyzw(block[..., 7:11]))
     if bad.any():
         b, j = np.argwhere(bad)[0]
-        norm = float(np.linalg.norm(block[b, j, 7:11]))
+        norm = math.hypot(*block[b, j, 7:11])  # inf, not an overflow warning, for huge values
         raise lines.error(f"orientation quaternion has norm {norm:.4g}, not 1", starts[chosen[b]] + j, int(frames[b]))
 
     T = n_frames

@@ -13,7 +13,8 @@ Inputs:
   document: the number in an OpenPose file name, else 0).
 
 A frame document with no people is a frame where nobody was seen. The format has no timestamps:
-``times`` [T] = (frame number - first frame number) / ``video_fps`` seconds.
+``times`` [T] = (frame number - first frame number) / ``video_fps`` seconds; frame numbers are
+below 2**53, where float64 still tells consecutive frames apart.
 
 Layouts, detected from the keypoint count (75, 54 or 45 values) or forced with ``layout=``, and
 their mapping to the joint set ``openpose_mpi`` (index = keypoint index in ``pose_keypoints_2d``)::
@@ -88,6 +89,8 @@ TRACK_TIMEOUT_S = 1.0
 """A track whose last detection is more than this many seconds before the current frame ends."""
 SIZE_HISTORY = 30
 """A track's body size is the median over its last this many detections."""
+MAX_FRAME_NUMBER = 2**53
+"""Frame numbers are below this: beyond it float64 times would merge consecutive frames."""
 
 
 @dataclass(frozen=True)
@@ -164,7 +167,8 @@ def body_sizes(positions: np.ndarray) -> np.ndarray:
 
 def _match_cost(det: np.ndarray, tracks: np.ndarray, sizes: np.ndarray) -> np.ndarray:
     """[D, L] mean distance over joints valid in both, divided by the track's size (inf if none)."""
-    dist = np.linalg.norm(det[:, None] - tracks[None], axis=-1)  # [D, L, J], NaN where either is missing
+    with np.errstate(over="ignore"):  # beyond float64 (coordinates near 1e308): inf, left out like NaN
+        dist = np.linalg.norm(det[:, None] - tracks[None], axis=-1)  # [D, L, J], NaN where either is missing
     common = np.isfinite(dist)
     n = common.sum(axis=-1)
     with np.errstate(invalid="ignore", divide="ignore"):
@@ -267,7 +271,17 @@ def _is_document(line: str) -> bool:
 
 def _number_in_name(path: Path) -> int | None:
     match = _FILE_NUMBER.search(path.name)
-    return int(match.group(1)) if match else None
+    if match is None:
+        return None
+    digits = match.group(1).lstrip("0") or "0"
+    if len(digits) > 16 or int(digits) >= MAX_FRAME_NUMBER:
+        raise FormatError(path, f"the frame number in the file name is beyond 2**53: {_show(match.group(1))}")
+    return int(digits)
+
+
+def _show(value: Any, limit: int = 60) -> str:
+    text = repr(value)
+    return text if len(text) <= limit else text[: limit - 3] + "..."
 
 
 def _frame(doc: Any, number: int, where: dict[str, Any]) -> _Frame:
@@ -288,8 +302,9 @@ def _explicit_number(doc: Any, where: dict[str, Any]) -> int | None:
     for key in FRAME_KEYS:
         if key in doc:
             value = doc[key]
-            if not isinstance(value, int) or isinstance(value, bool) or value < 0:
-                raise FormatError(**where, message=f"'{key}' must be a non-negative integer, found {value!r}")
+            if not isinstance(value, int) or isinstance(value, bool) or not 0 <= value < MAX_FRAME_NUMBER:
+                message = f"'{key}' must be a non-negative integer below 2**53, found {_show(value)}"
+                raise FormatError(**where, message=message)
             return value
     return None
 
@@ -378,10 +393,9 @@ def _person_id(person: dict, where: dict[str, Any], k: int) -> int:
     pid = person.get("person_id", -1)  # OpenPose before 1.3 writes no person_id
     if isinstance(pid, list) and len(pid) == 1:
         pid = pid[0]
-    if not isinstance(pid, int) or isinstance(pid, bool):
-        raise FormatError(
-            **where, message=f"people[{k}].person_id must be [integer] as OpenPose writes it, found {pid!r}"
-        )
+    if not isinstance(pid, int) or isinstance(pid, bool) or not -(2**63) <= pid < 2**63:
+        message = f"people[{k}].person_id must be [integer] (64-bit) as OpenPose writes it, found {_show(pid)}"
+        raise FormatError(**where, message=message)
     return pid
 
 
@@ -418,7 +432,7 @@ def _detections(frames: list[_Frame], forced: Layout | None):
             try:
                 values = array("d", kp)  # converts and type-checks in C
             except (TypeError, OverflowError):
-                message = f"people[{k}].pose_keypoints_2d must hold numbers, found {_first_non_number(kp)!r}"
+                message = f"people[{k}].pose_keypoints_2d must hold numbers, found {_show(_first_non_number(kp))}"
                 raise FormatError(**fr.where, message=message) from None
             if layout is None:
                 layout = _BY_VALUES.get(len(values))

@@ -19,7 +19,7 @@ from typing import Any
 import torch
 
 from ..atomic import atomic_output
-from ..dataset.build import MANIFEST
+from ..dataset.verify import read_manifest as read_dataset_manifest
 from ..errors import KinectDataError
 from ..models.registry import load_network
 
@@ -142,8 +142,9 @@ def read_config(run: str | Path) -> dict[str, Any]:
 
 
 def read_manifest(dataset: str | Path) -> dict[str, Any]:
-    """A dataset folder's manifest.json; errors name the file."""
-    return _read_json(dataset, MANIFEST, "a dataset")
+    """A dataset folder's manifest.json, checked against ``schemas/dataset-manifest.schema.json``;
+    errors name the file."""
+    return read_dataset_manifest(dataset)
 
 
 def dataset_summary(dataset: Path, manifest: dict[str, Any]) -> dict[str, Any]:
@@ -188,7 +189,10 @@ def load_checkpoint(path: Path) -> dict[str, Any]:
     except FileNotFoundError as exc:
         raise KinectDataError(f"{path}: no checkpoint") from exc
     except Exception as exc:  # a damaged or foreign file: never unpickled
-        raise KinectDataError(f"{path}: not a readable kinectdata checkpoint ({exc})") from exc
+        # torch's message advises weights_only=False, i.e. running the file's code: not repeated here
+        first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+        reason = "it holds objects other than tensors and plain values" if "weights_only" in str(exc) else first
+        raise KinectDataError(f"{path}: not a readable kinectdata checkpoint ({reason}); it was not loaded") from exc
 
 
 def model_name(run_config: dict[str, Any]) -> str:

@@ -12,6 +12,10 @@ and SMAPE free-running from each window's first true pose), one row is added to 
 the checkpoint is rewritten atomically with everything needed to continue exactly: model,
 optimiser, step, the batch-order and noise generators, history. ``resume=True`` continues a run
 from its checkpoint and ends with the same weights as an uninterrupted run.
+
+Under ``torchrun`` the same loop runs in every process on its share of each global batch, with
+the network in DistributedDataParallel (:mod:`.distributed`); only rank 0 validates, logs and
+writes files.
 """
 
 from __future__ import annotations
@@ -38,6 +42,18 @@ from ..models.export import export_torchscript, stream_metadata
 from ..models.registry import model_kind
 from ..normalization import Normalizer
 from ..plots import loss_curves
+from .distributed import (
+    PaddedWindows,
+    WindowSampler,
+    World,
+    check_replicas,
+    from_main,
+    per_rank_batch,
+    process_group,
+    replicate,
+    share_of_batch,
+    sum_over_ranks,
+)
 from .metrics import smape
 from .run import (
     CHECKPOINT,
@@ -104,11 +120,21 @@ def _resumed_config(run: Path, saved: dict[str, Any], asked: TrainConfig | None)
     return asked
 
 
-def _batches(windows: WindowDataset, config: TrainConfig, generator: torch.Generator | None) -> DataLoader:
+def _batches(windows: WindowDataset, config: TrainConfig) -> DataLoader:
+    """The windows in order, in batches of ``batch_size`` (validation). Its own generator: validating
+    on rank 0 alone leaves every rank's global one (cdhc's dropout) alike."""
+    return DataLoader(windows, batch_size=config.batch_size, generator=torch.Generator(), num_workers=0)
+
+
+def _training_batches(
+    windows: WindowDataset, config: TrainConfig, generator: torch.Generator, world: World
+) -> DataLoader:
+    """This rank's share of each global batch of ``batch_size`` windows, shuffled by ``generator``."""
+    padded = PaddedWindows(windows)
     return DataLoader(
-        windows,
-        batch_size=config.batch_size,
-        shuffle=generator is not None,
+        padded,
+        batch_size=per_rank_batch(config.batch_size, world),
+        sampler=WindowSampler(padded, world, generator),
         generator=generator,
         num_workers=0,
         drop_last=False,
@@ -141,7 +167,7 @@ def validate(
     net.eval()
     losses, weights, generated, real, masks = [], [], [], [], []
     with torch.no_grad():
-        for batch in _batches(windows, config, None):
+        for batch in _batches(windows, config):
             audio, pose, mask = batch["audio"].to(device), batch["pose"].to(device), batch["mask"].to(device)
             previous = batch["previous"].to(device)
             if start_pose is not None:
@@ -216,7 +242,8 @@ def train(
                 f"(build key {saved['dataset']['build_key']}, this dataset's is {manifest['build_key']})"
             )
     config = config or TrainConfig()
-    device = config.resolved_device()
+    world = World.from_environment()
+    per_rank_batch(config.batch_size, world)  # an indivisible batch is refused before anything starts
     kind = model_kind(config.model)
     model_config = kind.config(config, manifest)
     stride = config.stride or config.sequence
@@ -230,7 +257,7 @@ def train(
         "dataset": dataset_summary(dataset, manifest),
     }
 
-    with _deterministic():
+    with process_group(world, config.resolved_device()) as device, _deterministic():
         torch.manual_seed(config.seed)
         net = kind.build(model_config.to_dict()).to(device)
         optimizer = torch.optim.Adam(net.parameters(), lr=config.lr)
@@ -240,7 +267,8 @@ def train(
         step = 0
         if state is not None:
             run_config["dataset"]["start_pose"] = saved["dataset"]["start_pose"]
-            write_json(run / CONFIG, run_config)  # with the new epochs or device, if changed
+            if world.main:
+                write_json(run / CONFIG, run_config)  # with the new epochs or device, if changed
             net.load_state_dict(state["model"])
             optimizer.load_state_dict(state["optimizer"])
             order.set_state(state["order_rng"])
@@ -252,35 +280,41 @@ def train(
         else:
             if (run / CHECKPOINT).exists() or (run / MODEL).exists():
                 raise KinectDataError(f"{run}: already holds a run; use --resume to continue it or another folder")
-            run.mkdir(parents=True, exist_ok=True)
             run_config["dataset"]["start_pose"] = _start_pose(dataset, manifest)
             kind.init_output(net, run_config["dataset"]["start_pose"])
-            write_json(run / CONFIG, run_config)
-        run_config = json.loads((run / CONFIG).read_text())
+            if world.main:
+                run.mkdir(parents=True, exist_ok=True)
+                write_json(run / CONFIG, run_config)
+        run_config = json.loads(json.dumps(run_config))  # as config.json holds it
         start_pose = run_config["dataset"]["start_pose"]
-        writer = _tensorboard(run)
+        writer = _tensorboard(run) if world.main else None
+        model = replicate(net, world, device)
         net.train()
         params = list(net.parameters())
         for epoch in range(len(history) + 1, config.epochs + 1):
             started, frames, total, weight = time.perf_counter(), 0, 0.0, 0.0
-            for batch in _batches(train_windows, config, order):
+            for batch in _training_batches(train_windows, config, order, world):
                 audio, pose, mask = batch["audio"].to(device), batch["pose"].to(device), batch["mask"].to(device)
                 previous = kind.fill_previous(
                     batch["previous"].to(device), batch["previous_mask"].to(device), start_pose
                 )
-                pred = kind.predict(net, audio, previous, config.feedback)
+                pred = kind.predict(model, audio, previous, config.feedback)
                 loss = kind.loss(net, pred, pose, mask, config)
+                valid = float(mask.sum())
                 optimizer.zero_grad(set_to_none=True)
-                loss.backward()
+                (loss * share_of_batch(valid, world)).backward()
                 if config.clip_norm is not None:
                     torch.nn.utils.clip_grad_norm_(params, config.clip_norm)
                 _add_gradient_noise(params, step, config, noise)
                 optimizer.step()
                 step += 1
                 frames += pose.shape[0] * pose.shape[1]
-                total += loss.item() * float(mask.sum())
-                weight += float(mask.sum())
-            val_loss, val_smape = validate(net, val_windows, config, device, start_pose)
+                total += loss.item() * valid
+                weight += valid
+            total, weight, frames = sum_over_ranks([total, weight, frames], world)
+            check_replicas(params, world, epoch)
+            val_loss, val_smape = validate(net, val_windows, config, device, start_pose) if world.main else (0.0, 0.0)
+            val_loss, val_smape = from_main([val_loss, val_smape], world)
             seconds = time.perf_counter() - started
             row = {
                 "epoch": epoch,
@@ -292,30 +326,33 @@ def train(
                 "frames_per_second": round(frames / seconds, 1),
             }
             history.append(row)
-            _write_log(run, history)
-            if writer is not None:
-                for key in ("train_loss", "val_loss", "val_smape"):
-                    if row[key] is not None:
-                        writer.add_scalar(key, row[key], epoch)
-            save_checkpoint(
-                run / CHECKPOINT,
-                {
-                    "model": net.state_dict(),
-                    "optimizer": optimizer.state_dict(),
-                    "step": step,
-                    "order_rng": order.get_state(),
-                    "noise_rng": noise.get_state(),
-                    "torch_rng": torch.get_rng_state(),
-                    "history": json.dumps(history),
-                    "config": json.dumps(run_config),
-                },
-            )
-            if progress:
-                progress(row)
+            if world.main:  # the others keep no files
+                _write_log(run, history)
+                if writer is not None:
+                    for key in ("train_loss", "val_loss", "val_smape"):
+                        if row[key] is not None:
+                            writer.add_scalar(key, row[key], epoch)
+                save_checkpoint(
+                    run / CHECKPOINT,
+                    {
+                        "model": net.state_dict(),
+                        "optimizer": optimizer.state_dict(),
+                        "step": step,
+                        "order_rng": order.get_state(),
+                        "noise_rng": noise.get_state(),
+                        "torch_rng": torch.get_rng_state(),
+                        "history": json.dumps(history),
+                        "config": json.dumps(run_config),
+                    },
+                )
+                if progress:
+                    progress(row)
             if stop_after is not None and epoch >= stop_after and epoch < config.epochs:
                 return history
         if writer is not None:
             writer.close()
+    if not world.main:
+        return history
     title = (
         f"{run.name}: {config.units} units, {config.activation}, {config.feedback} feedback"
         if config.model == "yalta"

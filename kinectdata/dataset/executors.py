@@ -1,0 +1,135 @@
+"""Where ``build-dataset`` prepares its recordings: on this machine, or as tasks on a Dask cluster.
+
+An executor maps a function over tasks and returns the results in task order, whatever finishes
+first, so a build gives the same bytes on any executor; it calls ``progress(done, total)`` as
+results arrive. The registry :data:`EXECUTORS` names them:
+
+- ``local``: in this process (``jobs`` 1) or in a pool of ``jobs`` worker processes;
+- ``dask``: one task per recording on a running Dask cluster, reached at its scheduler's address
+  (``tcp://HOST:8786``); needs ``dask[distributed]`` (``pip install 'kinectdata[dask]'``).
+
+The Dask workers read the recordings and write their work files themselves, at the paths this
+machine gives them: the recordings and the dataset folder must be on a filesystem every worker
+sees at the same paths (a shared filesystem, or a cluster on this machine), and each worker needs
+the same kinectdata installed.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import dataclass
+from typing import Any
+
+from ..errors import KinectDataError
+
+Progress = Callable[[int, int], None] | None
+
+
+@dataclass(frozen=True)
+class LocalExecutor:
+    """This machine: in this process (``jobs`` 1) or in ``jobs`` worker processes."""
+
+    jobs: int = 1
+
+    @classmethod
+    def from_options(cls, *, jobs: int = 1, scheduler: str | None = None) -> LocalExecutor:
+        if scheduler is not None:
+            raise KinectDataError(f"--scheduler {scheduler} is for --executor dask, not local")
+        return cls(jobs)
+
+    def map(self, function: Callable, tasks: Sequence, names: Sequence[str], progress: Progress = None) -> list[Any]:
+        """``function(task)`` for each task, in task order. A worker's error is raised as is
+        (``names`` are not needed: the worker's own error travels back)."""
+        results = []
+        if self.jobs > 1 and len(tasks) > 1:
+            with ProcessPoolExecutor(max_workers=self.jobs) as pool:
+                for i, result in enumerate(pool.map(function, tasks)):
+                    results.append(result)
+                    if progress:
+                        progress(i + 1, len(tasks))
+        else:
+            for i, task in enumerate(tasks):
+                results.append(function(task))
+                if progress:
+                    progress(i + 1, len(tasks))
+        return results
+
+
+@dataclass(frozen=True)
+class DaskExecutor:
+    """A running Dask cluster: one task per item, submitted through its scheduler.
+
+    Attributes:
+        scheduler: the scheduler's address, e.g. ``tcp://10.0.0.5:8786``.
+        timeout: seconds to wait for the scheduler (None: Dask's ``distributed.comm.timeouts.connect``,
+            30 s unless configured).
+    """
+
+    scheduler: str
+    timeout: float | None = None
+
+    @classmethod
+    def from_options(cls, *, jobs: int = 1, scheduler: str | None = None) -> DaskExecutor:
+        if scheduler is None:
+            raise KinectDataError("--executor dask needs --scheduler ADDRESS (a running Dask scheduler's)")
+        if jobs != 1:
+            raise KinectDataError(
+                f"--jobs {jobs} is for --executor local; on a Dask cluster its workers set the parallelism"
+            )
+        return cls(scheduler)
+
+    def _client(self):
+        try:
+            from distributed import Client
+        except ImportError:
+            raise KinectDataError("--executor dask needs Dask: pip install 'kinectdata[dask]'") from None
+        timeout = {} if self.timeout is None else {"timeout": self.timeout}
+        try:
+            return Client(self.scheduler, set_as_default=False, **timeout)
+        except ValueError as exc:
+            raise KinectDataError(f"{self.scheduler!r} is not a Dask scheduler address ({exc})") from None
+        except OSError as exc:  # distributed's connection timeout is an OSError
+            raise KinectDataError(
+                f"cannot reach a Dask scheduler at {self.scheduler} ({exc}): is it running (dask scheduler) and "
+                "is the address right?"
+            ) from None
+
+    def map(self, function: Callable, tasks: Sequence, names: Sequence[str], progress: Progress = None) -> list[Any]:
+        """``function(task)`` for each task on the cluster, results in task order. The function's
+        KinectDataError comes back as raised; any other failure (a worker lost, a task that could
+        not be sent or run) becomes a KinectDataError naming the task by ``names[i]``."""
+        from distributed import as_completed
+
+        results: list[Any] = [None] * len(tasks)
+        with self._client() as client:
+            futures = client.map(function, list(tasks), pure=False)
+            index = {future.key: i for i, future in enumerate(futures)}
+            for done, future in enumerate(as_completed(futures, loop=client.loop), 1):
+                i = index[future.key]
+                try:
+                    results[i] = future.result()
+                except KinectDataError:
+                    raise
+                except Exception as exc:
+                    raise KinectDataError(
+                        f"{names[i]}: failed on the Dask cluster at {self.scheduler}: {type(exc).__name__}: {exc}"
+                    ) from exc
+                if progress:
+                    progress(done, len(tasks))
+        return results
+
+
+Executor = LocalExecutor | DaskExecutor
+
+EXECUTORS: dict[str, type[LocalExecutor] | type[DaskExecutor]] = {"local": LocalExecutor, "dask": DaskExecutor}
+
+
+def make_executor(name: str, *, jobs: int = 1, scheduler: str | None = None) -> Executor:
+    """The executor registered as ``name`` with the command line's ``--jobs`` and ``--scheduler``;
+    KinectDataError for an unknown name or an option the executor does not take."""
+    try:
+        kind = EXECUTORS[name]
+    except KeyError:
+        raise KinectDataError(f"unknown executor {name!r}; known: {', '.join(EXECUTORS)}") from None
+    return kind.from_options(jobs=jobs, scheduler=scheduler)
