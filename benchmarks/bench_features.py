@@ -24,8 +24,8 @@ import numpy as np
 from scipy.signal import get_window
 
 from kinectdata.audio import resample, to_mono
-from kinectdata.features import PRESETS, StftConfig, stft_features
-from kinectdata.features.stft import _gather, _normalised_spectra, _plan
+from kinectdata.features import StftConfig, stft_features
+from kinectdata.features.stft import PRESETS, _gather, _normalised_spectra, _plan
 from kinectdata.synth.music import synthesize_music
 
 from .summary import record
