@@ -34,7 +34,7 @@ import h5py
 import numpy as np
 
 from . import __version__
-from .atomic import atomic_output
+from .atomic import atomic_hdf5
 from .errors import FormatError
 from .jointsets import JointSet, load_joint_set, shipped_joint_sets
 from .motion import Motion
@@ -98,7 +98,7 @@ class AlignedRecording:
     def save(self, path: str | Path, *, compression: str | None = "gzip") -> None:
         """Write the HDF5 file atomically (a temporary file renamed into place)."""
         m = self.motion
-        with atomic_output(path) as tmp, h5py.File(tmp, "w") as f:
+        with atomic_hdf5(path) as f:  # no chunk cache: a full disk is an error, not a crash
             f.attrs.update(
                 {
                     "format": FORMAT,

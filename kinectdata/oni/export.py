@@ -26,11 +26,10 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-import h5py
 import numpy as np
 
 from ..align import file_sha256
-from ..atomic import atomic_output
+from ..atomic import atomic_hdf5
 from ..errors import KinectDataError
 from .reader import OniFile, OniStream
 
@@ -179,7 +178,7 @@ def export_stream(
         options = {} if compression == "none" else {"compression": compression}
         if compression == "gzip":
             options["compression_opts"] = 4
-        with atomic_output(out) as tmp, h5py.File(tmp, "w") as f:
+        with atomic_hdf5(out) as f:  # no chunk cache: a full disk is an error, not a crash
             frames = f.create_dataset(
                 "frames", shape=(picked.size, *shape), dtype=first.data.dtype, chunks=(1, *shape), **options
             )
