@@ -26,7 +26,6 @@ from __future__ import annotations
 import base64
 import html
 import io
-import json
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -36,22 +35,21 @@ import h5py
 import numpy as np
 
 from . import __version__, plots
-from .align import DEFAULT_MAX_GAP, DEFAULT_MIN_COVERAGE, file_sha256, plan_timeline, resample_onto
+from .align import DEFAULT_MAX_GAP, DEFAULT_MIN_COVERAGE, plan_timeline, resample_onto
 from .aligned import AlignedRecording
 from .atomic import atomic_output
 from .audio import AudioReader
-from .dataset.build import MANIFEST
 from .dataset.inputs import SPLITS, RecordingEntry
 from .dataset.pipelines import PIPELINES
 from .dataset.prepare import source_hashes
-from .dataset.shards import read_index, validate_shard
+from .dataset.shards import read_index
+from .dataset.verify import verified_manifest
 from .envelopes import audio_envelopes
-from .errors import FormatError, KinectDataError
+from .errors import KinectDataError
 from .features import PRESETS, MelConfig, feature_config
 from .jointsets import JointSet
 from .normalization import Normalizer, count_out_of_range
 from .offset import OffsetEstimate, estimate_offset, xcorr_estimate
-from .resources import validate
 from .targets import TargetSpec
 
 LOW_CONFIDENCE = 0.8
@@ -104,27 +102,6 @@ class _Recording:
 # ---------------------------------------------------------------------------------------------
 # Reading and checking the dataset
 # ---------------------------------------------------------------------------------------------
-def load_manifest(dataset: str | Path) -> dict[str, Any]:
-    """The manifest of a dataset folder, validated against ``schemas/dataset-manifest.schema.json``.
-
-    Raises:
-        FormatError: not a folder, no ``manifest.json`` or one that is not JSON (names the path).
-        SchemaError: the manifest does not follow its schema.
-    """
-    root = Path(dataset)
-    if not root.is_dir():
-        raise FormatError(root, "not a dataset folder (no such folder)")
-    path = root / MANIFEST
-    if not path.is_file():
-        raise FormatError(root, "no manifest.json: not a dataset, or a build that did not finish (run it again)")
-    try:
-        manifest = json.loads(path.read_text(encoding="utf-8"))
-    except (OSError, UnicodeDecodeError, ValueError) as exc:
-        raise FormatError(path, f"unreadable manifest ({exc})") from exc
-    validate(manifest, "dataset-manifest.schema.json", path)
-    return manifest
-
-
 def masked_spans(mask: np.ndarray, fps: float, longer_than: float = 0.0) -> list[tuple[float, float, int]]:
     """Runs of masked values per target component.
 
@@ -154,21 +131,6 @@ def _union(spans: list[tuple[float, float, int]]) -> list[tuple[float, float]]:
         else:
             merged.append([start, end])
     return [(a, b) for a, b in merged]
-
-
-def _check_shards(root: Path, manifest: dict[str, Any]) -> None:
-    """Every shard against the layout, its SHA-256 and the manifest's account of its recordings."""
-    for shard in manifest["shards"]:
-        path = root / shard["file"]
-        validate_shard(path)
-        if file_sha256(path) != shard["sha256"]:
-            raise FormatError(path, "checksum differs from the manifest's: the shard was changed or damaged")
-        listed = [(r["name"], r["start"], r["frames"]) for r in manifest["recordings"] if r["shard"] == shard["file"]]
-        with h5py.File(path, "r") as f:
-            if [(r["name"], r["start"], r["length"]) for r in read_index(f)] != listed:
-                raise FormatError(
-                    root / MANIFEST, f"its recordings in {shard['file']} differ from the shard's own index"
-                )
 
 
 def _recordings(root: Path, manifest: dict[str, Any], totals: dict[str, np.ndarray]) -> Iterator[_Recording]:
@@ -636,8 +598,7 @@ def write_report(
     root, out = Path(dataset), Path(out)
     if out.suffix.lower() not in (".html", ".htm"):
         raise KinectDataError(f"{out}: the report is an HTML page; name it *.html")
-    manifest = load_manifest(root)
-    _check_shards(root, manifest)
+    manifest = verified_manifest(root)  # the checks of kinectdata verify: schema, checksums, layouts, indexes
     spec = TargetSpec.from_dict(manifest["config"]["target"])
     inputs = {e["name"]: e for e in manifest["inputs"]}
     total = sum(1 for r in manifest["recordings"] if r.get("snr_db") is None)

@@ -183,14 +183,21 @@ def _padded(body: np.ndarray) -> np.ndarray:
 # following byte(s) (it fills slot 1). 0xE0 + n repeats the value 2n times; 0xFF is an escape
 # alone (slot 0).
 
-_D16 = np.zeros((256, 2), np.int32)
-_R16 = np.zeros((256, 2), np.int32)
-for _b in range(0xE0):
-    _hi, _lo = _b >> 4, _b & 0x0F
-    _D16[_b, 0], _R16[_b, 0] = _hi - 6, 1
-    if _lo != 0x0D:
-        _R16[_b, 1] = 1
-        _D16[_b, 1] = _lo - 6 if _lo != 0x0F else 0
+def _pair_tables() -> tuple[np.ndarray, np.ndarray]:
+    """[256, 2] differences and repeat counts with the rows of the pair bytes (< 0xE0) filled,
+    which 16z and 8z share: "value -= nibble - 6" per nibble, low nibble D no second value, F an
+    escape (difference 0; the escape's value is a reset)."""
+    d, r = np.zeros((256, 2), np.int32), np.zeros((256, 2), np.int32)
+    for b in range(0xE0):
+        hi, lo = b >> 4, b & 0x0F
+        d[b, 0], r[b, 0] = hi - 6, 1
+        if lo != 0x0D:
+            r[b, 1] = 1
+            d[b, 1] = lo - 6 if lo != 0x0F else 0
+    return d, r
+
+
+_D16, _R16 = _pair_tables()
 for _b in range(0xE0, 0xFF):
     _R16[_b, 0] = 2 * (_b - 0xE0)
 _R16[0xFF, 0] = 1
@@ -242,14 +249,7 @@ def decode_16z(payload: bytes, count: int, *, table: bool, what: str = "16z fram
 # and the next byte's high nibble (slot 0), then by the next byte's low nibble a difference, an
 # absolute third byte (F) or nothing (D) (slot 1).
 
-_D8 = np.zeros((256, 2), np.int32)
-_R8 = np.zeros((256, 2), np.int32)
-for _b in range(0xE0):
-    _hi, _lo = _b >> 4, _b & 0x0F
-    _D8[_b, 0], _R8[_b, 0] = _hi - 6, 1
-    if _lo != 0x0D:
-        _R8[_b, 1] = 1
-        _D8[_b, 1] = _lo - 6 if _lo != 0x0F else 0
+_D8, _R8 = _pair_tables()
 for _b in range(0xE0, 0xF0):
     _R8[_b, 0] = 2 * (_b - 0xE0)
 _R8[0xF0:, 0] = 1
