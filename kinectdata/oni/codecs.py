@@ -183,6 +183,7 @@ def _padded(body: np.ndarray) -> np.ndarray:
 # following byte(s) (it fills slot 1). 0xE0 + n repeats the value 2n times; 0xFF is an escape
 # alone (slot 0).
 
+
 def _pair_tables() -> tuple[np.ndarray, np.ndarray]:
     """[256, 2] differences and repeat counts with the rows of the pair bytes (< 0xE0) filled,
     which 16z and 8z share: "value -= nibble - 6" per nibble, low nibble D no second value, F an
