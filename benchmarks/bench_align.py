@@ -17,11 +17,11 @@ import tempfile
 import time
 from pathlib import Path
 
-from kinectdata.align import align
-from kinectdata.audio import load_audio
+from kinectdata.align.audio import load_audio
+from kinectdata.align.offset import estimate_offset
+from kinectdata.align.recipe import align
 from kinectdata.formats import read_motion
 from kinectdata.formats.csv_writer import write_csv
-from kinectdata.offset import estimate_offset
 
 from .summary import record
 

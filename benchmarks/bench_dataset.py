@@ -26,7 +26,7 @@ os.sched_setaffinity(0, {0})
 from kinectdata.dataset.build import build_dataset
 from kinectdata.dataset.prepare import BuildConfig
 from kinectdata.features.stft import PRESETS
-from kinectdata.targets import load_target_spec
+from kinectdata.targets.specs import load_target_spec
 cfg = BuildConfig(features=PRESETS["yalta2016"].to_dict(), target=load_target_spec("yalta65").to_dict(),
                   split_ratios=(1, 0, 0))
 import time

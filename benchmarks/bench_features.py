@@ -1,7 +1,7 @@
 """Speed and accuracy of the STFT feature extractor on a 10-minute song.
 
 600 s of synthetic music (``kinectdata.synth.music`` rendered at 32 kHz, mixed to mono and
-resampled to 16 kHz, as ``kinectdata.audio.load_audio`` would) and 30 fps motion frames
+resampled to 16 kHz, as ``kinectdata.align.audio.load_audio`` would) and 30 fps motion frames
 (``starts[k] = round(k * 16000 / 30)``, 18 000 frames; the last slice runs past the end). For
 both presets, prints seconds and x real time of :func:`stft_features` and of a straightforward
 per-frame loop written here the way earlier research code did it (for each motion frame: slice,
@@ -23,7 +23,7 @@ import tracemalloc
 import numpy as np
 from scipy.signal import get_window
 
-from kinectdata.audio import resample, to_mono
+from kinectdata.align.audio import resample, to_mono
 from kinectdata.features import StftConfig, stft_features
 from kinectdata.features.stft import PRESETS, _gather, _normalised_spectra, _plan
 from kinectdata.synth.music import synthesize_music

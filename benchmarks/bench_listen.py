@@ -21,12 +21,12 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from kinectdata.align import align_files
-from kinectdata.errors import AlignmentError
+from kinectdata.align.recipe import align_files
+from kinectdata.core.errors import AlignmentError
 from kinectdata.features import PRESETS, mel_features
 from kinectdata.formats import read_motion
+from kinectdata.inference.engines import make_engine
 from kinectdata.models.cdhc import CdhcConfig, CdhcNet, cdhc_loss, generate
-from kinectdata.models.engines import make_engine
 from kinectdata.synth import synthesize_openpose, synthesize_recording, write_openpose_recording
 from kinectdata.synth.openpose import write_openpose_folder
 

@@ -16,7 +16,7 @@ from kinectdata.dataset.build import build_dataset
 from kinectdata.dataset.prepare import BuildConfig
 from kinectdata.dataset.windows import WindowDataset
 from kinectdata.features import PRESETS
-from kinectdata.targets import load_target_spec
+from kinectdata.targets.specs import load_target_spec
 
 from .summary import record
 

@@ -26,9 +26,9 @@ import warnings
 import numpy as np
 import torch
 
-from kinectdata.models.engines import OnnxRuntimeEngine, onnxruntime_available
+from kinectdata.evaluation.metrics import masked_mse
+from kinectdata.inference.engines import OnnxRuntimeEngine, onnxruntime_available
 from kinectdata.models.yalta import StreamingYalta, YaltaConfig, YaltaNet
-from kinectdata.training.metrics import masked_mse
 from kinectdata.training.run import TrainConfig
 from kinectdata.training.train import _add_gradient_noise
 

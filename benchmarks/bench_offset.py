@@ -9,9 +9,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from kinectdata.audio import Audio, resample, to_mono
-from kinectdata.errors import AlignmentError
-from kinectdata.offset import estimate_offset
+from kinectdata.align.audio import Audio, resample, to_mono
+from kinectdata.align.offset import estimate_offset
+from kinectdata.core.errors import AlignmentError
 from kinectdata.synth import synthesize_recording
 
 from .summary import record

@@ -20,10 +20,10 @@ from kinectdata.dataset.build import build_dataset
 from kinectdata.dataset.prepare import BuildConfig
 from kinectdata.features import PRESETS
 from kinectdata.formats import read_motion
-from kinectdata.render import SkeletonRenderer, write_mp4
-from kinectdata.report import write_report
 from kinectdata.synth import synthesize_recording, write_openpose_recording
-from kinectdata.targets import load_target_spec
+from kinectdata.targets.specs import load_target_spec
+from kinectdata.viz.render import SkeletonRenderer, write_mp4
+from kinectdata.viz.report import write_report
 
 from .summary import record
 
@@ -49,7 +49,7 @@ def main() -> None:
         print(f"  render 2-D (15 joints, 640x480): {rate2:.0f} frames/s")
         _, rate3 = _frames(SkeletonRenderer([kinect, kinect]))
         print(f"  render 3-D side by side (1280x480): {rate3:.0f} frames/s")
-        from kinectdata.audio import load_audio
+        from kinectdata.align.audio import load_audio
 
         audio = load_audio(SAMPLES / "synth_001.flac", sample_rate=16000)
         clip = audio.samples[5 * 16000 : 15 * 16000]

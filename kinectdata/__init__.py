@@ -1,3 +1,5 @@
 """kinectdata: music-driven dance research toolkit."""
 
-__version__ = "0.1.0"
+from kinectdata.core.version import __version__
+
+__all__ = ["__version__"]

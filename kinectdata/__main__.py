@@ -1,5 +1,5 @@
 """``python -m kinectdata`` runs the command line."""
 
-from .cli import main
+from kinectdata.cli import main
 
 main()

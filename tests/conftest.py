@@ -38,7 +38,7 @@ def sample_dataset(tmp_path_factory) -> Path:
     from kinectdata.dataset.build import build_dataset
     from kinectdata.dataset.prepare import BuildConfig
     from kinectdata.features.stft import PRESETS
-    from kinectdata.targets import load_target_spec
+    from kinectdata.targets.specs import load_target_spec
 
     out = tmp_path_factory.mktemp("sample_dataset") / "dataset"
     config = BuildConfig(

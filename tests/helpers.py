@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from kinectdata.jointsets import load_joint_set
-from kinectdata.motion import Motion
+from kinectdata.core.jointsets import load_joint_set
+from kinectdata.core.motion import Motion
 
 
 def random_motion(T: int = 40, seed: int = 0, untracked: float = 0.05, inferred: float = 0.1) -> Motion:

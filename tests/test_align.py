@@ -11,13 +11,13 @@ from conftest import REPO
 from helpers import random_motion
 from scipy.spatial.transform import Rotation
 
-from kinectdata.align import align, align_files
-from kinectdata.aligned import AlignedRecording
-from kinectdata.audio import load_audio
-from kinectdata.collection import find_sessions
-from kinectdata.errors import AlignmentError, AudioError, FormatError
+from kinectdata.align.aligned import AlignedRecording
+from kinectdata.align.audio import load_audio
+from kinectdata.align.recipe import align, align_files
+from kinectdata.core.errors import AlignmentError, AudioError, FormatError
+from kinectdata.core.jointsets import load_joint_set
+from kinectdata.dataset.collection import find_sessions
 from kinectdata.formats import read_motion
-from kinectdata.jointsets import load_joint_set
 
 
 @pytest.fixture

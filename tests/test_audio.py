@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 import soundfile as sf
 
-from kinectdata.audio import load_audio
-from kinectdata.errors import AudioError
+from kinectdata.align.audio import load_audio
+from kinectdata.core.errors import AudioError
 
 
 def _tone(freq, sr, seconds, amp):
@@ -75,7 +75,7 @@ def test_unreadable_missing_empty_and_nan_audio(tmp_path):
 
 
 def test_streamed_blocks_equal_whole_file_resampling_for_any_block_size(tmp_path):
-    from kinectdata.audio import AudioReader, resample, to_mono
+    from kinectdata.align.audio import AudioReader, resample, to_mono
 
     x = np.random.default_rng(0).normal(0, 0.2, (44100 * 7 + 77, 2)).astype(np.float32)
     sf.write(tmp_path / "n.flac", x, 44100, subtype="PCM_24")
@@ -89,7 +89,7 @@ def test_streamed_blocks_equal_whole_file_resampling_for_any_block_size(tmp_path
 def test_resampled_length_is_soxr_rounding_half_up():
     import soxr
 
-    from kinectdata.audio import resampled_length
+    from kinectdata.align.audio import resampled_length
 
     for n in (1, 15, 22, 29, 36, 1001, 44100 * 3 + 13):
         for a, b in ((44100, 16000), (48000, 16000), (11025, 16000), (22050, 16000)):
@@ -97,7 +97,7 @@ def test_resampled_length_is_soxr_rounding_half_up():
 
 
 def test_envelopes_do_not_depend_on_the_block_size():
-    from kinectdata.envelopes import audio_envelopes
+    from kinectdata.align.envelopes import audio_envelopes
 
     x = np.random.default_rng(1).normal(0, 0.1, 16000 * 9 + 321).astype(np.float32)
     whole = audio_envelopes([x], 16000)

@@ -9,10 +9,10 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from kinectdata.errors import FormatError
+from kinectdata.core.errors import FormatError
+from kinectdata.core.jointsets import load_joint_set
 from kinectdata.formats import detect_format, read_motion
 from kinectdata.formats.azure_json import _sniff, read_azure_json
-from kinectdata.jointsets import load_joint_set
 
 # As the SDK's offline processor writes them (older SDKs spell SPINE_NAVAL).
 NAMES = [

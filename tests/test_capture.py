@@ -15,7 +15,7 @@ from click.testing import CliRunner
 
 from kinectdata.capture.take import _oni_zero_clock, align_take, capture_take, read_take
 from kinectdata.cli import main
-from kinectdata.errors import KinectDataError
+from kinectdata.core.errors import KinectDataError
 from kinectdata.formats.csv_writer import write_csv
 from kinectdata.oni import OniFile
 from kinectdata.oni.skeleton import TrackedFrame, nite_motion
@@ -140,7 +140,7 @@ def test_a_take_with_audio_aligns_without_an_offset_guess(openni2, tmp_path):
     write_csv(motion, take / "take.csv", "canonical", time_origin=float(stamps[3]) / 1e6)
     result = CliRunner().invoke(main, ["align", str(take), "-o", str(tmp_path / "a.h5")])
     assert result.exit_code == 0, result.output
-    from kinectdata.aligned import AlignedRecording
+    from kinectdata.align.aligned import AlignedRecording
 
     rec = AlignedRecording.load(tmp_path / "a.h5", audio=False)
     expected = doc["oni"]["zero_clock_s"] + float(stamps[3]) / 1e6 - audio["first_sample_clock_s"]

@@ -12,8 +12,8 @@ from scipy.special import expit, logit
 
 torch = pytest.importorskip("torch")
 
-from kinectdata.errors import KinectDataError  # noqa: E402
-from kinectdata.jointsets import load_joint_set  # noqa: E402
+from kinectdata.core.errors import KinectDataError  # noqa: E402
+from kinectdata.core.jointsets import load_joint_set  # noqa: E402
 from kinectdata.models.cdhc import (  # noqa: E402
     OPENPOSE_MPI_LIMBS,
     CdhcConfig,

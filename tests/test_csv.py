@@ -9,12 +9,12 @@ import numpy as np
 import pytest
 from helpers import random_motion
 
-from kinectdata.errors import FormatError, SchemaError
+from kinectdata.core.errors import FormatError, SchemaError
+from kinectdata.core.jointsets import load_joint_set
 from kinectdata.formats import detect_format, read_motion
 from kinectdata.formats.csv import detect_csv_schema
 from kinectdata.formats.csv_schema import load_csv_schema, shipped_csv_schemas
 from kinectdata.formats.csv_writer import write_csv
-from kinectdata.jointsets import load_joint_set
 
 DIALECTS = ["canonical", "dumpkinectskeleton", "kinectreader", "lsl_kinect"]
 
@@ -71,7 +71,7 @@ def test_round_trip_through_every_dialect(tmp_path, dialect):
 def test_canonical_keeps_any_joint_set_and_missing_orientations(tmp_path):
     js = load_joint_set("nite")
     rng = np.random.default_rng(1)
-    from kinectdata.motion import Motion
+    from kinectdata.core.motion import Motion
 
     m = Motion(np.arange(5) / 30, rng.normal(size=(5, 15, 3)), js)
     write_csv(m, tmp_path / "n.csv")
@@ -349,7 +349,7 @@ def test_masked_positions_are_written_as_not_tracked_in_every_dialect(tmp_path):
     m = random_motion(T=4, untracked=0.0, inferred=0.0)
     mask = m.position_mask.copy()
     mask[2, 7] = False
-    from kinectdata.motion import Motion
+    from kinectdata.core.motion import Motion
 
     m = Motion(
         m.times,

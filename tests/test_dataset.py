@@ -16,18 +16,18 @@ from helpers import YALTA_ORIENTATIONS, YALTA_POSITIONS
 from scipy import signal
 from scipy.spatial.transform import Rotation
 
-from kinectdata.align import align_files
-from kinectdata.audio import load_audio
+from kinectdata.align.audio import load_audio
+from kinectdata.align.recipe import align_files
+from kinectdata.core.errors import FormatError, KinectDataError, SchemaError
 from kinectdata.dataset import build as build_module
 from kinectdata.dataset.build import build_dataset
 from kinectdata.dataset.inputs import assign_splits, read_recordings
 from kinectdata.dataset.inspect import inspect
 from kinectdata.dataset.prepare import BuildConfig
 from kinectdata.dataset.shards import read_index, validate_shard
-from kinectdata.errors import FormatError, KinectDataError, SchemaError
 from kinectdata.features.stft import PRESETS
-from kinectdata.normalization import Normalizer
-from kinectdata.targets import extract_targets, load_target_spec
+from kinectdata.targets.normalization import Normalizer
+from kinectdata.targets.specs import extract_targets, load_target_spec
 
 SAMPLES = REPO / "sample_data"
 
@@ -411,7 +411,7 @@ def test_yalta65_targets_against_a_hand_computation(dataset):
     HandRight positions and 14 sign-continuous quaternion tracks, each put in the hemisphere of
     the training split's mean rotation of that joint (scipy's Rotation.mean, signed so its largest
     component is positive), scaled by 0.9 / max|x| over the training split."""
-    from kinectdata.quaternions import make_continuous
+    from kinectdata.core.quaternions import make_continuous
 
     out, manifest = dataset
     pos_joints, q_joints = YALTA_POSITIONS, YALTA_ORIENTATIONS

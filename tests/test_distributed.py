@@ -21,12 +21,12 @@ from click.testing import CliRunner
 from conftest import REPO, TINY_TRAINING
 
 from kinectdata.cli import main
+from kinectdata.core.errors import KinectDataError
 from kinectdata.dataset.build import build_dataset
 from kinectdata.dataset.executors import DaskExecutor, LocalExecutor
 from kinectdata.dataset.prepare import BuildConfig
-from kinectdata.errors import KinectDataError
 from kinectdata.features.stft import PRESETS
-from kinectdata.targets import load_target_spec
+from kinectdata.targets.specs import load_target_spec
 
 torch = pytest.importorskip("torch")
 from torch.utils.data import DataLoader, Dataset  # noqa: E402

@@ -11,17 +11,17 @@ from conftest import REPO, TINY_TRAINING
 
 torch = pytest.importorskip("torch")
 
-from kinectdata.align import align_files  # noqa: E402
-from kinectdata.audio import load_audio  # noqa: E402
-from kinectdata.errors import KinectDataError  # noqa: E402
+from kinectdata.align.audio import load_audio  # noqa: E402
+from kinectdata.align.recipe import align_files  # noqa: E402
+from kinectdata.core.errors import KinectDataError  # noqa: E402
+from kinectdata.evaluation.evaluate import evaluate, format_results  # noqa: E402
+from kinectdata.evaluation.metrics import motion_energy, smape  # noqa: E402
 from kinectdata.features.stft import PRESETS, StftConfig, stft_features  # noqa: E402
 from kinectdata.formats import read_motion  # noqa: E402
-from kinectdata.models.engines import onnxruntime_available  # noqa: E402
-from kinectdata.normalization import Normalizer  # noqa: E402
-from kinectdata.targets import TargetSpec  # noqa: E402
-from kinectdata.training.evaluate import evaluate, format_results  # noqa: E402
-from kinectdata.training.generate import generate  # noqa: E402
-from kinectdata.training.metrics import motion_energy, smape  # noqa: E402
+from kinectdata.inference.engines import onnxruntime_available  # noqa: E402
+from kinectdata.inference.generate import generate  # noqa: E402
+from kinectdata.targets.normalization import Normalizer  # noqa: E402
+from kinectdata.targets.specs import TargetSpec  # noqa: E402
 from kinectdata.training.run import TrainConfig, load_model  # noqa: E402
 
 SONG = REPO / "sample_data" / "synth_002.flac"
@@ -125,7 +125,7 @@ def test_evaluate_reports_timing_silence_and_figures(evaluation):
 def test_silence_test_measures_energy_inside_the_inserted_silence(trained_run):
     """A model that copies its input's loudness moves only with sound: its energy inside the
     silence is 0, outside it is not."""
-    from kinectdata.training.evaluate import silence_test
+    from kinectdata.evaluation.evaluate import silence_test
 
     run, _ = trained_run
     net, config = load_model(run)
@@ -242,7 +242,7 @@ def test_generate_refuses_audio_shorter_than_a_frame(trained_run, tmp_path):
 
 
 def test_exported_files_describe_themselves(trained_run, tmp_path):
-    from kinectdata.models.export import export_run
+    from kinectdata.inference.export import export_run
 
     run, _ = trained_run
     config = json.loads((run / "config.json").read_text())

@@ -22,12 +22,12 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
-from kinectdata.atomic import write_failure
 from kinectdata.cli import main
+from kinectdata.core.atomic import write_failure
+from kinectdata.core.errors import FormatError, SchemaError
 from kinectdata.dataset.prepare import WORK_FORMAT
 from kinectdata.dataset.shards import validate_shard
 from kinectdata.dataset.verify import verify_dataset
-from kinectdata.errors import FormatError, SchemaError
 
 BUILD_OPTIONS = ["--augment-snr", "5,10,20", "--shard-size", "3"]  # 9 variants in 4 shards: work to interrupt
 ONE_THREAD = {**os.environ, "OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}  # fast on shared cores, same sums

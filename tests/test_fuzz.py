@@ -4,7 +4,7 @@ Seeds are real files (``tests/data``, ``sample_data``) and files written here in
 mutations are the damage that disks, transfers and careless tools do: a cut, flipped or zeroed
 bytes, inserted bytes, a deleted, repeated or moved line, a number replaced by a huge one, NaN or
 text, random bytes, an empty file, the text saved as UTF-16. A reader must return a consistent
-Motion or raise :class:`~kinectdata.errors.KinectDataError` whose message names the file; any other
+Motion or raise :class:`~kinectdata.core.errors.KinectDataError` whose message names the file; any other
 exception fails, and so does an answer slower than :data:`HANG_S` seconds or a jump of the peak
 memory by more than :data:`MAX_GROWTH_MB`. Dataset shards (:func:`validate_shard`) and aligned
 recordings (:meth:`AlignedRecording.load`) get the same treatment, with damage to their HDF5
@@ -43,14 +43,14 @@ from test_ntu import make_body as ntu_body
 from test_ntu import skeleton_text
 from test_openpose import frame_doc, random_person, write_folder
 
-from kinectdata.aligned import AlignedRecording
+from kinectdata.align.aligned import AlignedRecording
+from kinectdata.core.errors import FormatError, KinectDataError
+from kinectdata.core.motion import Motion
 from kinectdata.dataset import shards
 from kinectdata.dataset.shards import json_attribute, read_index, validate_shard
-from kinectdata.errors import FormatError, KinectDataError
 from kinectdata.formats import read_motion
 from kinectdata.formats.csv_schema import shipped_csv_schemas
 from kinectdata.formats.csv_writer import write_csv
-from kinectdata.motion import Motion
 from kinectdata.oni import OniFile, OniWarning
 
 HANG_S = 20.0
@@ -105,7 +105,7 @@ def answer_or_clear_error(path: Path, read: Callable[[], Any]) -> Any:
 
 
 def check_motion(motion: Motion) -> None:
-    """What every Motion a reader returns promises (kinectdata/motion.py)."""
+    """What every Motion a reader returns promises (kinectdata/core/motion.py)."""
     assert isinstance(motion, Motion)
     assert motion.n_frames >= 1
     assert np.isfinite(motion.times).all() and motion.times[0] == 0.0

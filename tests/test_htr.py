@@ -7,7 +7,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from kinectdata.errors import FormatError
+from kinectdata.core.errors import FormatError
 from kinectdata.formats import detect_format, read_motion, readers
 from kinectdata.formats.htr import read_htr
 

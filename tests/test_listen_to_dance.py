@@ -11,17 +11,17 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
-from kinectdata.align import align_files
+from kinectdata.align.recipe import align_files
 from kinectdata.cli import main
+from kinectdata.core.errors import KinectDataError
+from kinectdata.core.jointsets import load_joint_set
 from kinectdata.dataset.build import build_dataset
 from kinectdata.dataset.inputs import read_recordings
 from kinectdata.dataset.pipelines import PIPELINES
 from kinectdata.dataset.prepare import BuildConfig
-from kinectdata.errors import KinectDataError
 from kinectdata.features import PRESETS, mel_features
 from kinectdata.formats import read_motion
-from kinectdata.jointsets import load_joint_set
-from kinectdata.targets import load_target_spec
+from kinectdata.targets.specs import load_target_spec
 
 torch = pytest.importorskip("torch")
 
@@ -261,7 +261,7 @@ def test_an_edited_keypoint_file_changes_the_build(sessions, tmp_path):
 def test_beats_come_from_the_ground_truth_also_for_aligned_recordings(sessions, tmp_path):
     """An aligned .h5 names the audio it came from; that audio's truth file gives the beats,
     shifted to the recording's first frame."""
-    from kinectdata.training.rhythm_eval import recording_beats
+    from kinectdata.evaluation.rhythm_eval import recording_beats
 
     aligned = tmp_path / "a.h5"
     rec = align_files(sessions / "dance_11_openpose", sessions / "dance_11.flac", aligned, video_fps=30.0)

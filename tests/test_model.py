@@ -9,7 +9,7 @@ import pytest
 
 torch = pytest.importorskip("torch")
 
-from kinectdata.models.export import INPUTS, export_onnx, export_torchscript  # noqa: E402
+from kinectdata.inference.export import INPUTS, export_onnx, export_torchscript  # noqa: E402
 from kinectdata.models.yalta import StreamingYalta, YaltaConfig, YaltaNet  # noqa: E402
 
 D = 65
@@ -173,7 +173,7 @@ def test_half_precision_weights_stay_close():
 def test_state_handed_to_another_engine_continues_the_stream():
     """Two engines, the second given the first's state and last pose half-way, equal one stream;
     reset() starts a stream afresh."""
-    from kinectdata.models.engines import TorchEngine
+    from kinectdata.inference.engines import TorchEngine
 
     net = make_net()
     audio, first = features(20).numpy(), np.zeros(D, np.float32)
@@ -199,7 +199,7 @@ def test_state_handed_to_another_engine_continues_the_stream():
 
 
 def test_onnx_runtime_engine_equals_the_torch_engine_and_resets():
-    from kinectdata.models.engines import OnnxRuntimeEngine, TorchEngine, onnxruntime_available
+    from kinectdata.inference.engines import OnnxRuntimeEngine, TorchEngine, onnxruntime_available
 
     if not onnxruntime_available():
         pytest.skip("onnxruntime and onnxscript not installed")

@@ -7,10 +7,10 @@ import json
 import numpy as np
 import pytest
 
-from kinectdata.errors import SchemaError
-from kinectdata.jointsets import find_joint_set, load_joint_set, shipped_joint_sets
-from kinectdata.motion import Motion
-from kinectdata.resources import schemas_dir
+from kinectdata.core.errors import SchemaError
+from kinectdata.core.jointsets import find_joint_set, load_joint_set, shipped_joint_sets
+from kinectdata.core.motion import Motion
+from kinectdata.core.resources import schemas_dir
 
 KINECT_V2_ORDER = [
     "SpineBase",

@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 from helpers import random_motion
 
-from kinectdata.normalization import Normalizer, NormStats, count_out_of_range
-from kinectdata.targets import extract_targets, load_target_spec
+from kinectdata.targets.normalization import Normalizer, NormStats, count_out_of_range
+from kinectdata.targets.specs import extract_targets, load_target_spec
 
 F9 = np.float32(0.9)
 

@@ -7,7 +7,7 @@ import re
 import numpy as np
 import pytest
 
-from kinectdata.errors import FormatError
+from kinectdata.core.errors import FormatError
 from kinectdata.formats import detect_format, read_motion
 from kinectdata.formats.ntu import read_ntu
 

@@ -5,9 +5,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from kinectdata.audio import Audio, resample, to_mono
-from kinectdata.errors import AlignmentError
-from kinectdata.offset import audio_claps, estimate_offset, motion_claps
+from kinectdata.align.audio import Audio, resample, to_mono
+from kinectdata.align.offset import audio_claps, estimate_offset, motion_claps
+from kinectdata.core.errors import AlignmentError
 from kinectdata.synth import synthesize_recording
 
 FRAME = 1 / 30
@@ -65,8 +65,8 @@ def test_max_offset_excludes_far_candidates():
 
 
 def test_motion_without_hand_roles_has_no_claps():
-    from kinectdata.jointsets import JointSet
-    from kinectdata.motion import Motion
+    from kinectdata.core.jointsets import JointSet
+    from kinectdata.core.motion import Motion
 
     js = JointSet.custom("bare", ["a", "b"])
     m = Motion(np.arange(10) / 30, np.zeros((10, 2, 3)), js)
@@ -75,8 +75,8 @@ def test_motion_without_hand_roles_has_no_claps():
 
 def _irregular_events_scene(offset, sr=16000, seed=0, t0=0.0):
     """Motion whose right foot kicks at irregular times, audio with a hit at the same times."""
-    from kinectdata.jointsets import load_joint_set
-    from kinectdata.motion import Motion
+    from kinectdata.core.jointsets import load_joint_set
+    from kinectdata.core.motion import Motion
 
     rng = np.random.default_rng(seed)
     events = np.sort(rng.uniform(2, 50, 25))

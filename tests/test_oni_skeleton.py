@@ -10,7 +10,7 @@ from conftest import DATA
 from scipy.spatial.transform import Rotation
 
 from kinectdata.cli import main
-from kinectdata.errors import KinectDataError
+from kinectdata.core.errors import KinectDataError
 from kinectdata.formats import read_motion
 from kinectdata.formats.csv_writer import write_csv
 from kinectdata.oni.skeleton import TrackedFrame, find_nite, nite_motion, oni_timeline, retime
@@ -109,7 +109,7 @@ def test_align_with_an_oni_timeline(tmp_path):
     result = CliRunner().invoke(main, [*args, "--timeline", str(ONI)])
     assert result.exit_code == 0, result.output
     assert "30.30 fps (median)" in result.output  # the .oni's 33 ms steps, not the CSV's 40 ms
-    from kinectdata.aligned import AlignedRecording
+    from kinectdata.align.aligned import AlignedRecording
 
     rec = AlignedRecording.load(out, audio=False)
     assert rec.n_frames == 28 and rec.provenance["options"]["timeline"] == str(ONI)

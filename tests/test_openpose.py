@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from kinectdata.errors import FormatError
+from kinectdata.core.errors import FormatError
 from kinectdata.formats import detect_format, read_motion
 from kinectdata.formats.openpose import LAYOUTS, read_openpose, to_mpi15
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from conftest import REPO
 
-from kinectdata.resources import schemas_dir, shipped_names
+from kinectdata.core.resources import schemas_dir, shipped_names
 
 
 def test_every_folder_of_python_modules_is_a_package():

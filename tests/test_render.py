@@ -13,13 +13,13 @@ from conftest import REPO
 from PIL import Image
 from scipy import ndimage
 
-from kinectdata import render
-from kinectdata.aligned import AlignedRecording
+from kinectdata.align.aligned import AlignedRecording
 from kinectdata.cli import main
-from kinectdata.errors import KinectDataError
+from kinectdata.core.errors import KinectDataError
+from kinectdata.core.jointsets import load_joint_set
+from kinectdata.core.motion import Motion
 from kinectdata.formats.csv_writer import write_csv
-from kinectdata.jointsets import load_joint_set
-from kinectdata.motion import Motion
+from kinectdata.viz import render
 
 imageio_ffmpeg = pytest.importorskip("imageio_ffmpeg")
 SAMPLE_CSV = REPO / "sample_data" / "synth_001.csv"

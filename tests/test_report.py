@@ -21,13 +21,13 @@ from click.testing import CliRunner
 from conftest import REPO
 
 from kinectdata.cli import main
+from kinectdata.core.errors import KinectDataError
 from kinectdata.dataset.build import build_dataset
 from kinectdata.dataset.prepare import BuildConfig
-from kinectdata.errors import KinectDataError
 from kinectdata.features.stft import PRESETS
-from kinectdata.plots import block_extremes
-from kinectdata.report import masked_spans, write_report
-from kinectdata.targets import load_target_spec
+from kinectdata.targets.specs import load_target_spec
+from kinectdata.viz.plots import block_extremes
+from kinectdata.viz.report import masked_spans, write_report
 
 HAND_LEFT, SPINE_BASE = 7, 0  # Kinect v2 JointType indices (the CSV's jointType column)
 TRUTH_OFFSET_001 = json.loads((REPO / "sample_data" / "synth_001.truth.json").read_text())["offset_s"]
@@ -321,7 +321,7 @@ def test_bad_input_names_the_path_and_writes_nothing(sample_dataset, tmp_path):
 
 
 def test_an_aligned_input_gives_its_own_interpolation_flags_and_a_residual_offset_near_zero(tmp_path):
-    from kinectdata.align import align_files
+    from kinectdata.align.recipe import align_files
 
     folder = tmp_path / "aligned"
     samples = REPO / "sample_data"

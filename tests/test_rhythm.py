@@ -9,9 +9,8 @@ import sys
 import numpy as np
 import pytest
 
-from kinectdata.errors import KinectDataError
-from kinectdata.plots import rhythm_plot
-from kinectdata.rhythm import (
+from kinectdata.core.errors import KinectDataError
+from kinectdata.evaluation.rhythm import (
     autocorrelation_peaks,
     beat_align_score,
     beat_alignment_report,
@@ -22,6 +21,7 @@ from kinectdata.rhythm import (
     rhythm_report,
     trajectory_autocorrelation,
 )
+from kinectdata.viz.plots import rhythm_plot
 
 FPS = 30.0
 

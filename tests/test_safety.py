@@ -12,8 +12,8 @@ from click.testing import CliRunner
 from conftest import REPO, TINY_TRAINING
 
 from kinectdata.cli import main
+from kinectdata.core.errors import KinectDataError, SchemaError
 from kinectdata.dataset.inputs import read_recordings
-from kinectdata.errors import KinectDataError, SchemaError
 
 SAMPLES = REPO / "sample_data"
 PACKAGE = REPO / "kinectdata"

@@ -240,7 +240,7 @@ def test_deterministic_from_the_seed(rec, video):
 def test_rejects_what_it_cannot_use(rec):
     from dataclasses import replace
 
-    from kinectdata.errors import KinectDataError
+    from kinectdata.core.errors import KinectDataError
 
     with pytest.raises(KinectDataError, match="video_fps"):
         synthesize_openpose(rec, video_fps=0.0)

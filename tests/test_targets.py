@@ -8,10 +8,10 @@ import numpy as np
 import pytest
 from helpers import YALTA_ORIENTATIONS, YALTA_POSITIONS
 
-from kinectdata.errors import KinectDataError, SchemaError
-from kinectdata.jointsets import load_joint_set
-from kinectdata.motion import Motion
-from kinectdata.targets import TargetSpec, extract_targets, load_target_spec, shipped_target_specs
+from kinectdata.core.errors import KinectDataError, SchemaError
+from kinectdata.core.jointsets import load_joint_set
+from kinectdata.core.motion import Motion
+from kinectdata.targets.specs import TargetSpec, extract_targets, load_target_spec, shipped_target_specs
 
 
 def z_rotation(angle: np.ndarray) -> np.ndarray:

@@ -6,10 +6,10 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation, Slerp
 
-from kinectdata.jointsets import load_joint_set
-from kinectdata.motion import Motion
-from kinectdata.quaternions import make_continuous, split_missing_and_normalise, wxyz_to_xyzw, xyzw_to_wxyz
-from kinectdata.timeline import resample_motion
+from kinectdata.align.timeline import resample_motion
+from kinectdata.core.jointsets import load_joint_set
+from kinectdata.core.motion import Motion
+from kinectdata.core.quaternions import make_continuous, split_missing_and_normalise, wxyz_to_xyzw, xyzw_to_wxyz
 
 NITE = load_joint_set("nite")
 
@@ -149,7 +149,7 @@ def test_edge_gaps_are_marked_and_filled_values_are_at_most_inferred():
 
 
 def test_slerp_matches_scipy_including_nearly_equal_rotations():
-    from kinectdata.quaternions import slerp
+    from kinectdata.core.quaternions import slerp
 
     rng = np.random.default_rng(5)
     q0 = Rotation.random(200, random_state=1).as_quat()
@@ -164,7 +164,7 @@ def test_slerp_matches_scipy_including_nearly_equal_rotations():
 
 
 def test_average_quaternion_matches_scipy_mean_whatever_the_signs():
-    from kinectdata.quaternions import average_quaternion, scatter
+    from kinectdata.core.quaternions import average_quaternion, scatter
 
     rng = np.random.default_rng(4)
     centres = Rotation.random(3, random_state=4)

@@ -14,7 +14,7 @@ from conftest import TINY_TRAINING
 
 torch = pytest.importorskip("torch")
 
-from kinectdata.errors import KinectDataError  # noqa: E402
+from kinectdata.core.errors import KinectDataError  # noqa: E402
 from kinectdata.training.run import TrainConfig, load_checkpoint, load_model  # noqa: E402
 from kinectdata.training.train import LOG_FIELDS, _add_gradient_noise, train  # noqa: E402
 

@@ -17,7 +17,7 @@ from typing import Any
 import numpy as np
 import soundfile as sf
 
-from ..errors import KinectDataError
+from kinectdata.core.errors import KinectDataError
 
 
 def _sounddevice():

@@ -23,7 +23,7 @@ import numpy as np
 def run(settings: dict[str, Any]) -> dict[str, Any]:
     from openni import openni2
 
-    from ..oni.skeleton import tracked_users
+    from kinectdata.oni.skeleton import tracked_users
 
     status: dict[str, Any] = {"frames": [], "skeleton": None, "skeleton_problem": None}
     openni2.initialize(settings["openni2_dir"])

@@ -35,11 +35,11 @@ from typing import Any
 
 import numpy as np
 
-from ..atomic import atomic_output
-from ..errors import KinectDataError
-from ..oni.reader import OniFile, OniWarning
-from ..oni.skeleton import TrackedFrame, find_nite, nite_motion, openni2_dir
-from .audio import AudioCapture
+from kinectdata.capture.audio import AudioCapture
+from kinectdata.core.atomic import atomic_output
+from kinectdata.core.errors import KinectDataError
+from kinectdata.oni.reader import OniFile, OniWarning
+from kinectdata.oni.skeleton import TrackedFrame, find_nite, nite_motion, openni2_dir
 
 TAKE = "take.json"
 ONI, CSV, WAV = "take.oni", "take.csv", "take.wav"
@@ -223,7 +223,7 @@ def _run_session(take: Path, device, duration_s, color, lossy, nite_folder) -> d
 def _write_skeleton(take: Path, tracked: list, shift_us: float) -> dict[str, Any]:
     """take.csv from the live tracker's frames, whose device timestamps minus ``shift_us`` are
     the .oni's."""
-    from ..formats.csv_writer import write_csv
+    from kinectdata.formats.csv_writer import write_csv
 
     frames = [
         TrackedFrame(int(round(t - shift_us)), int(i), {int(u): np.array(j) for u, j in users.items()})
@@ -258,10 +258,10 @@ def align_take(take_dir: str | os.PathLike, out: str | os.PathLike | None = None
 
     The skeleton is ``take.json``'s, or a ``take.csv`` made later (``kinectdata oni skeleton
     TAKE/take.oni -o TAKE/take.csv``); its times are the ``.oni``'s, so its time 0 is the ``.oni``
-    time of its first frame. Other options go to :func:`kinectdata.align.align_files`.
+    time of its first frame. Other options go to :func:`kinectdata.align.recipe.align_files`.
     """
-    from ..align import align_files
-    from ..formats import read_motion
+    from kinectdata.align.recipe import align_files
+    from kinectdata.formats import read_motion
 
     take = Path(take_dir)
     if options.get("timeline") is not None:

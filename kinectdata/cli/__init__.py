@@ -1,6 +1,6 @@
 """The ``kinectdata`` command line: thin click commands over the library.
 
-Every command turns a :class:`~kinectdata.errors.KinectDataError` into a one-line message on
+Every command turns a :class:`~kinectdata.core.errors.KinectDataError` into a one-line message on
 standard error and exit status 1; click's own usage errors exit with 2.
 """
 
@@ -8,8 +8,8 @@ from __future__ import annotations
 
 import click
 
-from .. import __version__
-from ..errors import KinectDataError
+from kinectdata.core.errors import KinectDataError
+from kinectdata.core.version import __version__
 
 
 class _Group(click.Group):

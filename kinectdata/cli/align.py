@@ -4,9 +4,9 @@ from __future__ import annotations
 
 import click
 
-from ..align import DEFAULT_FPS, DEFAULT_MAX_GAP, DEFAULT_MIN_COVERAGE, align_files, format_summary
-from ..audio import DEFAULT_SAMPLE_RATE
-from .options import reader_options
+from kinectdata.align.audio import DEFAULT_SAMPLE_RATE
+from kinectdata.align.recipe import DEFAULT_FPS, DEFAULT_MAX_GAP, DEFAULT_MIN_COVERAGE, align_files, format_summary
+from kinectdata.cli.options import reader_options
 
 
 class OffsetType(click.ParamType):
@@ -122,7 +122,7 @@ def align(
     RECORDING may be a take folder written by `kinectdata capture` (no AUDIO then): its skeleton
     and audio are aligned with the offset from the take's clock stamps.
     """
-    from ..capture.take import align_take, is_take
+    from kinectdata.capture.take import align_take, is_take
 
     common = {
         "format": format_,

@@ -38,7 +38,7 @@ def capture(
         return
     if out is None:
         raise click.UsageError("give the take folder with -o/--out")
-    from ..capture.take import capture_take
+    from kinectdata.capture.take import capture_take
 
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
@@ -71,12 +71,12 @@ def capture(
 
 
 def _list() -> None:
-    from ..errors import KinectDataError
+    from kinectdata.core.errors import KinectDataError
 
     try:
         from openni import openni2
 
-        from ..oni.skeleton import openni2_dir
+        from kinectdata.oni.skeleton import openni2_dir
 
         openni2.initialize(str(openni2_dir()))
         uris = [uri.decode("latin-1") for uri in openni2.Device.enumerate_uris()]
@@ -87,7 +87,7 @@ def _list() -> None:
     except (ImportError, KinectDataError) as exc:
         click.echo(f"OpenNI2 devices: {exc}")
     try:
-        from ..capture.audio import input_devices
+        from kinectdata.capture.audio import input_devices
 
         for d in input_devices():
             click.echo(f"audio input {d['index']}: {d['name']} ({d['channels']} channels, {d['sample_rate']:g} Hz)")

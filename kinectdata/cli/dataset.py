@@ -5,13 +5,13 @@ from __future__ import annotations
 import click
 from tqdm import tqdm
 
-from ..dataset.build import build_dataset
-from ..dataset.executors import EXECUTORS, make_executor
-from ..dataset.inspect import inspect as inspect_report
-from ..dataset.pipelines import PIPELINES
-from ..dataset.prepare import BuildConfig
-from ..features import PRESETS, StftConfig
-from ..targets import load_target_spec, shipped_target_specs
+from kinectdata.dataset.build import build_dataset
+from kinectdata.dataset.executors import EXECUTORS, make_executor
+from kinectdata.dataset.inspect import inspect as inspect_report
+from kinectdata.dataset.pipelines import PIPELINES
+from kinectdata.dataset.prepare import BuildConfig
+from kinectdata.features import PRESETS, StftConfig
+from kinectdata.targets.specs import load_target_spec, shipped_target_specs
 
 
 def _floats(ctx, param, value: str | None) -> tuple[float, ...]:

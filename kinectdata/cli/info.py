@@ -5,10 +5,10 @@ from __future__ import annotations
 import click
 import numpy as np
 
-from ..formats import read_motion, readers
-from ..formats.csv_schema import load_csv_schema, shipped_csv_schemas
-from ..jointsets import load_joint_set, shipped_joint_sets
-from .options import reader_options
+from kinectdata.cli.options import reader_options
+from kinectdata.core.jointsets import load_joint_set, shipped_joint_sets
+from kinectdata.formats import read_motion, readers
+from kinectdata.formats.csv_schema import load_csv_schema, shipped_csv_schemas
 
 
 @click.command()

@@ -20,7 +20,7 @@ def info_command(file, as_json) -> None:
     nominal and measured fps, dropped frames and gaps, and whether the file is cut short."""
     import warnings
 
-    from ..oni.export import describe, format_description
+    from kinectdata.oni.export import describe, format_description
 
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # the problems are printed below
@@ -44,7 +44,7 @@ def export_command(file, stream, out, start, end, compression) -> None:
 
     from tqdm import tqdm
 
-    from ..oni.export import export_stream
+    from kinectdata.oni.export import export_stream
 
     with tqdm(unit="frame", desc="decoding", disable=None) as bar, warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
@@ -79,8 +79,8 @@ def skeleton_command(file, out, nite_dir, user) -> None:
     its times the recording's own depth timestamps in seconds."""
     from tqdm import tqdm
 
-    from ..formats.csv_writer import write_csv
-    from ..oni.skeleton import track_skeleton
+    from kinectdata.formats.csv_writer import write_csv
+    from kinectdata.oni.skeleton import track_skeleton
 
     with tqdm(unit="frame", desc="tracking", disable=None) as bar:
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import click
 
-from ..formats import readers
+from kinectdata.formats import readers
 
 
 def reader_options(f):

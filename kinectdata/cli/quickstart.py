@@ -33,7 +33,10 @@ def quickstart(out, samples, pipeline, epochs, units) -> None:
     ground truth), build and inspect a dataset, train the reference network briefly, evaluate
     it (SMAPE, forward time, plots, silence test) and generate motion for a test song. With
     --pipeline listen-to-dance: the same for OpenPose poses and the CDHC model."""
-    from ..quickstart import run_listen_quickstart, run_quickstart  # imports the synthesiser, slow to load
+    from kinectdata.apps.quickstart import (  # imports the synthesiser, slow to load
+        run_listen_quickstart,
+        run_quickstart,
+    )
 
     if pipeline == "listen-to-dance":
         if samples is not None:

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import click
 
-from .options import reader_options
+from kinectdata.cli.options import reader_options
 
 
 class SizeType(click.ParamType):
@@ -78,7 +78,7 @@ def render(motion, out, audio, compare, start, end, fps, size, format_, schema, 
     MOTION, the other reader options to MOTION and OTHER where their format takes them."""
     from tqdm import tqdm
 
-    from ..render import load_inputs, render_animation
+    from kinectdata.viz.render import load_inputs, render_animation
 
     paths = [motion] if compare is None else [motion, compare]
     with_audio = out.lower().endswith(".mp4") and audio is None

@@ -5,7 +5,7 @@ from __future__ import annotations
 import click
 from tqdm import tqdm
 
-from ..report import write_report
+from kinectdata.viz.report import write_report
 
 
 @click.command("report")

@@ -107,7 +107,7 @@ def synth(
     With --format openpose, <name>_openpose/ replaces the CSV file: one OpenPose --write_json file
     per video frame (BODY_25 keypoints in pixels of a 1920x1080 colour camera, with detection noise,
     missed keypoints and a passer-by); the truth file adds an "openpose" section."""
-    from ..synth import synthesize_recording, write_openpose_recording, write_recording  # slow imports
+    from kinectdata.synth import synthesize_recording, write_openpose_recording, write_recording  # slow imports
 
     if name is not None and count > 1:
         raise click.UsageError("--name applies to a single session; with --count the names are synth_<seed>")

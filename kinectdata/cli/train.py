@@ -9,7 +9,7 @@ import dataclasses
 
 import click
 
-from ..errors import KinectDataError
+from kinectdata.core.errors import KinectDataError
 
 
 def _torch_or_fail() -> None:
@@ -139,8 +139,8 @@ def train_options(f):
 def make_train_config(model: str | None, data: str | None = None, **settings):
     """The TrainConfig of the typed settings over the model's defaults; the model defaults to the
     dataset's (read from ``data``'s manifest)."""
-    from ..models.registry import model_for_features
-    from ..training.run import TrainConfig, read_manifest
+    from kinectdata.models.registry import model_for_features
+    from kinectdata.training.run import TrainConfig, read_manifest
 
     if model is None:
         model = "yalta" if data is None else model_for_features(read_manifest(data)["config"]["features"])
@@ -171,17 +171,17 @@ def train_baseline(data, out, resume, **options) -> None:
     and at the end model.pt (and for yalta stream.ts, TorchScript of the streaming network). With
     --resume the run's own settings are used; --epochs (to train longer) and --device may be given."""
     _torch_or_fail()
-    from ..training.train import train
+    from kinectdata.training.train import train
 
     if resume:  # the run's settings, with what was typed on the command line checked against them
-        from ..training.run import TrainConfig, read_config
+        from kinectdata.training.run import TrainConfig, read_config
 
         typed = {k: v for k, v in options.items() if v is not None}
         config = dataclasses.replace(TrainConfig(**read_config(out)["train"]), **typed)
     else:
         config = make_train_config(data=data, **options)
     history = train(data, out, config, resume=resume, progress=lambda r: click.echo(_row(r)))
-    from ..training.distributed import World
+    from kinectdata.training.distributed import World
 
     if World.from_environment().main:  # under torchrun, one line from rank 0
         files = "log.csv, loss.png, model.pt" + (", stream.ts" if config.model == "yalta" else "")
@@ -204,7 +204,7 @@ def evaluate_command(run_dir, data, split, out, silence) -> None:
     """Score a run as the paper does: SMAPE (%) free-running without and with reset, on normalised
     and denormalised values; per-frame forward time; generated-against-real plots; the silence test."""
     _torch_or_fail()
-    from ..training.evaluate import evaluate, format_results
+    from kinectdata.evaluation.evaluate import evaluate, format_results
 
     results = evaluate(run_dir, data, split, out=out, silence_seconds=silence)
     click.echo(format_results(results))
@@ -239,7 +239,7 @@ def generate_command(run_dir, audio, out, engine, precision) -> None:
     write it: a yalta run's (metres, unit quaternions) as the canonical CSV that align reads, a cdhc
     run's (x, y in 0..1, y down) as OpenPose JSON Lines that the openpose reader reads."""
     _torch_or_fail()
-    from ..training.generate import generate
+    from kinectdata.inference.generate import generate
 
     motion, timing = generate(run_dir, audio, out, engine=engine, precision=precision)
     click.echo(
@@ -274,7 +274,7 @@ def export_command(run_dir, out, fmt, precision) -> None:
     sample rate, feature settings, target components, normalisation and the start pose.
     ONNX needs pip install 'kinectdata[export]'."""
     _torch_or_fail()
-    from ..models.export import export_run
+    from kinectdata.inference.export import export_run
 
     path = export_run(run_dir, out, fmt, precision)
     click.echo(f"wrote {path}")
@@ -289,9 +289,9 @@ def sweep_command(data, out, only, **options) -> None:
     """Train and evaluate the variants of the paper's Tables 3-5 (TanH/ReLU/ELU, 250/1000 units,
     50/100 steps) and write OUT/results.md with the paper's columns beside its figures."""
     _torch_or_fail()
-    from ..models.registry import model_for_features
-    from ..training.run import read_manifest
-    from ..training.sweep import sweep
+    from kinectdata.models.registry import model_for_features
+    from kinectdata.training.run import read_manifest
+    from kinectdata.training.sweep import sweep
 
     dataset_model = model_for_features(read_manifest(data)["config"]["features"])
     if options["model"] not in (None, "yalta") or dataset_model != "yalta":

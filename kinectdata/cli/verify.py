@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import click
 
-from ..dataset.verify import read_manifest, verify_dataset
+from kinectdata.dataset.verify import read_manifest, verify_dataset
 
 
 @click.command("verify")

@@ -33,18 +33,18 @@ from typing import Any
 import h5py
 import numpy as np
 
-from .. import __version__
-from ..align import file_sha256
-from ..atomic import atomic_output, remove
-from ..errors import KinectDataError
-from ..normalization import Normalizer, NormStats, count_out_of_range
-from ..skeleton import merge_bone_offsets
-from ..targets import TargetSpec
-from .executors import Executor, LocalExecutor
-from .hemispheres import apply_flips, flipped_columns, reference_orientations, track_flips
-from .inputs import SPLITS, RecordingEntry, assign_splits, read_recordings
-from .prepare import BuildConfig, Unit, prepare_recording, source_hashes
-from .shards import ShardRecording, row_bytes, write_shard
+from kinectdata.align.recipe import file_sha256
+from kinectdata.core.atomic import atomic_output, remove
+from kinectdata.core.errors import KinectDataError
+from kinectdata.core.version import __version__
+from kinectdata.dataset.executors import Executor, LocalExecutor
+from kinectdata.dataset.inputs import SPLITS, RecordingEntry, assign_splits, read_recordings
+from kinectdata.dataset.prepare import BuildConfig, Unit, prepare_recording, source_hashes
+from kinectdata.dataset.shards import ShardRecording, row_bytes, write_shard
+from kinectdata.targets.hemispheres import apply_flips, flipped_columns, reference_orientations, track_flips
+from kinectdata.targets.normalization import Normalizer, NormStats, count_out_of_range
+from kinectdata.targets.skeleton import merge_bone_offsets
+from kinectdata.targets.specs import TargetSpec
 
 MANIFEST = "manifest.json"
 _SHARD_NAME = re.compile(r"(train|val|test)-\d{5}\.h5")

@@ -21,7 +21,7 @@ from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
 from typing import Any
 
-from ..errors import KinectDataError
+from kinectdata.core.errors import KinectDataError
 
 Progress = Callable[[int, int], None] | None
 

@@ -21,9 +21,9 @@ from typing import Any
 
 import numpy as np
 
-from ..collection import find_sessions
-from ..errors import KinectDataError, SchemaError
-from ..resources import validate
+from kinectdata.core.errors import KinectDataError, SchemaError
+from kinectdata.core.resources import validate
+from kinectdata.dataset.collection import find_sessions
 
 SPLITS = ("train", "val", "test")
 
@@ -49,7 +49,7 @@ class RecordingEntry:
 
     def read_motion(self):
         """The skeleton recording, read with this entry's reading options (not for aligned files)."""
-        from ..formats import read_motion
+        from kinectdata.formats import read_motion
 
         return read_motion(
             self.recording,
@@ -77,7 +77,7 @@ def _is_aligned_file(path: Path) -> bool:
 
     try:
         with h5py.File(path, "r") as f:
-            return f.attrs.get("format") == "kinectdata.aligned"
+            return f.attrs.get("format") == "kinectdata.align.aligned"
     except OSError:
         return False
 
@@ -184,7 +184,7 @@ def _is_openpose(entry: RecordingEntry) -> bool:
         return False
     if entry.format is not None:
         return entry.format == "openpose"
-    from ..formats import detect_format
+    from kinectdata.formats import detect_format
 
     try:
         return detect_format(entry.recording) == "openpose"

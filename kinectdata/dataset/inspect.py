@@ -18,9 +18,9 @@ from typing import Any
 import h5py
 import numpy as np
 
-from ..normalization import Normalizer, count_out_of_range
-from .shards import json_attribute, read_index, validate_shard
-from .verify import verified_manifest
+from kinectdata.dataset.shards import json_attribute, read_index, validate_shard
+from kinectdata.dataset.verify import verified_manifest
+from kinectdata.targets.normalization import Normalizer, count_out_of_range
 
 _ROWS = 4096  # rows read at a time
 
@@ -122,7 +122,7 @@ def _report(name: str, st: _SplitStats, components: list[str], limit: int | None
 
 
 def _components(spec: dict[str, Any]) -> list[str]:
-    from ..targets import TargetSpec
+    from kinectdata.targets.specs import TargetSpec
 
     return TargetSpec.from_dict(spec).component_names()
 

@@ -25,19 +25,19 @@ from typing import Any
 import h5py
 import numpy as np
 
-from ..align import file_sha256, plan_timeline, resample_onto, resolve_offset, summarize
-from ..aligned import AlignedRecording, audio_blocks
-from ..atomic import atomic_hdf5, write_failure
-from ..audio import AudioReader
-from ..envelopes import audio_envelopes
-from ..errors import KinectDataError
-from ..features import FeatureConfig, feature_config
-from ..features.streaming import StreamingFeatures
-from ..normalization import METHODS, NormStats
-from ..skeleton import bone_offsets
-from ..targets import TargetSpec, extract_targets
-from .hemispheres import orientation_stats
-from .inputs import RecordingEntry
+from kinectdata.align.aligned import AlignedRecording, audio_blocks
+from kinectdata.align.audio import AudioReader
+from kinectdata.align.envelopes import audio_envelopes
+from kinectdata.align.recipe import file_sha256, plan_timeline, resample_onto, resolve_offset, summarize
+from kinectdata.core.atomic import atomic_hdf5, write_failure
+from kinectdata.core.errors import KinectDataError
+from kinectdata.dataset.inputs import RecordingEntry
+from kinectdata.features import FeatureConfig, feature_config
+from kinectdata.features.streaming import StreamingFeatures
+from kinectdata.targets.hemispheres import orientation_stats
+from kinectdata.targets.normalization import METHODS, NormStats
+from kinectdata.targets.skeleton import bone_offsets
+from kinectdata.targets.specs import TargetSpec, extract_targets
 
 WORK_FORMAT = "kinectdata.work.3"  # 2: units carry orientation statistics; 3: and bone offsets
 _BLOCK = 160_000  # samples per block when streaming in-memory audio (10 s at 16 kHz)
@@ -60,7 +60,7 @@ class BuildConfig:
         augment_snr: SNRs in dB of the noisy copies added to the training split (none: no copies).
         shard_size_mb: a new shard starts before one would exceed this (uncompressed MB).
         compression: None, "gzip" or "lzf" for the shard datasets.
-        max_gap, min_coverage: alignment options (see :func:`kinectdata.align.align`).
+        max_gap, min_coverage: alignment options (see :func:`kinectdata.align.recipe.align`).
     """
 
     features: dict[str, Any]
@@ -132,7 +132,7 @@ class Unit:
     stats: dict[str, Any]
     orientations: dict[str, Any]  # hemispheres.orientation_stats of the targets
     info: dict[str, Any] = field(default_factory=dict)
-    skeleton: dict[str, Any] = field(default_factory=dict)  # kinectdata.skeleton.bone_offsets of the motion
+    skeleton: dict[str, Any] = field(default_factory=dict)  # kinectdata.targets.skeleton.bone_offsets of the motion
 
     def to_dict(self) -> dict[str, Any]:
         return asdict(self)

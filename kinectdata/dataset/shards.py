@@ -20,12 +20,12 @@ from typing import Any
 import h5py
 import numpy as np
 
-from .. import __version__
-from ..atomic import atomic_hdf5
-from ..errors import FormatError, KinectDataError
-from ..features import feature_config
-from ..resources import load_json, schemas_dir
-from ..targets import TargetSpec
+from kinectdata.core.atomic import atomic_hdf5
+from kinectdata.core.errors import FormatError, KinectDataError
+from kinectdata.core.resources import load_json, schemas_dir
+from kinectdata.core.version import __version__
+from kinectdata.features import feature_config
+from kinectdata.targets.specs import TargetSpec
 
 FORMAT = "kinectdata.shard"
 FORMAT_VERSION = 1
@@ -173,7 +173,7 @@ _CHILD = """
 import json, sys
 sys.path.insert(0, sys.argv[1])
 from kinectdata.dataset.shards import validate_shard
-from kinectdata.errors import FormatError
+from kinectdata.core.errors import FormatError
 try:
     print(json.dumps({"sizes": validate_shard(sys.argv[2], isolated=False)}))
 except FormatError as exc:

@@ -11,8 +11,8 @@ What is checked:
   manifest lists for it.
 
 When the manifest is missing, unreadable or breaks its schema, the files named like shards are
-still checked against the layout. Each problem is a :class:`~kinectdata.errors.FormatError` or
-:class:`~kinectdata.errors.SchemaError` naming the file it lies in.
+still checked against the layout. Each problem is a :class:`~kinectdata.core.errors.FormatError` or
+:class:`~kinectdata.core.errors.SchemaError` naming the file it lies in.
 """
 
 from __future__ import annotations
@@ -23,12 +23,12 @@ from typing import Any
 
 import h5py
 
-from ..align import file_sha256
-from ..errors import FormatError, InputError, SchemaError
-from ..resources import load_json, schemas_dir
-from .build import _SHARD_NAME, MANIFEST
-from .inputs import SPLITS
-from .shards import json_attribute, read_index, validate_shard
+from kinectdata.align.recipe import file_sha256
+from kinectdata.core.errors import FormatError, InputError, SchemaError
+from kinectdata.core.resources import load_json, schemas_dir
+from kinectdata.dataset.build import _SHARD_NAME, MANIFEST
+from kinectdata.dataset.inputs import SPLITS
+from kinectdata.dataset.shards import json_attribute, read_index, validate_shard
 
 MANIFEST_SCHEMA = "dataset-manifest.schema.json"
 

@@ -21,8 +21,8 @@ import h5py
 import torch
 from torch.utils.data import Dataset
 
-from ..errors import KinectDataError
-from .build import MANIFEST
+from kinectdata.core.errors import KinectDataError
+from kinectdata.dataset.build import MANIFEST
 
 
 class WindowDataset(Dataset):

@@ -1,6 +1,6 @@
 """Per-frame features of streamed audio: blocks in, frame features out as soon as they are complete.
 
-The dataset builder and ``generate`` read audio in blocks (:class:`~kinectdata.audio.AudioReader`);
+The dataset builder and ``generate`` read audio in blocks (:class:`~kinectdata.align.audio.AudioReader`);
 :class:`StreamingFeatures` holds only the samples that frames still need, so memory stays
 bounded, and its output equals the extractor's (:func:`~kinectdata.features.compute_features`) on
 the whole audio.

@@ -1,11 +1,12 @@
 """Skeleton recording formats, one module each, registered by name (see :mod:`.registry`)."""
 
 # Importing the format modules registers their readers.
+from kinectdata.formats.registry import Reader, detect_format, read_motion, readers, register_reader
+
 from . import azure_json as _azure_json  # noqa: F401
 from . import csv as _csv  # noqa: F401
 from . import htr as _htr  # noqa: F401
 from . import ntu as _ntu  # noqa: F401
 from . import openpose as _openpose  # noqa: F401
-from .registry import Reader, detect_format, read_motion, readers, register_reader
 
 __all__ = ["Reader", "detect_format", "read_motion", "readers", "register_reader"]

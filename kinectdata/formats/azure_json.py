@@ -6,7 +6,7 @@ joint names) and ``frames``; each frame has ``timestamp_usec`` (device microseco
 per joint) and ``joint_orientations`` ([w, x, y, z] per joint). The tool writes its keys in
 alphabetical order, so ``bone_list`` and ``frames`` come first and the version last.
 
-Mapping to :class:`~kinectdata.motion.Motion`:
+Mapping to :class:`~kinectdata.core.motion.Motion`:
 
 - joints are the file's ``joint_names``: the shipped ``azure_kinect`` set when they are its 32
   names in order (aliases such as SPINE_NAVAL allowed), else a custom set whose hierarchy comes
@@ -34,12 +34,12 @@ from typing import Any
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from ..errors import FormatError
-from ..jointsets import JointSet, load_joint_set
-from ..motion import Motion
-from ..quaternions import split_missing_and_normalise, wxyz_to_xyzw
-from .common import choose_body, count_bodies, first_bad_time, read_text
-from .registry import register_reader
+from kinectdata.core.errors import FormatError
+from kinectdata.core.jointsets import JointSet, load_joint_set
+from kinectdata.core.motion import Motion
+from kinectdata.core.quaternions import split_missing_and_normalise, wxyz_to_xyzw
+from kinectdata.formats.common import choose_body, count_bodies, first_bad_time, read_text
+from kinectdata.formats.registry import register_reader
 
 
 def _sniff(path: Path, head: bytes) -> bool:

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import FormatError
+from kinectdata.core.errors import FormatError
 
 
 def read_text(path: Path, *, fallback_encoding: str | None = "cp1252") -> str:

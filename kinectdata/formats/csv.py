@@ -4,7 +4,7 @@ Reading: the dialect is the ``schema`` given (a shipped name or a schema file) o
 given, the one shipped schema that recognises the file (by its signature line, header or field
 count). Every cell that must be a number is checked; a bad cell, a row with the wrong number of
 fields, time going backwards, a repeated timestamp or joint, an unknown joint name or a missing
-column raises :class:`~kinectdata.errors.FormatError` naming the file, line and column.
+column raises :class:`~kinectdata.core.errors.FormatError` naming the file, line and column.
 
 Writing is :mod:`.csv_writer`, over the same schemas.
 """
@@ -22,13 +22,13 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from ..errors import FormatError, KinectDataError
-from ..jointsets import JointSet, find_joint_set, load_joint_set, shipped_joint_sets
-from ..motion import Motion
-from ..quaternions import reorder, split_missing_and_normalise
-from .common import choose_body, count_bodies, first_bad_time, read_text
-from .csv_schema import JOINT, CsvSchema, joint_set_of, load_csv_schema, shipped_csv_schemas
-from .registry import register_reader
+from kinectdata.core.errors import FormatError, KinectDataError
+from kinectdata.core.jointsets import JointSet, find_joint_set, load_joint_set, shipped_joint_sets
+from kinectdata.core.motion import Motion
+from kinectdata.core.quaternions import reorder, split_missing_and_normalise
+from kinectdata.formats.common import choose_body, count_bodies, first_bad_time, read_text
+from kinectdata.formats.csv_schema import JOINT, CsvSchema, joint_set_of, load_csv_schema, shipped_csv_schemas
+from kinectdata.formats.registry import register_reader
 
 _META_LINE = re.compile(r"^\s*([A-Za-z_][\w.-]*)\s*:\s*(.*?)\s*$")
 _DETECT_LINES = 64
@@ -752,7 +752,7 @@ def read_csv_motion(
             default the body present in the most frames.
 
     Returns:
-        A :class:`~kinectdata.motion.Motion` with times in seconds from the first frame.
+        A :class:`~kinectdata.core.motion.Motion` with times in seconds from the first frame.
     """
     path = Path(path)
     sch = load_csv_schema(schema) if schema is not None else detect_csv_schema(path)

@@ -14,9 +14,9 @@ from functools import cache
 from pathlib import Path
 from typing import Any
 
-from ..errors import SchemaError
-from ..jointsets import JointSet, load_joint_set
-from ..resources import load_json, shipped_names, shipped_path, validate
+from kinectdata.core.errors import SchemaError
+from kinectdata.core.jointsets import JointSet, load_joint_set
+from kinectdata.core.resources import load_json, shipped_names, shipped_path, validate
 
 JOINT = "{joint}"
 TIME_UNITS_S = {"s": 1.0, "ms": 1e-3, "us": 1e-6, "ns": 1e-9, "ticks": 1e-7}

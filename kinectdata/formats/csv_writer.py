@@ -12,12 +12,12 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from ..atomic import atomic_output
-from ..errors import KinectDataError
-from ..jointsets import shipped_joint_sets
-from ..motion import Motion
-from ..quaternions import xyzw_to_wxyz
-from .csv_schema import JOINT, CsvSchema, joint_set_of, load_csv_schema
+from kinectdata.core.atomic import atomic_output
+from kinectdata.core.errors import KinectDataError
+from kinectdata.core.jointsets import shipped_joint_sets
+from kinectdata.core.motion import Motion
+from kinectdata.core.quaternions import xyzw_to_wxyz
+from kinectdata.formats.csv_schema import JOINT, CsvSchema, joint_set_of, load_csv_schema
 
 
 def _state_column(motion: Motion, spec: dict, states: np.ndarray | None) -> np.ndarray:

@@ -40,12 +40,12 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from ..errors import FormatError
-from ..jointsets import JointSet, find_cycle
-from ..motion import Motion
-from ..quaternions import make_continuous
-from .common import first_bad_time, read_text
-from .registry import register_reader
+from kinectdata.core.errors import FormatError
+from kinectdata.core.jointsets import JointSet, find_cycle
+from kinectdata.core.motion import Motion
+from kinectdata.core.quaternions import make_continuous
+from kinectdata.formats.common import first_bad_time, read_text
+from kinectdata.formats.registry import register_reader
 
 BOGUS = 9e6
 """Values with at least this magnitude are Motion Analysis's 9999999 "no data" marker."""

@@ -9,7 +9,7 @@ Layout, one group of values per line::
                 <joint count>                       (25)
                 per joint: x y z depthX depthY colorX colorY orientW orientX orientY orientZ state
 
-Mapping to :class:`~kinectdata.motion.Motion` (joint set ``kinect_v2``):
+Mapping to :class:`~kinectdata.core.motion.Motion` (joint set ``kinect_v2``):
 
 - one body per Motion: ``body`` (the bodyID as written) or, by default, the body present in the
   most frames (ties: the first to appear). Frames without that body stay, fully masked.
@@ -32,12 +32,12 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import FormatError
-from ..jointsets import load_joint_set
-from ..motion import Motion
-from ..quaternions import split_missing_and_normalise, wxyz_to_xyzw
-from .common import choose_body, count_bodies, read_text
-from .registry import register_reader
+from kinectdata.core.errors import FormatError
+from kinectdata.core.jointsets import load_joint_set
+from kinectdata.core.motion import Motion
+from kinectdata.core.quaternions import split_missing_and_normalise, wxyz_to_xyzw
+from kinectdata.formats.common import choose_body, count_bodies, read_text
+from kinectdata.formats.registry import register_reader
 
 NOMINAL_FPS = 30.0
 N_JOINTS = 25

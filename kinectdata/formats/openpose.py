@@ -73,11 +73,11 @@ from typing import Any
 import numpy as np
 from scipy.optimize import linear_sum_assignment
 
-from ..errors import FormatError
-from ..jointsets import load_joint_set
-from ..motion import Motion
-from .common import choose_body, count_bodies, read_text
-from .registry import register_reader
+from kinectdata.core.errors import FormatError
+from kinectdata.core.jointsets import load_joint_set
+from kinectdata.core.motion import Motion
+from kinectdata.formats.common import choose_body, count_bodies, read_text
+from kinectdata.formats.registry import register_reader
 
 KEYPOINTS_SUFFIX = "_keypoints.json"
 FRAME_KEYS = ("frame", "frame_index", "frame_id")

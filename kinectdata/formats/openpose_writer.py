@@ -14,9 +14,9 @@ from pathlib import Path
 
 import numpy as np
 
-from ..atomic import atomic_output
-from ..errors import KinectDataError
-from ..motion import Motion
+from kinectdata.core.atomic import atomic_output
+from kinectdata.core.errors import KinectDataError
+from kinectdata.core.motion import Motion
 
 
 def write_openpose_jsonl(motion: Motion, path: str | Path, *, digits: int = 6) -> Path:

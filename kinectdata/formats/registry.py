@@ -14,8 +14,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from ..errors import FormatError
-from ..motion import Motion
+from kinectdata.core.errors import FormatError
+from kinectdata.core.motion import Motion
 
 SNIFF_BYTES = 4096
 

@@ -41,7 +41,7 @@ import torch
 import torch.nn.functional as F
 from torch import nn
 
-from ..errors import KinectDataError
+from kinectdata.core.errors import KinectDataError
 
 OPENPOSE_MPI_LIMBS = (
     (0, 1),  # Head-Neck

@@ -22,11 +22,11 @@ import numpy as np
 import torch
 from torch import nn
 
-from ..errors import KinectDataError
-from ..targets import TargetSpec
-from ..training.metrics import masked_mse
-from .cdhc import CdhcConfig, CdhcNet, cdhc_loss, generate, init_output_bias
-from .yalta import YaltaConfig, YaltaNet, free_run
+from kinectdata.core.errors import KinectDataError
+from kinectdata.evaluation.metrics import masked_mse
+from kinectdata.models.cdhc import CdhcConfig, CdhcNet, cdhc_loss, generate, init_output_bias
+from kinectdata.models.yalta import YaltaConfig, YaltaNet, free_run
+from kinectdata.targets.specs import TargetSpec
 
 
 @dataclass(frozen=True)

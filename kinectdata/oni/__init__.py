@@ -5,7 +5,7 @@
 - :mod:`.reader`: :class:`OniFile`, streams, the frame index and frame decoding.
 """
 
-from .reader import OniFile, OniFrame, OniStream, OniWarning
-from .records import OniError
+from kinectdata.oni.reader import OniFile, OniFrame, OniStream, OniWarning
+from kinectdata.oni.records import OniError
 
 __all__ = ["OniError", "OniFile", "OniFrame", "OniStream", "OniWarning"]

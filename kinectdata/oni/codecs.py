@@ -28,7 +28,7 @@ import io
 
 import numpy as np
 
-from ..errors import KinectDataError
+from kinectdata.core.errors import KinectDataError
 
 CODECS = ("NONE", "16zP", "16zT", "Im8z", "JPEG")
 

@@ -28,10 +28,10 @@ from typing import Any
 
 import numpy as np
 
-from ..align import file_sha256
-from ..atomic import atomic_hdf5
-from ..errors import KinectDataError
-from .reader import OniFile, OniStream
+from kinectdata.align.recipe import file_sha256
+from kinectdata.core.atomic import atomic_hdf5
+from kinectdata.core.errors import KinectDataError
+from kinectdata.oni.reader import OniFile, OniStream
 
 FORMAT = "kinectdata.oni-frames"
 FORMAT_VERSION = 1

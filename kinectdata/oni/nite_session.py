@@ -15,7 +15,7 @@ import sys
 def main(argv: list[str]) -> None:
     from openni import nite2, openni2
 
-    from .skeleton import tracked_users
+    from kinectdata.oni.skeleton import tracked_users
 
     settings, out = json.loads(argv[0]), argv[1]
     openni2.initialize(settings["openni2_dir"])

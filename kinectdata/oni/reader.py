@@ -25,9 +25,10 @@ from typing import Any
 
 import numpy as np
 
+from kinectdata.oni.codecs import CodecError, decode_8z, decode_16z, decode_jpeg, decode_raw, fourcc
+from kinectdata.oni.records import OniError
+
 from . import records as R
-from .codecs import CodecError, decode_8z, decode_16z, decode_jpeg, decode_raw, fourcc
-from .records import OniError
 
 # OpenNI2's oniPixelFormat and OpenNI 1.x's xnPixelFormat values
 ONI_PIXEL_FORMATS = {

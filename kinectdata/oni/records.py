@@ -11,7 +11,7 @@ import struct
 from dataclasses import dataclass
 from typing import Any
 
-from ..errors import KinectDataError
+from kinectdata.core.errors import KinectDataError
 
 MAGIC = b"NI10"
 RECORD_MAGIC = 0x0052494E

@@ -3,7 +3,7 @@
 An ``.oni`` holds depth and colour, never skeletons. :func:`track_skeleton` plays a recording
 back through NiTE2's user tracker (PrimeSense's closed library, which kinectdata cannot ship:
 install it and point ``nite_dir`` or ``NITE2_REDIST64`` at the folder with ``libNiTE2.so`` and
-its ``NiTE2/`` data folder) and returns the tracked body as a :class:`~kinectdata.motion.Motion`
+its ``NiTE2/`` data folder) and returns the tracked body as a :class:`~kinectdata.core.motion.Motion`
 of the ``nite`` joint set (15 joints, metres, quaternions x, y, z, w), timed by the recording's
 own depth timestamps. :func:`nite_motion` is the conversion alone, from the tracker's per-frame
 joints. :func:`oni_timeline` and :func:`retime` give a skeleton recorded beside an ``.oni``
@@ -25,10 +25,10 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import KinectDataError
-from ..jointsets import load_joint_set
-from ..motion import Motion
-from .reader import OniFile, OniWarning
+from kinectdata.core.errors import KinectDataError
+from kinectdata.core.jointsets import load_joint_set
+from kinectdata.core.motion import Motion
+from kinectdata.oni.reader import OniFile, OniWarning
 
 NITE_LIBRARY = "libNiTE2.so"
 NITE_JOINTS = 15

@@ -17,11 +17,23 @@ Offset convention (toolkit-wide): ``audio_time = motion_time + offset_s``, motio
 
 from __future__ import annotations
 
-from .dancer import Body, dance, make_body
-from .music import synthesize_music
-from .openpose import DetectorModel, OpenPoseVideo, PinholeCamera, synthesize_openpose, write_openpose_recording
-from .recording import GENERATOR_VERSION, SynthRecording, regeneration_command, synthesize_recording, write_recording
-from .sensor import SensorModel, SensorOutput, apply_sensor_defects, sensor_frame_times
+from kinectdata.synth.dancer import Body, dance, make_body
+from kinectdata.synth.music import synthesize_music
+from kinectdata.synth.openpose import (
+    DetectorModel,
+    OpenPoseVideo,
+    PinholeCamera,
+    synthesize_openpose,
+    write_openpose_recording,
+)
+from kinectdata.synth.recording import (
+    GENERATOR_VERSION,
+    SynthRecording,
+    regeneration_command,
+    synthesize_recording,
+    write_recording,
+)
+from kinectdata.synth.sensor import SensorModel, SensorOutput, apply_sensor_defects, sensor_frame_times
 
 __all__ = [
     "GENERATOR_VERSION",

@@ -30,10 +30,10 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from ..jointsets import JointSet, load_joint_set
-from ..motion import Motion
-from ..quaternions import make_continuous
-from .music import BEATS_PER_BAR, INTRO_BARS
+from kinectdata.core.jointsets import JointSet, load_joint_set
+from kinectdata.core.motion import Motion
+from kinectdata.core.quaternions import make_continuous
+from kinectdata.synth.music import BEATS_PER_BAR, INTRO_BARS
 
 JOINT_SET_NAME = "kinect_v2"
 UP = np.array([0.0, 1.0, 0.0])

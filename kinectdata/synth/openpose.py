@@ -37,9 +37,9 @@ import numpy as np
 from scipy.interpolate import CubicSpline
 from scipy.spatial.transform import Rotation
 
-from ..errors import KinectDataError
-from .dancer import Body, make_body
-from .recording import AUDIO_FORMATS, SynthRecording, regeneration_command, write_audio, write_truth
+from kinectdata.core.errors import KinectDataError
+from kinectdata.synth.dancer import Body, make_body
+from kinectdata.synth.recording import AUDIO_FORMATS, SynthRecording, regeneration_command, write_audio, write_truth
 
 BODY_25 = (
     "Nose", "Neck", "RShoulder", "RElbow", "RWrist", "LShoulder", "LElbow", "LWrist", "MidHip",

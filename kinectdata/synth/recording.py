@@ -21,13 +21,13 @@ from typing import Any
 import numpy as np
 import soundfile as sf
 
-from .. import __version__
-from ..atomic import atomic_output
-from ..formats.csv_writer import write_csv
-from ..motion import Motion
-from .dancer import CLAP_LEAD_S, dance
-from .music import BEATS_PER_BAR, CLAP_ATTACK_S, synthesize_music
-from .sensor import SensorModel, apply_sensor_defects, sensor_frame_times
+from kinectdata.core.atomic import atomic_output
+from kinectdata.core.motion import Motion
+from kinectdata.core.version import __version__
+from kinectdata.formats.csv_writer import write_csv
+from kinectdata.synth.dancer import CLAP_LEAD_S, dance
+from kinectdata.synth.music import BEATS_PER_BAR, CLAP_ATTACK_S, synthesize_music
+from kinectdata.synth.sensor import SensorModel, apply_sensor_defects, sensor_frame_times
 
 GENERATOR_VERSION = "1"
 """Bumped whenever the same arguments would no longer give the same output."""

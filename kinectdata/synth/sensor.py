@@ -22,7 +22,7 @@ from typing import Any
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from ..motion import Motion
+from kinectdata.core.motion import Motion
 
 TRACKED, INFERRED, NOT_TRACKED = 2, 1, 0
 CONFIDENCE = {TRACKED: 1.0, INFERRED: 0.5, NOT_TRACKED: 0.0}

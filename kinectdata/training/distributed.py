@@ -33,7 +33,7 @@ import torch.distributed as dist
 from torch.nn.parallel import DistributedDataParallel
 from torch.utils.data import Dataset, DistributedSampler
 
-from ..errors import KinectDataError
+from kinectdata.core.errors import KinectDataError
 
 
 @dataclass(frozen=True)

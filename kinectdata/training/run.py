@@ -18,10 +18,10 @@ from typing import Any
 
 import torch
 
-from ..atomic import atomic_output
-from ..dataset.verify import read_manifest as read_dataset_manifest
-from ..errors import KinectDataError
-from ..models.registry import load_network
+from kinectdata.core.atomic import atomic_output
+from kinectdata.core.errors import KinectDataError
+from kinectdata.dataset.verify import read_manifest as read_dataset_manifest
+from kinectdata.models.registry import load_network
 
 CONFIG = "config.json"
 CHECKPOINT = "checkpoint.pt"

@@ -16,11 +16,11 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from ..atomic import atomic_output
-from ..errors import KinectDataError
-from .evaluate import evaluate
-from .run import CHECKPOINT, LOG, MODEL, TrainConfig, read_config, read_manifest
-from .train import train
+from kinectdata.core.atomic import atomic_output
+from kinectdata.core.errors import KinectDataError
+from kinectdata.evaluation.evaluate import evaluate
+from kinectdata.training.run import CHECKPOINT, LOG, MODEL, TrainConfig, read_config, read_manifest
+from kinectdata.training.train import train
 
 VARIANTS: dict[str, dict[str, Any]] = {
     "TanH": {"activation": "tanh"},

@@ -35,14 +35,14 @@ import numpy as np
 import torch
 from torch.utils.data import DataLoader
 
-from ..atomic import atomic_output
-from ..dataset.windows import WindowDataset
-from ..errors import KinectDataError
-from ..models.export import export_torchscript, stream_metadata
-from ..models.registry import model_kind
-from ..normalization import Normalizer
-from ..plots import loss_curves
-from .distributed import (
+from kinectdata.core.atomic import atomic_output
+from kinectdata.core.errors import KinectDataError
+from kinectdata.dataset.windows import WindowDataset
+from kinectdata.evaluation.metrics import smape
+from kinectdata.inference.export import export_torchscript, stream_metadata
+from kinectdata.models.registry import model_kind
+from kinectdata.targets.normalization import Normalizer
+from kinectdata.training.distributed import (
     PaddedWindows,
     WindowSampler,
     World,
@@ -54,8 +54,7 @@ from .distributed import (
     share_of_batch,
     sum_over_ranks,
 )
-from .metrics import smape
-from .run import (
+from kinectdata.training.run import (
     CHECKPOINT,
     CONFIG,
     LOG,
@@ -68,6 +67,7 @@ from .run import (
     save_checkpoint,
     write_json,
 )
+from kinectdata.viz.plots import loss_curves
 
 LOG_FIELDS = ["epoch", "step", "train_loss", "val_loss", "val_smape", "seconds", "frames_per_second"]
 

@@ -106,7 +106,7 @@ def record(
 
 def openni2_missing() -> str | None:
     """Why OpenNI2's Dummy device cannot be used here (None: it can)."""
-    from kinectdata.errors import KinectDataError
+    from kinectdata.core.errors import KinectDataError
     from kinectdata.oni.skeleton import openni2_dir
 
     try:

@@ -8,7 +8,7 @@ order they were renamed (a dataset's shards before its manifest). A process kill
 
 On any error the temporary file is removed and the destination is left as it was; a write that
 fails because the disk is full (or the file outgrows what the process may write) is raised as a
-:class:`~kinectdata.errors.KinectDataError` naming the destination.
+:class:`~kinectdata.core.errors.KinectDataError` naming the destination.
 """
 
 from __future__ import annotations
@@ -23,7 +23,7 @@ from pathlib import Path
 
 import h5py
 
-from .errors import KinectDataError
+from kinectdata.core.errors import KinectDataError
 
 DISK_FULL = frozenset({errno.ENOSPC, errno.EDQUOT, errno.EFBIG})
 """Error numbers of a write refused for lack of room: no space, over quota, file too large."""

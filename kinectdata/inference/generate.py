@@ -1,8 +1,8 @@
 """``generate``: any audio file -> dance motion, streaming, as a robot would run it live.
 
-The audio is read in blocks (:class:`~kinectdata.audio.AudioReader`), the features of each frame
+The audio is read in blocks (:class:`~kinectdata.align.audio.AudioReader`), the features of each frame
 are computed as soon as its audio has arrived (:class:`~kinectdata.features.streaming.StreamingFeatures`)
-and the network steps one frame at a time (an engine of :mod:`~kinectdata.models.engines`: torch
+and the network steps one frame at a time (an engine of :mod:`~kinectdata.inference.engines`: torch
 or ONNX Runtime), its state carried from frame to frame; nothing waits for the end of the audio but the file
 written at the end. The first "previous pose" is the mean training pose. Poses are denormalised
 and written in the form the target's joint set is read back from:
@@ -10,7 +10,7 @@ and written in the form the target's joint set is read back from:
 - 3-D joint sets (the yalta model): kinectdata's canonical CSV (metres, unit quaternions), which
   ``align`` reads: the target spec's joints get their orientations, and every joint the
   orientations reach gets a position by forward kinematics over the dataset's rest skeleton
-  (:mod:`kinectdata.skeleton`; runs on datasets built before it have the listed positions only);
+  (:mod:`kinectdata.targets.skeleton`; runs on datasets built before it have the listed positions only);
   other joints are left empty (masked);
 - ``openpose_mpi`` (the cdhc model): OpenPose JSON Lines (:mod:`~kinectdata.formats.openpose_writer`)
   with x, y in the target's units: 0..1 of the per-recording min-max scaling for
@@ -26,19 +26,19 @@ from typing import Any
 
 import numpy as np
 
-from ..audio import AudioReader
-from ..errors import KinectDataError
-from ..features import feature_config
-from ..features.streaming import StreamingFeatures
-from ..formats.csv_writer import write_csv
-from ..formats.openpose_writer import write_openpose_jsonl
-from ..jointsets import load_joint_set
-from ..models.engines import make_engine
-from ..motion import Motion
-from ..normalization import Normalizer
-from ..skeleton import rebuild_positions
-from ..targets import TargetSpec
-from .run import load_model
+from kinectdata.align.audio import AudioReader
+from kinectdata.core.errors import KinectDataError
+from kinectdata.core.jointsets import load_joint_set
+from kinectdata.core.motion import Motion
+from kinectdata.features import feature_config
+from kinectdata.features.streaming import StreamingFeatures
+from kinectdata.formats.csv_writer import write_csv
+from kinectdata.formats.openpose_writer import write_openpose_jsonl
+from kinectdata.inference.engines import make_engine
+from kinectdata.targets.normalization import Normalizer
+from kinectdata.targets.skeleton import rebuild_positions
+from kinectdata.targets.specs import TargetSpec
+from kinectdata.training.run import load_model
 
 
 def _motion(
@@ -51,7 +51,7 @@ def _motion(
 ) -> Motion:
     """A Motion of the spec's joint set from denormalised target vectors [T, D]; with the dataset's
     ``skeleton`` (bone offsets) every joint its orientations reach gets a position
-    (:func:`kinectdata.skeleton.rebuild_positions`), else only the spec's listed joints."""
+    (:func:`kinectdata.targets.skeleton.rebuild_positions`), else only the spec's listed joints."""
     js = load_joint_set(spec.joint_set)
     T, J = values.shape[0], len(js)
     positions = np.full((T, J, spec.dimensions), np.nan)

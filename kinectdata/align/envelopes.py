@@ -1,6 +1,6 @@
 """Envelopes of an audio signal for alignment, computed block by block in one pass.
 
-Offset estimation (:mod:`kinectdata.offset`) needs only these small summaries of the audio, not
+Offset estimation (:mod:`kinectdata.align.offset`) needs only these small summaries of the audio, not
 the audio itself, so long recordings are analysed with bounded memory:
 
 - ``clap_energy`` [F]: mean square of the audio high-passed at 1 kHz (4th-order Butterworth),
@@ -22,7 +22,7 @@ from dataclasses import dataclass
 import numpy as np
 import soxr
 
-from .audio import Audio
+from kinectdata.align.audio import Audio
 
 CLAP_FRAME_S = 0.005
 ONSET_RATE = 100.0  # Hz

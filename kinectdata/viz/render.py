@@ -35,9 +35,9 @@ from typing import Any
 
 import numpy as np
 
-from .atomic import atomic_output
-from .errors import KinectDataError
-from .motion import Motion
+from kinectdata.core.atomic import atomic_output
+from kinectdata.core.errors import KinectDataError
+from kinectdata.core.motion import Motion
 
 DEFAULT_SIZE = (640, 480)
 """Pixels (width, height) of one panel."""
@@ -87,8 +87,8 @@ def load_input(path: str | Path, *, with_audio: bool = True, **reader_options: A
     """Read a recording (any format :func:`~kinectdata.formats.read_motion` reads, with
     ``reader_options``) or an aligned ``.h5`` (its motion and, with ``with_audio``, its audio;
     reader options do not apply to it and are ignored)."""
-    from .aligned import AlignedRecording
-    from .formats import read_motion
+    from kinectdata.align.aligned import AlignedRecording
+    from kinectdata.formats import read_motion
 
     path = Path(path)
     if path.suffix.lower() in ALIGNED_SUFFIXES:
@@ -106,7 +106,7 @@ def load_inputs(
     ``person``, ``video_fps``) to each recording whose reader takes it, so that one ``video_fps``
     serves an OpenPose file compared with a CSV file. An option no recording takes is an error.
     """
-    from .formats.registry import detect_format, readers
+    from kinectdata.formats.registry import detect_format, readers
 
     given = {k: v for k, v in reader_options.items() if v is not None}
     unused = set(given)
@@ -554,7 +554,7 @@ def _sound(
 ) -> tuple[tuple[np.ndarray, int] | None, str | None]:
     """((samples [S] float32, sample rate Hz) of the clip from ``start`` lasting ``duration`` s, or
     None, and the source of the sound): the ``audio`` file, else the first input with audio."""
-    from .audio import AudioReader, load_audio
+    from kinectdata.align.audio import AudioReader, load_audio
 
     if audio is not None:
         rate = AudioReader(audio).source_rate

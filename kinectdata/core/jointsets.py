@@ -15,8 +15,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .errors import SchemaError
-from .resources import load_json, shipped_names, shipped_path, validate
+from kinectdata.core.errors import SchemaError
+from kinectdata.core.resources import load_json, shipped_names, shipped_path, validate
 
 
 @dataclass(frozen=True)

@@ -24,7 +24,7 @@ from typing import Any
 
 import numpy as np
 
-from .jointsets import JointSet
+from kinectdata.core.jointsets import JointSet
 
 
 @dataclass(eq=False)

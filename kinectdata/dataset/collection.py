@@ -13,7 +13,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from .errors import KinectDataError
+from kinectdata.core.errors import KinectDataError
 
 SKELETON_EXTENSIONS = (".csv", ".skeleton", ".htr", ".json")
 AUDIO_EXTENSIONS = (".wav", ".flac", ".ogg", ".mp3")

@@ -30,7 +30,7 @@ Two methods, tried in this order:
     and then the estimate is refused rather than guessed.
 
 An estimate whose confidence is below ``min_confidence`` raises
-:class:`~kinectdata.errors.AlignmentError` saying what was found; pass the offset explicitly then.
+:class:`~kinectdata.core.errors.AlignmentError` saying what was found; pass the offset explicitly then.
 """
 
 from __future__ import annotations
@@ -40,10 +40,10 @@ from typing import Any
 
 import numpy as np
 
-from .audio import Audio
-from .envelopes import CLAP_FRAME_S, ONSET_RATE, AudioEnvelopes
-from .errors import AlignmentError
-from .motion import Motion
+from kinectdata.align.audio import Audio
+from kinectdata.align.envelopes import CLAP_FRAME_S, ONSET_RATE, AudioEnvelopes
+from kinectdata.core.errors import AlignmentError
+from kinectdata.core.motion import Motion
 
 CLAP_DISTANCE_M = 0.10
 CLAP_SPEED_M_S = 0.8
@@ -270,7 +270,7 @@ def estimate_offset(
 
     Args:
         motion: the skeleton recording (its own clock).
-        audio: the audio (any rate), or its :class:`~kinectdata.envelopes.AudioEnvelopes` (computed
+        audio: the audio (any rate), or its :class:`~kinectdata.align.envelopes.AudioEnvelopes` (computed
             while streaming a long file).
         max_offset: ignore offsets larger than this many seconds in magnitude.
         min_confidence: below this confidence the estimate is refused.

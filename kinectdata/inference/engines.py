@@ -2,7 +2,7 @@
 
 - ``torch``: :class:`~kinectdata.models.yalta.StreamingYalta`, float32 or float16 weights, or
   for the cdhc model :class:`~kinectdata.models.cdhc.StreamingCdhc` (float32);
-- ``onnxruntime``: the yalta network exported to ONNX (:func:`~kinectdata.models.export.export_onnx`)
+- ``onnxruntime``: the yalta network exported to ONNX (:func:`~kinectdata.inference.export.export_onnx`)
   and run by ONNX Runtime (``pip install kinectdata[export]``), float32. On a CPU at batch 1 it
   is the fastest (``benchmarks/bench_model.py``): it pre-packs the weight matrices.
 
@@ -18,10 +18,10 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from ..errors import KinectDataError
-from .cdhc import CdhcNet, StreamingCdhc
-from .export import INPUTS, export_onnx
-from .yalta import StreamingYalta, YaltaNet
+from kinectdata.core.errors import KinectDataError
+from kinectdata.inference.export import INPUTS, export_onnx
+from kinectdata.models.cdhc import CdhcNet, StreamingCdhc
+from kinectdata.models.yalta import StreamingYalta, YaltaNet
 
 ENGINES = ("torch", "onnxruntime")
 

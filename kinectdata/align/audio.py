@@ -20,7 +20,7 @@ import numpy as np
 import soundfile
 import soxr
 
-from .errors import AudioError
+from kinectdata.core.errors import AudioError
 
 DEFAULT_SAMPLE_RATE = 16000
 """Hz; the rate the Yalta et al. (2016) pipeline works at."""

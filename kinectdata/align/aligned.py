@@ -3,7 +3,7 @@
 The file (``kinectdata align ... -o OUT.h5``) is self-describing; its layout, version 1:
 
 =====================================  ==============================================================
-``/`` attributes                       ``format`` = "kinectdata.aligned", ``format_version`` = 1,
+``/`` attributes                       ``format`` = "kinectdata.align.aligned", ``format_version`` = 1,
                                        ``fps``, ``sample_rate`` (Hz), ``joint_set``, ``created_by``
 ``/motion/times``                      [N] float64, seconds; frame k is at exactly k / fps
 ``/motion/positions``                  [N, J, D] float32, metres (pixels for 2-D joint sets), NaN where masked
@@ -33,13 +33,13 @@ from typing import Any
 import h5py
 import numpy as np
 
-from . import __version__
-from .atomic import atomic_hdf5
-from .errors import FormatError
-from .jointsets import JointSet, load_joint_set, shipped_joint_sets
-from .motion import Motion
+from kinectdata.core.atomic import atomic_hdf5
+from kinectdata.core.errors import FormatError
+from kinectdata.core.jointsets import JointSet, load_joint_set, shipped_joint_sets
+from kinectdata.core.motion import Motion
+from kinectdata.core.version import __version__
 
-FORMAT = "kinectdata.aligned"
+FORMAT = "kinectdata.align.aligned"
 FORMAT_VERSION = 1
 _MAX_ARRAY_IN_ATTRIBUTE = 1024
 _DAMAGE = (OSError, KeyError, ValueError, TypeError, RuntimeError, IndexError)

@@ -34,9 +34,9 @@ from typing import Any
 
 import torch
 
-from ..atomic import atomic_output
-from ..errors import KinectDataError
-from .yalta import StreamingYalta, YaltaNet
+from kinectdata.core.atomic import atomic_output
+from kinectdata.core.errors import KinectDataError
+from kinectdata.models.yalta import StreamingYalta, YaltaNet
 
 FORMATS = ("torchscript", "onnx")
 INPUTS = ["features", "previous", "h1", "c1", "h2", "c2"]
@@ -118,14 +118,14 @@ def export_onnx(net: YaltaNet, path: str | Path, metadata: dict[str, Any] | None
 def export_run(run: str | Path, path: str | Path, fmt: str | None = None, precision: str = "float32") -> Path:
     """Export a trained run's network to ``path``; ``fmt`` from the suffix when None
     (``.onnx``: ONNX, else TorchScript). ONNX is float32 only."""
-    from ..training.run import load_model
+    from kinectdata.training.run import load_model
 
     fmt = fmt or ("onnx" if Path(path).suffix.lower() == ".onnx" else "torchscript")
     if fmt not in FORMATS:
         raise KinectDataError(f"export format must be one of {', '.join(FORMATS)}, not {fmt!r}")
     if fmt == "onnx" and precision != "float32":
         raise KinectDataError("ONNX export is float32 only (ONNX Runtime runs float32 fastest on CPUs)")
-    from ..training.run import model_name, read_config
+    from kinectdata.training.run import model_name, read_config
 
     if model_name(read_config(run)) != "yalta":
         raise KinectDataError(

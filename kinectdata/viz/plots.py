@@ -24,7 +24,7 @@ def _pyplot():
 
 
 def _save(fig, path: str | Path) -> Path:
-    from .atomic import atomic_output
+    from kinectdata.core.atomic import atomic_output
 
     path = Path(path)
     with atomic_output(path) as tmp:
@@ -102,7 +102,7 @@ def trajectories(
 
 
 def rhythm_plot(report: dict, path: str | Path, title: str = "Autocorrelation of joint trajectories") -> Path:
-    """Each axis's autocorrelation (unitless) against lag (s) from :func:`kinectdata.rhythm.rhythm_report`
+    """Each axis's autocorrelation (unitless) against lag (s) from :func:`kinectdata.evaluation.rhythm.rhythm_report`
     (Lee et al. 2018's evaluation), its peaks marked, a solid line at the beat period and dotted
     ones at half and double it. ``report`` may be read back from JSON (missing values as None)."""
     plt = _pyplot()
@@ -129,7 +129,7 @@ def rhythm_plot(report: dict, path: str | Path, title: str = "Autocorrelation of
 
 
 # ---------------------------------------------------------------------------------------------
-# Dataset report figures (kinectdata.report): each written to a path or a binary stream
+# Dataset report figures (kinectdata.viz.report): each written to a path or a binary stream
 # ---------------------------------------------------------------------------------------------
 def _write(fig, out: str | Path | BinaryIO) -> str | Path | BinaryIO:
     """Save ``fig`` as PNG to a path (atomically) or into a binary stream; returns ``out``."""
@@ -212,7 +212,7 @@ def offset_curve(
     max_points: int = 4000,
 ) -> str | Path | BinaryIO:
     """Cross-correlation score (unitless) against the offset (s, ``audio_time = motion_time +
-    offset``), as :attr:`kinectdata.offset.OffsetEstimate.curve` holds it, with a vertical line at
+    offset``), as :attr:`kinectdata.align.offset.OffsetEstimate.curve` holds it, with a vertical line at
     each of ``markers`` (offset in seconds, label), the first one solid. The curve is cut to
     ``max_points`` by :func:`block_extremes` (its maxima)."""
     plt = _pyplot()

@@ -26,7 +26,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 if TYPE_CHECKING:
-    from .targets import TargetSpec
+    from kinectdata.targets.specs import TargetSpec
 
 LIMIT = 0.9
 """Training values are mapped into [-LIMIT, LIMIT]."""

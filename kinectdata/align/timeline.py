@@ -1,7 +1,7 @@
 """Resampling a recording onto an exact time grid, with tracking gaps found, filled or masked.
 
 For every joint, each grid time is computed from the two *valid* source samples around it:
-positions linearly, orientations by spherical linear interpolation (:func:`~kinectdata.quaternions.slerp`,
+positions linearly, orientations by spherical linear interpolation (:func:`~kinectdata.core.quaternions.slerp`,
 checked against scipy's ``Slerp``) after the joint's quaternions have been made sign-continuous
 (q . q_prev >= 0), confidence linearly.
 
@@ -21,8 +21,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .motion import Motion
-from .quaternions import make_continuous, slerp
+from kinectdata.core.motion import Motion
+from kinectdata.core.quaternions import make_continuous, slerp
 
 GAP_FACTOR = 1.5
 """Consecutive valid samples further apart than this many nominal intervals bound a gap."""

@@ -15,7 +15,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from .errors import KinectDataError
+from kinectdata.core.errors import KinectDataError
 
 DRIFT_WINDOW_S = 2.0
 """Seconds; the centred moving average subtracted from each trajectory before autocorrelation."""

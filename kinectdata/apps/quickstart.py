@@ -26,16 +26,16 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from .align import align_files, format_summary
-from .collection import find_sessions
-from .dataset.build import build_dataset
-from .dataset.inspect import inspect
-from .dataset.pipelines import PIPELINES
-from .dataset.prepare import BuildConfig
-from .errors import KinectDataError
-from .features import PRESETS
-from .synth import synthesize_recording, write_openpose_recording, write_recording
-from .targets import load_target_spec
+from kinectdata.align.recipe import align_files, format_summary
+from kinectdata.core.errors import KinectDataError
+from kinectdata.dataset.build import build_dataset
+from kinectdata.dataset.collection import find_sessions
+from kinectdata.dataset.inspect import inspect
+from kinectdata.dataset.pipelines import PIPELINES
+from kinectdata.dataset.prepare import BuildConfig
+from kinectdata.features import PRESETS
+from kinectdata.synth import synthesize_recording, write_openpose_recording, write_recording
+from kinectdata.targets.specs import load_target_spec
 
 SAMPLE_SEEDS = (1, 2, 3)
 SAMPLE_DURATION_S = 22.0
@@ -129,10 +129,10 @@ def run_quickstart(
             f"Aligned files in {out / 'aligned'}, dataset in {out / 'dataset'}"
         )
         return summary
-    from .training.evaluate import evaluate, format_results
-    from .training.generate import generate
-    from .training.run import TrainConfig
-    from .training.train import train
+    from kinectdata.evaluation.evaluate import evaluate, format_results
+    from kinectdata.inference.generate import generate
+    from kinectdata.training.run import TrainConfig
+    from kinectdata.training.train import train
 
     run = out / "run"
     shutil.rmtree(run, ignore_errors=True)  # a fresh run each time (a run folder refuses to be overwritten)
@@ -206,10 +206,10 @@ def run_listen_quickstart(out_dir: str | Path, echo: Callable[[str], Any] = prin
     except ImportError:
         echo("[done] PyTorch is not installed (pip install 'kinectdata[train]'): stopping before training.")
         return summary
-    from .training.evaluate import evaluate, format_results
-    from .training.generate import generate
-    from .training.run import TrainConfig
-    from .training.train import train
+    from kinectdata.evaluation.evaluate import evaluate, format_results
+    from kinectdata.inference.generate import generate
+    from kinectdata.training.run import TrainConfig
+    from kinectdata.training.train import train
 
     run = out / "run"
     shutil.rmtree(run, ignore_errors=True)

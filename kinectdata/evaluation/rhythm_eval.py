@@ -6,11 +6,11 @@ For each recording of the split, the music's beats on the recording's motion clo
   from, as its provenance names it) has a ``<name>.truth.json`` beside it with ``beat_times_s`` on
   the audio clock (``kinectdata synth`` writes one), shifted by the audio time of the recording's
   first frame (its alignment's ``audio_trimmed_start_s``);
-- else the **beat tracker** (:func:`kinectdata.rhythm.music_beats`, librosa) on the recording's
+- else the **beat tracker** (:func:`kinectdata.evaluation.rhythm.music_beats`, librosa) on the recording's
   audio over the same span;
 - else none, and the report says why (audio moved away, librosa not installed).
 
-Then, for the real motion and the generated one (:mod:`kinectdata.rhythm`, ``docs/rhythm.md``):
+Then, for the real motion and the generated one (:mod:`kinectdata.evaluation.rhythm`, ``docs/rhythm.md``):
 the autocorrelation of the target's joint trajectories per axis with its peaks against the beat
 period (Lee et al. 2018), and the Beat Align Score and motion-beat F-measure of the motion's beats
 (local minima of joint speed) against the music's beats inside the motion's span. Positions are the
@@ -27,11 +27,11 @@ from typing import Any
 import h5py
 import numpy as np
 
-from ..aligned import audio_blocks
-from ..audio import AudioReader
-from ..errors import KinectDataError
-from ..rhythm import beat_alignment_report, beat_period_s, motion_beats, music_beats, rhythm_report
-from ..targets import TargetSpec
+from kinectdata.align.aligned import audio_blocks
+from kinectdata.align.audio import AudioReader
+from kinectdata.core.errors import KinectDataError
+from kinectdata.evaluation.rhythm import beat_alignment_report, beat_period_s, motion_beats, music_beats, rhythm_report
+from kinectdata.targets.specs import TargetSpec
 
 
 def target_positions(values: np.ndarray, mask: np.ndarray, spec: TargetSpec) -> tuple[np.ndarray, np.ndarray]:

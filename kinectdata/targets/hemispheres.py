@@ -1,11 +1,11 @@
 """One quaternion sign per joint across a dataset's recordings.
 
 q and -q are the same rotation. Within a recording the targets are sign-continuous
-(:func:`~kinectdata.targets.extract_targets`), but each recording's track may sit in either
+(:func:`~kinectdata.targets.specs.extract_targets`), but each recording's track may sit in either
 hemisphere, and a model trained on a mix would have to learn +q for some songs and -q for
 others. No fixed rule fixes that: "w >= 0" splits exactly at half-turn rotations, which is where
 Kinect puts the joints of a dancer facing the sensor. So the build picks, per joint, the average
-orientation of the training split (:func:`~kinectdata.quaternions.average_quaternion` of the
+orientation of the training split (:func:`~kinectdata.core.quaternions.average_quaternion` of the
 summed sign-free scatter matrices) and negates each recording's whole track of that joint when
 its sum points away from it (negative dot product). Continuity within the track is kept, and
 the choice depends only on the training split, like the normalisation.
@@ -17,8 +17,8 @@ from collections.abc import Iterable
 
 import numpy as np
 
-from ..quaternions import average_quaternion, scatter
-from ..targets import TargetSpec
+from kinectdata.core.quaternions import average_quaternion, scatter
+from kinectdata.targets.specs import TargetSpec
 
 
 def orientation_stats(values: np.ndarray, mask: np.ndarray, spec: TargetSpec) -> dict[str, list]:

@@ -31,11 +31,11 @@ from typing import Any
 
 import numpy as np
 
-from .errors import KinectDataError, SchemaError
-from .jointsets import JointSet, load_joint_set, shipped_joint_sets
-from .motion import Motion
-from .quaternions import make_continuous
-from .resources import load_json, shipped_names, shipped_path, validate
+from kinectdata.core.errors import KinectDataError, SchemaError
+from kinectdata.core.jointsets import JointSet, load_joint_set, shipped_joint_sets
+from kinectdata.core.motion import Motion
+from kinectdata.core.quaternions import make_continuous
+from kinectdata.core.resources import load_json, shipped_names, shipped_path, validate
 
 POSITION_AXES = ("x", "y", "z")
 POSITION_SCALES = ("none", "recording_minmax")
@@ -247,9 +247,9 @@ def extract_targets(motion: Motion, spec: TargetSpec, *, root_centre: bool = Fal
     """The target vectors of every frame of a motion.
 
     Quaternions: each joint's series is made sign-continuous over time
-    (:func:`~kinectdata.quaternions.make_continuous`, across masked gaps); its first valid
+    (:func:`~kinectdata.core.quaternions.make_continuous`, across masked gaps); its first valid
     quaternion keeps the source's sign. A dataset build then puts every recording's track of a
-    joint in one hemisphere (:mod:`kinectdata.dataset.hemispheres`).
+    joint in one hemisphere (:mod:`kinectdata.targets.hemispheres`).
 
     Limb lengths: the distance between each listed joint and its parent at the same frame, in the
     units of the positions after ``position_scale`` (each axis divided by its scale); computed

@@ -26,8 +26,8 @@ from typing import Any
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from .motion import Motion
-from .targets import TargetSpec
+from kinectdata.core.motion import Motion
+from kinectdata.targets.specs import TargetSpec
 
 MAX_SPREAD = 0.25
 """An offset is kept when its median deviation is under this share of its length."""
@@ -89,10 +89,10 @@ def rebuild_positions(
     """Joint positions [T, J, 3] (NaN where not placed) and their mask [T, J] from target vectors
     [T, D] in target units (metres, unit quaternions), by forward kinematics from the spec's root.
 
-    ``root_centred``: the targets were root-centred (:func:`kinectdata.targets.extract_targets`):
+    ``root_centred``: the targets were root-centred (:func:`kinectdata.targets.specs.extract_targets`):
     the other listed positions are offsets from the root at the same frame, so the root's position
     is added back to them (the root itself stays relative to its first second)."""
-    from .jointsets import load_joint_set
+    from kinectdata.core.jointsets import load_joint_set
 
     js = load_joint_set(spec.joint_set)
     T, J = values.shape[0], len(js)

@@ -12,7 +12,7 @@ own outputs. For the yalta model two ways, as in the paper's tables:
 
 The cdhc model has no state to reset (its receptive field is fixed): only "without reset".
 
-SMAPE (:func:`~kinectdata.training.metrics.smape`, percent, 0/0 counted as 0) compares frames
+SMAPE (:func:`~kinectdata.evaluation.metrics.smape`, percent, 0/0 counted as 0) compares frames
 1..T-1 with the real poses over valid components, on the normalised targets and on the
 denormalised ones (metres and quaternion components). Also reported: the per-frame forward time
 of the streaming network at batch 1 (median and 95th percentile, in ms, on the named device; yalta:
@@ -35,19 +35,19 @@ import h5py
 import numpy as np
 import torch
 
-from ..dataset.shards import read_index
-from ..errors import KinectDataError
-from ..features import compute_features, feature_config
-from ..models.cdhc import CdhcNet
-from ..models.engines import make_engine, onnxruntime_available
-from ..models.registry import model_kind
-from ..models.yalta import YaltaNet
-from ..normalization import Normalizer
-from ..plots import rhythm_plot, trajectories
-from ..targets import TargetSpec
-from .metrics import motion_energy, smape
-from .rhythm_eval import rhythm_evaluation, summarize_rhythm
-from .run import interface_mismatch, load_model, model_name, read_manifest, write_json
+from kinectdata.core.errors import KinectDataError
+from kinectdata.dataset.shards import read_index
+from kinectdata.evaluation.metrics import motion_energy, smape
+from kinectdata.evaluation.rhythm_eval import rhythm_evaluation, summarize_rhythm
+from kinectdata.features import compute_features, feature_config
+from kinectdata.inference.engines import make_engine, onnxruntime_available
+from kinectdata.models.cdhc import CdhcNet
+from kinectdata.models.registry import model_kind
+from kinectdata.models.yalta import YaltaNet
+from kinectdata.targets.normalization import Normalizer
+from kinectdata.targets.specs import TargetSpec
+from kinectdata.training.run import interface_mismatch, load_model, model_name, read_manifest, write_json
+from kinectdata.viz.plots import rhythm_plot, trajectories
 
 SILENCE_S = 5.0
 
@@ -78,7 +78,7 @@ def _recordings(dataset: Path, manifest: dict, split: str) -> list[dict[str, Any
 def forward_times(
     net: YaltaNet | CdhcNet, frames: np.ndarray, engine: str = "torch", precision: str = "float32"
 ) -> dict:
-    """Per-frame time of a streaming engine (:mod:`~kinectdata.models.engines`) at batch 1 over
+    """Per-frame time of a streaming engine (:mod:`~kinectdata.inference.engines`) at batch 1 over
     ``frames`` (the network's inputs [N, ...]), its own outputs fed back."""
     stepper = make_engine(net, engine, precision)
     pose = np.full(net.config.output_dim, 0.5, np.float32)

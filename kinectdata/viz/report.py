@@ -17,7 +17,7 @@ The shards hold the targets, their mask, the features and the alignment summary.
 flags and the offset's correlation curve need the sources named in the manifest's ``inputs``: an
 aligned ``.h5`` file (which keeps the flags), or the skeleton recording and audio, which are then
 resampled onto the dataset's timeline and their offset re-estimated with
-:func:`kinectdata.offset.estimate_offset`. That is done when the files are still where the build
+:func:`kinectdata.align.offset.estimate_offset`. That is done when the files are still where the build
 found them with the same SHA-256; otherwise the page says why not. ``sources=False`` skips it.
 """
 
@@ -34,23 +34,24 @@ from typing import Any
 import h5py
 import numpy as np
 
-from . import __version__, plots
-from .align import DEFAULT_MAX_GAP, DEFAULT_MIN_COVERAGE, plan_timeline, resample_onto
-from .aligned import AlignedRecording
-from .atomic import atomic_output
-from .audio import AudioReader
-from .dataset.inputs import SPLITS, RecordingEntry
-from .dataset.pipelines import PIPELINES
-from .dataset.prepare import source_hashes
-from .dataset.shards import read_index
-from .dataset.verify import verified_manifest
-from .envelopes import audio_envelopes
-from .errors import KinectDataError
-from .features import PRESETS, MelConfig, feature_config
-from .jointsets import JointSet
-from .normalization import Normalizer, count_out_of_range
-from .offset import OffsetEstimate, estimate_offset, xcorr_estimate
-from .targets import TargetSpec
+from kinectdata.align.aligned import AlignedRecording
+from kinectdata.align.audio import AudioReader
+from kinectdata.align.envelopes import audio_envelopes
+from kinectdata.align.offset import OffsetEstimate, estimate_offset, xcorr_estimate
+from kinectdata.align.recipe import DEFAULT_MAX_GAP, DEFAULT_MIN_COVERAGE, plan_timeline, resample_onto
+from kinectdata.core.atomic import atomic_output
+from kinectdata.core.errors import KinectDataError
+from kinectdata.core.jointsets import JointSet
+from kinectdata.core.version import __version__
+from kinectdata.dataset.inputs import SPLITS, RecordingEntry
+from kinectdata.dataset.pipelines import PIPELINES
+from kinectdata.dataset.prepare import source_hashes
+from kinectdata.dataset.shards import read_index
+from kinectdata.dataset.verify import verified_manifest
+from kinectdata.features import PRESETS, MelConfig, feature_config
+from kinectdata.targets.normalization import Normalizer, count_out_of_range
+from kinectdata.targets.specs import TargetSpec
+from kinectdata.viz import plots
 
 LOW_CONFIDENCE = 0.8
 """Offsets estimated with less confidence than this are warned about."""

@@ -12,7 +12,7 @@ from importlib import resources
 from pathlib import Path
 from typing import Any
 
-from .errors import SchemaError
+from kinectdata.core.errors import SchemaError
 
 
 def schemas_dir() -> Path:

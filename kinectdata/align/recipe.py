@@ -8,7 +8,7 @@ time 0 is the first audio sample inside that span and frame k is at ``k / fps`` 
 The last frame is the last one that has motion at its time and audio for its whole frame period;
 the output audio runs one more frame period past it where the source has it (per-frame analysis
 windows reach slightly past their frame). The motion is resampled onto the
-frame times (:mod:`kinectdata.timeline`). The audio must cover at least ``min_coverage`` of the
+frame times (:mod:`kinectdata.align.timeline`). The audio must cover at least ``min_coverage`` of the
 motion's duration; otherwise the pair is refused (audio shorter than the dance, or a wrong
 offset), not silently trimmed.
 """
@@ -23,14 +23,14 @@ from typing import Any
 
 import numpy as np
 
-from .aligned import AlignedRecording
-from .audio import DEFAULT_SAMPLE_RATE, Audio, load_audio
-from .envelopes import AudioEnvelopes
-from .errors import AlignmentError, KinectDataError
-from .formats import read_motion
-from .motion import Motion
-from .offset import estimate_offset
-from .timeline import Resampled, resample_motion
+from kinectdata.align.aligned import AlignedRecording
+from kinectdata.align.audio import DEFAULT_SAMPLE_RATE, Audio, load_audio
+from kinectdata.align.envelopes import AudioEnvelopes
+from kinectdata.align.offset import estimate_offset
+from kinectdata.align.timeline import Resampled, resample_motion
+from kinectdata.core.errors import AlignmentError, KinectDataError
+from kinectdata.core.motion import Motion
+from kinectdata.formats import read_motion
 
 DEFAULT_FPS = 30.0
 DEFAULT_MAX_GAP = 0.2
@@ -63,7 +63,7 @@ def resolve_offset(
     """The offset to use, with where it came from: ``{"seconds", "source", "confidence", ...}``.
 
     ``offset`` is a number of seconds (source "given") or "auto"/None (estimated from the audio or
-    its envelopes by :func:`kinectdata.offset.estimate_offset`).
+    its envelopes by :func:`kinectdata.align.offset.estimate_offset`).
     """
     if offset is None or offset == "auto":
         est = estimate_offset(motion, audio, max_offset=max_offset, min_confidence=min_confidence)
@@ -246,7 +246,7 @@ def align(
         audio: mono audio (its rate is kept; :func:`load_audio` gives 16 kHz).
         fps: output frame rate (frames per second).
         offset: seconds with ``audio_time = motion_time + offset``, or "auto" to estimate it
-            (:func:`kinectdata.offset.estimate_offset`).
+            (:func:`kinectdata.align.offset.estimate_offset`).
         max_gap: longest tracking gap (seconds without data) filled by interpolation; longer
             gaps stay masked and are reported.
         min_coverage: least share (0..1) of the motion's duration the audio must cover.
@@ -304,7 +304,7 @@ def align_files(
     """
     motion = read_motion(recording, format=format, schema=schema, body=body, person=person, video_fps=video_fps)
     if timeline is not None:
-        from .oni.skeleton import retime
+        from kinectdata.oni.skeleton import retime
 
         motion = retime(motion, timeline)
     audio = load_audio(audio_path, sample_rate=sample_rate)
