@@ -26,10 +26,10 @@ import warnings
 import numpy as np
 import torch
 
-from kinectdata.evaluation.metrics import masked_mse
 from kinectdata.inference.engines import OnnxRuntimeEngine, onnxruntime_available
+from kinectdata.models.losses import masked_mse
 from kinectdata.models.yalta import StreamingYalta, YaltaConfig, YaltaNet
-from kinectdata.training.run import TrainConfig
+from kinectdata.training.config import TrainConfig
 from kinectdata.training.train import _add_gradient_noise
 
 from .summary import record

@@ -59,7 +59,7 @@ def sample_dataset(tmp_path_factory) -> Path:
 def trained_run(sample_dataset, tmp_path_factory):
     """(run folder, log rows) of a TINY_TRAINING run (predicted feedback) on the sample dataset."""
     pytest.importorskip("torch")
-    from kinectdata.training.run import TrainConfig
+    from kinectdata.training.config import TrainConfig
     from kinectdata.training.train import train
 
     run = tmp_path_factory.mktemp("trained") / "run"

@@ -13,7 +13,8 @@ import pytest
 import soundfile as sf
 from click.testing import CliRunner
 
-from kinectdata.capture.take import _oni_zero_clock, align_take, capture_take, read_take
+from kinectdata.align.take import align_take
+from kinectdata.capture.take import _oni_zero_clock, capture_take, read_take
 from kinectdata.cli import main
 from kinectdata.core.errors import KinectDataError
 from kinectdata.formats.csv_writer import write_csv

@@ -31,6 +31,8 @@ from kinectdata.targets.specs import load_target_spec
 torch = pytest.importorskip("torch")
 from torch.utils.data import DataLoader, Dataset  # noqa: E402
 
+from kinectdata.models.run import load_checkpoint  # noqa: E402
+from kinectdata.training.config import TrainConfig  # noqa: E402
 from kinectdata.training.distributed import (  # noqa: E402
     World,
     check_replicas,
@@ -39,7 +41,6 @@ from kinectdata.training.distributed import (  # noqa: E402
     share_of_batch,
     sum_over_ranks,
 )
-from kinectdata.training.run import TrainConfig, load_checkpoint  # noqa: E402
 from kinectdata.training.train import _training_batches, train  # noqa: E402
 
 SESSIONS = [f"synth_00{i}.{ext}" for i in (1, 2, 3) for ext in ("csv", "flac")]

@@ -20,9 +20,10 @@ from kinectdata.features.stft import PRESETS, StftConfig, stft_features  # noqa:
 from kinectdata.formats import read_motion  # noqa: E402
 from kinectdata.inference.engines import onnxruntime_available  # noqa: E402
 from kinectdata.inference.generate import generate  # noqa: E402
+from kinectdata.models.run import load_model  # noqa: E402
 from kinectdata.targets.normalization import Normalizer  # noqa: E402
 from kinectdata.targets.specs import TargetSpec  # noqa: E402
-from kinectdata.training.run import TrainConfig, load_model  # noqa: E402
+from kinectdata.training.config import TrainConfig  # noqa: E402
 
 SONG = REPO / "sample_data" / "synth_002.flac"
 

@@ -296,7 +296,7 @@ def _log(run_dir: Path) -> list[dict[str, str]]:
 @pytest.mark.slow
 def test_training_killed_in_its_second_epoch_resumes_to_the_same_weights(sample_dataset, tmp_path):
     torch = pytest.importorskip("torch")
-    from kinectdata.training.run import load_checkpoint
+    from kinectdata.models.run import load_checkpoint
 
     whole = subprocess.Popen(  # the uninterrupted run, alongside
         _train_command(sample_dataset, tmp_path / "whole"), env=ONE_THREAD, stdout=subprocess.DEVNULL

@@ -124,7 +124,7 @@ def test_inspect_describes_the_mel_dataset(ltd_dataset):
 
 @pytest.fixture(scope="module")
 def cdhc_run(ltd_dataset, tmp_path_factory):
-    from kinectdata.training.run import TrainConfig
+    from kinectdata.training.config import TrainConfig
     from kinectdata.training.train import train
 
     run = tmp_path_factory.mktemp("cdhc") / "run"
@@ -181,7 +181,7 @@ def real_tempo(dataset, name) -> float:
 
 
 def test_the_model_follows_the_dataset_and_mismatches_are_refused(ltd_dataset, sample_dataset, tmp_path):
-    from kinectdata.training.run import TrainConfig
+    from kinectdata.training.config import TrainConfig
     from kinectdata.training.train import train
 
     with pytest.raises(KinectDataError, match="yalta model takes STFT inputs.*use --model cdhc"):
@@ -196,7 +196,7 @@ def test_the_model_follows_the_dataset_and_mismatches_are_refused(ltd_dataset, s
 
 
 def test_cdhc_needs_0_1_targets_without_root_centring(sessions, tmp_path):
-    from kinectdata.training.run import TrainConfig
+    from kinectdata.training.config import TrainConfig
     from kinectdata.training.train import train
 
     for option, words in ((["--normalisation", "minmax"], "covers 0..1"), (["--root-centre"], "without --root-centre")):

@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 from kinectdata.core.errors import KinectDataError
+from kinectdata.evaluation.figures import rhythm_plot
 from kinectdata.evaluation.rhythm import (
     autocorrelation_peaks,
     beat_align_score,
@@ -21,7 +22,6 @@ from kinectdata.evaluation.rhythm import (
     rhythm_report,
     trajectory_autocorrelation,
 )
-from kinectdata.viz.plots import rhythm_plot
 
 FPS = 30.0
 

@@ -63,7 +63,7 @@ def test_no_loader_in_the_package_can_unpickle():
 
 def test_a_checkpoint_with_a_pickled_object_is_refused_naming_the_file(tmp_path):
     torch = pytest.importorskip("torch")
-    from kinectdata.training.run import load_checkpoint, load_model
+    from kinectdata.models.run import load_checkpoint, load_model
 
     planted = tmp_path / "planted.txt"
     run_dir = tmp_path / "run"
@@ -82,7 +82,8 @@ def test_a_checkpoint_with_a_pickled_object_is_refused_naming_the_file(tmp_path)
 
 def test_dataset_manifests_are_validated_before_training_or_evaluation(tmp_path):
     pytest.importorskip("torch")
-    from kinectdata.training.run import TrainConfig, read_manifest
+    from kinectdata.models.run import read_manifest
+    from kinectdata.training.config import TrainConfig
     from kinectdata.training.train import train
 
     dataset = tmp_path / "dataset"

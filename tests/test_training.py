@@ -15,7 +15,8 @@ from conftest import TINY_TRAINING
 torch = pytest.importorskip("torch")
 
 from kinectdata.core.errors import KinectDataError  # noqa: E402
-from kinectdata.training.run import TrainConfig, load_checkpoint, load_model  # noqa: E402
+from kinectdata.models.run import load_checkpoint, load_model  # noqa: E402
+from kinectdata.training.config import TrainConfig  # noqa: E402
 from kinectdata.training.train import LOG_FIELDS, _add_gradient_noise, train  # noqa: E402
 
 

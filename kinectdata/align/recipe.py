@@ -15,7 +15,6 @@ offset), not silently trimmed.
 
 from __future__ import annotations
 
-import hashlib
 import math
 from dataclasses import dataclass
 from pathlib import Path
@@ -29,27 +28,13 @@ from kinectdata.align.envelopes import AudioEnvelopes
 from kinectdata.align.offset import estimate_offset
 from kinectdata.align.timeline import Resampled, resample_motion
 from kinectdata.core.errors import AlignmentError, KinectDataError
+from kinectdata.core.hashing import file_sha256
 from kinectdata.core.motion import Motion
 from kinectdata.formats import read_motion
 
 DEFAULT_FPS = 30.0
 DEFAULT_MAX_GAP = 0.2
 DEFAULT_MIN_COVERAGE = 0.9
-
-
-def file_sha256(path: str | Path) -> str:
-    """Hex SHA-256 of a file's bytes; of a folder (an OpenPose output folder), of its files' relative
-    names and SHA-256s in sorted order, so renaming, adding or editing any file changes it."""
-    path = Path(path)
-    h = hashlib.sha256()
-    if path.is_dir():
-        for member in sorted(p for p in path.rglob("*") if p.is_file()):
-            h.update(f"{member.relative_to(path).as_posix()}\0{file_sha256(member)}\n".encode())
-        return h.hexdigest()
-    with open(path, "rb") as f:
-        for block in iter(lambda: f.read(1 << 20), b""):
-            h.update(block)
-    return h.hexdigest()
 
 
 def resolve_offset(

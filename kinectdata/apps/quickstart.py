@@ -131,7 +131,7 @@ def run_quickstart(
         return summary
     from kinectdata.evaluation.evaluate import evaluate, format_results
     from kinectdata.inference.generate import generate
-    from kinectdata.training.run import TrainConfig
+    from kinectdata.training.config import TrainConfig
     from kinectdata.training.train import train
 
     run = out / "run"
@@ -208,7 +208,7 @@ def run_listen_quickstart(out_dir: str | Path, echo: Callable[[str], Any] = prin
         return summary
     from kinectdata.evaluation.evaluate import evaluate, format_results
     from kinectdata.inference.generate import generate
-    from kinectdata.training.run import TrainConfig
+    from kinectdata.training.config import TrainConfig
     from kinectdata.training.train import train
 
     run = out / "run"

@@ -122,7 +122,8 @@ def align(
     RECORDING may be a take folder written by `kinectdata capture` (no AUDIO then): its skeleton
     and audio are aligned with the offset from the take's clock stamps.
     """
-    from kinectdata.capture.take import align_take, is_take
+    from kinectdata.align.take import align_take
+    from kinectdata.capture.take import is_take
 
     common = {
         "format": format_,

@@ -3,8 +3,8 @@
 from __future__ import annotations
 
 import click
-from tqdm import tqdm
 
+from kinectdata.cli.progress import progress_bar
 from kinectdata.dataset.build import build_dataset
 from kinectdata.dataset.executors import EXECUTORS, make_executor
 from kinectdata.dataset.inspect import inspect as inspect_report
@@ -234,12 +234,7 @@ def build_dataset_command(
         max_gap=max_gap,
         min_coverage=min_coverage,
     )
-    with tqdm(total=None, unit="recording", desc="preparing", disable=None) as bar:
-
-        def progress(done: int, total: int) -> None:
-            bar.total = total
-            bar.update(done - bar.n)
-
+    with progress_bar("preparing", "recording") as progress:
         manifest = build_dataset(
             source,
             out,

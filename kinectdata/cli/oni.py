@@ -6,6 +6,8 @@ import json
 
 import click
 
+from kinectdata.cli.progress import progress_bar
+
 
 @click.group("oni")
 def oni() -> None:
@@ -42,17 +44,10 @@ def export_command(file, stream, out, start, end, compression) -> None:
     [N, H, W, 3] RGB), timestamps_us, time_s and frame_numbers, one frame per chunk."""
     import warnings
 
-    from tqdm import tqdm
-
     from kinectdata.oni.export import export_stream
 
-    with tqdm(unit="frame", desc="decoding", disable=None) as bar, warnings.catch_warnings(record=True) as caught:
+    with progress_bar("decoding", "frame") as progress, warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-
-        def progress(done: int, total: int) -> None:
-            bar.total = total
-            bar.update(done - bar.n)
-
         attrs = export_stream(file, out, stream, start_s=start, end_s=end, compression=compression, progress=progress)
     for w in caught:
         click.echo(f"warning: {w.message}", err=True)
@@ -77,17 +72,11 @@ def skeleton_command(file, out, nite_dir, user) -> None:
     """Track the dancer in FILE with NiTE2's user tracker (not shipped with kinectdata: it must be
     installed) and write the 15-joint skeleton (metres, quaternions x, y, z, w) as canonical CSV,
     its times the recording's own depth timestamps in seconds."""
-    from tqdm import tqdm
 
     from kinectdata.formats.csv_writer import write_csv
     from kinectdata.oni.skeleton import track_skeleton
 
-    with tqdm(unit="frame", desc="tracking", disable=None) as bar:
-
-        def progress(done: int, total: int) -> None:
-            bar.total = total
-            bar.update(done - bar.n)
-
+    with progress_bar("tracking", "frame") as progress:
         motion = track_skeleton(file, nite_dir=nite_dir, user=user, progress=progress)
     origin_s = motion.metadata["time_origin"]["value"] / 1e6
     write_csv(

@@ -5,6 +5,7 @@ from __future__ import annotations
 import click
 
 from kinectdata.cli.options import reader_options
+from kinectdata.cli.progress import progress_bar
 
 
 class SizeType(click.ParamType):
@@ -76,7 +77,6 @@ def render(motion, out, audio, compare, start, end, fps, size, format_, schema, 
     (CSV, OpenPose JSON Lines). 3-D skeletons (metres) are seen by a fixed raised camera looking the way
     the sensor looks, over a floor grid; 2-D ones (pixels) on image axes, y down. --format applies to
     MOTION, the other reader options to MOTION and OTHER where their format takes them."""
-    from tqdm import tqdm
 
     from kinectdata.viz.render import load_inputs, render_animation
 
@@ -84,12 +84,7 @@ def render(motion, out, audio, compare, start, end, fps, size, format_, schema, 
     with_audio = out.lower().endswith(".mp4") and audio is None
     options = {"schema": schema, "body": body, "person": person, "video_fps": video_fps}
     inputs = load_inputs(paths, with_audio=with_audio, format=format_, **options)
-    with tqdm(unit="frame", desc="rendering", disable=None) as bar:
-
-        def progress(done: int, total: int) -> None:
-            bar.total = total
-            bar.update(done - bar.n)
-
+    with progress_bar("rendering", "frame") as progress:
         result = render_animation(inputs, out, start=start, end=end, fps=fps, audio=audio, size=size, progress=progress)
     width, height = result["size"]
     click.echo(

@@ -3,8 +3,8 @@
 from __future__ import annotations
 
 import click
-from tqdm import tqdm
 
+from kinectdata.cli.progress import progress_bar
 from kinectdata.viz.report import write_report
 
 
@@ -26,12 +26,7 @@ def report(dataset: str, out: str, no_sources: bool) -> None:
     """Write an HTML report on a DATASET folder: splits, warnings (clipping, long gaps, doubtful
     offsets, masked data) and per recording its tracking quality, offset evidence, audio features
     and target distributions."""
-    with tqdm(total=None, unit="recording", desc="reporting", disable=None) as bar:
-
-        def progress(done: int, total: int) -> None:
-            bar.total = total
-            bar.update(done - bar.n)
-
+    with progress_bar("reporting", "recording") as progress:
         path = write_report(dataset, out, sources=not no_sources, progress=progress)
     click.echo(f"wrote {path}")
 

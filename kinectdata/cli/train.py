@@ -24,7 +24,7 @@ def _torch_or_fail() -> None:
 
 def train_options(f):
     """The training settings. Options whose default depends on the model show it as
-    "yalta / cdhc" (:data:`kinectdata.training.run.MODEL_DEFAULTS`)."""
+    "yalta / cdhc" (:data:`kinectdata.training.config.MODEL_DEFAULTS`)."""
     options = [
         click.option(
             "--model",
@@ -140,7 +140,8 @@ def make_train_config(model: str | None, data: str | None = None, **settings):
     """The TrainConfig of the typed settings over the model's defaults; the model defaults to the
     dataset's (read from ``data``'s manifest)."""
     from kinectdata.models.registry import model_for_features
-    from kinectdata.training.run import TrainConfig, read_manifest
+    from kinectdata.models.run import read_manifest
+    from kinectdata.training.config import TrainConfig
 
     if model is None:
         model = "yalta" if data is None else model_for_features(read_manifest(data)["config"]["features"])
@@ -174,7 +175,8 @@ def train_baseline(data, out, resume, **options) -> None:
     from kinectdata.training.train import train
 
     if resume:  # the run's settings, with what was typed on the command line checked against them
-        from kinectdata.training.run import TrainConfig, read_config
+        from kinectdata.models.run import read_config
+        from kinectdata.training.config import TrainConfig
 
         typed = {k: v for k, v in options.items() if v is not None}
         config = dataclasses.replace(TrainConfig(**read_config(out)["train"]), **typed)
@@ -290,7 +292,7 @@ def sweep_command(data, out, only, **options) -> None:
     50/100 steps) and write OUT/results.md with the paper's columns beside its figures."""
     _torch_or_fail()
     from kinectdata.models.registry import model_for_features
-    from kinectdata.training.run import read_manifest
+    from kinectdata.models.run import read_manifest
     from kinectdata.training.sweep import sweep
 
     dataset_model = model_for_features(read_manifest(data)["config"]["features"])

@@ -23,7 +23,6 @@ from __future__ import annotations
 
 import hashlib
 import json
-import re
 import shutil
 from collections.abc import Callable
 from contextlib import ExitStack
@@ -33,12 +32,13 @@ from typing import Any
 import h5py
 import numpy as np
 
-from kinectdata.align.recipe import file_sha256
 from kinectdata.core.atomic import atomic_output, remove
 from kinectdata.core.errors import KinectDataError
+from kinectdata.core.hashing import file_sha256
 from kinectdata.core.version import __version__
 from kinectdata.dataset.executors import Executor, LocalExecutor
-from kinectdata.dataset.inputs import SPLITS, RecordingEntry, assign_splits, read_recordings
+from kinectdata.dataset.inputs import RecordingEntry, assign_splits, read_recordings
+from kinectdata.dataset.layout import MANIFEST, SHARD_FORMAT, SHARD_NAME, SPLITS, WORK, shard_name
 from kinectdata.dataset.prepare import BuildConfig, Unit, prepare_recording, source_hashes
 from kinectdata.dataset.shards import ShardRecording, row_bytes, write_shard
 from kinectdata.targets.hemispheres import apply_flips, flipped_columns, reference_orientations, track_flips
@@ -46,11 +46,8 @@ from kinectdata.targets.normalization import Normalizer, NormStats, count_out_of
 from kinectdata.targets.skeleton import merge_bone_offsets
 from kinectdata.targets.specs import TargetSpec
 
-MANIFEST = "manifest.json"
-_SHARD_NAME = re.compile(r"(train|val|test)-\d{5}\.h5")
 DATASET_FORMAT = "kinectdata.dataset"
 DATASET_FORMAT_VERSION = 2  # 2: one quaternion hemisphere per joint across recordings
-WORK = ".work"
 
 
 def _prepare(task: tuple) -> list[dict[str, Any]]:
@@ -85,7 +82,7 @@ def _plan_shards(units: list[Unit], splits: dict[str, str], config: BuildConfig,
     for shard in plan:
         i = counters.get(shard["split"], 0)
         counters[shard["split"]] = i + 1
-        shard["file"] = f"{shard['split']}-{i:05d}.h5"
+        shard["file"] = shard_name(shard["split"], i)
     return plan
 
 
@@ -112,11 +109,11 @@ def _existing_key(path: Path) -> str | None:
 
 def _is_shard_of_ours(path: Path) -> bool:
     """A file this builder wrote: a shard name and the shard format attribute."""
-    if not _SHARD_NAME.fullmatch(path.name):
+    if not SHARD_NAME.fullmatch(path.name):
         return False
     try:
         with h5py.File(path, "r") as f:
-            return f.attrs.get("format") == "kinectdata.shard"
+            return f.attrs.get("format") == SHARD_FORMAT
     except OSError:
         return False
 

@@ -25,8 +25,6 @@ from kinectdata.core.errors import KinectDataError, SchemaError
 from kinectdata.core.resources import validate
 from kinectdata.dataset.collection import find_sessions
 
-SPLITS = ("train", "val", "test")
-
 
 @dataclass(frozen=True)
 class RecordingEntry:

@@ -28,9 +28,10 @@ import numpy as np
 from kinectdata.align.aligned import AlignedRecording, audio_blocks
 from kinectdata.align.audio import AudioReader
 from kinectdata.align.envelopes import audio_envelopes
-from kinectdata.align.recipe import file_sha256, plan_timeline, resample_onto, resolve_offset, summarize
+from kinectdata.align.recipe import plan_timeline, resample_onto, resolve_offset, summarize
 from kinectdata.core.atomic import atomic_hdf5, write_failure
 from kinectdata.core.errors import KinectDataError
+from kinectdata.core.hashing import file_sha256
 from kinectdata.dataset.inputs import RecordingEntry
 from kinectdata.features import FeatureConfig, feature_config
 from kinectdata.features.streaming import StreamingFeatures

@@ -23,14 +23,11 @@ from typing import Any
 
 import h5py
 
-from kinectdata.align.recipe import file_sha256
 from kinectdata.core.errors import FormatError, InputError, SchemaError
+from kinectdata.core.hashing import file_sha256
 from kinectdata.core.resources import load_json, schemas_dir
-from kinectdata.dataset.build import _SHARD_NAME, MANIFEST
-from kinectdata.dataset.inputs import SPLITS
+from kinectdata.dataset.layout import MANIFEST, MANIFEST_SCHEMA, SHARD_NAME, SPLITS
 from kinectdata.dataset.shards import json_attribute, read_index, validate_shard
-
-MANIFEST_SCHEMA = "dataset-manifest.schema.json"
 
 
 def _schema_problems(manifest: Any, path: Path) -> list[InputError]:
@@ -92,7 +89,7 @@ def verify_dataset(folder: str | Path) -> list[InputError]:
     manifest, problems = manifest_problems(folder)
     if manifest is None:
         if folder.is_dir():
-            for path in sorted(p for p in folder.iterdir() if _SHARD_NAME.fullmatch(p.name)):
+            for path in sorted(p for p in folder.iterdir() if SHARD_NAME.fullmatch(p.name)):
                 problems += _layout_problems(path)
         return problems
     problems += _account_problems(folder / MANIFEST, manifest)

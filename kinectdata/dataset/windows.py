@@ -22,7 +22,7 @@ import torch
 from torch.utils.data import Dataset
 
 from kinectdata.core.errors import KinectDataError
-from kinectdata.dataset.build import MANIFEST
+from kinectdata.dataset.layout import MANIFEST
 
 
 class WindowDataset(Dataset):

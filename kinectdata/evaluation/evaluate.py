@@ -37,17 +37,17 @@ import torch
 
 from kinectdata.core.errors import KinectDataError
 from kinectdata.dataset.shards import read_index
+from kinectdata.evaluation.figures import rhythm_plot, trajectories
 from kinectdata.evaluation.metrics import motion_energy, smape
 from kinectdata.evaluation.rhythm_eval import rhythm_evaluation, summarize_rhythm
 from kinectdata.features import compute_features, feature_config
 from kinectdata.inference.engines import make_engine, onnxruntime_available
 from kinectdata.models.cdhc import CdhcNet
 from kinectdata.models.registry import model_kind
+from kinectdata.models.run import interface_mismatch, load_model, model_name, read_manifest, write_json
 from kinectdata.models.yalta import YaltaNet
 from kinectdata.targets.normalization import Normalizer
 from kinectdata.targets.specs import TargetSpec
-from kinectdata.training.run import interface_mismatch, load_model, model_name, read_manifest, write_json
-from kinectdata.viz.plots import rhythm_plot, trajectories
 
 SILENCE_S = 5.0
 

@@ -21,12 +21,6 @@ def smape(generated: np.ndarray, real: np.ndarray, mask: np.ndarray | None = Non
     return float(100.0 * terms[valid].sum() / n) if n else float("nan")
 
 
-def masked_mse(prediction, target, mask):
-    """Mean squared error over the valid entries (torch tensors; differentiable)."""
-    mask = mask.to(prediction.dtype)
-    return ((prediction - target) ** 2 * mask).sum() / mask.sum().clamp(min=1.0)
-
-
 def motion_energy(poses: np.ndarray) -> np.ndarray:
     """[T] mean squared frame-to-frame change of a [T, D] pose sequence (0 for the first frame)."""
     poses = np.asarray(poses, dtype=np.float64)

@@ -118,14 +118,14 @@ def export_onnx(net: YaltaNet, path: str | Path, metadata: dict[str, Any] | None
 def export_run(run: str | Path, path: str | Path, fmt: str | None = None, precision: str = "float32") -> Path:
     """Export a trained run's network to ``path``; ``fmt`` from the suffix when None
     (``.onnx``: ONNX, else TorchScript). ONNX is float32 only."""
-    from kinectdata.training.run import load_model
+    from kinectdata.models.run import load_model
 
     fmt = fmt or ("onnx" if Path(path).suffix.lower() == ".onnx" else "torchscript")
     if fmt not in FORMATS:
         raise KinectDataError(f"export format must be one of {', '.join(FORMATS)}, not {fmt!r}")
     if fmt == "onnx" and precision != "float32":
         raise KinectDataError("ONNX export is float32 only (ONNX Runtime runs float32 fastest on CPUs)")
-    from kinectdata.training.run import model_name, read_config
+    from kinectdata.models.run import model_name, read_config
 
     if model_name(read_config(run)) != "yalta":
         raise KinectDataError(

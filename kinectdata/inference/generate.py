@@ -35,10 +35,10 @@ from kinectdata.features.streaming import StreamingFeatures
 from kinectdata.formats.csv_writer import write_csv
 from kinectdata.formats.openpose_writer import write_openpose_jsonl
 from kinectdata.inference.engines import make_engine
+from kinectdata.models.run import load_model
 from kinectdata.targets.normalization import Normalizer
 from kinectdata.targets.skeleton import rebuild_positions
 from kinectdata.targets.specs import TargetSpec
-from kinectdata.training.run import load_model
 
 
 def _motion(

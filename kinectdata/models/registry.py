@@ -23,8 +23,8 @@ import torch
 from torch import nn
 
 from kinectdata.core.errors import KinectDataError
-from kinectdata.evaluation.metrics import masked_mse
 from kinectdata.models.cdhc import CdhcConfig, CdhcNet, cdhc_loss, generate, init_output_bias
+from kinectdata.models.losses import masked_mse
 from kinectdata.models.yalta import YaltaConfig, YaltaNet, free_run
 from kinectdata.targets.specs import TargetSpec
 

@@ -28,9 +28,9 @@ from typing import Any
 
 import numpy as np
 
-from kinectdata.align.recipe import file_sha256
 from kinectdata.core.atomic import atomic_hdf5
 from kinectdata.core.errors import KinectDataError
+from kinectdata.core.hashing import file_sha256
 from kinectdata.oni.reader import OniFile, OniStream
 
 FORMAT = "kinectdata.oni-frames"

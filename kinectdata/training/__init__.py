@@ -1,6 +1,6 @@
-"""Training and evaluating the reference models on kinectdata datasets (needs torch).
+"""Training the reference models on kinectdata datasets (needs torch).
 
-Modules: :mod:`.metrics` (SMAPE, masked MSE), :mod:`.run` (configuration, run folders,
-checkpoints), :mod:`.train` (the training loop), :mod:`.evaluate` (the paper's metrics and
-figures), :mod:`.generate` (audio -> motion, streaming), :mod:`.sweep` (the paper's tables).
+Modules: :mod:`.config` (settings and each model's defaults), :mod:`.train` (the training loop),
+:mod:`.distributed` (several processes under torchrun), :mod:`.figures` (loss curves),
+:mod:`.sweep` (the paper's tables).
 """

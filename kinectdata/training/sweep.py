@@ -19,7 +19,8 @@ from typing import Any
 from kinectdata.core.atomic import atomic_output
 from kinectdata.core.errors import KinectDataError
 from kinectdata.evaluation.evaluate import evaluate
-from kinectdata.training.run import CHECKPOINT, LOG, MODEL, TrainConfig, read_config, read_manifest
+from kinectdata.models.run import CHECKPOINT, LOG, MODEL, read_config, read_manifest
+from kinectdata.training.config import TrainConfig
 from kinectdata.training.train import train
 
 VARIANTS: dict[str, dict[str, Any]] = {

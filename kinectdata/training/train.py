@@ -41,7 +41,20 @@ from kinectdata.dataset.windows import WindowDataset
 from kinectdata.evaluation.metrics import smape
 from kinectdata.inference.export import export_torchscript, stream_metadata
 from kinectdata.models.registry import model_kind
+from kinectdata.models.run import (
+    CHECKPOINT,
+    CONFIG,
+    LOG,
+    MODEL,
+    STREAM,
+    dataset_summary,
+    load_checkpoint,
+    read_manifest,
+    save_checkpoint,
+    write_json,
+)
 from kinectdata.targets.normalization import Normalizer
+from kinectdata.training.config import TrainConfig
 from kinectdata.training.distributed import (
     PaddedWindows,
     WindowSampler,
@@ -54,20 +67,7 @@ from kinectdata.training.distributed import (
     share_of_batch,
     sum_over_ranks,
 )
-from kinectdata.training.run import (
-    CHECKPOINT,
-    CONFIG,
-    LOG,
-    MODEL,
-    STREAM,
-    TrainConfig,
-    dataset_summary,
-    load_checkpoint,
-    read_manifest,
-    save_checkpoint,
-    write_json,
-)
-from kinectdata.viz.plots import loss_curves
+from kinectdata.training.figures import loss_curves
 
 LOG_FIELDS = ["epoch", "step", "train_loss", "val_loss", "val_smape", "seconds", "frames_per_second"]
 

@@ -43,7 +43,8 @@ from kinectdata.core.atomic import atomic_output
 from kinectdata.core.errors import KinectDataError
 from kinectdata.core.jointsets import JointSet
 from kinectdata.core.version import __version__
-from kinectdata.dataset.inputs import SPLITS, RecordingEntry
+from kinectdata.dataset.inputs import RecordingEntry
+from kinectdata.dataset.layout import SPLITS
 from kinectdata.dataset.pipelines import PIPELINES
 from kinectdata.dataset.prepare import source_hashes
 from kinectdata.dataset.shards import read_index

@@ -1,0 +1,25 @@
+"""The names inside a dataset folder, in one place: every module that reads or writes a dataset
+takes them from here (importing this module costs nothing: no reader, no HDF5).
+
+A dataset folder holds ``manifest.json`` (:data:`MANIFEST`, validated by
+``schemas/dataset-manifest.schema.json``) and shards named ``<split>-<nnnnn>.h5``
+(:func:`shard_name`), each an HDF5 file whose ``format`` attribute is :data:`SHARD_FORMAT`
+(layout: ``schemas/shard-layout.json``). ``.work/`` (:data:`WORK`) holds a build's per-recording
+intermediates until the build finishes.
+"""
+
+from __future__ import annotations
+
+import re
+
+MANIFEST = "manifest.json"
+MANIFEST_SCHEMA = "dataset-manifest.schema.json"
+SHARD_FORMAT = "kinectdata.shard"
+SHARD_NAME = re.compile(r"(train|val|test)-\d{5}\.h5")
+WORK = ".work"
+SPLITS = ("train", "val", "test")
+
+
+def shard_name(split: str, index: int) -> str:
+    """The file name of a split's ``index``-th shard, e.g. ``train-00003.h5``."""
+    return f"{split}-{index:05d}.h5"
