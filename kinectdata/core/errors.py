@@ -1,4 +1,4 @@
-"""The error types kinectdata raises on bad input.
+"""The error and warning types kinectdata raises and emits.
 
 Every problem with a user's file is raised as a :class:`KinectDataError` subclass whose message
 names the file and, where it applies, the place in it (line, frame, record, column), so that a
@@ -78,3 +78,15 @@ class AudioError(InputError):
 
 class AlignmentError(KinectDataError):
     """Motion and audio cannot be aligned as asked (ambiguous offset, too little overlap...)."""
+
+
+class ConfigError(KinectDataError, ValueError):
+    """A setting, argument or combination of them is not valid (not a fault of any file).
+
+    Also a :class:`ValueError`, so code that catches bad values the Python way keeps working.
+    """
+
+
+class KinectDataWarning(UserWarning):
+    """Base class of every warning kinectdata emits: ``warnings.filterwarnings("ignore",
+    category=KinectDataWarning)`` silences them all, ``"error"`` turns them into exceptions."""
