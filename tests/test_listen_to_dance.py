@@ -152,9 +152,7 @@ def test_generate_writes_openpose_json_lines_the_reader_reads(cdhc_run, sessions
     result = run_cli("generate", "--run", run, sessions / "dance_11.flac", "-o", tmp_path / "dance.csv")
     assert result.exit_code == 1 and "written as OpenPose JSON Lines; name the file .jsonl" in result.output
     result = run_cli("export", "--run", run, "-o", tmp_path / "x.onnx")
-    assert (
-        result.exit_code == 1 and "export writes the yalta model's streaming network; this run is cdhc" in result.output
-    )
+    assert result.exit_code == 1 and "the cdhc model has no onnx export (models that have: yalta)" in result.output
 
 
 def test_evaluate_reports_rhythm_with_the_real_motion_peaking_at_the_beat(cdhc_run, ltd_dataset, tmp_path):
@@ -189,7 +187,7 @@ def test_the_model_follows_the_dataset_and_mismatches_are_refused(ltd_dataset, s
     with pytest.raises(KinectDataError, match="cdhc model takes per-frame feature vectors.*use --model yalta"):
         train(sample_dataset, tmp_path / "b", TrainConfig.for_model("cdhc", epochs=1))
     result = run_cli("sweep", "--data", ltd_dataset, "--out", tmp_path / "s", "--model", "cdhc")
-    assert result.exit_code == 2 and "yalta model only" in result.output
+    assert result.exit_code == 2 and "the cdhc model has none (models with a sweep: yalta)" in result.output
     result = run_cli("sweep", "--data", ltd_dataset, "--out", tmp_path / "s")
     assert result.exit_code == 2 and "is a cdhc dataset" in result.output
     assert PIPELINES["listen-to-dance"]["model"] == "cdhc"

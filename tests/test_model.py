@@ -9,10 +9,11 @@ import pytest
 
 torch = pytest.importorskip("torch")
 
-from kinectdata.inference.export import INPUTS, export_onnx, export_torchscript  # noqa: E402
+from kinectdata.inference.export import export_onnx, export_torchscript  # noqa: E402
 from kinectdata.models.yalta import StreamingYalta, YaltaConfig, YaltaNet  # noqa: E402
 
 D = 65
+INPUTS = ["features", "previous", "h1", "c1", "h2", "c2"]  # the exported stream's inputs (docs/training.md)
 
 
 def make_net(units=24, activation="elu", seed=0) -> YaltaNet:
@@ -166,7 +167,7 @@ def test_half_precision_weights_stay_close():
     assert half.dtype == torch.float32
     error = float((half - full).abs().max())
     assert 0 < error < 2e-3
-    with pytest.raises(ValueError, match="precision"):
+    with pytest.raises(ValueError, match="precision"):  # a ConfigError, also a ValueError
         StreamingYalta(net, "int8")
 
 

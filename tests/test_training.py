@@ -115,6 +115,41 @@ def test_resume_refuses_another_dataset(trained_run, sample_dataset, tmp_path):
         train(other, run, resume=True)
 
 
+OLD_FLAT = {  # a run's train settings as config.json held them before each model had its own
+    **{"units": 32, "activation": "elu", "feedback": "predicted", "sequence": 30, "stride": None, "batch_size": 8},
+    **{"epochs": 2, "lr": 3e-3, "noise_eta": 0.0, "noise_gamma": 0.55, "clip_norm": None, "seed": 0},
+    **{"device": "auto", "channels": 256, "decoder_channels": 128, "dropout": 0.05, "limb_weight": 1.0},
+}
+
+
+def test_runs_written_before_still_load_and_resume(trained_run, sample_dataset, tmp_path):
+    """A run whose config.json has every model's settings side by side and no model name (as runs
+    before the cdhc model): its model is yalta, it loads, resumes and is rewritten in today's form."""
+    import shutil
+
+    run = tmp_path / "old"
+    shutil.copytree(trained_run[0], run)
+    config = json.loads((run / "config.json").read_text())
+    config["train"] = OLD_FLAT
+    (run / "config.json").write_text(json.dumps(config))
+    state = torch.load(run / "checkpoint.pt", weights_only=True)
+    torch.save({**state, "config": json.dumps(config)}, run / "checkpoint.pt")
+    assert TrainConfig.from_dict(OLD_FLAT) == TrainConfig(**TINY_TRAINING)
+    net, _ = load_model(run)
+    assert net.config.units == 32
+    (run / "model.pt").unlink()
+    history = train(sample_dataset, run, TrainConfig(**{**TINY_TRAINING, "epochs": 3}), resume=True)
+    assert [r["epoch"] for r in history] == [1, 2, 3]
+    assert (
+        json.loads((run / "config.json").read_text())["train"]
+        == TrainConfig(**{**TINY_TRAINING, "epochs": 3}).to_dict()
+    )
+    cdhc = TrainConfig.from_dict({**OLD_FLAT, "model": "cdhc", "feedback": "teacher"})
+    assert cdhc.model == "cdhc" and cdhc.channels == 256 and "units" not in cdhc.to_dict()
+    with pytest.raises(KinectDataError, match="unknown training settings colour"):
+        TrainConfig.from_dict({**OLD_FLAT, "colour": "red"})
+
+
 def test_damaged_run_files_are_named(trained_run, tmp_path):
     import shutil
 

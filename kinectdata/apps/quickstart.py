@@ -218,7 +218,7 @@ def run_listen_quickstart(out_dir: str | Path, echo: Callable[[str], Any] = prin
     history = train(
         out / "dataset",
         run,
-        TrainConfig.for_model("cdhc", **settings),
+        TrainConfig.for_model(chosen["model"], **settings),
         progress=lambda r: echo(f"  epoch {r['epoch']}: train loss {r['train_loss']:.5f} ({r['seconds']:.1f} s)"),
     )
     echo(f"[evaluate] {run} on the test split")

@@ -22,115 +22,92 @@ def _torch_or_fail() -> None:
         ) from None
 
 
+_LOOP_OPTIONS = (
+    ("sequence", click.IntRange(min=1), "Frames per training sequence (at 30 fps, 150 frames = 5 s)."),
+    ("stride", click.IntRange(min=1), "Frames between training sequence starts. Default: --sequence (no overlap)."),
+    ("batch_size", click.IntRange(min=1), "Sequences per batch."),
+    ("epochs", click.IntRange(min=1), "Passes over the data."),
+    ("lr", click.FloatRange(min=0, min_open=True), "Adam learning rate."),
+    ("noise_eta", click.FloatRange(min=0), "Gradient noise: variance eta / (1 + step)^gamma; 0 turns it off."),
+    ("noise_gamma", click.FloatRange(min=0), "Gradient noise annealing exponent."),
+    ("clip_norm", click.FloatRange(min=0, min_open=True), "Clip the gradient's global norm to this before the noise."),
+    ("seed", click.IntRange(min=0), "Seed of initialisation, batch order and noise."),
+    ("device", click.Choice(["auto", "cpu", "cuda"]), "auto: CUDA when present, else CPU."),
+)
+"""The training loop's options (:data:`kinectdata.training.config.LOOP_DEFAULTS`): every model's."""
+
+_RESERVED = {"data", "out", "resume", "only", "model"}
+"""Parameter names of the commands themselves: a model setting of one of these names gets no option."""
+
+
+def _shown(value) -> str:
+    if value is None:
+        return "none"
+    return f"{value:g}" if isinstance(value, float) else str(value)
+
+
+def _per_model(values: list) -> str:
+    """The defaults of the models in order, once when they agree: "150 / 300", "0.55"."""
+    shown = [_shown(v) for v in values]
+    return shown[0] if len(set(shown)) == 1 else " / ".join(shown)
+
+
+def _setting_type(f, default):
+    """The click type of a model setting from its dataclass field (its metadata and default)."""
+    meta = f.metadata
+    if "choices" in meta:
+        return click.Choice(list(meta["choices"]))
+    bounds = {k: meta[k] for k in ("min", "max", "min_open", "max_open") if k in meta}
+    if isinstance(default, bool):
+        return click.BOOL
+    if isinstance(default, int):
+        return click.IntRange(**bounds) if bounds else click.INT
+    if isinstance(default, float):
+        return click.FloatRange(**bounds) if bounds else click.FLOAT
+    return click.STRING
+
+
 def train_options(f):
-    """The training settings. Options whose default depends on the model show it as
-    "yalta / cdhc" (:data:`kinectdata.training.config.MODEL_DEFAULTS`)."""
+    """The training settings: ``--model`` (the registered models), the training loop's options,
+    and every registered model's own settings (from its ``settings_type``; the help names the
+    models each applies to). Defaults that depend on the model show each model's, in the order of
+    ``--model``'s choices (e.g. "yalta / cdhc")."""
+    from kinectdata.models.registry import MODELS
+    from kinectdata.training.config import LOOP_DEFAULTS
+
+    kinds = list(MODELS.values())
+    names = "; ".join(f"{k.name}: {k.description}" for k in kinds)
     options = [
         click.option(
             "--model",
             default=None,
-            type=click.Choice(["yalta", "cdhc"]),
-            help="yalta: the DCNN + deep LSTM of Yalta et al. (2016); cdhc: the encoder-decoder of Lee et al. "
-            "(2018). Default: the dataset's (cdhc for mel features, yalta for STFT).",
-        ),
-        click.option(
-            "--units",
-            default=None,
-            type=click.IntRange(min=1),
-            help="yalta: LSTM units per layer (the paper: 250, 500, 1000). [default: 500]",
-        ),
-        click.option(
-            "--activation",
-            default=None,
-            type=click.Choice(["tanh", "relu", "elu"]),
-            help="yalta: activation after each convolution and fc1. [default: elu]",
-        ),
-        click.option(
-            "--feedback",
-            default=None,
-            type=click.Choice(["predicted", "teacher"]),
-            help="yalta: previous pose fed to the decoder: the model's own output (the paper) or the true one. "
-            "cdhc always trains with the true one (teacher forcing). [default: predicted]",
-        ),
-        click.option(
-            "--channels",
-            default=None,
-            type=click.IntRange(min=1),
-            help="cdhc: width of the audio and skeleton encoders. [default: 256]",
-        ),
-        click.option(
-            "--decoder-channels",
-            default=None,
-            type=click.IntRange(min=1),
-            help="cdhc: width of the fused code and the decoder. [default: 128]",
-        ),
-        click.option(
-            "--dropout",
-            default=None,
-            type=click.FloatRange(0, 1, max_open=True),
-            help="cdhc: dropout after each highway block. [default: 0.05]",
-        ),
-        click.option(
-            "--limb-weight",
-            default=None,
-            type=click.FloatRange(min=0),
-            help="cdhc: weight of the limb-length loss added to the L1 loss. [default: 1]",
-        ),
-        click.option(
-            "--sequence",
-            default=None,
-            type=click.IntRange(min=1),
-            help="Frames per training sequence (at 30 fps, 150 frames = 5 s). [default: 150 / 300]",
-        ),
-        click.option(
-            "--stride",
-            default=None,
-            type=click.IntRange(min=1),
-            help="Frames between training sequence starts. Default: --sequence (no overlap).",
-        ),
-        click.option(
-            "--batch-size", default=None, type=click.IntRange(min=1), help="Sequences per batch. [default: 50 / 16]"
-        ),
-        click.option(
-            "--epochs", default=None, type=click.IntRange(min=1), help="Passes over the data. [default: 10 / 20]"
-        ),
-        click.option(
-            "--lr",
-            default=None,
-            type=click.FloatRange(min=0, min_open=True),
-            help="Adam learning rate. [default: 1e-4 / 2e-4]",
-        ),
-        click.option(
-            "--noise-eta",
-            default=None,
-            type=click.FloatRange(min=0),
-            help="Gradient noise: variance eta / (1 + step)^gamma; 0 turns it off. [default: 0.01 / 0]",
-        ),
-        click.option(
-            "--noise-gamma",
-            default=None,
-            type=click.FloatRange(min=0),
-            help="Gradient noise annealing exponent. [default: 0.55]",
-        ),
-        click.option(
-            "--clip-norm",
-            default=None,
-            type=click.FloatRange(min=0, min_open=True),
-            help="Clip the gradient's global norm to this before the noise. [default: none / 1]",
-        ),
-        click.option(
-            "--seed",
-            default=None,
-            type=click.IntRange(min=0),
-            help="Seed of initialisation, batch order and noise. [default: 0]",
-        ),
-        click.option(
-            "--device",
-            default=None,
-            type=click.Choice(["auto", "cpu", "cuda"]),
-            help="auto: CUDA when present, else CPU. [default: auto]",
-        ),
+            type=click.Choice([k.name for k in kinds]),
+            help=f"{names}. Default: the dataset's (the model of the pipeline that builds it).",
+        )
     ]
+    settings: dict[str, list] = {}
+    for kind in kinds:
+        for field in dataclasses.fields(kind.settings_type):
+            if field.name not in _RESERVED and field.name not in LOOP_DEFAULTS:
+                settings.setdefault(field.name, []).append((kind, field))
+    for name, owners in settings.items():
+        defaults = [getattr(kind.settings_type(), name) for kind, _ in owners]
+        helps = "; ".join(f"{kind.name}: {field.metadata.get('help', name)}" for kind, field in owners)
+        options.append(
+            click.option(
+                f"--{name.replace('_', '-')}",
+                name,
+                default=None,
+                type=_setting_type(owners[0][1], defaults[0]),
+                help=f"{helps} [default: {_per_model(defaults)}]",
+            )
+        )
+    for name, kind_type, text in _LOOP_OPTIONS:
+        defaults = [{**LOOP_DEFAULTS, **k.training_defaults}[name] for k in kinds]
+        shown = "" if name == "stride" else f" [default: {_per_model(defaults)}]"
+        options.append(
+            click.option(f"--{name.replace('_', '-')}", name, default=None, type=kind_type, help=text + shown)
+        )
     for option in reversed(options):
         f = option(f)
     return f
@@ -138,13 +115,13 @@ def train_options(f):
 
 def make_train_config(model: str | None, data: str | None = None, **settings):
     """The TrainConfig of the typed settings over the model's defaults; the model defaults to the
-    dataset's (read from ``data``'s manifest)."""
-    from kinectdata.models.registry import model_for_features
+    dataset's (:func:`kinectdata.models.registry.model_for_dataset` of ``data``'s manifest)."""
+    from kinectdata.models.registry import DEFAULT_MODEL, model_for_dataset
     from kinectdata.models.run import read_manifest
     from kinectdata.training.config import TrainConfig
 
     if model is None:
-        model = "yalta" if data is None else model_for_features(read_manifest(data)["config"]["features"])
+        model = DEFAULT_MODEL if data is None else model_for_dataset(read_manifest(data))
     return TrainConfig.for_model(model, **settings)
 
 
@@ -163,15 +140,18 @@ def _row(row: dict) -> str:
 @click.option("--resume", is_flag=True, help="Continue the run in --out from its last checkpoint, exactly.")
 @train_options
 def train_baseline(data, out, resume, **options) -> None:
-    """Train a bundled model on a dataset: the DCNN + deep LSTM of Yalta et al. (2016) (the paper's
-    settings by default: Adam 1e-4, MSE, sequences of 150, batches of 50, 10 epochs, annealed
-    gradient noise) or the CDHC encoder-decoder of Lee et al. (2018) (teacher forcing, L1 +
-    limb-length loss; Adam 2e-4, sequences of 300, batches of 16, 20 epochs).
+    """Train a registered model on a dataset (by default the dataset's): e.g. the DCNN + deep LSTM
+    of Yalta et al. (2016) (the paper's settings by default: Adam 1e-4, MSE, sequences of 150,
+    batches of 50, 10 epochs, annealed gradient noise) or the CDHC encoder-decoder of Lee et al.
+    (2018) (teacher forcing, L1 + limb-length loss; Adam 2e-4, sequences of 300, batches of 16, 20
+    epochs).
 
     Writes into --out: config.json, checkpoint.pt (each epoch, atomically), log.csv, loss.png,
-    and at the end model.pt (and for yalta stream.ts, TorchScript of the streaming network). With
-    --resume the run's own settings are used; --epochs (to train longer) and --device may be given."""
+    and at the end model.pt and what the model adds (yalta: stream.ts, TorchScript of the
+    streaming network). With --resume the run's own settings are used; --epochs (to train longer)
+    and --device may be given."""
     _torch_or_fail()
+    from kinectdata.models.registry import model_kind
     from kinectdata.training.train import train
 
     if resume:  # the run's settings, with what was typed on the command line checked against them
@@ -179,14 +159,14 @@ def train_baseline(data, out, resume, **options) -> None:
         from kinectdata.training.config import TrainConfig
 
         typed = {k: v for k, v in options.items() if v is not None}
-        config = dataclasses.replace(TrainConfig(**read_config(out)["train"]), **typed)
+        config = TrainConfig.from_dict(read_config(out)["train"]).replace(**typed)
     else:
         config = make_train_config(data=data, **options)
     history = train(data, out, config, resume=resume, progress=lambda r: click.echo(_row(r)))
     from kinectdata.training.distributed import World
 
     if World.from_environment().main:  # under torchrun, one line from rank 0
-        files = "log.csv, loss.png, model.pt" + (", stream.ts" if config.model == "yalta" else "")
+        files = ", ".join(["log.csv", "loss.png", "model.pt", *model_kind(config.model).run_exports])
         click.echo(f"run: {out} ({len(history)} epochs; {files})")
 
 
@@ -220,14 +200,16 @@ def evaluate_command(run_dir, data, split, out, silence) -> None:
     "--out",
     required=True,
     type=click.Path(dir_okay=False),
-    help="File to write: canonical CSV (yalta), OpenPose JSON Lines (cdhc, e.g. dance.jsonl).",
+    help="File to write: canonical CSV (3-D targets, e.g. yalta), OpenPose JSON Lines (2-D targets, e.g. cdhc: "
+    "dance.jsonl).",
 )
 @click.option(
     "--engine",
     default="torch",
     show_default=True,
     type=click.Choice(["torch", "onnxruntime"]),
-    help="What runs the network: torch, or ONNX Runtime (fastest on CPUs; pip install 'kinectdata[export]').",
+    help="What runs the network, as the run's model offers: torch, or ONNX Runtime (yalta; fastest on CPUs; "
+    "pip install 'kinectdata[export]').",
 )
 @click.option(
     "--precision",
@@ -238,8 +220,9 @@ def evaluate_command(run_dir, data, split, out, silence) -> None:
 )
 def generate_command(run_dir, audio, out, engine, precision) -> None:
     """Generate dance motion for AUDIO (any file libsndfile reads), streaming frame by frame, and
-    write it: a yalta run's (metres, unit quaternions) as the canonical CSV that align reads, a cdhc
-    run's (x, y in 0..1, y down) as OpenPose JSON Lines that the openpose reader reads."""
+    write it: 3-D targets (a yalta run's: metres, unit quaternions) as the canonical CSV that align
+    reads, 2-D ones (a cdhc run's: x, y in 0..1, y down) as OpenPose JSON Lines that the openpose
+    reader reads."""
     _torch_or_fail()
     from kinectdata.inference.generate import generate
 
@@ -272,9 +255,9 @@ def generate_command(run_dir, audio, out, engine, precision) -> None:
 )
 def export_command(run_dir, out, fmt, precision) -> None:
     """Write a run's streaming network (one frame per call, state passed in and out) as a
-    self-describing TorchScript or ONNX file for a robot: the metadata inside gives frame and
-    sample rate, feature settings, target components, normalisation and the start pose.
-    ONNX needs pip install 'kinectdata[export]'."""
+    self-describing TorchScript or ONNX file for a robot, for a model that exports (yalta): the
+    metadata inside gives frame and sample rate, feature settings, target components,
+    normalisation and the start pose. ONNX needs pip install 'kinectdata[export]'."""
     _torch_or_fail()
     from kinectdata.inference.export import export_run
 
@@ -285,31 +268,36 @@ def export_command(run_dir, out, fmt, precision) -> None:
 @click.command("sweep")
 @click.option("--data", required=True, type=click.Path(exists=True, file_okay=False), help="Dataset folder.")
 @click.option("--out", required=True, type=click.Path(file_okay=False), help="Folder for the runs and results.md.")
-@click.option("--only", default=None, help="Comma-separated variants (default: all of Tables 3-5).")
+@click.option("--only", default=None, help="Comma-separated variants (default: all of the model's table).")
 @train_options
 def sweep_command(data, out, only, **options) -> None:
-    """Train and evaluate the variants of the paper's Tables 3-5 (TanH/ReLU/ELU, 250/1000 units,
-    50/100 steps) and write OUT/results.md with the paper's columns beside its figures."""
+    """Train and evaluate the variants of the model's published table (yalta: the paper's Tables
+    3-5, TanH/ReLU/ELU, 250/1000 units, 50/100 steps) and write OUT/results.md with the paper's
+    columns beside its figures. The training options set the base every variant changes."""
     _torch_or_fail()
-    from kinectdata.models.registry import model_for_features
+    from kinectdata.core.errors import ConfigError
+    from kinectdata.models.registry import model_for_dataset, model_kind
     from kinectdata.models.run import read_manifest
-    from kinectdata.training.sweep import sweep
+    from kinectdata.training.config import TrainConfig
+    from kinectdata.training.sweep import model_sweep, sweep
 
-    dataset_model = model_for_features(read_manifest(data)["config"]["features"])
-    if options["model"] not in (None, "yalta") or dataset_model != "yalta":
-        raise click.UsageError(
-            "sweep reproduces the tables of Yalta et al. (2016): it trains the yalta model only, on an STFT "
-            f"dataset{'' if dataset_model == 'yalta' else f' ({data} is a {dataset_model} dataset)'}"
-        )
+    typed = {k: v for k, v in options.items() if v is not None and k != "model"}
+    kind = model_kind(options["model"] or model_for_dataset(read_manifest(data)))
+    try:
+        table = model_sweep(kind)
+    except ConfigError as exc:
+        raise click.UsageError(f"{exc}{'' if options['model'] else f' ({data} is a {kind.name} dataset)'}") from None
     variants = None if only is None else [v.strip() for v in only.split(",")]
+
+    def shown(r) -> str:
+        return " / ".join(f"{v:.2f} %" for v in (r["smape_without_reset"], r["smape_with_reset"]) if v is not None)
+
     rows = sweep(
         data,
         out,
-        make_train_config(**options),
+        TrainConfig(kind.name, **{**table.base, **typed}),
         variants,
-        progress=lambda name, r: click.echo(
-            f"{name}: SMAPE {r['smape_without_reset']:.2f} % / {r['smape_with_reset']:.2f} %"
-        ),
+        progress=lambda name, r: click.echo(f"{name}: SMAPE {shown(r)}"),
     )
     click.echo(f"wrote {out}/results.md ({len(rows)} variants)")
 

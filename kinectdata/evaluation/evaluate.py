@@ -1,23 +1,25 @@
 """``evaluate``: a trained run scored on a dataset split as Yalta et al. (2016) score it, with the
 rhythm analysis of Lee et al. (2018) and the field's beat metrics.
 
-For every (clean, not noise-augmented) recording of the split the model runs **free**: it is
-given the true pose of the recording's first frame as the previous pose, and from then on its
-own outputs. For the yalta model two ways, as in the paper's tables:
+For every (clean, not noise-augmented) recording of the split the model runs **free** (its kind's
+``free_run``: :class:`~kinectdata.models.kind.ModelKind`): it is given the true pose of the
+recording's first frame as the previous pose, and from then on its own outputs. For a model that
+resets (its kind's ``resets``, e.g. the yalta model) two ways, as in Yalta et al.'s tables:
 
-- **without reset**: the LSTM states carry over the whole recording;
-- **with reset**: every ``sequence`` frames (the training sequence length) the LSTM states are
+- **without reset**: the states (the yalta model's LSTM states) carry over the whole recording;
+- **with reset**: every ``sequence`` frames (the training sequence length) the states are
   zeroed, as at the start of each training sequence; the model keeps being fed its own poses
   (the paper resets the state only, and its "with reset" scores are the worse ones).
 
-The cdhc model has no state to reset (its receptive field is fixed): only "without reset".
+A model without a state to reset (e.g. the cdhc model, whose receptive field is fixed) is scored
+"without reset" only.
 
 SMAPE (:func:`~kinectdata.evaluation.metrics.smape`, percent, 0/0 counted as 0) compares frames
 1..T-1 with the real poses over valid components, on the normalised targets and on the
-denormalised ones (metres and quaternion components). Also reported: the per-frame forward time
-of the streaming network at batch 1 (median and 95th percentile, in ms, on the named device; yalta:
-torch with float32 and float16 weights, and ONNX Runtime when installed; cdhc: one decoder step,
-torch float32),
+denormalised ones (metres and quaternion components). Also reported, for a model that streams:
+the per-frame forward time of its stream at batch 1 (median and 95th percentile, in ms, on the
+named device) on every engine and precision it runs on (its kind's ``engines``; ONNX Runtime when
+installed),
 plots of generated against real trajectories (the paper's Figure 6), and the **silence test**:
 seconds of silence are inserted into the middle of a recording's features, the model runs
 through it, and the motion energy inside the silence is compared with the energy outside (the
@@ -41,11 +43,10 @@ from kinectdata.evaluation.figures import rhythm_plot, trajectories
 from kinectdata.evaluation.metrics import motion_energy, smape
 from kinectdata.evaluation.rhythm_eval import rhythm_evaluation, summarize_rhythm
 from kinectdata.features import compute_features, feature_config
-from kinectdata.inference.engines import make_engine, onnxruntime_available
-from kinectdata.models.cdhc import CdhcNet
-from kinectdata.models.registry import model_kind
+from kinectdata.inference.engines import engine_pairs, make_engine, onnxruntime_available
+from kinectdata.models.kind import ModelKind
+from kinectdata.models.registry import kind_of, model_kind
 from kinectdata.models.run import interface_mismatch, load_model, model_name, read_manifest, write_json
-from kinectdata.models.yalta import YaltaNet
 from kinectdata.targets.normalization import Normalizer
 from kinectdata.targets.specs import TargetSpec
 
@@ -76,12 +77,21 @@ def _recordings(dataset: Path, manifest: dict, split: str) -> list[dict[str, Any
 
 
 def forward_times(
-    net: YaltaNet | CdhcNet, frames: np.ndarray, engine: str = "torch", precision: str = "float32"
+    net: torch.nn.Module,
+    frames: np.ndarray,
+    engine: str = "torch",
+    precision: str = "float32",
+    *,
+    first_pose: np.ndarray | None = None,
+    kind: ModelKind | None = None,
 ) -> dict:
     """Per-frame time of a streaming engine (:mod:`~kinectdata.inference.engines`) at batch 1 over
-    ``frames`` (the network's inputs [N, ...]), its own outputs fed back."""
-    stepper = make_engine(net, engine, precision)
-    pose = np.full(net.config.output_dim, 0.5, np.float32)
+    ``frames`` (the network's inputs [N, ...]), its own outputs fed back after ``first_pose`` [D]
+    (default: 0.5 everywhere, for networks whose ``config`` has ``output_dim``)."""
+    stepper = make_engine(net, engine, precision, kind)
+    if first_pose is None:
+        first_pose = np.full(net.config.output_dim, 0.5)
+    pose = np.asarray(first_pose, np.float32)
     times = []
     for k in range(frames.shape[0]):
         x = np.ascontiguousarray(frames[k], dtype=np.float32)
@@ -100,12 +110,12 @@ def forward_times(
     }
 
 
-def default_engines() -> list[tuple[str, str]]:
-    """(engine, precision) pairs timed by :func:`evaluate`: torch in both precisions, and ONNX
-    Runtime when installed."""
-    return [("torch", "float32"), ("torch", "float16")] + (
-        [("onnxruntime", "float32")] if onnxruntime_available() else []
-    )
+def default_engines(kind: ModelKind) -> list[tuple[str, str]]:
+    """(engine, precision) pairs timed by :func:`evaluate`: every one the model runs on (none for
+    a model that does not stream), ONNX Runtime when installed."""
+    if not kind.streams:
+        return []
+    return [(e, p) for e, p in engine_pairs(kind) if e != "onnxruntime" or onnxruntime_available()]
 
 
 def _device_name() -> str:
@@ -119,13 +129,20 @@ def _device_name() -> str:
 
 
 def silence_test(
-    net: YaltaNet | CdhcNet, features_config: dict, rec: dict, fps: float, seconds: float = SILENCE_S
+    net: torch.nn.Module,
+    features_config: dict,
+    rec: dict,
+    fps: float,
+    seconds: float = SILENCE_S,
+    *,
+    kind: ModelKind | None = None,
 ) -> dict:
     """Insert ``seconds`` of silence in the middle of a recording's features and compare the
     generated motion's energy (mean squared frame-to-frame change, normalised targets) inside the
-    silence, after a second to settle, with the energy outside it."""
+    silence, after a second to settle, with the energy outside it. The network runs free as its
+    model (``kind``, or found from the network) runs it."""
     cfg = feature_config(features_config)
-    kind = model_kind("cdhc" if isinstance(net, CdhcNet) else "yalta")
+    kind = kind or kind_of(net)
     n_silent = int(round(seconds * fps))
     settle = int(round(fps))  # the motion is given a second to stop
     if n_silent < 2 * settle:
@@ -172,7 +189,8 @@ def evaluate(
 ) -> dict[str, Any]:
     """Score a run on a dataset split; write ``results.json`` and figures into ``out``
     (default ``RUN/evaluation``); return the results. ``engines``: the (engine, precision)
-    pairs whose forward time is measured (default :func:`default_engines`)."""
+    pairs whose forward time is measured (default :func:`default_engines`; pairs the run's model
+    does not run on are left out)."""
     run, dataset = Path(run), Path(dataset)
     net, config = load_model(run)
     manifest = read_manifest(dataset)
@@ -186,7 +204,7 @@ def evaluate(
     if not recordings:
         raise KinectDataError(f"{dataset}: the {split} split holds no recording")
     kind = model_kind(model_name(config))
-    for rec in recordings:  # the true first pose; the cdhc model gets the mean pose where it is masked
+    for rec in recordings:  # the true first pose, masked values as the model's fill_previous says
         rec["first_pose"] = kind.fill_previous(rec["current"][0], rec["mask"][0], config["dataset"]["start_pose"])
     out = Path(out) if out is not None else run / "evaluation"
     out.mkdir(parents=True, exist_ok=True)
@@ -224,9 +242,11 @@ def evaluate(
     results["smape"] = scores
     rec, generated = first
     frames = rec["input"][: min(timing_frames, rec["input"].shape[0])]
+    offered = set(engine_pairs(kind)) if kind.streams else set()
     results["forward_time"] = {
-        f"{engine} {precision}": forward_times(net, frames, engine, precision)
-        for engine, precision in ((engines or default_engines()) if kind.name == "yalta" else [("torch", "float32")])
+        f"{engine} {precision}": forward_times(net, frames, engine, precision, first_pose=rec["first_pose"], kind=kind)
+        for engine, precision in (engines or default_engines(kind))
+        if (engine, precision) in offered
     }
     names = spec.component_names()
     shown = _shown_components(names)
@@ -240,7 +260,7 @@ def evaluate(
         title=f"{rec['name']}: generated (free-running) against real",
         unit=unit,
     )
-    sil = silence_test(net, config["dataset"]["features"], rec, fps, silence_seconds)
+    sil = silence_test(net, config["dataset"]["features"], rec, fps, silence_seconds, kind=kind)
     fig7 = trajectories(
         None,
         sil.pop("generated")[:, shown],

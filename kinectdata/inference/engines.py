@@ -1,13 +1,19 @@
-"""Engines that run the streaming network one frame at a time, with its state kept inside.
+"""Engines that run a model's stream one frame at a time, with its state kept inside.
 
-- ``torch``: :class:`~kinectdata.models.yalta.StreamingYalta`, float32 or float16 weights, or
-  for the cdhc model :class:`~kinectdata.models.cdhc.StreamingCdhc` (float32);
-- ``onnxruntime``: the yalta network exported to ONNX (:func:`~kinectdata.inference.export.export_onnx`)
+Which engines and weight precisions a model runs on, its kind says (``engines``:
+:class:`~kinectdata.models.kind.ModelKind`); :func:`make_engine` picks one for a network:
+
+- ``torch``: the model's stream (its kind's ``stream``) in PyTorch, e.g. the yalta model's
+  :class:`~kinectdata.models.yalta.StreamingYalta` with float32 or float16 weights, the cdhc
+  model's :class:`~kinectdata.models.cdhc.FrameCdhc` (float32);
+- ``onnxruntime``: the stream exported to ONNX (:func:`~kinectdata.inference.export.export_onnx`)
   and run by ONNX Runtime (``pip install kinectdata[export]``), float32. On a CPU at batch 1 it
-  is the fastest (``benchmarks/bench_model.py``): it pre-packs the weight matrices.
+  is the fastest for the yalta model (``benchmarks/bench_model.py``): it pre-packs the weight
+  matrices.
 
 All take and return numpy arrays: ``step(features [*feature shape], previous [D]) -> pose [D]``,
-normalised poses; :meth:`reset` zeroes the state (LSTM states, or the causal convolutions' caches).
+normalised poses; :meth:`reset` puts the state back to the stream's initial one (LSTM states,
+the causal convolutions' caches, ...).
 """
 
 from __future__ import annotations
@@ -18,19 +24,19 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from kinectdata.core.errors import KinectDataError
-from kinectdata.inference.export import INPUTS, export_onnx
-from kinectdata.models.cdhc import CdhcNet, StreamingCdhc
-from kinectdata.models.yalta import StreamingYalta, YaltaNet
+from kinectdata.core.errors import ConfigError, KinectDataError
+from kinectdata.inference.export import export_onnx
+from kinectdata.models.kind import ModelKind
+from kinectdata.models.registry import kind_of
 
 ENGINES = ("torch", "onnxruntime")
 
 
 class TorchEngine:
-    """The streaming network in torch (``precision``: float32 or float16 weights)."""
+    """A network's stream in torch (``precision``: its weights', as its model offers)."""
 
-    def __init__(self, net: YaltaNet, precision: str = "float32"):
-        self.module = StreamingYalta(net, precision).eval()
+    def __init__(self, net: torch.nn.Module, precision: str = "float32", kind: ModelKind | None = None):
+        self.module = (kind or kind_of(net)).stream(net, precision).eval()
         self.name = f"torch {precision}"
         self.reset()
 
@@ -39,76 +45,72 @@ class TorchEngine:
 
     def step(self, features: np.ndarray, previous: np.ndarray) -> np.ndarray:
         with torch.inference_mode():
-            pose, *self.state = self.module(torch.from_numpy(features), torch.from_numpy(previous), *self.state)
+            x = torch.from_numpy(np.asarray(features, np.float32))
+            pose, *self.state = self.module(x, torch.from_numpy(np.asarray(previous, np.float32)), *self.state)
         return pose.numpy()
 
 
-class CdhcEngine:
-    """The cdhc network one frame at a time (float32), its causal convolutions' caches kept inside."""
-
-    def __init__(self, net: CdhcNet):
-        self.module = StreamingCdhc(net.eval())
-        self.name = "torch float32"
-        self.reset()
-
-    def reset(self) -> None:
-        self.state = self.module.initial_state()
-
-    def step(self, features: np.ndarray, previous: np.ndarray) -> np.ndarray:
-        with torch.inference_mode():
-            audio = torch.from_numpy(np.asarray(features, np.float32))[None]
-            pose, *self.state = self.module(
-                audio, torch.from_numpy(np.asarray(previous, np.float32))[None], *self.state
-            )
-        return pose[0].numpy()
-
-
 class OnnxRuntimeEngine:
-    """The streaming network exported to ONNX and run by ONNX Runtime on the CPU with ``threads``
+    """A network's stream exported to ONNX and run by ONNX Runtime on the CPU with ``threads``
     threads (one is fastest at batch 1)."""
 
-    def __init__(self, net: YaltaNet, threads: int = 1):
+    def __init__(self, net: torch.nn.Module, threads: int = 1, kind: ModelKind | None = None):
         try:
             import onnxruntime as ort
         except ImportError:
             raise KinectDataError(
                 "the onnxruntime engine needs ONNX Runtime: pip install 'kinectdata[export]'"
             ) from None
+        kind = kind or kind_of(net)
         with tempfile.TemporaryDirectory() as tmp:
             path = Path(tmp) / "stream.onnx"
-            export_onnx(net, path)
+            export_onnx(net, path, kind=kind)
             options = ort.SessionOptions()
             options.intra_op_num_threads = threads
             options.inter_op_num_threads = 1
             self.session = ort.InferenceSession(str(path), options, providers=["CPUExecutionProvider"])
-        self.units = net.config.units
+        self.inputs = [i.name for i in self.session.get_inputs()]
+        self.initial = [s.detach().cpu().numpy() for s in kind.stream(net, "float32").initial_state()]
         self.name = "onnxruntime float32"
         self.reset()
 
     def reset(self) -> None:
-        self.state = [np.zeros((3, self.units), np.float32) for _ in range(4)]
+        self.state = [s.copy() for s in self.initial]
 
     def step(self, features: np.ndarray, previous: np.ndarray) -> np.ndarray:
-        feeds = dict(zip(INPUTS, [features, np.asarray(previous, np.float32), *self.state]))
+        feeds = dict(zip(self.inputs, [features, np.asarray(previous, np.float32), *self.state]))
         pose, *self.state = self.session.run(None, feeds)
         return pose
 
 
+def engine_pairs(kind: ModelKind) -> list[tuple[str, str]]:
+    """Every (engine, precision) the model runs on."""
+    return [(engine, precision) for engine, precisions in kind.engines.items() for precision in precisions]
+
+
+def check_engine(kind: ModelKind, engine: str, precision: str) -> None:
+    """ConfigError unless the model runs on ``engine`` with ``precision`` weights."""
+    if engine not in ENGINES:
+        raise ConfigError(f"engine must be one of {', '.join(ENGINES)}, not {engine!r}")
+    if not kind.streams or engine not in kind.engines:
+        runs = f"runs on {', '.join(kind.engines)} only" if kind.streams and kind.engines else "does not stream"
+        raise ConfigError(f"the {kind.name} model {runs}, not {engine}")
+    if precision not in kind.engines[engine]:
+        raise ConfigError(
+            f"the {kind.name} model runs on {engine} with {' or '.join(kind.engines[engine])} weights only, "
+            f"not {precision}"
+        )
+
+
 def make_engine(
-    net: YaltaNet | CdhcNet, engine: str = "torch", precision: str = "float32"
-) -> TorchEngine | OnnxRuntimeEngine | CdhcEngine:
-    """A streaming engine for a trained network (see the module docstring)."""
-    if isinstance(net, CdhcNet):
-        if (engine, precision) != ("torch", "float32"):
-            raise KinectDataError("the cdhc model runs on the torch engine with float32 weights only")
-        return CdhcEngine(net)
-    if engine == "torch":
-        return TorchEngine(net, precision)
+    net: torch.nn.Module, engine: str = "torch", precision: str = "float32", kind: ModelKind | None = None
+) -> TorchEngine | OnnxRuntimeEngine:
+    """A streaming engine for a trained network of a model (``kind``, or found from the network)."""
+    kind = kind or kind_of(net)
+    check_engine(kind, engine, precision)
     if engine == "onnxruntime":
-        if precision != "float32":
-            raise KinectDataError("the onnxruntime engine runs float32 weights only")
-        return OnnxRuntimeEngine(net)
-    raise KinectDataError(f"engine must be one of {', '.join(ENGINES)}, not {engine!r}")
+        return OnnxRuntimeEngine(net, kind=kind)
+    return TorchEngine(net, precision, kind)
 
 
 def onnxruntime_available() -> bool:

@@ -1,27 +1,33 @@
-"""The streaming network as a file a robot can run: TorchScript or ONNX, self-describing.
+"""A model's streaming network as a file a robot can run: TorchScript or ONNX, self-describing.
 
-Both files hold :class:`~kinectdata.models.yalta.StreamingYalta`, one frame per call:
+A model that exports (its kind's ``exports``: :class:`~kinectdata.models.kind.ModelKind`) has a
+stream (its kind's ``stream``), one frame per call: inputs ``features`` [*F] (the frame's
+features, ``features`` in the metadata), ``previous`` [D] (the previous pose, normalised; first
+call: ``start_pose``) and its state tensors (the kind's ``state_names``; zeros, or the stream's
+``initial_state()``, at the start); outputs ``pose`` [D] (normalised: denormalise with
+``normalisation``) and the new state, ``NAME_out`` for each state tensor, to pass back in with
+the next frame. The yalta model's (:class:`~kinectdata.models.yalta.StreamingYalta`):
 
 ======== =============== ==========================================================
 input    shape           meaning
 ======== =============== ==========================================================
-features [1, 129, 5]     the frame's STFT features (``features`` in the metadata)
-previous [D]             the previous pose, normalised (first call: ``start_pose``)
+features [1, 129, 5]     the frame's STFT features
+previous [D]             the previous pose, normalised
 h1, c1   [3, units]      LSTM1-3 state (zeros at the start)
 h2, c2   [3, units]      LSTM4-6 state (zeros at the start)
 ======== =============== ==========================================================
 
-and it returns the pose [D] (normalised: denormalise with ``normalisation``) and the four new
-states, to pass back in with the next frame. The metadata (JSON) says everything needed around
-the network: frame and sample rate, the feature settings, the target components and their
-normalisation, the start pose. TorchScript keeps it as the extra file ``kinectdata.json``
+The metadata (JSON) says everything needed around the network: frame and sample rate, the
+feature settings, the target components and their normalisation, the start pose, the inputs'
+shapes, and what the model adds (:meth:`~kinectdata.models.kind.ModelKind.export_metadata`).
+TorchScript keeps it as the extra file ``kinectdata.json``
 (``torch.jit.load(path, _extra_files={"kinectdata.json": ""})``); ONNX as the model property
 ``kinectdata`` (``onnxruntime.InferenceSession(path).get_modelmeta().custom_metadata_map``).
 
 TorchScript loads in Python and in C++ (libtorch) without kinectdata; torch marks it deprecated
 but it still works in the torch versions kinectdata supports. ONNX (``pip install
 kinectdata[export]``) runs in ONNX Runtime on any platform, and at batch 1 on a CPU it is the
-fastest way to run the float32 network (``benchmarks/bench_model.py``).
+fastest way to run the yalta model's float32 network (``benchmarks/bench_model.py``).
 """
 
 from __future__ import annotations
@@ -35,29 +41,35 @@ from typing import Any
 import torch
 
 from kinectdata.core.atomic import atomic_output
-from kinectdata.core.errors import KinectDataError
-from kinectdata.models.yalta import StreamingYalta, YaltaNet
+from kinectdata.core.errors import ConfigError, KinectDataError
+from kinectdata.models.kind import ModelKind
+from kinectdata.models.registry import MODELS, kind_of, model_kind
+from kinectdata.models.run import load_model, model_name, read_config
 
 FORMATS = ("torchscript", "onnx")
-INPUTS = ["features", "previous", "h1", "c1", "h2", "c2"]
-OUTPUTS = ["pose", "h1_out", "c1_out", "h2_out", "c2_out"]
 METADATA_KEY = "kinectdata"
 TORCHSCRIPT_METADATA = "kinectdata.json"
 
 
-def stream_metadata(run_config: dict[str, Any], precision: str = "float32") -> dict[str, Any]:
+def stream_names(kind: ModelKind) -> tuple[list[str], list[str]]:
+    """The exported stream's (input names, output names): ``features``, ``previous`` and the
+    state's; ``pose`` and ``NAME_out`` for each state tensor."""
+    return ["features", "previous", *kind.state_names], ["pose", *(f"{n}_out" for n in kind.state_names)]
+
+
+def stream_metadata(
+    run_config: dict[str, Any], precision: str = "float32", kind: ModelKind | None = None
+) -> dict[str, Any]:
     """What a program running the exported network needs besides it, from a run's config.json."""
+    kind = kind or model_kind(model_name(run_config))
     data = run_config["dataset"]
-    model = run_config["model"]
+    extra = dict(kind.export_metadata(run_config["model"]))
+    inputs = {"features": list(data["feature_shape"]), "previous": [data["target_dim"]], **extra.pop("inputs", {})}
     return {
-        "model": "yalta2016",
+        "model": kind.name,
         "precision": precision,
-        "inputs": {
-            "features": list(model["input_shape"]),
-            "previous": [model["output_dim"]],
-            **{name: [3, model["units"]] for name in INPUTS[2:]},
-        },
-        "outputs": OUTPUTS,
+        "inputs": inputs,
+        "outputs": stream_names(kind)[1],
         "fps": data["fps"],
         "sample_rate": data["sample_rate"],
         "features": data["features"],
@@ -65,33 +77,63 @@ def stream_metadata(run_config: dict[str, Any], precision: str = "float32") -> d
         "root_centre": data["root_centre"],
         "normalisation": data["normalisation"],
         "start_pose": data["start_pose"],
-        "activation": model["activation"],
-        "units": model["units"],
+        **extra,
     }
 
 
+def check_export(kind: ModelKind, fmt: str, precision: str = "float32") -> None:
+    """ConfigError unless the model exports ``fmt`` with ``precision`` weights (ONNX: float32;
+    TorchScript: the precisions of the model's torch engine)."""
+    if fmt not in FORMATS:
+        raise ConfigError(f"export format must be one of {', '.join(FORMATS)}, not {fmt!r}")
+    if fmt not in kind.exports:
+        others = [k.name for k in MODELS.values() if fmt in k.exports]
+        raise ConfigError(
+            f"the {kind.name} model has no {fmt} export (models that have: {', '.join(others) or 'none'}); "
+            "run it with kinectdata generate"
+        )
+    if fmt == "onnx" and precision != "float32":
+        raise ConfigError("ONNX export is float32 only (ONNX Runtime runs float32 fastest on CPUs)")
+    precisions = kind.engines.get("torch", ("float32",))
+    if precision not in precisions:
+        raise ConfigError(f"the {kind.name} model exports {' or '.join(precisions)} weights only, not {precision!r}")
+
+
 def export_torchscript(
-    net: YaltaNet, path: str | Path, precision: str = "float32", metadata: dict[str, Any] | None = None
+    net: torch.nn.Module,
+    path: str | Path,
+    precision: str = "float32",
+    metadata: dict[str, Any] | None = None,
+    kind: ModelKind | None = None,
 ) -> torch.jit.ScriptModule:
-    """Write the streaming network as TorchScript (atomically) and return the scripted module."""
+    """Write a network's stream (its model's, ``kind`` or found from the network) as TorchScript
+    (atomically) and return the scripted module."""
+    kind = kind or kind_of(net)
+    check_export(kind, "torchscript", precision)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", DeprecationWarning)  # torch.jit is deprecated but still the libtorch path
-        module = torch.jit.script(StreamingYalta(net.eval(), precision))
+        module = torch.jit.script(kind.stream(net.eval(), precision))
         extra = {TORCHSCRIPT_METADATA: json.dumps(metadata or {})}
         with atomic_output(path) as tmp:
             torch.jit.save(module, str(tmp), _extra_files=extra)
     return module
 
 
-def export_onnx(net: YaltaNet, path: str | Path, metadata: dict[str, Any] | None = None) -> Path:
-    """Write the float32 streaming network as one self-contained ONNX file (atomically)."""
+def export_onnx(
+    net: torch.nn.Module, path: str | Path, metadata: dict[str, Any] | None = None, kind: ModelKind | None = None
+) -> Path:
+    """Write a network's float32 stream (its model's, ``kind`` or found from the network) as one
+    self-contained ONNX file (atomically)."""
+    kind = kind or kind_of(net)
+    check_export(kind, "onnx")
     try:
         import onnx
         import onnxscript  # noqa: F401  (torch's ONNX exporter needs it)
     except ImportError:
         raise KinectDataError("ONNX export needs onnx and onnxscript: pip install 'kinectdata[export]'") from None
-    stream = StreamingYalta(net.eval(), "float32").eval()
-    example = (torch.zeros(*net.config.input_shape), torch.zeros(net.config.output_dim), *stream.initial_state())
+    stream = kind.stream(net.eval(), "float32").eval()
+    example = (*kind.example_frame(net), *stream.initial_state())
+    inputs, outputs = stream_names(kind)
     quiet = logging.getLogger("torch.onnx")
     level = quiet.level
     quiet.setLevel(logging.ERROR)
@@ -102,8 +144,8 @@ def export_onnx(net: YaltaNet, path: str | Path, metadata: dict[str, Any] | None
                 stream,
                 example,
                 dynamo=True,
-                input_names=INPUTS,
-                output_names=OUTPUTS,
+                input_names=inputs,
+                output_names=outputs,
                 external_data=False,
                 verbose=False,
             )
@@ -115,26 +157,32 @@ def export_onnx(net: YaltaNet, path: str | Path, metadata: dict[str, Any] | None
     return Path(path)
 
 
-def export_run(run: str | Path, path: str | Path, fmt: str | None = None, precision: str = "float32") -> Path:
-    """Export a trained run's network to ``path``; ``fmt`` from the suffix when None
-    (``.onnx``: ONNX, else TorchScript). ONNX is float32 only."""
-    from kinectdata.models.run import load_model
-
-    fmt = fmt or ("onnx" if Path(path).suffix.lower() == ".onnx" else "torchscript")
-    if fmt not in FORMATS:
-        raise KinectDataError(f"export format must be one of {', '.join(FORMATS)}, not {fmt!r}")
-    if fmt == "onnx" and precision != "float32":
-        raise KinectDataError("ONNX export is float32 only (ONNX Runtime runs float32 fastest on CPUs)")
-    from kinectdata.models.run import model_name, read_config
-
-    if model_name(read_config(run)) != "yalta":
-        raise KinectDataError(
-            f"{run}: export writes the yalta model's streaming network; this run is {model_name(read_config(run))} "
-            "(run it with kinectdata generate)"
-        )
-    net, config = load_model(run)
-    metadata = stream_metadata(config, precision)
+def export_network(
+    net: torch.nn.Module,
+    path: str | Path,
+    fmt: str,
+    precision: str = "float32",
+    metadata: dict[str, Any] | None = None,
+    kind: ModelKind | None = None,
+) -> Path:
+    """Write a network's stream as ``fmt`` (``torchscript`` or ``onnx``)."""
+    kind = kind or kind_of(net)
+    check_export(kind, fmt, precision)
     if fmt == "onnx":
-        return export_onnx(net, path, metadata)
-    export_torchscript(net, path, precision, metadata)
+        return export_onnx(net, path, metadata, kind)
+    export_torchscript(net, path, precision, metadata, kind)
     return Path(path)
+
+
+def export_run(run: str | Path, path: str | Path, fmt: str | None = None, precision: str = "float32") -> Path:
+    """Export a trained run's stream to ``path``; ``fmt`` from the suffix when None (``.onnx``:
+    ONNX, else TorchScript). ONNX is float32 only. ConfigError for a model that does not export
+    ``fmt``."""
+    fmt = fmt or ("onnx" if Path(path).suffix.lower() == ".onnx" else "torchscript")
+    kind = model_kind(model_name(read_config(run)))
+    try:
+        check_export(kind, fmt, precision)
+    except ConfigError as exc:
+        raise ConfigError(f"{run}: {exc}") from None
+    net, config = load_model(run)
+    return export_network(net, path, fmt, precision, stream_metadata(config, precision, kind), kind)

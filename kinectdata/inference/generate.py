@@ -2,17 +2,19 @@
 
 The audio is read in blocks (:class:`~kinectdata.align.audio.AudioReader`), the features of each frame
 are computed as soon as its audio has arrived (:class:`~kinectdata.features.streaming.StreamingFeatures`)
-and the network steps one frame at a time (an engine of :mod:`~kinectdata.inference.engines`: torch
-or ONNX Runtime), its state carried from frame to frame; nothing waits for the end of the audio but the file
-written at the end. The first "previous pose" is the mean training pose. Poses are denormalised
+and, for a model that streams (its kind's ``streams``), the network steps one frame at a time (an
+engine of :mod:`~kinectdata.inference.engines`: torch or ONNX Runtime, as the model offers), its
+state carried from frame to frame; nothing waits for the end of the audio but the file written at
+the end. A model that does not stream runs free (its kind's ``free_run``) over the whole song's
+features once they are all computed. The first "previous pose" is the mean training pose. Poses are denormalised
 and written in the form the target's joint set is read back from:
 
-- 3-D joint sets (the yalta model): kinectdata's canonical CSV (metres, unit quaternions), which
+- 3-D joint sets (e.g. the yalta model's): kinectdata's canonical CSV (metres, unit quaternions), which
   ``align`` reads: the target spec's joints get their orientations, and every joint the
   orientations reach gets a position by forward kinematics over the dataset's rest skeleton
   (:mod:`kinectdata.targets.skeleton`; runs on datasets built before it have the listed positions only);
   other joints are left empty (masked);
-- ``openpose_mpi`` (the cdhc model): OpenPose JSON Lines (:mod:`~kinectdata.formats.openpose_writer`)
+- ``openpose_mpi`` (e.g. the cdhc model's): OpenPose JSON Lines (:mod:`~kinectdata.formats.openpose_writer`)
   with x, y in the target's units: 0..1 of the per-recording min-max scaling for
   ``listen_to_dance``, image axes (y down). The limb lengths are not written (they are the
   model's own estimate of its skeleton; :func:`generate` returns them in ``timing["limb_lengths"]``).
@@ -27,7 +29,7 @@ from typing import Any
 import numpy as np
 
 from kinectdata.align.audio import AudioReader
-from kinectdata.core.errors import KinectDataError
+from kinectdata.core.errors import ConfigError, KinectDataError
 from kinectdata.core.jointsets import load_joint_set
 from kinectdata.core.motion import Motion
 from kinectdata.features import feature_config
@@ -35,7 +37,8 @@ from kinectdata.features.streaming import StreamingFeatures
 from kinectdata.formats.csv_writer import write_csv
 from kinectdata.formats.openpose_writer import write_openpose_jsonl
 from kinectdata.inference.engines import make_engine
-from kinectdata.models.run import load_model
+from kinectdata.models.registry import model_kind
+from kinectdata.models.run import load_model, model_name
 from kinectdata.targets.normalization import Normalizer
 from kinectdata.targets.skeleton import rebuild_positions
 from kinectdata.targets.specs import TargetSpec
@@ -78,35 +81,47 @@ def generate(
     """Generate motion for ``audio`` with a trained run; write it to ``out`` if given (canonical
     CSV, or OpenPose JSON Lines for 2-D targets: see the module docstring).
 
-    ``engine``: ``torch`` (``precision`` float32 or float16 weights) or ``onnxruntime`` (float32;
-    the yalta model only). Returns the Motion (times k / fps; metres and unit quaternions, or the
-    2-D target's units) and timing figures.
+    ``engine``: ``torch`` or ``onnxruntime`` with ``precision`` weights (float32, float16), as the
+    run's model offers (its kind's ``engines``; e.g. the yalta model: torch in float32 or float16,
+    ONNX Runtime in float32; the cdhc model: torch in float32). Returns the Motion (times k / fps;
+    metres and unit quaternions, or the 2-D target's units) and timing figures (per step for a
+    model that streams; a model that does not runs once over the song).
     """
     net, config = load_model(run)
+    kind = model_kind(model_name(config))
     data = config["dataset"]
     fps, sr = data["fps"], data["sample_rate"]
     spec = TargetSpec.from_dict(data["target"])
     wanted = (".jsonl", ".json") if spec.dimensions == 2 else (".csv",)
     if out is not None and Path(out).suffix.lower() not in wanted:
-        kind = "OpenPose JSON Lines" if spec.dimensions == 2 else "canonical CSV"
-        raise KinectDataError(f"{out}: this run's motion is written as {kind}; name the file {wanted[0]}")
+        written = "OpenPose JSON Lines" if spec.dimensions == 2 else "canonical CSV"
+        raise KinectDataError(f"{out}: this run's motion is written as {written}; name the file {wanted[0]}")
     norm = Normalizer.from_dict(data["normalisation"])
     reader = AudioReader(audio, sr)
     n = int(np.floor(reader.n_samples / sr * fps + 1e-9))
     if n < 1:
         raise KinectDataError(f"{audio}: shorter than one frame ({1 / fps:.3f} s)")
-    stepper = make_engine(net, engine, precision)
     pose = np.asarray(data["start_pose"], dtype=np.float32)
     poses = np.empty((n, spec.dim), np.float32)
     step_times: list[float] = []
+    if kind.streams:
+        stepper = make_engine(net, engine, precision, kind)
 
-    def step(k0: int, features: np.ndarray, padded: np.ndarray) -> None:
-        nonlocal pose
-        for k in range(features.shape[0]):
-            started = time.perf_counter()
-            pose = stepper.step(features[k], pose)
-            step_times.append(time.perf_counter() - started)
-            poses[k0 + k] = pose
+        def step(k0: int, features: np.ndarray, padded: np.ndarray) -> None:
+            nonlocal pose
+            for k in range(features.shape[0]):
+                started = time.perf_counter()
+                pose = stepper.step(features[k], pose)
+                step_times.append(time.perf_counter() - started)
+                poses[k0 + k] = pose
+
+    else:
+        if (engine, precision) != ("torch", "float32"):
+            raise ConfigError(f"the {kind.name} model does not stream: it runs in torch with float32 weights only")
+        song: list[np.ndarray] = []
+
+        def step(k0: int, features: np.ndarray, padded: np.ndarray) -> None:
+            song.append(np.array(features))  # a copy: the featurizer may reuse its buffers
 
     starts = np.round(np.arange(n) * sr / fps).astype(np.int64)
     featurizer = StreamingFeatures(starts, feature_config(data["features"]), step)
@@ -114,6 +129,11 @@ def generate(
     for block in reader.blocks():
         featurizer.push(block)
     featurizer.finish()
+    if not kind.streams:  # frames 0..n-1 from the start pose as the pose before frame 0
+        features = np.concatenate(song)
+        ran = time.perf_counter()
+        poses[:] = kind.free_run(net, np.concatenate([features[:1], features]), pose)
+        step_times = [(time.perf_counter() - ran) / n] * n
     seconds = time.perf_counter() - started
     values = norm.invert(poses, spec)
     metadata = {"format": "generated", "source": str(audio), "run": str(run)}

@@ -340,6 +340,27 @@ class StreamingCdhc(nn.Module):
         return pose, audio_caches, pose_caches
 
 
+class FrameCdhc(nn.Module):
+    """:class:`StreamingCdhc` for one unbatched frame with its caches as one flat state, the stream
+    interface of :class:`kinectdata.models.kind.Stream`: ``forward(features [F], previous [D], *caches)``
+    returns ``(pose [D], *new caches)``, the audio encoder's caches first, then the skeleton
+    encoder's and the decoder's."""
+
+    def __init__(self, net: CdhcNet):
+        super().__init__()
+        self.stream = StreamingCdhc(net.eval())
+        self.audio_blocks = len(net.audio_encoder.blocks)
+
+    def initial_state(self) -> tuple[torch.Tensor, ...]:
+        audio_caches, pose_caches = self.stream.initial_state()
+        return (*audio_caches, *pose_caches)
+
+    def forward(self, features: torch.Tensor, previous: torch.Tensor, *state: torch.Tensor):
+        n = self.audio_blocks
+        pose, audio_caches, pose_caches = self.stream(features[None], previous[None], list(state[:n]), list(state[n:]))
+        return (pose[0], *audio_caches, *pose_caches)
+
+
 def generate(net: CdhcNet, audio: torch.Tensor | np.ndarray, first_pose: torch.Tensor | np.ndarray) -> np.ndarray:
     """Dance for a whole audio feature sequence, autoregressively.
 

@@ -1,162 +1,185 @@
-"""The bundled models behind one small interface, by name: what training, evaluation and generation
-need of a model, so that those stay one loop each.
+"""The models by name: each one a :class:`~kinectdata.models.kind.ModelKind` that declares what
+training, evaluation, generation, export and the sweep need of it, so those stay one loop each.
 
-- ``yalta``: the DCNN + deep LSTM of Yalta et al. (2016) (:mod:`.yalta`): STFT inputs
-  [T, 1, 129, 5], MSE, the previous pose its own output (or the true one) as configured.
-- ``cdhc``: the CDHC encoder-decoder of Lee et al. (2018) (:mod:`.cdhc`): mel inputs [T, F],
-  teacher forcing (the true previous poses) in training, L1 + limb-length loss, autoregressive
-  generation.
-
-A kind builds its network from the training settings and the dataset's manifest, says what a
-masked previous pose becomes, runs it on a training batch, scores that, sets the output layer to
-start at the mean pose, and runs it free over a recording (given the true first pose, then its own
-outputs).
+Bundled (:mod:`.bundled`): ``yalta`` (Yalta et al. 2016) and ``cdhc`` (Lee et al. 2018).
+:func:`register_model` adds another, :func:`unregister_model` removes it. Which model a dataset
+trains comes from the pipeline that builds it (:data:`kinectdata.dataset.pipelines.PIPELINES`,
+the one mapping): :func:`model_for_dataset`. The registry loads without torch (the command line
+lists the models from it); networks are built by :func:`load_network` and the kinds.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+import dataclasses
+import inspect
+from collections.abc import Mapping
+from pathlib import Path
 from typing import Any
 
-import numpy as np
-import torch
-from torch import nn
+from kinectdata.core.errors import ConfigError, KinectDataError
+from kinectdata.models.bundled import CdhcKind, YaltaKind
+from kinectdata.models.kind import ModelKind
 
-from kinectdata.core.errors import KinectDataError
-from kinectdata.models.cdhc import CdhcConfig, CdhcNet, cdhc_loss, generate, init_output_bias
-from kinectdata.models.losses import masked_mse
-from kinectdata.models.yalta import YaltaConfig, YaltaNet, free_run
-from kinectdata.targets.specs import TargetSpec
+DEFAULT_MODEL = "yalta"
+"""The model of a :class:`~kinectdata.training.config.TrainConfig` that names none, and of run
+folders written before runs named their model."""
 
+MODELS: dict[str, ModelKind] = {}
+"""The registered models by name, in registration order."""
 
-@dataclass(frozen=True)
-class YaltaKind:
-    """Yalta et al. (2016)."""
-
-    name: str = "yalta"
-    resets: bool = True  # free runs can zero the LSTM states every training sequence
-
-    def config(self, train: Any, manifest: dict[str, Any]) -> YaltaConfig:
-        shape = tuple(manifest["feature_shape"])
-        if len(shape) != 3:
-            raise KinectDataError(
-                f"the yalta model takes STFT inputs [1, 129, 5]; this dataset's are {list(shape)} "
-                "(a listen-to-dance dataset: use --model cdhc)"
-            )
-        return YaltaConfig(
-            output_dim=manifest["target_dim"], units=train.units, activation=train.activation, input_shape=shape
-        )
-
-    def build(self, config: dict[str, Any]) -> YaltaNet:
-        return YaltaNet(YaltaConfig.from_dict(config))
-
-    def fill_previous(self, previous, mask, start_pose):
-        """Masked previous poses stay as the dataset stores them (0: the centre of -0.9..0.9)."""
-        return previous
-
-    def predict(self, net: YaltaNet, audio, previous, feedback: str) -> torch.Tensor:
-        """[B, L, D] from a batch: ``previous`` [B, L, D] the true poses before each frame."""
-        return net(audio, previous if feedback == "teacher" else previous[:, 0], feedback)
-
-    def loss(self, net: YaltaNet, pred, pose, mask, train: Any) -> torch.Tensor:
-        return masked_mse(pred, pose, mask)
-
-    def init_output(self, net: YaltaNet, start_pose: list[float]) -> None:
-        with torch.no_grad():  # outputs start at the mean pose, not 0: maxabs targets are far from centred
-            net.fc2.bias.copy_(torch.tensor(start_pose))
-
-    def free_run(self, net: YaltaNet, audio: np.ndarray, first_pose: np.ndarray, reset_every: int | None = None):
-        return free_run(net, audio, first_pose, reset_every)
+MEMBERS = (
+    *("name", "description", "settings_type", "training_defaults", "network_type", "resets", "streams"),
+    *("engines", "exports", "run_exports", "state_names", "sweep", "check_dataset", "network_config", "build"),
+    *("fill_previous", "predict", "loss", "free_batch", "init_output", "free_run", "stream", "example_frame"),
+    *("export_metadata", "describe", "loss_name"),
+)
+"""What a kind declares (:class:`ModelKind`; a subclass of it inherits defaults for all but
+``name``, ``settings_type``, ``network_type``, ``network_config``, ``build``, ``predict``,
+``loss`` and ``free_run``)."""
 
 
-@dataclass(frozen=True)
-class CdhcKind:
-    """Lee et al. (2018), "Listen to Dance"."""
-
-    name: str = "cdhc"
-    resets: bool = False  # no state to reset: the receptive field is fixed
-
-    def config(self, train: Any, manifest: dict[str, Any]) -> CdhcConfig:
-        shape = tuple(manifest["feature_shape"])
-        if len(shape) != 1:
-            raise KinectDataError(
-                f"the cdhc model takes per-frame feature vectors [F] (mel bands); this dataset's are {list(shape)} "
-                "(a yalta2016 dataset: use --model yalta)"
-            )
-        spec = TargetSpec.from_dict(manifest["config"]["target"])
-        if spec.orientations:
-            raise KinectDataError(f"the cdhc model regresses coordinates and limb lengths; {spec.name} has quaternions")
-        if manifest["normalisation"]["method"] != "none" or spec.position_scale != "recording_minmax":
-            raise KinectDataError(
-                f"the cdhc model's sigmoid output covers 0..1: it needs targets scaled into 0..1 per recording "
-                f"(position_scale recording_minmax, normalisation none, as --pipeline listen-to-dance builds); "
-                f"this dataset's are {spec.position_scale} and {manifest['normalisation']['method']}"
-            )
-        if manifest["config"].get("root_centre"):
-            raise KinectDataError(
-                "the cdhc model's limb loss measures limbs between its output coordinates; root-centred "
-                "coordinates put the root in another frame of reference than its children: build without --root-centre"
-            )
-        index = {j: i for i, j in enumerate(spec.positions)}
-        return CdhcConfig(
-            output_dim=manifest["target_dim"],
-            input_dim=shape[0],
-            channels=train.channels,
-            decoder_channels=train.decoder_channels,
-            dropout=train.dropout,
-            coordinates=spec.dimensions * len(spec.positions),
-            joint_dims=spec.dimensions,
-            limbs=tuple((index[j], index[p]) for j, p in spec.limb_pairs()),
-        )
-
-    def build(self, config: dict[str, Any]) -> CdhcNet:
-        return CdhcNet(CdhcConfig.from_dict(config))
-
-    def fill_previous(self, previous, mask, start_pose):
-        """Masked previous values (stored as 0, a real coordinate in 0..1) become the mean training
-        pose's, so teacher forcing never shows a joint jumping to the image's corner."""
-        if isinstance(previous, torch.Tensor):
-            start = torch.as_tensor(start_pose, dtype=previous.dtype, device=previous.device)
-            return torch.where(mask, previous, start)
-        return np.where(mask, previous, np.asarray(start_pose, dtype=np.asarray(previous).dtype))
-
-    def predict(self, net: CdhcNet, audio, previous, feedback: str) -> torch.Tensor:
-        return net(audio, previous)  # teacher forcing: the true pose of each previous frame
-
-    def loss(self, net: CdhcNet, pred, pose, mask, train: Any) -> torch.Tensor:
-        return cdhc_loss(pred, pose, mask, net.config, train.limb_weight)[0]
-
-    def init_output(self, net: CdhcNet, start_pose: list[float]) -> None:
-        init_output_bias(net, np.asarray(start_pose))
-
-    def free_run(self, net: CdhcNet, audio: np.ndarray, first_pose: np.ndarray, reset_every: int | None = None):
-        """Poses [T-1, D] of frames 1..T-1 from the audio of those frames, starting from the true
-        pose of frame 0 (``reset_every`` does not apply)."""
-        return generate(net, audio[1:], first_pose)
+def _absent(kind: Any, member: str) -> bool:
+    try:  # static: a lazy property (network_type) is not evaluated, so registering imports no network
+        inspect.getattr_static(kind, member)
+    except AttributeError:
+        return True
+    return False
 
 
-MODELS: dict[str, YaltaKind | CdhcKind] = {"yalta": YaltaKind(), "cdhc": CdhcKind()}
+def register_model(kind: ModelKind, *, replace: bool = False) -> ModelKind:
+    """Add a model under ``kind.name``; ConfigError if the name is taken (unless ``replace``) or
+    the kind lacks what it must declare. Returns the kind."""
+    missing = [m for m in MEMBERS if _absent(kind, m)]
+    if missing:
+        raise ConfigError(f"{type(kind).__name__} is not a model kind: it has no {', '.join(missing)}")
+    name = kind.name
+    if not isinstance(name, str) or not name.isidentifier():
+        raise ConfigError(f"a model's name must be an identifier, not {name!r}")
+    if name in MODELS and MODELS[name] is not kind and not replace:
+        raise ConfigError(f"model {name!r} is already registered; pass replace=True")
+    if not dataclasses.is_dataclass(kind.settings_type):
+        raise ConfigError(f"the {name} model's settings_type must be a dataclass")
+    try:
+        kind.settings_type()
+    except (TypeError, KinectDataError) as exc:
+        raise ConfigError(f"the {name} model's default settings are not valid: {exc}") from exc
+    MODELS[name] = kind
+    return kind
 
 
-def model_kind(name: str) -> YaltaKind | CdhcKind:
-    """The model registered under ``name``; KinectDataError listing the known ones otherwise."""
+def unregister_model(name: str) -> None:
+    """Remove a registered model (a no-op if there is none of that name)."""
+    MODELS.pop(name, None)
+
+
+def model_names() -> list[str]:
+    """The registered models' names, in registration order."""
+    return list(MODELS)
+
+
+def model_kind(name: str) -> ModelKind:
+    """The model registered under ``name``; ConfigError listing the known ones otherwise."""
     try:
         return MODELS[name]
     except KeyError:
-        raise KinectDataError(f"unknown model {name!r}; known: {', '.join(MODELS)}") from None
+        raise ConfigError(f"unknown model {name!r}; known: {', '.join(MODELS)}") from None
 
 
-def model_for_features(features: dict[str, Any]) -> str:
-    """The bundled model of a dataset's features: ``cdhc`` for mel inputs, ``yalta`` otherwise."""
-    return "cdhc" if features.get("extractor") == "mel" else "yalta"
+def kind_of(net: Any) -> ModelKind:
+    """The registered model whose networks ``net`` is one of."""
+    for kind in MODELS.values():
+        if isinstance(net, kind.network_type):
+            return kind
+    raise ConfigError(f"{type(net).__name__} is not the network of a registered model ({', '.join(MODELS)})")
 
 
-def load_network(model: str, config: dict[str, Any], state: dict[str, Any], where: str) -> nn.Module:
-    """A network of the named kind with a state dict; KinectDataError starting with ``where`` if
-    they disagree."""
+def make_settings(kind: ModelKind, base: Any = None, /, **changes: Any) -> Any:
+    """The model's settings (an instance of ``kind.settings_type``): ``base`` (an instance or a
+    mapping; None: the defaults) with ``changes``. ConfigError naming an unknown or bad setting."""
+    cls = kind.settings_type
+    if base is None:
+        values: dict[str, Any] = {}
+    elif isinstance(base, cls):
+        values = {f.name: getattr(base, f.name) for f in dataclasses.fields(cls)}
+    elif isinstance(base, Mapping):
+        values = dict(base)
+    else:
+        raise ConfigError(f"the {kind.name} model's settings must be a {cls.__name__} or a mapping, not {base!r}")
+    values.update(changes)
+    known = [f.name for f in dataclasses.fields(cls)]
+    unknown = sorted(set(values) - set(known))
+    if unknown:
+        raise ConfigError(
+            f"the {kind.name} model has no setting {', '.join(unknown)} (its settings: {', '.join(known) or 'none'})"
+        )
+    try:
+        return cls(**values)
+    except TypeError as exc:
+        raise ConfigError(f"the {kind.name} model's settings: {exc}") from exc
+
+
+def pipelines_for(name: str) -> list[str]:
+    """The pipelines (``build-dataset --pipeline``) that build datasets for the named model."""
+    from kinectdata.dataset.pipelines import PIPELINES
+
+    return [p for p, chosen in PIPELINES.items() if chosen.get("model") == name]
+
+
+def _fits(kind: ModelKind, manifest: dict[str, Any]) -> bool:
+    try:
+        kind.check_dataset(manifest)
+    except KinectDataError:
+        return False
+    return True
+
+
+def model_for_dataset(manifest: dict[str, Any]) -> str:
+    """The model a dataset (its manifest) is for: its pipeline's (a manifest that names one), else
+    the model of the pipeline whose features have the dataset's extractor, else the first
+    registered model the dataset fits, else :data:`DEFAULT_MODEL`."""
+    from kinectdata.dataset.pipelines import PIPELINES
+    from kinectdata.features import PRESETS, feature_config
+
+    config = manifest.get("config", {})
+    named = PIPELINES.get(config.get("pipeline") or "", {}).get("model")
+    if named in MODELS:
+        return named
+    try:
+        extractor = type(feature_config(config["features"]))
+    except (KeyError, TypeError, ValueError, KinectDataError):
+        extractor = None
+    for chosen in PIPELINES.values():
+        if chosen["model"] in MODELS and type(PRESETS[chosen["features"]]) is extractor:
+            return chosen["model"]
+    return next((name for name, kind in MODELS.items() if _fits(kind, manifest)), DEFAULT_MODEL)
+
+
+def check_fits(kind: ModelKind, manifest: dict[str, Any], dataset: str | Path) -> None:
+    """ConfigError naming the dataset, why it does not fit the model and what to do (the model the
+    dataset fits, the pipeline that builds the model's datasets); None if it fits."""
+    try:
+        kind.check_dataset(manifest)
+    except KinectDataError as exc:
+        advice = []
+        fits = model_for_dataset(manifest)
+        if fits != kind.name and _fits(MODELS[fits], manifest):
+            advice.append(f"use --model {fits}, this dataset's model")
+        pipelines = pipelines_for(kind.name)
+        if pipelines:
+            advice.append(f"build the dataset with --pipeline {' or '.join(pipelines)} for the {kind.name} model")
+        raise ConfigError(f"{dataset}: {exc}" + (f" ({'; or '.join(advice)})" if advice else "")) from None
+
+
+def load_network(model: str, config: dict[str, Any], state: dict[str, Any], where: str):
+    """A network (``nn.Module``) of the named model with a state dict; KinectDataError starting
+    with ``where`` if they disagree."""
     try:
         net = model_kind(model).build(config)
         net.load_state_dict(state)
     except (KeyError, TypeError, ValueError, RuntimeError, KinectDataError) as exc:
         raise KinectDataError(f"{where} ({model} model: {exc})") from exc
     return net
+
+
+for _kind in (YaltaKind(), CdhcKind()):
+    register_model(_kind)

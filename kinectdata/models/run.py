@@ -3,9 +3,10 @@
 A run folder holds ``config.json`` (the training configuration, the model's and what it needs
 to know of the dataset: features, target spec, normalisation, frame and sample rate), the
 latest ``checkpoint.pt`` (model, optimiser, random generators, history; rewritten atomically
-each epoch), ``log.csv``, ``loss.png``, and at the end ``model.pt`` and ``stream.ts`` (the
-streaming network as TorchScript, for robots). Checkpoints hold only tensors and plain values
-and are loaded with ``torch.load(..., weights_only=True)``: nothing is unpickled.
+each epoch), ``log.csv``, ``loss.png``, and at the end ``model.pt`` and the files the model's
+``run_exports`` name (the yalta model's ``stream.ts``: the streaming network as TorchScript, for
+robots). Checkpoints hold only tensors and plain values and are loaded with
+``torch.load(..., weights_only=True)``: nothing is unpickled.
 """
 
 from __future__ import annotations
@@ -20,7 +21,7 @@ import torch
 from kinectdata.core.atomic import atomic_output
 from kinectdata.core.errors import KinectDataError
 from kinectdata.dataset.verify import read_manifest as read_dataset_manifest
-from kinectdata.models.registry import load_network
+from kinectdata.models.registry import DEFAULT_MODEL, load_network
 
 CONFIG = "config.json"
 CHECKPOINT = "checkpoint.pt"
@@ -105,8 +106,8 @@ def load_checkpoint(path: Path) -> dict[str, Any]:
 
 
 def model_name(run_config: dict[str, Any]) -> str:
-    """The model a run trained (runs from before the cdhc model hold no name: yalta)."""
-    return run_config["train"].get("model", "yalta")
+    """The model a run trained (runs from before there were several hold no name: :data:`DEFAULT_MODEL`)."""
+    return run_config["train"].get("model", DEFAULT_MODEL)
 
 
 def load_model(run: str | Path) -> tuple[torch.nn.Module, dict[str, Any]]:

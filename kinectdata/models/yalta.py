@@ -24,6 +24,8 @@ import numpy as np
 import torch
 from torch import nn
 
+from kinectdata.core.errors import ConfigError
+
 ACTIVATIONS = {"tanh": nn.Tanh, "relu": nn.ReLU, "elu": nn.ELU}
 CONV_CHANNELS = (16, 32, 64, 65)
 KERNEL = (33, 2)
@@ -48,12 +50,12 @@ class YaltaConfig:
 
     def __post_init__(self) -> None:
         if self.activation not in ACTIVATIONS:
-            raise ValueError(f"activation must be one of {', '.join(ACTIVATIONS)}, not {self.activation!r}")
+            raise ConfigError(f"activation must be one of {', '.join(ACTIVATIONS)}, not {self.activation!r}")
         if self.units < 1 or self.output_dim < 1:
-            raise ValueError("units and output_dim must be positive")
+            raise ConfigError("units and output_dim must be positive")
         _, h, w = self.input_shape
         if (h - 4 * (KERNEL[0] - 1), w - 4 * (KERNEL[1] - 1)) != (1, 1):
-            raise ValueError(f"four 33x2 convolutions map {h}x{w} to 1x1 only for 129x5 inputs, not {h}x{w}")
+            raise ConfigError(f"four 33x2 convolutions map {h}x{w} to 1x1 only for 129x5 inputs, not {h}x{w}")
 
     def to_dict(self) -> dict:
         d = asdict(self)
@@ -104,7 +106,7 @@ class YaltaNet(nn.Module):
             hidden, state = self.lstm2(torch.cat([codes, previous], dim=-1), state)
             return self.fc2(hidden), state
         if feedback != "predicted":
-            raise ValueError(f"feedback must be 'predicted' or 'teacher', not {feedback!r}")
+            raise ConfigError(f"feedback must be 'predicted' or 'teacher', not {feedback!r}")
         pose, outputs = previous, []
         for t in range(codes.shape[1]):
             hidden, state = self.lstm2(torch.cat([codes[:, t], pose], dim=-1)[:, None], state)
@@ -192,7 +194,7 @@ class StreamingYalta(nn.Module):
     def __init__(self, net: YaltaNet, precision: str = "float32"):
         super().__init__()
         if precision not in ("float32", "float16"):
-            raise ValueError(f"precision must be float32 or float16, not {precision!r}")
+            raise ConfigError(f"precision must be float32 or float16, not {precision!r}")
         net = net.eval()
         dtype = torch.float16 if precision == "float16" else torch.float32
         self.units = net.config.units

@@ -1,27 +1,52 @@
-"""Training settings (:class:`TrainConfig`) and each model's defaults."""
+"""Training settings: :class:`TrainConfig`, the training loop's settings and the model's own.
+
+The loop's settings (:data:`LOOP_DEFAULTS`) are the same for every model; each model
+(:class:`~kinectdata.models.kind.ModelKind`) changes their defaults (``training_defaults``) and
+brings its own settings (``settings_type``, e.g. the yalta model's ``units``, ``activation``,
+``feedback``; the cdhc model's ``channels``, ``decoder_channels``, ``dropout``, ``limb_weight``).
+"""
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass
+import dataclasses
+from dataclasses import dataclass
 from typing import Any
 
-import torch
+from kinectdata.core.errors import ConfigError, KinectDataError
+from kinectdata.models.registry import DEFAULT_MODEL, make_settings, model_kind
 
-from kinectdata.core.errors import KinectDataError
+LOOP_DEFAULTS: dict[str, Any] = {
+    "sequence": 150,
+    "stride": None,
+    "batch_size": 50,
+    "epochs": 10,
+    "lr": 1e-4,
+    "noise_eta": 0.01,
+    "noise_gamma": 0.55,
+    "clip_norm": None,
+    "seed": 0,
+    "device": "auto",
+}
+"""The training loop's settings and their base defaults (Yalta et al.'s; a model's
+``training_defaults`` change them)."""
+
+FLAT_BEFORE = ("units", "activation", "feedback", "channels", "decoder_channels", "dropout", "limb_weight")
+"""The model settings every run's ``config.json`` held side by side before each model had its own:
+reading such a run keeps its model's and ignores the other model's."""
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, init=False)
 class TrainConfig:
-    """Training settings; the defaults are Yalta et al.'s (:meth:`for_model` gives each model's).
+    """Training settings: the loop's and the model's own.
+
+    ``TrainConfig(model, **settings)`` takes the loop's settings and the model's by name (flat, as
+    ``config.json`` holds them); what is not given takes the model's default. ``settings=`` may give
+    the model's settings as a whole (an instance of its ``settings_type`` or a mapping).
+    Attribute access reaches the model's settings too (``config.units`` for the yalta model).
 
     Attributes:
-        model: ``yalta`` (the DCNN + deep LSTM) or ``cdhc`` (the Listen to Dance encoder-decoder).
-        units, activation: the yalta model (LSTM units per layer; tanh, relu or elu).
-        feedback: yalta: ``predicted`` (the model's own previous pose, the paper's Figure 4) or
-            ``teacher`` (the true previous pose). The cdhc model always trains with teacher forcing.
-        channels, decoder_channels, dropout: the cdhc model (encoder and decoder widths, dropout
-            after each highway block).
-        limb_weight: cdhc: weight of the limb-length loss added to the L1 loss.
+        model: a registered model (:mod:`kinectdata.models.registry`: ``yalta``, ``cdhc``, ...).
+        settings: the model's own settings (its ``settings_type``, validated by it).
         sequence: frames per training sequence; stride: frames between sequence starts
             (default: ``sequence``, non-overlapping).
         batch_size: sequences per batch. epochs: passes over the training split.
@@ -33,68 +58,92 @@ class TrainConfig:
         device: ``auto`` (CUDA when present, else CPU), ``cpu`` or ``cuda``.
     """
 
-    model: str = "yalta"
-    units: int = 500
-    activation: str = "elu"
-    feedback: str = "predicted"
-    sequence: int = 150
-    stride: int | None = None
-    batch_size: int = 50
-    epochs: int = 10
-    lr: float = 1e-4
-    noise_eta: float = 0.01
-    noise_gamma: float = 0.55
-    clip_norm: float | None = None
-    seed: int = 0
-    device: str = "auto"
-    channels: int = 256
-    decoder_channels: int = 128
-    dropout: float = 0.05
-    limb_weight: float = 1.0
+    model: str
+    sequence: int
+    stride: int | None
+    batch_size: int
+    epochs: int
+    lr: float
+    noise_eta: float
+    noise_gamma: float
+    clip_norm: float | None
+    seed: int
+    device: str
+    settings: Any
 
-    def __post_init__(self) -> None:
-        if self.model not in MODEL_DEFAULTS:
-            raise KinectDataError(f"model must be one of {', '.join(MODEL_DEFAULTS)}, not {self.model!r}")
-        if min(self.channels, self.decoder_channels) < 1 or not 0 <= self.dropout < 1 or self.limb_weight < 0:
-            raise KinectDataError("channels must be positive, dropout in [0, 1) and limb_weight at least 0")
-        if self.feedback not in ("predicted", "teacher"):
-            raise KinectDataError(f"feedback must be predicted or teacher, not {self.feedback!r}")
-        if min(self.sequence, self.batch_size, self.epochs, self.units) < 1 or (self.stride or 1) < 1:
-            raise KinectDataError("sequence, stride, batch size, epochs and units must be positive")
+    def __init__(self, model: str | None = None, *, settings: Any = None, **given: Any) -> None:
+        kind = model_kind(model or DEFAULT_MODEL)
+        clash = sorted({f.name for f in dataclasses.fields(kind.settings_type)} & {*LOOP_DEFAULTS, "model"})
+        if clash:
+            raise ConfigError(f"the {kind.name} model's settings {', '.join(clash)} clash with the training loop's")
+        loop = {**LOOP_DEFAULTS, **kind.training_defaults}
+        own = {k: v for k, v in given.items() if k not in loop}
+        loop.update({k: v for k, v in given.items() if k in loop})
+        object.__setattr__(self, "model", kind.name)
+        for name, value in loop.items():
+            object.__setattr__(self, name, value)
+        object.__setattr__(self, "settings", make_settings(kind, settings, **own))
+        self._validate()
+
+    def _validate(self) -> None:
+        if min(self.sequence, self.batch_size, self.epochs) < 1 or (self.stride or 1) < 1:
+            raise ConfigError("sequence, stride, batch size and epochs must be positive")
+        if self.lr <= 0 or self.noise_eta < 0 or self.noise_gamma < 0 or (self.clip_norm or 1) <= 0:
+            raise ConfigError("lr and clip_norm must be positive, noise_eta and noise_gamma at least 0")
         if self.device not in ("auto", "cpu", "cuda"):
-            raise KinectDataError(f"device must be auto, cpu or cuda, not {self.device!r}")
+            raise ConfigError(f"device must be auto, cpu or cuda, not {self.device!r}")
+
+    def __getattr__(self, name: str) -> Any:
+        # only reached when normal lookup fails: the model's own settings by name
+        if name.startswith("__") or name == "settings":
+            raise AttributeError(name)
+        settings = self.__dict__.get("settings")
+        if settings is not None and name in {f.name for f in dataclasses.fields(settings)}:
+            return getattr(settings, name)
+        raise AttributeError(f"the {self.__dict__.get('model')} model's training settings have no {name!r}")
 
     def to_dict(self) -> dict[str, Any]:
-        return asdict(self)
+        """The settings flat, as ``config.json`` holds them: ``model``, the loop's, the model's."""
+        own = {f.name: getattr(self.settings, f.name) for f in dataclasses.fields(self.settings)}
+        return {"model": self.model, **{k: getattr(self, k) for k in LOOP_DEFAULTS}, **own}
+
+    def replace(self, **changes: Any) -> TrainConfig:
+        """A copy with ``changes`` (loop or model settings by name). Another ``model`` keeps the
+        loop's settings and starts from that model's own defaults."""
+        model = changes.pop("model", self.model)
+        if model != self.model:
+            return TrainConfig(model, **{k: getattr(self, k) for k in LOOP_DEFAULTS}, **changes)
+        return dataclasses.replace(self, **changes)
+
+    def differences(self, other: TrainConfig) -> list[tuple[str, Any, Any]]:
+        """(name, this value, ``other``'s value) of every setting in which the two differ."""
+        mine, theirs = self.to_dict(), other.to_dict()
+        return [(k, mine.get(k), theirs.get(k)) for k in {**mine, **theirs} if mine.get(k) != theirs.get(k)]
 
     @classmethod
     def for_model(cls, model: str, **settings: Any) -> TrainConfig:
-        """The settings of ``model`` (:data:`MODEL_DEFAULTS`), with ``settings`` (None: the default)."""
-        if model not in MODEL_DEFAULTS:
-            raise KinectDataError(f"model must be one of {', '.join(MODEL_DEFAULTS)}, not {model!r}")
-        given = {k: v for k, v in settings.items() if v is not None}
-        return cls(**{"model": model, **MODEL_DEFAULTS[model], **given})
+        """The settings of ``model`` (its defaults), with ``settings`` (None: the default)."""
+        return cls(model, **{k: v for k, v in settings.items() if v is not None})
 
-    def resolved_device(self) -> torch.device:
+    @classmethod
+    def from_dict(cls, d: dict[str, Any]) -> TrainConfig:
+        """A run's ``train`` settings as ``config.json`` holds them, also as runs wrote them before
+        (no ``model``: :data:`~kinectdata.models.registry.DEFAULT_MODEL`; every model's settings
+        side by side: :data:`FLAT_BEFORE`). Settings added since take their defaults."""
+        d = dict(d)
+        kind = model_kind(d.pop("model", None) or DEFAULT_MODEL)
+        own = {f.name for f in dataclasses.fields(kind.settings_type)}
+        unknown = sorted(set(d) - set(LOOP_DEFAULTS) - own - set(FLAT_BEFORE))
+        if unknown:
+            raise ConfigError(f"unknown training settings {', '.join(unknown)} for the {kind.name} model")
+        return cls(kind.name, **{k: v for k, v in d.items() if k in LOOP_DEFAULTS or k in own})
+
+    def resolved_device(self):
+        """The torch device to train on."""
+        import torch
+
         if self.device == "auto":
             return torch.device("cuda" if torch.cuda.is_available() else "cpu")
         if self.device == "cuda" and not torch.cuda.is_available():
             raise KinectDataError("--device cuda, but torch sees no CUDA device")
         return torch.device(self.device)
-
-
-MODEL_DEFAULTS: dict[str, dict[str, Any]] = {
-    "yalta": {},  # the dataclass defaults: Yalta et al.'s settings
-    "cdhc": {
-        "feedback": "teacher",
-        "sequence": 300,
-        "batch_size": 16,
-        "epochs": 20,
-        "lr": 2e-4,
-        "noise_eta": 0.0,
-        "clip_norm": 1.0,
-    },
-}
-"""Each model's training defaults beyond the dataclass's. cdhc: the paper gives no schedule; these
-follow DC-TTS, whose blocks it uses (Adam 2e-4, gradient norm clipped to 1), with 10 s sequences
-(longer than the 265-frame receptive field), no gradient noise."""

@@ -1,48 +1,41 @@
-"""``sweep``: the variants of Yalta et al. (2016) Tables 3-5 trained and scored on one dataset.
+"""``sweep``: the variants of a model's published table trained and scored on one dataset.
 
-Each variant changes one thing of the base (ELU, 500 units, sequences of 150): the activation
-(TanH, ReLU, ELU), the LSTM size (250, 1000 units) or the sequence length (50, 100). Each is
-trained into ``OUT/<variant>/`` with :func:`~kinectdata.training.train.train` and evaluated on
-the test split; ``OUT/results.md`` has the paper's columns (SMAPE without and with reset,
-training minutes, forward milliseconds per frame) beside the paper's own figures.
+A model with a sweep (its kind's ``sweep``: :class:`~kinectdata.models.kind.Sweep`) names
+variants, each changing one thing of a base configuration; e.g. the yalta model's are Yalta et
+al. (2016) Tables 3-5: the activation (TanH, ReLU, ELU), the LSTM size (250, 1000 units) or the
+sequence length (50, 100). Each is trained into ``OUT/<variant>/`` with
+:func:`~kinectdata.training.train.train` and evaluated on the test split; ``OUT/results.md`` has
+the paper's columns (SMAPE without and, for a model that resets, with reset, training minutes,
+forward milliseconds per frame) beside the paper's own figures.
 """
 
 from __future__ import annotations
 
 import csv
-import dataclasses
 import json
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
 from kinectdata.core.atomic import atomic_output
-from kinectdata.core.errors import KinectDataError
+from kinectdata.core.errors import ConfigError, KinectDataError
 from kinectdata.evaluation.evaluate import evaluate
+from kinectdata.models.kind import ModelKind, Sweep
+from kinectdata.models.registry import MODELS, model_for_dataset, model_kind
 from kinectdata.models.run import CHECKPOINT, LOG, MODEL, read_config, read_manifest
 from kinectdata.training.config import TrainConfig
 from kinectdata.training.train import train
 
-VARIANTS: dict[str, dict[str, Any]] = {
-    "TanH": {"activation": "tanh"},
-    "ReLU": {"activation": "relu"},
-    "ELU": {},
-    "250 units": {"units": 250},
-    "1000 units": {"units": 1000},
-    "50 steps": {"sequence": 50},
-    "100 steps": {"sequence": 100},
-}
-"""Changes from the base configuration (ELU, 500 units, 150 steps), as in the paper's tables."""
 
-PAPER = {  # SMAPE % without reset, with reset, training minutes, forward ms/frame (GTX Titan X)
-    "TanH": (19.73, 20.34, 1182.79, 9.16),
-    "ReLU": (19.67, 20.27, 1152.02, 8.54),
-    "ELU": (18.57, 19.20, 1139.81, 10.94),
-    "250 units": (19.76, 20.28, 663.99, 10.16),
-    "1000 units": (17.81, 18.53, 1305.85, 14.97),
-    "50 steps": (22.99, 23.73, 247.19, 10.94),
-    "100 steps": (19.16, 20.01, 774.75, 10.94),
-}
+def model_sweep(kind: ModelKind) -> Sweep:
+    """The model's sweep; ConfigError naming the models that have one if it has none."""
+    if kind.sweep is None:
+        others = [k.name for k in MODELS.values() if k.sweep is not None]
+        raise ConfigError(
+            f"sweep reproduces a model's published table; the {kind.name} model has none "
+            f"(models with a sweep: {', '.join(others) or 'none'})"
+        )
+    return kind.sweep
 
 
 def _slug(name: str) -> str:
@@ -56,18 +49,21 @@ def sweep(
     variants: list[str] | None = None,
     progress: Callable[[str, dict], None] | None = None,
 ) -> list[dict[str, Any]]:
-    """Train and evaluate each variant (all of :data:`VARIANTS` by default); returns the rows of
-    the table, also written to ``OUT/results.md`` and ``OUT/results.json``."""
-    base = base or TrainConfig(activation="elu", units=500, sequence=150)
-    names = variants or list(VARIANTS)
-    unknown = [n for n in names if n not in VARIANTS]
-    if unknown:
-        raise KinectDataError(f"unknown variant(s) {unknown}; known: {', '.join(VARIANTS)}")
-    out = Path(out)
+    """Train and evaluate each variant of the model's sweep (``base.model``'s; default: the
+    dataset's model with the sweep's base settings), all by default; returns the rows of the
+    table, also written to ``OUT/results.md`` and ``OUT/results.json``."""
     manifest = read_manifest(dataset)
+    kind = model_kind(base.model if base is not None else model_for_dataset(manifest))
+    table = model_sweep(kind)
+    base = base or TrainConfig(kind.name, **table.base)
+    names = variants or list(table.variants)
+    unknown = [n for n in names if n not in table.variants]
+    if unknown:
+        raise KinectDataError(f"unknown variant(s) {unknown}; known: {', '.join(table.variants)}")
+    out = Path(out)
     rows = []
     for name in names:
-        config = dataclasses.replace(base, **VARIANTS[name])
+        config = base.replace(**table.variants[name])
         run = out / _slug(name)
         if (run / MODEL).exists():  # a finished variant of an interrupted sweep is kept, if it is this one
             _check_finished(run, config, manifest)
@@ -76,27 +72,28 @@ def sweep(
         with open(run / LOG) as f:
             minutes = sum(float(r["seconds"]) for r in csv.DictReader(f)) / 60
         result = evaluate(run, dataset, "test", engines=[("torch", "float32")])
+        timed = result["forward_time"].get("torch float32", {})  # none for a model that does not stream
         row = {
             "setting": name,
             "run": str(run),
             "smape_without_reset": result["smape"]["without_reset"]["smape_normalised"],
-            "smape_with_reset": result["smape"]["with_reset"]["smape_normalised"],
+            "smape_with_reset": result["smape"].get("with_reset", {}).get("smape_normalised"),
             "training_minutes": minutes,
-            "forward_ms": result["forward_time"]["torch float32"]["median_ms"],
-            "device": result["forward_time"]["torch float32"]["device"],
+            "forward_ms": timed.get("median_ms"),
+            "device": timed.get("device"),
             "config": config.to_dict(),
         }
         rows.append(row)
         if progress:
             progress(name, row)
-    _write_tables(out, rows, base)
+    _write_tables(out, rows, base, table, kind)
     return rows
 
 
 def _check_finished(run: Path, config: TrainConfig, manifest: dict[str, Any]) -> None:
     saved = read_config(run)
-    own = TrainConfig(**saved["train"]).to_dict()  # settings added since the run was made take their defaults
-    differ = [k for k, v in config.to_dict().items() if own[k] != v]
+    own = TrainConfig.from_dict(saved["train"])  # settings added since the run was made take their defaults
+    differ = [k for k, _, _ in config.differences(own)]
     if saved["dataset"]["build_key"] != manifest["build_key"]:
         differ.append("dataset")
     if differ:
@@ -106,26 +103,34 @@ def _check_finished(run: Path, config: TrainConfig, manifest: dict[str, Any]) ->
         )
 
 
-def _write_tables(out: Path, rows: list[dict[str, Any]], base: TrainConfig) -> None:
+def _number(value: float | None) -> str:
+    return "-" if value is None else f"{value:.2f}"
+
+
+def _write_tables(out: Path, rows: list[dict[str, Any]], base: TrainConfig, table: Sweep, kind: ModelKind) -> None:
+    """``results.md`` (the table, with the paper's figures where it has them) and ``results.json``."""
+    shown = "".join(f", {getattr(base.settings, name)} {name.replace('_', ' ')}" for name in table.shown)
+    device = next((r["device"] for r in rows if r["device"]), "")
+    columns = ["SMAPE % without reset", *(["with reset"] if kind.resets else []), "training min", "forward ms/frame"]
+    paper = ["paper: without", *(["with"] if kind.resets else []), "min", "ms"] if table.paper else []
     lines = [
-        f"# Yalta et al. (2016) Tables 3-5 on this dataset ({base.epochs} epochs, batch {base.batch_size}, "
-        f"{base.feedback} feedback)",
+        f"# {table.title} on this dataset ({base.epochs} epochs, batch {base.batch_size}{shown})",
         "",
         "SMAPE in % on the normalised targets of the test split, free-running from the first true pose. "
         "Training minutes are the epochs' time from each run's log; forward time is the streaming network at batch 1 "
-        f"in torch, float32 ({rows[0]['device'] if rows else ''}). "
-        "Paper: their figures (GTX Titan X, about 15 Latin songs).",
+        f"in torch, float32 ({device}). " + (f"Paper: their figures ({table.paper_note})." if table.paper else ""),
         "",
-        "| setting | SMAPE % without reset | with reset | training min | forward ms/frame "
-        "| paper: without | with | min | ms |",
-        "| --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |",
+        "| setting | " + " | ".join(columns + paper) + " |",
+        "| --- | " + " | ".join(["---:"] * len(columns + paper)) + " |",
     ]
     for r in rows:
-        p = PAPER[r["setting"]]
-        lines.append(
-            f"| {r['setting']} | {r['smape_without_reset']:.2f} | {r['smape_with_reset']:.2f} | "
-            f"{r['training_minutes']:.2f} | {r['forward_ms']:.2f} | {p[0]:.2f} | {p[1]:.2f} | {p[2]:.2f} | {p[3]:.2f} |"
-        )
+        cells = [r["smape_without_reset"], *([r["smape_with_reset"]] if kind.resets else [])]
+        cells += [r["training_minutes"], r["forward_ms"]]
+        if table.paper:
+            p = table.paper.get(r["setting"])
+            figures = [None] * 4 if p is None else list(p)
+            cells += [figures[0], *([figures[1]] if kind.resets else []), figures[2], figures[3]]
+        lines.append(f"| {r['setting']} | " + " | ".join(_number(c) for c in cells) + " |")
     with atomic_output(out / "results.md") as tmp:
         tmp.write_text("\n".join(lines) + "\n")
     with atomic_output(out / "results.json") as tmp:

@@ -1,10 +1,11 @@
-"""``train``: a bundled model on a kinectdata dataset, deterministic and resumable.
+"""``train``: a registered model on a kinectdata dataset, deterministic and resumable.
 
-The model (:mod:`kinectdata.models.registry`: ``yalta`` or ``cdhc``) decides the network, how a
-batch is fed (the yalta model's configured feedback; the cdhc model's teacher forcing) and the
-loss (masked MSE; L1 + limb-length). The output layer starts at the mean training pose
-(maxabs-normalised positions are far from centred: a camera-space depth of 2.5 m becomes about
-0.88), the rest of the network at PyTorch's default initialisation. Each epoch goes over the
+The model (a :class:`~kinectdata.models.kind.ModelKind` of :mod:`kinectdata.models.registry`)
+decides whether the dataset fits, the network, how a batch is fed (e.g. the yalta model's
+configured feedback, the cdhc model's teacher forcing), the loss, and what is written at the end
+besides ``model.pt`` (e.g. the yalta model's ``stream.ts``). Its output layer starts at the mean
+training pose (maxabs-normalised positions are far from centred: a camera-space depth of 2.5 m
+becomes about 0.88), the rest of the network at PyTorch's default initialisation. Each epoch goes over the
 training split's windows (:class:`~kinectdata.dataset.windows.WindowDataset`) in a seeded random
 order, in batches; after ``backward`` the gradient is clipped (if asked) and annealed Gaussian
 noise is added (if asked); Adam steps. Then the validation split is scored (loss as in training,
@@ -39,14 +40,13 @@ from kinectdata.core.atomic import atomic_output
 from kinectdata.core.errors import KinectDataError
 from kinectdata.dataset.windows import WindowDataset
 from kinectdata.evaluation.metrics import smape
-from kinectdata.inference.export import export_torchscript, stream_metadata
-from kinectdata.models.registry import model_kind
+from kinectdata.inference.export import export_network, stream_metadata
+from kinectdata.models.registry import check_fits, model_for_dataset, model_kind
 from kinectdata.models.run import (
     CHECKPOINT,
     CONFIG,
     LOG,
     MODEL,
-    STREAM,
     dataset_summary,
     load_checkpoint,
     read_manifest,
@@ -104,13 +104,13 @@ RESUMABLE_CHANGES = ("epochs", "device")
 
 def _resumed_config(run: Path, saved: dict[str, Any], asked: TrainConfig | None) -> TrainConfig:
     """The configuration to resume with: the run's own, with only epochs and device changeable."""
-    own = TrainConfig(**saved)
+    own = TrainConfig.from_dict(saved)
     if asked is None:
         return own
     differ = [
-        f"{k} {getattr(asked, k)!r} (the run's: {getattr(own, k)!r})"
-        for k in saved
-        if k not in RESUMABLE_CHANGES and getattr(asked, k) != getattr(own, k)
+        f"{k} {mine!r} (the run's: {theirs!r})"
+        for k, mine, theirs in asked.differences(own)
+        if k not in RESUMABLE_CHANGES
     ]
     if differ:
         raise KinectDataError(
@@ -160,7 +160,7 @@ def validate(
     start_pose: list[float] | None = None,
 ) -> tuple[float, float]:
     """(loss as in training, SMAPE in % free-running) over a split's windows; ``start_pose`` [D]
-    stands in for masked previous values (the cdhc model)."""
+    stands in for masked previous values (as the model's ``fill_previous`` says)."""
     if len(windows) == 0:
         return float("nan"), float("nan")
     kind = model_kind(config.model)
@@ -172,15 +172,10 @@ def validate(
             previous = batch["previous"].to(device)
             if start_pose is not None:
                 previous = kind.fill_previous(previous, batch["previous_mask"].to(device), start_pose)
-            pred = kind.predict(net, audio, previous, config.feedback)
-            losses.append(float(kind.loss(net, pred, pose, mask, config)))
+            pred = kind.predict(net, audio, previous, config.settings)
+            losses.append(float(kind.loss(net, pred, pose, mask, config.settings)))
             weights.append(float(mask.sum()))
-            if config.model == "yalta":
-                free = pred if config.feedback == "predicted" else net(audio, previous[:, 0], "predicted")
-                generated.append(free.cpu().numpy())
-            else:  # one window at a time: the first true pose, then the net's own
-                for a, p in zip(audio.cpu().numpy(), previous.cpu().numpy()):
-                    generated.append(kind.free_run(net, np.concatenate([a[:1], a]), p[0])[None])
+            generated.append(kind.free_batch(net, audio, previous, pred, config.settings))
             real.append(pose.cpu().numpy())
             masks.append(mask.cpu().numpy())
     net.train()
@@ -215,12 +210,13 @@ def train(
     stop_after: int | None = None,
     progress: Callable[[dict], None] | None = None,
 ) -> list[dict]:
-    """Train a bundled network (``config.model``) on a dataset folder into the run folder ``out``.
+    """Train a registered model (``config.model``) on a dataset folder into the run folder ``out``.
 
     Args:
         dataset: a folder written by ``build-dataset``.
         out: the run folder (created; must not hold a run unless ``resume``).
-        config: :class:`TrainConfig` (default: the paper's settings; when resuming, the run's own).
+        config: :class:`TrainConfig` (default: the dataset's model with its defaults; when
+            resuming, the run's own).
         resume: continue the run in ``out`` from its checkpoint, on the same dataset. Only
             ``epochs`` (to train longer) and ``device`` may differ from the run's settings.
         stop_after: stop after this epoch (as an interruption would; the run stays resumable).
@@ -241,11 +237,12 @@ def train(
                 f"{run}: cannot resume on {dataset}: the run was trained on {saved['dataset']['path']} "
                 f"(build key {saved['dataset']['build_key']}, this dataset's is {manifest['build_key']})"
             )
-    config = config or TrainConfig()
+    config = config or TrainConfig(model_for_dataset(manifest))
     world = World.from_environment()
     per_rank_batch(config.batch_size, world)  # an indivisible batch is refused before anything starts
     kind = model_kind(config.model)
-    model_config = kind.config(config, manifest)
+    check_fits(kind, manifest, dataset)
+    model_config = kind.network_config(config.settings, manifest)
     stride = config.stride or config.sequence
     train_windows = WindowDataset(dataset, "train", config.sequence, stride)
     val_windows = WindowDataset(dataset, "val", config.sequence, config.sequence)
@@ -253,13 +250,13 @@ def train(
         raise KinectDataError(f"{dataset}: no training window of {config.sequence} frames (recordings too short?)")
     run_config = {
         "train": config.to_dict(),
-        "model": model_config.to_dict(),
+        "model": model_config,
         "dataset": dataset_summary(dataset, manifest),
     }
 
     with process_group(world, config.resolved_device()) as device, _deterministic():
         torch.manual_seed(config.seed)
-        net = kind.build(model_config.to_dict()).to(device)
+        net = kind.build(model_config).to(device)
         optimizer = torch.optim.Adam(net.parameters(), lr=config.lr)
         order = torch.Generator().manual_seed(config.seed + 1)
         noise = torch.Generator().manual_seed(config.seed + 2)
@@ -298,8 +295,8 @@ def train(
                 previous = kind.fill_previous(
                     batch["previous"].to(device), batch["previous_mask"].to(device), start_pose
                 )
-                pred = kind.predict(model, audio, previous, config.feedback)
-                loss = kind.loss(net, pred, pose, mask, config)
+                pred = kind.predict(model, audio, previous, config.settings)
+                loss = kind.loss(net, pred, pose, mask, config.settings)
                 valid = float(mask.sum())
                 optimizer.zero_grad(set_to_none=True)
                 (loss * share_of_batch(valid, world)).backward()
@@ -353,21 +350,12 @@ def train(
             writer.close()
     if not world.main:
         return history
-    title = (
-        f"{run.name}: {config.units} units, {config.activation}, {config.feedback} feedback"
-        if config.model == "yalta"
-        else f"{run.name}: cdhc, {config.channels}/{config.decoder_channels} channels, L1 + {config.limb_weight:g} limb"
-    )
-    loss_name = (
-        "mean squared error (normalised targets)"
-        if config.model == "yalta"
-        else f"L1 + {config.limb_weight:g} x limb-length L1 (0..1 targets)"
-    )
-    loss_curves(history, run / "loss.png", title=title, loss_name=loss_name)
+    title = f"{run.name}: {kind.describe(config.settings)}"
+    loss_curves(history, run / "loss.png", title=title, loss_name=kind.loss_name(config.settings))
     net = net.cpu().eval()
     save_checkpoint(run / MODEL, {"model": net.state_dict(), "config": json.dumps(run_config)})
-    if config.model == "yalta":  # the streaming LSTM for robots; the cdhc model is run by generate
-        export_torchscript(net, run / STREAM, metadata=stream_metadata(run_config))
+    for name, fmt in kind.run_exports.items():  # e.g. the yalta model's stream.ts, for robots
+        export_network(net, run / name, fmt, metadata=stream_metadata(run_config, kind=kind), kind=kind)
     return history
 
 

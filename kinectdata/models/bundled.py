@@ -1,0 +1,312 @@
+"""The two bundled models as :class:`~kinectdata.models.kind.ModelKind` s, with their settings.
+
+- ``yalta`` (:class:`YaltaKind`): the DCNN + deep LSTM of Yalta et al. (2016)
+  (:mod:`.yalta`): STFT inputs [T, 1, 129, 5], MSE, the previous pose its own output or the true
+  one (``feedback``); resets, streams (torch in float32 or float16, ONNX Runtime), exports
+  TorchScript and ONNX, writes ``stream.ts`` at the end of training; the sweep of the paper's
+  Tables 3-5.
+- ``cdhc`` (:class:`CdhcKind`): the CDHC encoder-decoder of Lee et al. (2018) (:mod:`.cdhc`):
+  mel inputs [T, F], teacher forcing, L1 + limb-length loss, autoregressive generation; streams
+  (torch, float32), no state to reset, no export.
+
+Declarations only at import: the networks (and torch) are imported when a kind is used, so the
+registry and the command line's choices load without torch.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from kinectdata.core.errors import ConfigError
+from kinectdata.models.kind import ModelKind, Sweep
+from kinectdata.models.losses import masked_mse
+
+YALTA_ACTIVATIONS = ("tanh", "relu", "elu")
+FEEDBACKS = ("predicted", "teacher")
+
+
+@dataclass(frozen=True)
+class YaltaSettings:
+    """The yalta model's settings (the defaults are the paper's best: ELU, 500 units, its own
+    previous output fed back)."""
+
+    units: int = field(default=500, metadata={"help": "LSTM units per layer (the paper: 250, 500, 1000).", "min": 1})
+    activation: str = field(
+        default="elu", metadata={"help": "activation after each convolution and fc1.", "choices": YALTA_ACTIVATIONS}
+    )
+    feedback: str = field(
+        default="predicted",
+        metadata={
+            "help": "previous pose fed to the decoder in training: the model's own output (the paper) or the true one.",
+            "choices": FEEDBACKS,
+        },
+    )
+
+    def __post_init__(self) -> None:
+        if self.feedback not in FEEDBACKS:
+            raise ConfigError(f"feedback must be predicted or teacher, not {self.feedback!r}")
+        if self.activation not in YALTA_ACTIVATIONS:
+            raise ConfigError(f"activation must be one of {', '.join(YALTA_ACTIVATIONS)}, not {self.activation!r}")
+        if not isinstance(self.units, int) or self.units < 1:
+            raise ConfigError(f"units must be a positive integer, not {self.units!r}")
+
+
+YALTA_SWEEP = Sweep(
+    title="Yalta et al. (2016) Tables 3-5",
+    base={"activation": "elu", "units": 500, "sequence": 150},
+    variants={
+        "TanH": {"activation": "tanh"},
+        "ReLU": {"activation": "relu"},
+        "ELU": {},
+        "250 units": {"units": 250},
+        "1000 units": {"units": 1000},
+        "50 steps": {"sequence": 50},
+        "100 steps": {"sequence": 100},
+    },
+    paper={  # SMAPE % without reset, with reset, training minutes, forward ms/frame
+        "TanH": (19.73, 20.34, 1182.79, 9.16),
+        "ReLU": (19.67, 20.27, 1152.02, 8.54),
+        "ELU": (18.57, 19.20, 1139.81, 10.94),
+        "250 units": (19.76, 20.28, 663.99, 10.16),
+        "1000 units": (17.81, 18.53, 1305.85, 14.97),
+        "50 steps": (22.99, 23.73, 247.19, 10.94),
+        "100 steps": (19.16, 20.01, 774.75, 10.94),
+    },
+    paper_note="GTX Titan X, about 15 Latin songs",
+    shown=("feedback",),
+)
+"""The paper's Tables 3-5: each variant changes one thing of the base (ELU, 500 units, sequences of 150)."""
+
+
+class YaltaKind(ModelKind):
+    """Yalta et al. (2016)."""
+
+    name = "yalta"
+    description = "the DCNN + deep LSTM of Yalta et al. (2016)"
+    settings_type = YaltaSettings
+    training_defaults: dict[str, Any] = {}  # TrainConfig's base defaults are this paper's
+    resets = True  # free runs can zero the LSTM states every training sequence
+    streams = True
+    engines = {"torch": ("float32", "float16"), "onnxruntime": ("float32",)}
+    exports = ("torchscript", "onnx")
+    run_exports = {"stream.ts": "torchscript"}  # the streaming LSTM for robots
+    state_names = ("h1", "c1", "h2", "c2")
+    sweep = YALTA_SWEEP
+
+    @property
+    def network_type(self) -> type:
+        from kinectdata.models.yalta import YaltaNet
+
+        return YaltaNet
+
+    def check_dataset(self, manifest: dict[str, Any]) -> None:
+        shape = list(manifest["feature_shape"])
+        if len(shape) != 3 or shape[1:] != [129, 5]:
+            raise ConfigError(f"the yalta model takes STFT inputs [1, 129, 5]; this dataset's are {shape}")
+
+    def network_config(self, settings: YaltaSettings, manifest: dict[str, Any]) -> dict[str, Any]:
+        from kinectdata.models.yalta import YaltaConfig
+
+        return YaltaConfig(
+            output_dim=manifest["target_dim"],
+            units=settings.units,
+            activation=settings.activation,
+            input_shape=tuple(manifest["feature_shape"]),
+        ).to_dict()
+
+    def build(self, config: dict[str, Any]):
+        from kinectdata.models.yalta import YaltaConfig, YaltaNet
+
+        return YaltaNet(YaltaConfig.from_dict(config))
+
+    def predict(self, net, audio, previous, settings: YaltaSettings):
+        """[B, L, D] from a batch: ``previous`` [B, L, D] the true poses before each frame."""
+        return net(audio, previous if settings.feedback == "teacher" else previous[:, 0], settings.feedback)
+
+    def loss(self, net, pred, pose, mask, settings: YaltaSettings):
+        return masked_mse(pred, pose, mask)
+
+    def free_batch(self, net, audio, previous, pred, settings: YaltaSettings) -> np.ndarray:
+        """Predicted feedback already runs free in training: its predictions are the free run."""
+        free = pred if settings.feedback == "predicted" else net(audio, previous[:, 0], "predicted")
+        return free.cpu().numpy()
+
+    def init_output(self, net, start_pose: list[float]) -> None:
+        import torch
+
+        with torch.no_grad():  # outputs start at the mean pose, not 0: maxabs targets are far from centred
+            net.fc2.bias.copy_(torch.tensor(start_pose))
+
+    def free_run(self, net, audio: np.ndarray, first_pose: np.ndarray, reset_every: int | None = None):
+        from kinectdata.models.yalta import free_run
+
+        return free_run(net, audio, first_pose, reset_every)
+
+    def stream(self, net, precision: str = "float32"):
+        from kinectdata.models.yalta import StreamingYalta
+
+        return StreamingYalta(net.eval(), precision)
+
+    def example_frame(self, net):
+        import torch
+
+        return torch.zeros(*net.config.input_shape), torch.zeros(net.config.output_dim)
+
+    def export_metadata(self, config: dict[str, Any]) -> dict[str, Any]:
+        return {
+            "model": "yalta2016",
+            "inputs": {
+                "features": list(config["input_shape"]),
+                **{name: [3, config["units"]] for name in self.state_names},
+            },
+            "activation": config["activation"],
+            "units": config["units"],
+        }
+
+    def describe(self, settings: YaltaSettings) -> str:
+        return f"{settings.units} units, {settings.activation}, {settings.feedback} feedback"
+
+    def loss_name(self, settings: YaltaSettings) -> str:
+        return "mean squared error (normalised targets)"
+
+
+@dataclass(frozen=True)
+class CdhcSettings:
+    """The cdhc model's settings (the paper's widths; DC-TTS's dropout)."""
+
+    channels: int = field(default=256, metadata={"help": "width of the audio and skeleton encoders.", "min": 1})
+    decoder_channels: int = field(default=128, metadata={"help": "width of the fused code and the decoder.", "min": 1})
+    dropout: float = field(
+        default=0.05, metadata={"help": "dropout after each highway block.", "min": 0, "max": 1, "max_open": True}
+    )
+    limb_weight: float = field(
+        default=1.0, metadata={"help": "weight of the limb-length loss added to the L1 loss.", "min": 0}
+    )
+
+    def __post_init__(self) -> None:
+        if min(self.channels, self.decoder_channels) < 1 or not 0 <= self.dropout < 1 or self.limb_weight < 0:
+            raise ConfigError("channels must be positive, dropout in [0, 1) and limb_weight at least 0")
+
+
+class CdhcKind(ModelKind):
+    """Lee et al. (2018), "Listen to Dance"."""
+
+    name = "cdhc"
+    description = "the CDHC encoder-decoder of Lee et al. (2018)"
+    settings_type = CdhcSettings
+    training_defaults = {
+        "sequence": 300,
+        "batch_size": 16,
+        "epochs": 20,
+        "lr": 2e-4,
+        "noise_eta": 0.0,
+        "clip_norm": 1.0,
+    }
+    """The paper gives no schedule; these follow DC-TTS, whose blocks it uses (Adam 2e-4, gradient
+    norm clipped to 1), with 10 s sequences (longer than the 265-frame receptive field), no
+    gradient noise."""
+    resets = False  # no state to reset: the receptive field is fixed
+    streams = True
+    engines = {"torch": ("float32",)}
+
+    @property
+    def network_type(self) -> type:
+        from kinectdata.models.cdhc import CdhcNet
+
+        return CdhcNet
+
+    def check_dataset(self, manifest: dict[str, Any]) -> None:
+        from kinectdata.targets.specs import TargetSpec
+
+        shape = list(manifest["feature_shape"])
+        if len(shape) != 1:
+            raise ConfigError(
+                f"the cdhc model takes per-frame feature vectors [F] (mel bands); this dataset's are {shape}"
+            )
+        spec = TargetSpec.from_dict(manifest["config"]["target"])
+        if spec.orientations:
+            raise ConfigError(f"the cdhc model regresses coordinates and limb lengths; {spec.name} has quaternions")
+        if manifest["normalisation"]["method"] != "none" or spec.position_scale != "recording_minmax":
+            raise ConfigError(
+                f"the cdhc model's sigmoid output covers 0..1: it needs targets scaled into 0..1 per recording "
+                f"(position_scale recording_minmax, normalisation none); "
+                f"this dataset's are {spec.position_scale} and {manifest['normalisation']['method']}"
+            )
+        if manifest["config"].get("root_centre"):
+            raise ConfigError(
+                "the cdhc model's limb loss measures limbs between its output coordinates; root-centred "
+                "coordinates put the root in another frame of reference than its children: build without --root-centre"
+            )
+
+    def network_config(self, settings: CdhcSettings, manifest: dict[str, Any]) -> dict[str, Any]:
+        from kinectdata.models.cdhc import CdhcConfig
+        from kinectdata.targets.specs import TargetSpec
+
+        spec = TargetSpec.from_dict(manifest["config"]["target"])
+        index = {j: i for i, j in enumerate(spec.positions)}
+        return CdhcConfig(
+            output_dim=manifest["target_dim"],
+            input_dim=manifest["feature_shape"][0],
+            channels=settings.channels,
+            decoder_channels=settings.decoder_channels,
+            dropout=settings.dropout,
+            coordinates=spec.dimensions * len(spec.positions),
+            joint_dims=spec.dimensions,
+            limbs=tuple((index[j], index[p]) for j, p in spec.limb_pairs()),
+        ).to_dict()
+
+    def build(self, config: dict[str, Any]):
+        from kinectdata.models.cdhc import CdhcConfig, CdhcNet
+
+        return CdhcNet(CdhcConfig.from_dict(config))
+
+    def fill_previous(self, previous, mask, start_pose):
+        """Masked previous values (stored as 0, a real coordinate in 0..1) become the mean training
+        pose's, so teacher forcing never shows a joint jumping to the image's corner."""
+        if isinstance(previous, np.ndarray):
+            return np.where(mask, previous, np.asarray(start_pose, dtype=previous.dtype))
+        import torch
+
+        start = torch.as_tensor(start_pose, dtype=previous.dtype, device=previous.device)
+        return torch.where(mask, previous, start)
+
+    def predict(self, net, audio, previous, settings: CdhcSettings):
+        return net(audio, previous)  # teacher forcing: the true pose of each previous frame
+
+    def loss(self, net, pred, pose, mask, settings: CdhcSettings):
+        from kinectdata.models.cdhc import cdhc_loss
+
+        return cdhc_loss(pred, pose, mask, net.config, settings.limb_weight)[0]
+
+    def init_output(self, net, start_pose: list[float]) -> None:
+        from kinectdata.models.cdhc import init_output_bias
+
+        init_output_bias(net, np.asarray(start_pose))
+
+    def free_run(self, net, audio: np.ndarray, first_pose: np.ndarray, reset_every: int | None = None):
+        """Poses [T-1, D] of frames 1..T-1 from the audio of those frames, starting from the true
+        pose of frame 0 (``reset_every`` does not apply)."""
+        from kinectdata.models.cdhc import generate
+
+        return generate(net, audio[1:], first_pose)
+
+    def stream(self, net, precision: str = "float32"):
+        from kinectdata.models.cdhc import FrameCdhc
+
+        if precision != "float32":
+            raise ConfigError(f"the cdhc model streams float32 weights only, not {precision}")
+        return FrameCdhc(net)
+
+    def example_frame(self, net):
+        import torch
+
+        return torch.zeros(net.config.input_dim), torch.zeros(net.config.output_dim)
+
+    def describe(self, settings: CdhcSettings) -> str:
+        return f"cdhc, {settings.channels}/{settings.decoder_channels} channels, L1 + {settings.limb_weight:g} limb"
+
+    def loss_name(self, settings: CdhcSettings) -> str:
+        return f"L1 + {settings.limb_weight:g} x limb-length L1 (0..1 targets)"

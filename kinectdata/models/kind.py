@@ -1,0 +1,166 @@
+"""What a model declares so that training, evaluation, generation, export and the sweep stay one
+loop each: the :class:`ModelKind` protocol.
+
+A kind is one object per model (registered with :func:`kinectdata.models.registry.register_model`).
+It says:
+
+- **who it is**: ``name`` (the ``--model`` choice, ``config.json``'s ``train.model``) and a
+  one-line ``description``;
+- **its settings**: ``settings_type``, a frozen dataclass of the model's own settings with the
+  model's defaults; its ``__post_init__`` raises :class:`~kinectdata.core.errors.ConfigError` for
+  a bad value. Field metadata ``help``, ``choices``, ``min``/``max`` (with ``min_open``/
+  ``max_open``) describe the setting for the command line. ``training_defaults`` are the training
+  loop's settings (``sequence``, ``batch_size``, ``epochs``, ``lr``, ...) where this model's
+  differ from :class:`kinectdata.training.config.TrainConfig`'s base defaults;
+- **what it needs of a dataset**: :meth:`ModelKind.check_dataset` raises ConfigError with the
+  reason (feature shape, target layout, normalisation); the registry adds the dataset's name and
+  which ``--model`` or ``--pipeline`` to use;
+- **its network**: :meth:`network_config` (JSON-able, kept in ``config.json``), :meth:`build`,
+  ``network_type`` (the class :meth:`build` returns), :meth:`init_output` (the output layer
+  starting at the mean pose);
+- **training**: :meth:`fill_previous` (what a masked previous pose becomes), :meth:`predict` (a
+  training batch through the network: its feedback), :meth:`loss`, :meth:`free_batch` (a
+  validation batch free-running), :meth:`describe` and :meth:`loss_name` (the loss figure's
+  title and axis);
+- **running free**: :meth:`free_run` over a whole recording, given its first true pose;
+  ``resets`` says whether it can zero a state every training sequence (evaluation's "with reset");
+- **streaming**: ``streams`` says whether it has a network stepping one frame at a time with
+  its state passed in and out (:meth:`stream`, the :class:`Stream` contract); ``engines`` maps the
+  inference engines that run that stream (``torch``, ``onnxruntime``) to their weight precisions;
+  ``exports`` the file formats it writes it as (``torchscript``, ``onnx``), ``state_names``
+  naming the state tensors in those files, :meth:`export_metadata` what it adds to their
+  metadata, and ``run_exports`` the files training writes into the run folder at the end (file
+  name -> format);
+- **the sweep**: ``sweep``, the variants of a published table (:class:`Sweep`), or None.
+
+Tensors: audio features ``[B, L, *F]`` (``F`` the dataset's ``feature_shape``), poses and masks
+``[B, L, D]`` (``D`` the target's size) with ``previous[:, t]`` the pose of frame t-1; numpy
+recordings ``[T, *F]`` and ``[T, D]``. Subclassing :class:`ModelKind` inherits the defaults below
+(no state to reset, no stream, nothing exported, no sweep).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from typing import Any, Protocol, runtime_checkable
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class Sweep:
+    """A published table that ``kinectdata sweep`` reproduces for a model.
+
+    Attributes:
+        title: what the table is (e.g. "Yalta et al. (2016) Tables 3-5").
+        base: the settings every variant starts from (training loop or model settings).
+        variants: variant name -> the settings it changes from ``base``.
+        paper: variant name -> the published figures: SMAPE % without reset, with reset, training
+            minutes, forward ms per frame (a variant without figures is left out).
+        paper_note: where the published figures come from (hardware, data).
+        shown: the model settings the table's title names with their values (the same in every variant).
+    """
+
+    title: str
+    base: Mapping[str, Any]
+    variants: Mapping[str, Mapping[str, Any]]
+    paper: Mapping[str, tuple[float, float, float, float]] = field(default_factory=dict)
+    paper_note: str = ""
+    shown: tuple[str, ...] = ()
+
+
+class Stream(Protocol):
+    """A network one frame at a time, its state passed in and out (an ``nn.Module``).
+
+    ``initial_state()`` gives the state at the start (a tuple of tensors); ``forward(features [*F],
+    previous [D], *state)`` returns ``(pose [D], *new state)``. One unbatched frame per call."""
+
+    def initial_state(self) -> tuple[Any, ...]: ...
+
+    def __call__(self, features: Any, previous: Any, *state: Any) -> tuple[Any, ...]: ...
+
+
+@runtime_checkable
+class ModelKind(Protocol):
+    """A model as training, evaluation, generation and export see it (see the module docstring)."""
+
+    name: str
+    description: str = ""
+    settings_type: type
+    training_defaults: Mapping[str, Any] = {}
+    resets: bool = False
+    streams: bool = False
+    engines: Mapping[str, tuple[str, ...]] = {}
+    exports: tuple[str, ...] = ()
+    run_exports: Mapping[str, str] = {}
+    state_names: tuple[str, ...] = ()
+    sweep: Sweep | None = None
+
+    @property
+    def network_type(self) -> type:
+        """The class of the networks :meth:`build` returns."""
+        raise NotImplementedError(f"the {self.name} model does not define network_type")
+
+    def check_dataset(self, manifest: dict[str, Any]) -> None:
+        """ConfigError saying why a dataset (its manifest) does not fit the model; None if it does."""
+
+    def network_config(self, settings: Any, manifest: dict[str, Any]) -> dict[str, Any]:
+        """The network's configuration (JSON-able) from the model's settings and the dataset's manifest."""
+        raise NotImplementedError(f"the {self.name} model does not define network_config")
+
+    def build(self, config: dict[str, Any]) -> Any:
+        """A network (``nn.Module``) from :meth:`network_config`'s dict, at its initial weights."""
+        raise NotImplementedError(f"the {self.name} model does not define build")
+
+    def fill_previous(self, previous: Any, mask: Any, start_pose: Any) -> Any:
+        """What masked previous poses become, ``[..., D]`` tensors or arrays (default: as stored)."""
+        return previous
+
+    def predict(self, net: Any, audio: Any, previous: Any, settings: Any) -> Any:
+        """Poses ``[B, L, D]`` for a training batch: ``audio [B, L, *F]``, ``previous [B, L, D]``
+        (the true poses before each frame); ``net`` may be wrapped in DistributedDataParallel."""
+        raise NotImplementedError(f"the {self.name} model does not define predict")
+
+    def loss(self, net: Any, pred: Any, pose: Any, mask: Any, settings: Any) -> Any:
+        """The scalar training loss of predictions against the true poses, over ``mask``'s valid values."""
+        raise NotImplementedError(f"the {self.name} model does not define loss")
+
+    def free_batch(self, net: Any, audio: Any, previous: Any, pred: Any, settings: Any) -> np.ndarray:
+        """Poses ``[B, L, D]`` free-running over each window of a validation batch from its first
+        previous pose (``pred``: :meth:`predict`'s, for models whose training already runs free).
+        Default: :meth:`free_run` window by window."""
+        runs = []
+        for a, p in zip(audio.cpu().numpy(), previous.cpu().numpy()):
+            runs.append(self.free_run(net, np.concatenate([a[:1], a]), p[0]))
+        return np.stack(runs)
+
+    def init_output(self, net: Any, start_pose: list[float]) -> None:
+        """Start the output layer at the mean training pose ``[D]`` (default: leave it)."""
+
+    def free_run(self, net: Any, audio: np.ndarray, first_pose: np.ndarray, reset_every: int | None = None) -> Any:
+        """Poses ``[T-1, D]`` (numpy) for frames 1..T-1 of features ``[T, *F]``, starting from the
+        pose ``[D]`` of frame 0 and then fed the model's own outputs; with ``reset_every`` = L (only
+        for models that reset) the state is zeroed every L frames."""
+        raise NotImplementedError(f"the {self.name} model does not define free_run")
+
+    def stream(self, net: Any, precision: str = "float32") -> Stream:
+        """The network one frame at a time (:class:`Stream`) with weights of ``precision``."""
+        raise NotImplementedError(f"the {self.name} model does not stream")
+
+    def example_frame(self, net: Any) -> tuple[Any, Any]:
+        """Zero features ``[*F]`` and a zero pose ``[D]`` (tensors) to trace the stream with (export)."""
+        raise NotImplementedError(f"the {self.name} model does not stream")
+
+    def export_metadata(self, config: dict[str, Any]) -> dict[str, Any]:
+        """What the model adds to an exported file's metadata, from its network configuration
+        (an ``inputs`` entry is merged into the inputs' shapes)."""
+        return {}
+
+    def describe(self, settings: Any) -> str:
+        """A few words on the settings, for the loss figure's title."""
+        return self.name
+
+    def loss_name(self, settings: Any) -> str:
+        """The loss and its units, for the loss figure's axis."""
+        return "training loss"
