@@ -58,7 +58,7 @@ def _offsets(tmp: Path) -> None:
         except AlignmentError:
             refused += 1
             continue
-        errors.append(abs(result.offset["seconds"] - rec.truth["offset_s"]) * 1000)
+        errors.append(abs(result.offset.seconds - rec.truth["offset_s"]) * 1000)
     e = np.array(errors)
     print(
         f"  2-D clap offset: {len(e)} of 30 found, {refused} refused; error median {np.median(e):.1f} ms, "

@@ -61,8 +61,8 @@ def test_saved_file_reads_back_identically(fixture_csv, noise_wav, tmp_path):
     np.testing.assert_array_equal(back.position_interpolated, rec.position_interpolated)
     np.testing.assert_array_equal(back.audio, rec.audio)
     assert back.offset == rec.offset and back.summary == rec.summary
-    assert back.provenance["motion"]["sha256"] == rec.provenance["motion"]["sha256"]
-    assert len(back.provenance["audio"]["sha256"]) == 64
+    assert back.provenance.motion["sha256"] == rec.provenance.motion["sha256"]
+    assert len(back.provenance.audio["sha256"]) == 64
     assert back.motion.joint_set.name == "kinect_v2"
 
 
@@ -106,8 +106,8 @@ def test_every_sample_session_aligns_with_the_true_offset():
     for s in sessions:
         rec = align_files(s.skeleton, s.audio, offset="auto")
         truth = s.load_truth()
-        assert abs(rec.offset["seconds"] - truth["offset_s"]) < 1 / 30, s.name
-        assert rec.offset["source"] == "clap"
+        assert abs(rec.offset.seconds - truth["offset_s"]) < 1 / 30, s.name
+        assert rec.offset.source == "clap"
         assert rec.motion.has_orientations and rec.n_frames > 500
         # the longer foot loss listed in the truth stays masked and is reported
         long_losses = {sp["joint"] for sp in truth["tracking_spans"] if sp["end_s"] - sp["start_s"] > 0.3}
@@ -187,7 +187,7 @@ def test_every_format_aligns_and_saves(fmt, tmp_path, noise_wav):
         path.write_text(json.dumps({"joint_names": names, "bone_list": [], "frames": frames}))
     rec = align_files(path, noise_wav, tmp_path / "out.h5", offset=0.0, min_coverage=0.0)
     back = AlignedRecording.load(tmp_path / "out.h5")
-    assert back.n_frames == rec.n_frames >= 2 and back.provenance["motion"]["format"] == fmt
+    assert back.n_frames == rec.n_frames >= 2 and back.provenance.motion["format"] == fmt
 
 
 def test_azure_skeleton_comes_out_upright(tmp_path):

@@ -145,7 +145,7 @@ def test_a_take_with_audio_aligns_without_an_offset_guess(openni2, tmp_path):
 
     rec = AlignedRecording.load(tmp_path / "a.h5", audio=False)
     expected = doc["oni"]["zero_clock_s"] + float(stamps[3]) / 1e6 - audio["first_sample_clock_s"]
-    assert rec.offset["source"] == "given" and rec.offset["seconds"] == pytest.approx(expected, abs=1e-9)
+    assert rec.offset.source == "given" and rec.offset.seconds == pytest.approx(expected, abs=1e-9)
     result = CliRunner().invoke(main, ["align", str(take), str(take / "take.wav"), "-o", str(tmp_path / "b.h5")])
     assert result.exit_code == 2 and "a take folder brings its own audio" in result.output
 

@@ -692,7 +692,9 @@ def check_aligned(path: Path) -> None:
         if rec.motion.has_orientations:
             assert rec.orientation_interpolated.shape == shape and rec.orientation_interpolated.dtype == bool
         assert rec.audio.ndim == 1 and rec.sample_rate > 0 and 0 < rec.fps < np.inf
-        assert all(isinstance(x, dict) for x in (rec.offset, rec.provenance, rec.summary, rec.motion.metadata))
+        assert all(isinstance(x, dict) for x in (rec.summary, rec.motion.metadata))
+        assert rec.offset is None or isinstance(rec.offset.seconds, float)
+        assert all(isinstance(x, dict) for x in (rec.provenance.motion, rec.provenance.audio, rec.provenance.options))
 
 
 @settings(PER_EXAMPLE, max_examples=30)

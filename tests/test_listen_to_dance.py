@@ -76,8 +76,8 @@ def test_the_offset_is_found_from_the_clap_in_2d(sessions, tmp_path):
     for seed in (11, 12, 14):
         truth = json.loads((sessions / f"dance_{seed}.truth.json").read_text())
         result = align_files(sessions / f"dance_{seed}_openpose", sessions / f"dance_{seed}.flac", video_fps=30.0)
-        assert result.offset["source"] == "clap"
-        assert abs(result.offset["seconds"] - truth["offset_s"]) < 1.5 / 30  # within a video frame and a half
+        assert result.offset.source == "clap"
+        assert abs(result.offset.seconds - truth["offset_s"]) < 1.5 / 30  # within a video frame and a half
     # seed 13: the detector missed both wrists through the clap: refused, not guessed
     from kinectdata.synth import synthesize_recording, write_openpose_recording
 

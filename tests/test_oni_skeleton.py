@@ -112,4 +112,4 @@ def test_align_with_an_oni_timeline(tmp_path):
     from kinectdata.align.aligned import AlignedRecording
 
     rec = AlignedRecording.load(out, audio=False)
-    assert rec.n_frames == 28 and rec.provenance["options"]["timeline"] == str(ONI)
+    assert rec.n_frames == 28 and rec.provenance.options["timeline"] == str(ONI)

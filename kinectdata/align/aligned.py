@@ -3,7 +3,7 @@
 The file (``kinectdata align ... -o OUT.h5``) is self-describing; its layout, version 1:
 
 =====================================  ==============================================================
-``/`` attributes                       ``format`` = "kinectdata.align.aligned", ``format_version`` = 1,
+``/`` attributes                       ``format`` = "kinectdata.aligned", ``format_version`` = 1,
                                        ``fps``, ``sample_rate`` (Hz), ``joint_set``, ``created_by``
 ``/motion/times``                      [N] float64, seconds; frame k is at exactly k / fps
 ``/motion/positions``                  [N, J, D] float32, metres (pixels for 2-D joint sets), NaN where masked
@@ -33,13 +33,14 @@ from typing import Any
 import h5py
 import numpy as np
 
+from kinectdata.align.offset import OffsetChoice
 from kinectdata.core.atomic import atomic_hdf5
-from kinectdata.core.errors import FormatError
+from kinectdata.core.errors import ConfigError, FormatError
 from kinectdata.core.jointsets import JointSet, load_joint_set, shipped_joint_sets
 from kinectdata.core.motion import Motion
 from kinectdata.core.version import __version__
 
-FORMAT = "kinectdata.align.aligned"
+FORMAT = "kinectdata.aligned"
 FORMAT_VERSION = 1
 _MAX_ARRAY_IN_ATTRIBUTE = 1024
 _DAMAGE = (OSError, KeyError, ValueError, TypeError, RuntimeError, IndexError)
@@ -63,6 +64,34 @@ def _dumps(value: Any) -> str:
     return json.dumps(value, default=_jsonable)
 
 
+@dataclass
+class Provenance:
+    """Where an aligned recording came from (the ``provenance`` attribute, JSON).
+
+    Attributes:
+        motion: the reader's metadata of the skeleton recording, with ``path`` and ``sha256``.
+        audio: the audio's source description (path, original rate, channels) with ``sha256``.
+        options: the reading and alignment options given (format, schema, body, ...).
+    """
+
+    motion: dict[str, Any] = field(default_factory=dict)
+    audio: dict[str, Any] = field(default_factory=dict)
+    options: dict[str, Any] = field(default_factory=dict)
+
+    @classmethod
+    def from_dict(cls, d: dict[str, Any]) -> Provenance:
+        parts = [d.get(k) or {} for k in ("motion", "audio", "options")]
+        if not all(isinstance(x, dict) for x in parts):
+            raise TypeError("motion, audio and options must be JSON objects")
+        return cls(*parts)
+
+    def to_dict(self) -> dict[str, Any]:
+        d: dict[str, Any] = {"motion": self.motion, "audio": self.audio}
+        if self.options:
+            d["options"] = self.options
+        return d
+
+
 @dataclass(eq=False)
 class AlignedRecording:
     """Motion resampled to ``k / fps`` seconds and the audio that goes with it.
@@ -73,9 +102,9 @@ class AlignedRecording:
         sample_rate: Hz.
         fps: motion frames per second.
         position_interpolated / orientation_interpolated: [N, J] bool, values filled across gaps.
-        offset: ``{"seconds", "source", "confidence", ...}``; audio_time = motion_time + seconds
+        offset: :class:`~kinectdata.align.offset.OffsetChoice`; audio_time = motion_time + seconds
             on the *source* clocks.
-        provenance: source files, hashes and options.
+        provenance: :class:`Provenance`: source files, hashes and options.
         summary: figures about the alignment (frames, duration, jitter, drops, interpolation...).
         gaps: gaps longer than ``max_gap`` (left masked), on the output clock.
     """
@@ -86,14 +115,58 @@ class AlignedRecording:
     fps: float
     position_interpolated: np.ndarray
     orientation_interpolated: np.ndarray | None = None
-    offset: dict[str, Any] = field(default_factory=dict)
-    provenance: dict[str, Any] = field(default_factory=dict)
+    offset: OffsetChoice | None = None
+    provenance: Provenance = field(default_factory=Provenance)
     summary: dict[str, Any] = field(default_factory=dict)
     gaps: list[dict[str, Any]] = field(default_factory=list)
+
+    def __post_init__(self) -> None:
+        # the file stores both as JSON objects: a dict given (or read) becomes the typed value
+        if isinstance(self.offset, dict):
+            self.offset = OffsetChoice.from_dict(self.offset) if self.offset else None
+        if isinstance(self.provenance, dict):
+            self.provenance = Provenance.from_dict(self.provenance)
 
     @property
     def n_frames(self) -> int:
         return self.motion.n_frames
+
+    @property
+    def duration(self) -> float:
+        """Seconds from frame 0 to one frame period past the last frame."""
+        return self.n_frames / self.fps
+
+    def frame_starts(self, sample_rate: int, slice_samples: int | None = None) -> np.ndarray:
+        """[T] int64: the audio sample at each motion frame, ``round(k * sample_rate / fps)``.
+
+        ``sample_rate`` (Hz) and ``slice_samples`` (audio samples one frame's features take) are
+        those of the features to compute; a ConfigError refuses a rate other than the recording's
+        or slices that are not one frame period long (a 16 kHz / 30 fps preset on a 22.05 kHz or
+        60 fps recording would silently give features of the wrong audio)."""
+        if sample_rate != self.sample_rate:
+            raise ConfigError(
+                f"the features are defined at {sample_rate} Hz, this recording's audio is at {self.sample_rate} Hz: "
+                f"align it with --sample-rate {sample_rate} or use a feature configuration for {self.sample_rate} Hz"
+            )
+        period = self.sample_rate / self.fps
+        if slice_samples is not None and abs(slice_samples - period) > 1:
+            raise ConfigError(
+                f"the features take {slice_samples}-sample slices "
+                f"(one frame at {sample_rate / slice_samples:.0f} fps); "
+                f"this recording has {self.fps:g} fps, {period:.1f} samples a frame: align it with --fps "
+                f"{sample_rate / slice_samples:.0f} or use a feature configuration with slices of one frame"
+            )
+        return np.round(np.arange(self.n_frames) * self.sample_rate / self.fps).astype(np.int64)
+
+    def __repr__(self) -> str:
+        m = self.motion
+        off = self.offset
+        offset_text = f", offset {off.seconds:+.3f} s ({off.source})" if off is not None else ""
+        return (
+            f"AlignedRecording({self.n_frames} frames at {self.fps:g} fps ({self.duration:.2f} s), "
+            f"{m.joint_set.name} {m.n_joints} joints, audio {self.audio.shape[0]} samples at {self.sample_rate} Hz"
+            f"{offset_text}, {len(self.gaps)} long gaps)"
+        )
 
     def save(self, path: str | Path, *, compression: str | None = "gzip") -> None:
         """Write the HDF5 file atomically (a temporary file renamed into place)."""
@@ -107,8 +180,8 @@ class AlignedRecording:
                     "sample_rate": self.sample_rate,
                     "joint_set": m.joint_set.name,
                     "created_by": f"kinectdata {__version__}",
-                    "offset": _dumps(self.offset),
-                    "provenance": _dumps(self.provenance),
+                    "offset": _dumps(self.offset.to_dict() if self.offset else {}),
+                    "provenance": _dumps(self.provenance.to_dict()),
                     "summary": _dumps(self.summary),
                     "gaps": _dumps(self.gaps),
                     "metadata": _dumps(m.metadata),
@@ -190,8 +263,8 @@ class AlignedRecording:
             fps=fps,
             position_interpolated=flags["position_interpolated"],
             orientation_interpolated=flags.get("orientation_interpolated"),
-            offset=_json_attribute(f, path, "offset", dict),
-            provenance=_json_attribute(f, path, "provenance", dict),
+            offset=_record(path, "offset", OffsetChoice.from_dict, _json_attribute(f, path, "offset", dict)),
+            provenance=_record(path, "provenance", Provenance.from_dict, _json_attribute(f, path, "provenance", dict)),
             summary=_json_attribute(f, path, "summary", dict),
             gaps=_json_attribute(f, path, "gaps", list),
         )
@@ -206,6 +279,19 @@ def _json_attribute(f: h5py.File, path: Path, key: str, kind: type, default: str
     if not isinstance(parsed, kind):
         raise FormatError(path, f"attribute {key!r} must hold a JSON {'object' if kind is dict else 'array'}")
     return parsed
+
+
+def _record(path: Path, key: str, build: Any, doc: dict[str, Any]) -> Any:
+    """A typed record from a JSON attribute's object (an empty object: None); FormatError naming the
+    attribute when its fields are missing or of the wrong type."""
+    if not doc and key == "offset":
+        return None
+    try:
+        return build(doc)
+    except (KeyError, TypeError, ValueError) as exc:
+        raise FormatError(
+            path, f"attribute {key!r} is not a valid {key} record ({type(exc).__name__}: {exc})"
+        ) from None
 
 
 def _show(value: Any, limit: int = 60) -> str:

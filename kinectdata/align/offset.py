@@ -58,6 +58,10 @@ MAIN_LOBE_S = 0.25
 than the beat period of any dance music (0.33 s at 180 BPM), so a beat away still competes."""
 
 
+DEFAULT_MIN_CONFIDENCE = 0.5
+"""Estimates less confident than this (0..1) are refused rather than used."""
+
+
 @dataclass(frozen=True)
 class OffsetEstimate:
     """An estimated offset (seconds, ``audio_time = motion_time + offset``) and its evidence.
@@ -72,6 +76,52 @@ class OffsetEstimate:
     candidates: list[tuple[float, float]] = field(default_factory=list)
     curve: tuple[np.ndarray, np.ndarray] | None = None
     detail: dict[str, Any] = field(default_factory=dict)
+
+
+@dataclass
+class OffsetChoice:
+    """The offset an alignment used (``audio_time = motion_time + seconds``) and where it came from.
+
+    Attributes:
+        seconds: the offset, s.
+        source: ``given`` (by the user or a take's clock stamps), ``clap`` or ``xcorr`` (estimated).
+        confidence: 0..1 (1 for a given offset; None where a writer recorded none).
+        candidates: estimated offsets' (seconds, score) pairs, best first (None when given).
+        events: what the estimate found (claps...), when it reports any.
+
+    Stored in files as the JSON object :meth:`to_dict` gives (``seconds``, ``source``,
+    ``confidence``, and ``candidates`` / ``events`` where present), as before it had a type.
+    """
+
+    seconds: float
+    source: str = "given"
+    confidence: float | None = 1.0
+    candidates: list | None = None
+    events: Any = None
+
+    @classmethod
+    def from_estimate(cls, est: OffsetEstimate, keep: int = 5) -> OffsetChoice:
+        """The choice of an estimate, keeping its ``keep`` best candidates."""
+        candidates = [[float(x) for x in c] for c in est.candidates[:keep]]
+        return cls(est.offset, est.method, est.confidence, candidates, est.detail or None)
+
+    @classmethod
+    def from_dict(cls, d: dict[str, Any]) -> OffsetChoice:
+        return cls(
+            float(d["seconds"]),
+            str(d.get("source", "given")),
+            None if d.get("confidence", 1.0) is None else float(d.get("confidence", 1.0)),
+            d.get("candidates"),
+            d.get("events"),
+        )
+
+    def to_dict(self) -> dict[str, Any]:
+        d: dict[str, Any] = {"seconds": self.seconds, "source": self.source, "confidence": self.confidence}
+        if self.candidates is not None:
+            d["candidates"] = self.candidates
+        if self.events is not None:
+            d["events"] = self.events
+        return d
 
 
 # ---------------------------------------------------------------------------------------------
@@ -264,7 +314,7 @@ def estimate_offset(
     audio: Audio | AudioEnvelopes,
     *,
     max_offset: float | None = None,
-    min_confidence: float = 0.5,
+    min_confidence: float = DEFAULT_MIN_CONFIDENCE,
 ) -> OffsetEstimate:
     """Estimate ``offset`` with ``audio_time = motion_time + offset`` (seconds).
 

@@ -22,12 +22,12 @@ from typing import Any
 
 import numpy as np
 
-from kinectdata.align.aligned import AlignedRecording
+from kinectdata.align.aligned import AlignedRecording, Provenance
 from kinectdata.align.audio import DEFAULT_SAMPLE_RATE, Audio, load_audio
 from kinectdata.align.envelopes import AudioEnvelopes
-from kinectdata.align.offset import estimate_offset
+from kinectdata.align.offset import DEFAULT_MIN_CONFIDENCE, OffsetChoice, estimate_offset
 from kinectdata.align.timeline import Resampled, resample_motion
-from kinectdata.core.errors import AlignmentError, KinectDataError
+from kinectdata.core.errors import AlignmentError, ConfigError, KinectDataError
 from kinectdata.core.hashing import file_sha256
 from kinectdata.core.motion import Motion
 from kinectdata.formats import read_motion
@@ -43,29 +43,23 @@ def resolve_offset(
     offset: float | str | None,
     *,
     max_offset: float | None = None,
-    min_confidence: float = 0.5,
-) -> dict[str, Any]:
-    """The offset to use, with where it came from: ``{"seconds", "source", "confidence", ...}``.
+    min_confidence: float = DEFAULT_MIN_CONFIDENCE,
+) -> OffsetChoice:
+    """The offset to use, with where it came from.
 
     ``offset`` is a number of seconds (source "given") or "auto"/None (estimated from the audio or
     its envelopes by :func:`kinectdata.align.offset.estimate_offset`).
     """
     if offset is None or offset == "auto":
         est = estimate_offset(motion, audio, max_offset=max_offset, min_confidence=min_confidence)
-        return {
-            "seconds": est.offset,
-            "source": est.method,
-            "confidence": est.confidence,
-            "candidates": est.candidates[:5],
-            **({"events": est.detail} if est.detail else {}),
-        }
+        return OffsetChoice.from_estimate(est)
     try:
         seconds = float(offset)
     except (TypeError, ValueError):
-        raise KinectDataError(f"offset must be a number of seconds or 'auto', not {offset!r}") from None
+        raise ConfigError(f"offset must be a number of seconds or 'auto', not {offset!r}") from None
     if not math.isfinite(seconds):
-        raise KinectDataError(f"offset must be finite, not {offset!r}")
-    return {"seconds": seconds, "source": "given", "confidence": 1.0}
+        raise ConfigError(f"offset must be finite, not {offset!r}")
+    return OffsetChoice(seconds)
 
 
 @dataclass(frozen=True)
@@ -202,8 +196,8 @@ def summarize(
         "masked_share": float(1.0 - valid_any.mean()),
         "long_gaps": len(long_gaps),
         "offset_s": tl.offset,
-        "offset_source": offset["source"],
-        "offset_confidence": offset["confidence"],
+        "offset_source": offset.source,
+        "offset_confidence": offset.confidence,
     }
     if res.orientation_interpolated is not None:
         can = source.joint_set.orientation_mask
@@ -222,7 +216,7 @@ def align(
     max_gap: float = DEFAULT_MAX_GAP,
     min_coverage: float = DEFAULT_MIN_COVERAGE,
     max_offset: float | None = None,
-    min_confidence: float = 0.5,
+    min_confidence: float = DEFAULT_MIN_CONFIDENCE,
 ) -> AlignedRecording:
     """Put a recording and its audio on one exact timeline.
 
@@ -245,7 +239,7 @@ def align(
         motion,
         audio.samples.size,
         audio.sample_rate,
-        off["seconds"],
+        off.seconds,
         fps=fps,
         min_coverage=min_coverage,
         audio_name=audio.source.get("path", "the audio"),
@@ -260,7 +254,7 @@ def align(
         position_interpolated=res.position_interpolated,
         orientation_interpolated=res.orientation_interpolated,
         offset=off,
-        provenance={"motion": dict(motion.metadata), "audio": dict(audio.source)},
+        provenance=Provenance(motion=dict(motion.metadata), audio=dict(audio.source)),
         summary=summarize(motion, tl, res, long_gaps, off, audio.samples.size, samples.size),
         gaps=long_gaps,
     )
@@ -294,9 +288,9 @@ def align_files(
         motion = retime(motion, timeline)
     audio = load_audio(audio_path, sample_rate=sample_rate)
     result = align(motion, audio, **options)
-    result.provenance["motion"].update({"path": str(recording), "sha256": file_sha256(recording)})
-    result.provenance["audio"].update({"path": str(audio_path), "sha256": file_sha256(audio_path)})
-    result.provenance["options"] = {
+    result.provenance.motion.update({"path": str(recording), "sha256": file_sha256(recording)})
+    result.provenance.audio.update({"path": str(audio_path), "sha256": file_sha256(audio_path)})
+    result.provenance.options = {
         "format": format,
         "schema": schema,
         "body": body,
@@ -329,7 +323,7 @@ def format_summary(rec: AlignedRecording) -> str:
     if "orientation_interpolated_share" in s:
         lines.append(f"orientations    {100 * s['orientation_interpolated_share']:.2f}% interpolated")
     lines.append(
-        f"offset          {off['seconds']:+.4f} s ({off['source']}, confidence {off['confidence']:.2f}); "
+        f"offset          {off.seconds:+.4f} s ({off.source}, confidence {off.confidence or 0:.2f}); "
         "audio_time = motion_time + offset"
     )
     for g in rec.gaps[:10]:

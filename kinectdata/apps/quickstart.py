@@ -30,12 +30,10 @@ from kinectdata.align.recipe import align_files, format_summary
 from kinectdata.core.errors import KinectDataError
 from kinectdata.dataset.build import build_dataset
 from kinectdata.dataset.collection import find_sessions
+from kinectdata.dataset.config import BuildConfig
 from kinectdata.dataset.inspect import inspect
 from kinectdata.dataset.pipelines import PIPELINES
-from kinectdata.dataset.prepare import BuildConfig
-from kinectdata.features import PRESETS
 from kinectdata.synth import synthesize_recording, write_openpose_recording, write_recording
-from kinectdata.targets.specs import load_target_spec
 
 SAMPLE_SEEDS = (1, 2, 3)
 SAMPLE_DURATION_S = 22.0
@@ -101,9 +99,9 @@ def run_quickstart(
         rec = align_files(s.skeleton, s.audio, target, offset="auto")
         echo(format_summary(rec))
         truth = s.load_truth()
-        result = {"aligned": str(target), "frames": rec.n_frames, "offset_s": rec.offset["seconds"]}
+        result = {"aligned": str(target), "frames": rec.n_frames, "offset_s": rec.offset.seconds}
         if truth is not None:
-            error = rec.offset["seconds"] - truth["offset_s"]
+            error = rec.offset.seconds - truth["offset_s"]
             result["offset_error_s"] = error
             echo(f"  offset error against the ground truth: {1000 * error:+.1f} ms")
             if abs(error) > FRAME_S:
@@ -112,54 +110,76 @@ def run_quickstart(
                 )
         results[s.name] = result
     echo(f"[build-dataset] {out / 'aligned'} -> {out / 'dataset'}")
-    config = BuildConfig(
-        features=PRESETS["yalta2016"].to_dict(),
-        target=load_target_spec("yalta65").to_dict(),
-        split_ratios=(0.5, 0.25, 0.25),
-    )
+    config = BuildConfig.from_pipeline("yalta2016", split_ratios=(0.5, 0.25, 0.25))
     manifest = build_dataset(out / "aligned", out / "dataset", config)
     echo(f"[inspect] {out / 'dataset'}")
     echo(inspect(out / "dataset", components=6))
     summary = {"sessions": results, "dataset": str(out / "dataset"), "rows": manifest["totals"]["rows"]}
+    learned = _train_evaluate_generate(
+        out,
+        manifest,
+        "yalta2016",
+        {**QUICK_TRAINING, **training},
+        lambda test: next(s.audio for s in sessions if s.name == test),
+        "generated.csv",
+        echo,
+    )
+    if learned:
+        run = Path(learned["run"])
+        echo(
+            f"[done] aligned files: {out / 'aligned'}\n       dataset: {out / 'dataset'}\n       run: {run} "
+            f"(loss.png, log.csv, model.pt, stream.ts)\n       evaluation: {run / 'evaluation'} (results.json, "
+            f"trajectories.png, silence.png)\n       generated motion: {run / 'generated.csv'}"
+        )
+    return summary | learned
+
+
+def _train_evaluate_generate(
+    out: Path,
+    manifest: dict[str, Any],
+    pipeline: str,
+    settings: dict[str, Any],
+    audio_of: Callable[[str], Path],
+    generated: str,
+    echo: Callable[[str], Any],
+) -> dict[str, Any]:
+    """Train the pipeline's model on ``out/dataset`` into ``out/run``, evaluate it on the test split
+    and generate motion for the first test recording's audio (``audio_of(name)``) into
+    ``run/generated``. Returns ``{"run", "history", "evaluation", "generated_frames"}``, or ``{}``
+    (said through ``echo``) when PyTorch is not installed."""
     try:
         import torch  # noqa: F401
     except ImportError:
         echo(
             "[done] PyTorch is not installed (pip install 'kinectdata[train]'): stopping before training. "
-            f"Aligned files in {out / 'aligned'}, dataset in {out / 'dataset'}"
+            f"Dataset in {out / 'dataset'}"
         )
-        return summary
+        return {}
     from kinectdata.evaluation.evaluate import evaluate, format_results
     from kinectdata.inference.generate import generate
     from kinectdata.training.config import TrainConfig
     from kinectdata.training.train import train
 
+    model = PIPELINES[pipeline]["model"]
     run = out / "run"
     shutil.rmtree(run, ignore_errors=True)  # a fresh run each time (a run folder refuses to be overwritten)
-    settings = {**QUICK_TRAINING, **training}
-    echo(f"[train-baseline] {out / 'dataset'} -> {run} ({', '.join(f'{k} {v}' for k, v in settings.items())})")
-    history = train(
-        out / "dataset",
-        run,
-        TrainConfig(**settings),
-        progress=lambda r: echo(
-            f"  epoch {r['epoch']}: train loss {r['train_loss']:.5f}, validation loss "
-            f"{'-' if r['val_loss'] is None else format(r['val_loss'], '.5f')} ({r['seconds']:.1f} s)"
-        ),
+    echo(
+        f"[train-baseline --model {model}] {out / 'dataset'} -> {run} "
+        f"({', '.join(f'{k} {v}' for k, v in settings.items())})"
     )
+
+    def progress(row: dict[str, Any]) -> None:
+        val = "" if row["val_loss"] is None else f", validation loss {row['val_loss']:.5f}"
+        echo(f"  epoch {row['epoch']}: train loss {row['train_loss']:.5f}{val} ({row['seconds']:.1f} s)")
+
+    history = train(out / "dataset", run, TrainConfig.for_model(model, **settings), progress=progress)
     echo(f"[evaluate] {run} on the test split")
     results = evaluate(run, out / "dataset", "test")
     echo(format_results(results))
-    test = manifest["splits"]["test"]["recordings"][0]
-    audio = next(s.audio for s in sessions if s.name == test)
-    echo(f"[generate] {audio} -> {run / 'generated.csv'}")
-    motion, _ = generate(run, audio, run / "generated.csv")
-    echo(
-        f"[done] aligned files: {out / 'aligned'}\n       dataset: {out / 'dataset'}\n       run: {run} "
-        f"(loss.png, log.csv, model.pt, stream.ts)\n       evaluation: {run / 'evaluation'} (results.json, "
-        f"trajectories.png, silence.png)\n       generated motion: {run / 'generated.csv'}"
-    )
-    return summary | {"run": str(run), "history": history, "evaluation": results, "generated_frames": motion.n_frames}
+    audio = audio_of(manifest["splits"]["test"]["recordings"][0])
+    echo(f"[generate] {audio} -> {run / generated}")
+    motion, _ = generate(run, audio, run / generated)
+    return {"run": str(run), "history": history, "evaluation": results, "generated_frames": motion.n_frames}
 
 
 LISTEN_SEEDS = (11, 12, 14, 15)
@@ -188,48 +208,27 @@ def run_listen_quickstart(out_dir: str | Path, echo: Callable[[str], Any] = prin
         write_openpose_recording(
             synthesize_recording(seed=seed, duration_s=SAMPLE_DURATION_S), sessions, f"dance_{seed}"
         )
-    chosen = PIPELINES["listen-to-dance"]
-    config = BuildConfig(
-        features=PRESETS[chosen["features"]].to_dict(),
-        target=load_target_spec(chosen["target"]).to_dict(),
-        normalisation=chosen["normalisation"],
-        split_ratios=(0.5, 0.25, 0.25),
-    )
+    config = BuildConfig.from_pipeline("listen-to-dance", split_ratios=(0.5, 0.25, 0.25))
     echo(f"[build-dataset] {sessions} -> {out / 'dataset'} (--pipeline listen-to-dance --video-fps 30)")
     manifest = build_dataset(sessions, out / "dataset", config, video_fps=30.0)
     for r in manifest["recordings"]:
         echo(f"  {r['name']}: {r['frames']} frames, offset {r['offset']['seconds']:+.3f} s ({r['offset']['source']})")
     echo(inspect(out / "dataset", components=4))
     summary = {"dataset": str(out / "dataset"), "rows": manifest["totals"]["rows"]}
-    try:
-        import torch  # noqa: F401
-    except ImportError:
-        echo("[done] PyTorch is not installed (pip install 'kinectdata[train]'): stopping before training.")
-        return summary
-    from kinectdata.evaluation.evaluate import evaluate, format_results
-    from kinectdata.inference.generate import generate
-    from kinectdata.training.config import TrainConfig
-    from kinectdata.training.train import train
-
-    run = out / "run"
-    shutil.rmtree(run, ignore_errors=True)
-    settings = {**QUICK_CDHC, **training}
-    echo(f"[train-baseline --model cdhc] -> {run} ({', '.join(f'{k} {v}' for k, v in settings.items())})")
-    history = train(
-        out / "dataset",
-        run,
-        TrainConfig.for_model(chosen["model"], **settings),
-        progress=lambda r: echo(f"  epoch {r['epoch']}: train loss {r['train_loss']:.5f} ({r['seconds']:.1f} s)"),
+    learned = _train_evaluate_generate(
+        out,
+        manifest,
+        "listen-to-dance",
+        {**QUICK_CDHC, **training},
+        lambda test: sessions / f"{test}.flac",
+        "generated.jsonl",
+        echo,
     )
-    echo(f"[evaluate] {run} on the test split")
-    results = evaluate(run, out / "dataset", "test")
-    echo(format_results(results))
-    test = manifest["splits"]["test"]["recordings"][0]
-    echo(f"[generate] {sessions / (test + '.flac')} -> {run / 'generated.jsonl'}")
-    motion, _ = generate(run, sessions / f"{test}.flac", run / "generated.jsonl")
-    echo(
-        f"[done] dataset: {out / 'dataset'}\n       run: {run} (loss.png, log.csv, model.pt)\n       evaluation: "
-        f"{run / 'evaluation'} (results.json, rhythm_real.png, rhythm_generated.png, ...)\n       generated "
-        f"motion (OpenPose JSON Lines): {run / 'generated.jsonl'}"
-    )
-    return summary | {"run": str(run), "history": history, "evaluation": results, "generated_frames": motion.n_frames}
+    if learned:
+        run = Path(learned["run"])
+        echo(
+            f"[done] dataset: {out / 'dataset'}\n       run: {run} (loss.png, log.csv, model.pt)\n       evaluation: "
+            f"{run / 'evaluation'} (results.json, rhythm_real.png, rhythm_generated.png, ...)\n       generated "
+            f"motion (OpenPose JSON Lines): {run / 'generated.jsonl'}"
+        )
+    return summary | learned

@@ -5,6 +5,7 @@ from __future__ import annotations
 import click
 
 from kinectdata.align.audio import DEFAULT_SAMPLE_RATE
+from kinectdata.align.offset import DEFAULT_MIN_CONFIDENCE
 from kinectdata.align.recipe import DEFAULT_FPS, DEFAULT_MAX_GAP, DEFAULT_MIN_COVERAGE, align_files, format_summary
 from kinectdata.cli.options import reader_options
 
@@ -66,7 +67,7 @@ class OffsetType(click.ParamType):
 )
 @click.option(
     "--min-confidence",
-    default=0.5,
+    default=DEFAULT_MIN_CONFIDENCE,
     show_default=True,
     type=click.FloatRange(0, 1),
     help="With --offset auto: least confidence (0..1) accepted.",

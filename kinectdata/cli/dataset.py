@@ -4,23 +4,16 @@ from __future__ import annotations
 
 import click
 
+from kinectdata.cli.options import FloatList, default_of
 from kinectdata.cli.progress import progress_bar
 from kinectdata.dataset.build import build_dataset
+from kinectdata.dataset.config import DEFAULT_PIPELINE, BuildConfig
 from kinectdata.dataset.executors import EXECUTORS, make_executor
 from kinectdata.dataset.inspect import inspect as inspect_report
 from kinectdata.dataset.pipelines import PIPELINES
-from kinectdata.dataset.prepare import BuildConfig
 from kinectdata.features import PRESETS, StftConfig
-from kinectdata.targets.specs import load_target_spec, shipped_target_specs
-
-
-def _floats(ctx, param, value: str | None) -> tuple[float, ...]:
-    if not value:
-        return ()
-    try:
-        return tuple(float(v) for v in value.split(","))
-    except ValueError:
-        raise click.BadParameter(f"{value!r} is not a comma-separated list of numbers") from None
+from kinectdata.targets.normalization import METHODS
+from kinectdata.targets.specs import shipped_target_specs
 
 
 @click.command("build-dataset")
@@ -34,7 +27,7 @@ def _floats(ctx, param, value: str | None) -> tuple[float, ...]:
 )
 @click.option(
     "--pipeline",
-    default="yalta2016",
+    default=DEFAULT_PIPELINE,
     show_default=True,
     type=click.Choice(sorted(PIPELINES)),
     help="yalta2016: STFT inputs, yalta65 targets, maxabs (the DCNN + LSTM model). listen-to-dance: "
@@ -66,7 +59,7 @@ def _floats(ctx, param, value: str | None) -> tuple[float, ...]:
 @click.option(
     "--normalisation",
     default=None,
-    type=click.Choice(["maxabs", "minmax", "none"]),
+    type=click.Choice(list(METHODS)),
     help="Target normalisation, fitted on the training split: maxabs (0.9 / max|x| per component, Yalta "
     "et al.) or minmax into -0.9..0.9, or none (targets already in 0..1). Default: the pipeline's.",
 )
@@ -77,14 +70,14 @@ def _floats(ctx, param, value: str | None) -> tuple[float, ...]:
 )
 @click.option(
     "--split-ratios",
-    default="0.8,0.1,0.1",
+    default=",".join(f"{v:g}" for v in default_of(BuildConfig, "split_ratios")),
     show_default=True,
-    callback=_floats,
+    type=FloatList(3),
     help="train,val,test shares for recordings without an explicit split (drawn by recording).",
 )
 @click.option(
     "--seed",
-    default=0,
+    default=default_of(BuildConfig, "seed"),
     show_default=True,
     type=click.IntRange(min=0),
     help="Seed for the drawn splits and the augmentation noise.",
@@ -92,13 +85,13 @@ def _floats(ctx, param, value: str | None) -> tuple[float, ...]:
 @click.option(
     "--augment-snr",
     default="",
-    callback=_floats,
+    type=FloatList(),
     metavar="DB,DB",
     help="Add a copy of each training recording with white noise at each SNR (dB), e.g. 5,10.",
 )
 @click.option(
     "--shard-size",
-    default=256.0,
+    default=default_of(BuildConfig, "shard_size_mb"),
     show_default=True,
     type=click.FloatRange(min=0, min_open=True),
     help="Shard size limit in MB (uncompressed); a recording is never split across shards.",
@@ -112,28 +105,28 @@ def _floats(ctx, param, value: str | None) -> tuple[float, ...]:
 )
 @click.option(
     "--fps",
-    default=30.0,
+    default=default_of(BuildConfig, "fps"),
     show_default=True,
     type=click.FloatRange(min=0, min_open=True),
     help="Motion frames per second.",
 )
 @click.option(
     "--sample-rate",
-    default=16000,
+    default=default_of(BuildConfig, "sample_rate"),
     show_default=True,
     type=click.IntRange(min=8000),
     help="Audio sample rate in Hz for the features.",
 )
 @click.option(
     "--max-gap",
-    default=0.2,
+    default=default_of(BuildConfig, "max_gap"),
     show_default=True,
     type=click.FloatRange(min=0),
     help="Longest tracking gap (seconds) filled by interpolation when aligning.",
 )
 @click.option(
     "--min-coverage",
-    default=0.9,
+    default=default_of(BuildConfig, "min_coverage"),
     show_default=True,
     type=click.FloatRange(0, 1),
     help="Least share (0..1) of a recording's motion its audio must cover.",
@@ -206,25 +199,22 @@ def build_dataset_command(
     target; shards (HDF5) and a manifest.json are written atomically, deterministically, and resumably.
     """
     runner = make_executor(executor, jobs=jobs, scheduler=scheduler)
-    chosen = PIPELINES[pipeline]
-    preset, target = preset or chosen["features"], target or chosen["target"]
-    normalisation = normalisation or chosen["normalisation"]
-    features = PRESETS[preset]
+    features = None
     if power is not None:
+        features = PRESETS[preset or PIPELINES[pipeline]["features"]]
         if not isinstance(features, StftConfig):
-            raise click.BadParameter(f"applies to STFT features, not {preset}", param_hint="--power")
+            raise click.BadParameter(f"applies to STFT features, not {features.extractor}", param_hint="--power")
         try:
             features = StftConfig.from_dict({**features.to_dict(), "power": power})
         except ValueError as exc:
-            raise click.BadParameter(f"not with --features {preset}: {exc}", param_hint="--power") from None
-    if len(split_ratios) != 3:
-        raise click.BadParameter("give three shares: train,val,test", param_hint="--split-ratios")
-    config = BuildConfig(
-        features=features.to_dict(),
-        target=load_target_spec(target).to_dict(),
+            raise click.BadParameter(f"not with these features: {exc}", param_hint="--power") from None
+    config = BuildConfig.from_pipeline(
+        pipeline,
+        features=features or preset,
+        target=target,
+        normalisation=normalisation,
         fps=fps,
         sample_rate=sample_rate,
-        normalisation=normalisation,
         root_centre=root_centre,
         split_ratios=split_ratios,
         seed=seed,

@@ -2,9 +2,38 @@
 
 from __future__ import annotations
 
+import dataclasses
+
 import click
 
 from kinectdata.formats import readers
+
+
+class FloatList(click.ParamType):
+    """Comma-separated numbers, e.g. ``0.8,0.1,0.1``, as a tuple of floats (empty text: no numbers);
+    ``count`` numbers exactly when given. Bad text is click's usage error naming the option."""
+
+    name = "NUMBERS"
+
+    def __init__(self, count: int | None = None) -> None:
+        self.count = count
+
+    def convert(self, value, param, ctx):
+        if isinstance(value, tuple):
+            return value
+        text = str(value).strip()
+        try:
+            numbers = tuple(float(v) for v in text.split(",")) if text else ()
+        except ValueError:
+            self.fail(f"{value!r} is not a comma-separated list of numbers", param, ctx)
+        if self.count is not None and len(numbers) != self.count:
+            self.fail(f"give {self.count} comma-separated numbers, not {len(numbers)}", param, ctx)
+        return numbers
+
+
+def default_of(cls: type, name: str):
+    """A dataclass field's default: the library's, so a command's option default cannot drift from it."""
+    return {f.name: f.default for f in dataclasses.fields(cls)}[name]
 
 
 def reader_options(f):

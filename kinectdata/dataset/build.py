@@ -44,7 +44,6 @@ from kinectdata.dataset.shards import ShardRecording, row_bytes, write_shard
 from kinectdata.targets.hemispheres import apply_flips, flipped_columns, reference_orientations, track_flips
 from kinectdata.targets.normalization import Normalizer, NormStats, count_out_of_range
 from kinectdata.targets.skeleton import merge_bone_offsets
-from kinectdata.targets.specs import TargetSpec
 
 DATASET_FORMAT = "kinectdata.dataset"
 DATASET_FORMAT_VERSION = 2  # 2: one quaternion hemisphere per joint across recordings
@@ -91,8 +90,8 @@ def _shard_attributes(config: BuildConfig, normalizer: Normalizer, split: str, k
         "split": split,
         "fps": config.fps,
         "sample_rate": config.sample_rate,
-        "features": {"extractor": config.feature_config.extractor, **config.features},
-        "target_spec": config.target,
+        "features": {"extractor": config.features.extractor, **config.features.to_dict()},
+        "target_spec": config.target.to_dict(),
         "normalisation": normalizer.to_dict(),
         "root_centre": config.root_centre,
         "build_key": key,
@@ -205,7 +204,7 @@ def build_dataset(
     tasks = [(e, config, str(work.resolve()), snrs[e.name], hashes[e.name], str(source)) for e in entries]
     units = _prepare_all(tasks, work, executor or LocalExecutor(jobs), progress)
 
-    spec = TargetSpec.from_dict(config.target)
+    spec = config.target
     train_units = [u for u in units if splits[u.recording] == "train" and u.snr_db is None]
     reference = reference_orientations((u.orientations for u in train_units), spec)
     flips = {u.name: track_flips(u.orientations, reference) for u in units}
@@ -291,7 +290,7 @@ def _write_shards(
 ) -> tuple[list[dict], list[dict]]:
     """Write (or keep, when already there with the same key) every planned shard; ``flips``
     [K] bool per unit name: the quaternion tracks to negate."""
-    spec = TargetSpec.from_dict(config.target)
+    spec = config.target
     work = out / WORK
     shards, records = [], []
     for shard in _plan_shards(units, splits, config, config.feature_shape, normalizer.dim):

@@ -75,7 +75,7 @@ def _is_aligned_file(path: Path) -> bool:
 
     try:
         with h5py.File(path, "r") as f:
-            return f.attrs.get("format") == "kinectdata.align.aligned"
+            return f.attrs.get("format") == "kinectdata.aligned"
     except OSError:
         return False
 

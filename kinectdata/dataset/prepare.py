@@ -32,92 +32,16 @@ from kinectdata.align.recipe import plan_timeline, resample_onto, resolve_offset
 from kinectdata.core.atomic import atomic_hdf5, write_failure
 from kinectdata.core.errors import KinectDataError
 from kinectdata.core.hashing import file_sha256
+from kinectdata.dataset.config import BuildConfig
 from kinectdata.dataset.inputs import RecordingEntry
-from kinectdata.features import FeatureConfig, feature_config
 from kinectdata.features.streaming import StreamingFeatures
 from kinectdata.targets.hemispheres import orientation_stats
-from kinectdata.targets.normalization import METHODS, NormStats
+from kinectdata.targets.normalization import NormStats
 from kinectdata.targets.skeleton import bone_offsets
-from kinectdata.targets.specs import TargetSpec, extract_targets
+from kinectdata.targets.specs import extract_targets
 
 WORK_FORMAT = "kinectdata.work.3"  # 2: units carry orientation statistics; 3: and bone offsets
 _BLOCK = 160_000  # samples per block when streaming in-memory audio (10 s at 16 kHz)
-
-
-@dataclass(frozen=True)
-class BuildConfig:
-    """Everything that decides a dataset's contents (stored verbatim in its manifest).
-
-    Attributes:
-        fps: motion frames per second.
-        sample_rate: Hz of the audio the features are computed from.
-        features: feature configuration, ``StftConfig.to_dict()`` or ``MelConfig.to_dict()``.
-        target: the target spec, ``TargetSpec.to_dict()``.
-        normalisation: ``maxabs`` (Yalta et al.), ``minmax`` or ``none`` (targets already in
-            range, e.g. the listen_to_dance spec's 0..1).
-        root_centre: root-centre positions before normalising.
-        split_ratios: (train, val, test) shares for recordings without an explicit split.
-        seed: for drawn splits and augmentation noise.
-        augment_snr: SNRs in dB of the noisy copies added to the training split (none: no copies).
-        shard_size_mb: a new shard starts before one would exceed this (uncompressed MB).
-        compression: None, "gzip" or "lzf" for the shard datasets.
-        max_gap, min_coverage: alignment options (see :func:`kinectdata.align.recipe.align`).
-    """
-
-    features: dict[str, Any]
-    target: dict[str, Any]
-    fps: float = 30.0
-    sample_rate: int = 16000
-    normalisation: str = "maxabs"
-    root_centre: bool = False
-    split_ratios: tuple[float, float, float] = (0.8, 0.1, 0.1)
-    seed: int = 0
-    augment_snr: tuple[float, ...] = ()
-    shard_size_mb: float = 256.0
-    compression: str | None = None
-    max_gap: float = 0.2
-    min_coverage: float = 0.9
-
-    def __post_init__(self) -> None:
-        if self.normalisation not in METHODS:
-            raise KinectDataError(f"normalisation must be one of {', '.join(METHODS)}, not {self.normalisation!r}")
-        if self.compression not in (None, "gzip", "lzf"):
-            raise KinectDataError(f"compression must be none, gzip or lzf, not {self.compression!r}")
-        try:
-            feats = self.feature_config
-        except ValueError as exc:
-            raise KinectDataError(f"invalid feature configuration: {exc}") from None
-        if feats.sample_rate != self.sample_rate:
-            raise KinectDataError(
-                f"the {feats.extractor} features are defined at {feats.sample_rate} Hz "
-                f"({feats.slice_samples}-sample slices); building at {self.sample_rate} Hz needs a feature "
-                "configuration for that rate"
-            )
-        period = self.sample_rate / self.fps
-        if abs(feats.slice_samples - period) > 1:
-            raise KinectDataError(
-                f"the features take {feats.slice_samples}-sample slices, one frame at "
-                f"{self.sample_rate / feats.slice_samples:.0f} fps; at {self.fps:g} fps a frame is {period:.1f} "
-                "samples: use a feature configuration with slices of one frame"
-            )
-
-    @property
-    def feature_config(self) -> FeatureConfig:
-        return feature_config(self.features)
-
-    @property
-    def feature_shape(self) -> tuple[int, ...]:
-        return self.feature_config.output_shape
-
-    def to_dict(self) -> dict[str, Any]:
-        d = asdict(self)
-        d["split_ratios"], d["augment_snr"] = list(self.split_ratios), list(self.augment_snr)
-        return d
-
-    def unit_config(self, noisy: bool) -> dict[str, Any]:
-        """The part of the configuration a work file depends on (the seed only for noisy copies)."""
-        keys = ("features", "target", "fps", "sample_rate", "root_centre", "max_gap", "min_coverage")
-        return {k: self.to_dict()[k] for k in keys + (("seed",) if noisy else ())}
 
 
 @dataclass
@@ -254,7 +178,7 @@ def _prepare_variants(
     variants = list(keys)
     snrs = tuple(v for v in variants if v is not None)
     sources = [entry.recording] + ([] if entry.audio is None else [entry.audio])
-    spec = TargetSpec.from_dict(config.target)
+    spec = config.target
     feats = config.feature_config
     sr = config.sample_rate
     cache: Path | None = None  # the resampled audio of the first pass, so the second need not decode again
@@ -285,7 +209,7 @@ def _prepare_variants(
             source,
             reader.n_samples,
             sr,
-            offset["seconds"],
+            offset.seconds,
             fps=config.fps,
             min_coverage=config.min_coverage,
             audio_name=str(entry.audio),
@@ -303,7 +227,7 @@ def _prepare_variants(
     stats = NormStats.from_arrays(values, mask, spec.component_names()).to_dict()
     orientations = orientation_stats(values, mask, spec)
     skeleton = bone_offsets(motion, spec)
-    info = {"sources": hashes, "paths": sources, "offset": offset, "alignment": summary}
+    info = {"sources": hashes, "paths": sources, "offset": offset.to_dict(), "alignment": summary}
     units = {
         v: Unit(
             name=variant_name(entry.name, v),
