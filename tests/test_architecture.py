@@ -49,9 +49,7 @@ def test_an_upward_import_breaks_the_contract(tmp_path):
     copy = tmp_path / "pkg" / "kinectdata"
     shutil.copytree(Path(kinectdata.__file__).parent, copy, ignore=shutil.ignore_patterns("__pycache__"))
     with open(copy / "core" / "motion.py", "a") as f:
-        f.write(
-            "\nfrom kinectdata.dataset.layout import MANIFEST  # noqa: E402,F401  core importing a higher layer\n"
-        )
+        f.write("\nfrom kinectdata.dataset.layout import MANIFEST  # noqa: E402,F401  core importing a higher layer\n")
     config = tmp_path / "pyproject.toml"
     config.write_text(PYPROJECT.read_text())
     result = _lint(config, tmp_path / "pkg")
