@@ -38,3 +38,18 @@ YALTA_ORIENTATIONS = [
     "HipRight",
     "KneeRight",
 ]
+
+
+def skip_unless_installed(missing: str | None, what: str) -> None:
+    """Skip a test whose system dependency is missing here, but fail it under CI (``CI`` set), whose
+    ``.ci/run`` installs that dependency: a broken install must not pass as a skipped test."""
+    import os
+
+    import pytest
+
+    if missing is None:
+        return
+    message = f"{what} not usable here: {missing}"
+    if os.environ.get("CI"):
+        pytest.fail(f"{message} (CI installs it: .ci/run)")
+    pytest.skip(message)

@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 import soundfile as sf
 from click.testing import CliRunner
+from helpers import skip_unless_installed
 
 from kinectdata.align.take import align_take
 from kinectdata.capture.take import _oni_zero_clock, capture_take, read_take
@@ -25,9 +26,7 @@ from reference import openni as openni_ref
 
 @pytest.fixture(scope="module")
 def openni2():
-    missing = openni_ref.openni2_missing()
-    if missing:
-        pytest.skip(f"OpenNI2 not usable here: {missing}")
+    skip_unless_installed(openni_ref.openni2_missing(), "OpenNI2")
 
 
 class FakeInput:

@@ -9,6 +9,7 @@ import warnings
 import numpy as np
 import pytest
 from conftest import DATA
+from helpers import skip_unless_installed
 
 from kinectdata.oni import OniFile, OniWarning
 from reference import openni as openni_ref
@@ -19,17 +20,13 @@ BASE = DATA / "oni" / "openni2_dummy_depth_color.oni"  # OpenNI 1.x's mock nodes
 
 @pytest.fixture(scope="module")
 def openni1():
-    missing = openni_ref.openni1_missing()
-    if missing:
-        pytest.skip(f"OpenNI 1.x not usable here: {missing}")
+    skip_unless_installed(openni_ref.openni1_missing(), "OpenNI 1.x")
     return openni_ref.tool()
 
 
 @pytest.fixture(scope="module")
 def openni2():
-    missing = openni_ref.openni2_missing()
-    if missing:
-        pytest.skip(f"OpenNI2 not usable here: {missing}")
+    skip_unless_installed(openni_ref.openni2_missing(), "OpenNI2")
 
 
 def depth_scene(n: int, h: int = 480, w: int = 640, seed: int = 3) -> np.ndarray:

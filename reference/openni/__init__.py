@@ -113,7 +113,8 @@ def openni2_missing() -> str | None:
         folder = openni2_dir()
     except KinectDataError as exc:
         return str(exc)
-    if not (folder / "OpenNI2" / "Drivers" / "libDummyDevice.so").exists():
+    drivers = folder / "OpenNI2" / "Drivers"
+    if not any((drivers / name).exists() for name in ("libDummyDevice.so", "libDummyDevice.so.0")):  # Debian: .so.0
         return "OpenNI2's Dummy device driver missing (libopenni2-0)"
     try:
         import openni  # noqa: F401
