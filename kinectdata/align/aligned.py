@@ -43,8 +43,9 @@ from kinectdata.core.version import __version__
 FORMAT = "kinectdata.aligned"
 FORMAT_VERSION = 1
 _MAX_ARRAY_IN_ATTRIBUTE = 1024
-_DAMAGE = (OSError, KeyError, ValueError, TypeError, RuntimeError, IndexError)
-"""What h5py (bad signatures, truncated heaps) and the checks of odd values raise on a damaged file."""
+_H5_DAMAGE = (OSError, KeyError, ValueError, TypeError, RuntimeError, IndexError)
+"""What h5py raises reading a damaged file (bad signatures, truncated heaps, a group where a dataset
+should be, attributes of odd types): caught only around the reading itself (:func:`_read_raw`)."""
 
 
 def _jsonable(value: Any) -> Any:
@@ -212,16 +213,52 @@ class AlignedRecording:
         path = Path(path)
         try:
             f = h5py.File(path, "r")
-        except _DAMAGE as exc:
+        except _H5_DAMAGE as exc:
             raise FormatError(path, f"not a readable HDF5 file ({exc})") from exc
         with f:
-            try:
-                return cls._read(f, path, audio)
-            except _DAMAGE as exc:
-                raise FormatError(path, f"damaged aligned recording ({type(exc).__name__}: {exc})") from exc
+            raw = _read_raw(f, path, audio)
+        try:
+            motion = Motion(
+                times=raw["times"],
+                positions=raw["positions"],
+                joint_set=raw["joint_set"],
+                position_mask=raw["position_mask"],
+                confidence=raw["confidence"],
+                orientations=raw.get("orientations"),
+                orientation_mask=raw.get("orientation_mask"),
+                metadata=raw["metadata"],
+            )
+        except ConfigError as exc:  # the arrays contradict each other: the file's fault, not a bug
+            raise FormatError(path, f"damaged aligned recording ({exc})") from exc
+        fps = raw["fps"]
+        if not np.allclose(motion.times, np.arange(motion.n_frames) / fps, rtol=0, atol=1e-9):
+            raise FormatError(path, f"motion/times are not k / fps for the fps attribute {fps:g}")
+        for name in ("position_interpolated", "orientation_interpolated"):
+            flag = raw.get(name)
+            if flag is not None and (flag.shape != motion.position_mask.shape or flag.dtype != bool):
+                raise FormatError(path, f"motion/{name} is {flag.dtype} {flag.shape}, expected bool [N, J]")
+        samples = raw["samples"]
+        if samples.ndim != 1 or samples.dtype.kind != "f":
+            raise FormatError(path, f"audio/samples is {samples.dtype} {samples.shape}, expected float [S]")
+        return cls(
+            motion=motion,
+            audio=samples,
+            sample_rate=raw["sample_rate"],
+            fps=fps,
+            position_interpolated=raw["position_interpolated"],
+            orientation_interpolated=raw.get("orientation_interpolated"),
+            offset=_record(path, "offset", OffsetChoice.from_dict, raw["offset"]),
+            provenance=_record(path, "provenance", Provenance.from_dict, raw["provenance"]),
+            summary=raw["summary"],
+            gaps=raw["gaps"],
+        )
 
-    @classmethod
-    def _read(cls, f: h5py.File, path: Path, audio: bool) -> AlignedRecording:
+
+def _read_raw(f: h5py.File, path: Path, audio: bool) -> dict[str, Any]:
+    """The attributes and arrays of an aligned file, checked for the format and its version.
+    Only this reading is guarded against a damaged file's h5py errors (:data:`_H5_DAMAGE`); what is
+    built from it afterwards raises our own errors, so a bug in that code surfaces as itself."""
+    try:
         fmt = f.attrs.get("format")
         if not (isinstance(fmt, str) and fmt == FORMAT):
             raise FormatError(path, f"not a kinectdata aligned recording (format attribute {_show(fmt)})")
@@ -230,44 +267,29 @@ class AlignedRecording:
             raise FormatError(
                 path, f"aligned-recording format version {_show(version)}; this kinectdata reads {FORMAT_VERSION}"
             )
-        fps, sample_rate = float(f.attrs["fps"]), int(f.attrs["sample_rate"])
-        if not (0 < fps < np.inf and sample_rate > 0):
-            raise FormatError(path, f"fps {fps:g} and sample_rate {sample_rate} must be positive")
+        raw: dict[str, Any] = {"fps": float(f.attrs["fps"]), "sample_rate": int(f.attrs["sample_rate"])}
+        if not (0 < raw["fps"] < np.inf and raw["sample_rate"] > 0):
+            raise FormatError(path, f"fps {raw['fps']:g} and sample_rate {raw['sample_rate']} must be positive")
         g = f["motion"]
-        has_q = "orientations" in g
-        motion = Motion(
-            times=g["times"][()],
-            positions=g["positions"][()],
-            joint_set=_joint_set(f),
-            position_mask=g["position_mask"][()],
-            confidence=g["confidence"][()],
-            orientations=g["orientations"][()] if has_q else None,
-            orientation_mask=g["orientation_mask"][()] if has_q else None,
-            metadata=_json_attribute(f, path, "metadata", dict, "{}"),
-        )
-        if not np.allclose(motion.times, np.arange(motion.n_frames) / fps, rtol=0, atol=1e-9):
-            raise FormatError(path, f"motion/times are not k / fps for the fps attribute {fps:g}")
-        flags = {"position_interpolated": g["position_interpolated"][()]}
-        if has_q:
-            flags["orientation_interpolated"] = g["orientation_interpolated"][()]
-        for name, flag in flags.items():
-            if flag.shape != motion.position_mask.shape or flag.dtype != bool:
-                raise FormatError(path, f"motion/{name} is {flag.dtype} {flag.shape}, expected bool [N, J]")
-        samples = f["audio/samples"][()] if audio else np.zeros(0, np.float32)
-        if samples.ndim != 1 or samples.dtype.kind != "f":
-            raise FormatError(path, f"audio/samples is {samples.dtype} {samples.shape}, expected float [S]")
-        return cls(
-            motion=motion,
-            audio=samples,
-            sample_rate=sample_rate,
-            fps=fps,
-            position_interpolated=flags["position_interpolated"],
-            orientation_interpolated=flags.get("orientation_interpolated"),
-            offset=_record(path, "offset", OffsetChoice.from_dict, _json_attribute(f, path, "offset", dict)),
-            provenance=_record(path, "provenance", Provenance.from_dict, _json_attribute(f, path, "provenance", dict)),
-            summary=_json_attribute(f, path, "summary", dict),
-            gaps=_json_attribute(f, path, "gaps", list),
-        )
+        names = ["times", "positions", "position_mask", "confidence", "position_interpolated"]
+        if "orientations" in g:
+            names += ["orientations", "orientation_mask", "orientation_interpolated"]
+        raw.update({name: g[name][()] for name in names})
+        for name in names:  # numbers where numbers belong, flags where flags: else the file is damaged
+            want = "b" if name.endswith(("_mask", "_interpolated")) else "fiu"
+            if not isinstance(raw[name], np.ndarray) or raw[name].dtype.kind not in want:
+                kind = "bool" if want == "b" else "numbers"
+                raise FormatError(
+                    path, f"motion/{name} holds {getattr(raw[name], 'dtype', type(raw[name]))}, not {kind}"
+                )
+        raw["joint_set"] = _joint_set(f)
+        raw["samples"] = f["audio/samples"][()] if audio else np.zeros(0, np.float32)
+        raw["metadata"] = _json_attribute(f, path, "metadata", dict, "{}")
+        for key, kind in (("offset", dict), ("provenance", dict), ("summary", dict), ("gaps", list)):
+            raw[key] = _json_attribute(f, path, key, kind)
+        return raw
+    except _H5_DAMAGE as exc:
+        raise FormatError(path, f"damaged aligned recording ({type(exc).__name__}: {exc})") from exc
 
 
 def _json_attribute(f: h5py.File, path: Path, key: str, kind: type, default: str | None = None) -> Any:

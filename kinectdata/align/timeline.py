@@ -21,6 +21,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from kinectdata.core.errors import ConfigError
 from kinectdata.core.motion import Motion
 from kinectdata.core.quaternions import make_continuous, slerp
 
@@ -62,7 +63,7 @@ class Resampled:
 def nominal_interval(times: np.ndarray) -> float:
     """Median frame interval in seconds."""
     if times.size < 2:
-        raise ValueError("a recording needs at least two frames to be resampled")
+        raise ConfigError("a recording needs at least two frames to be resampled")
     return float(np.median(np.diff(times)))
 
 

@@ -37,7 +37,7 @@ import numpy as np
 
 from kinectdata.capture.audio import AudioCapture
 from kinectdata.core.atomic import atomic_output
-from kinectdata.core.errors import KinectDataError
+from kinectdata.core.errors import KinectDataError, KinectDataWarning
 from kinectdata.oni.reader import OniFile, OniWarning
 from kinectdata.oni.skeleton import TrackedFrame, find_nite, nite_motion, openni2_dir
 
@@ -45,6 +45,10 @@ TAKE = "take.json"
 ONI, CSV, WAV = "take.oni", "take.csv", "take.wav"
 FORMAT = "kinectdata.take"
 CLOCK = "monotonic (time.monotonic), seconds"
+
+
+class CaptureWarning(KinectDataWarning):
+    """A take was recorded but something in it is doubtful (timing, dropped frames)."""
 
 
 def _oni_zero_clock(frames: list[list], oni_stamps: np.ndarray, source: str) -> tuple[float, int, float]:
@@ -111,7 +115,7 @@ def capture_take(
             nite_folder = str(find_nite(nite_dir))
         except KinectDataError as exc:
             problems.append(f"no skeleton: {exc}")
-            warnings.warn(problems[-1], stacklevel=2)
+            warnings.warn(problems[-1], CaptureWarning, stacklevel=2)
     audio = None
     written = [take / ONI, take / WAV, take / CSV]
     try:

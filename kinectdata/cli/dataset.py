@@ -6,6 +6,7 @@ import click
 
 from kinectdata.cli.options import FloatList, default_of
 from kinectdata.cli.progress import progress_bar
+from kinectdata.core.errors import ConfigError
 from kinectdata.dataset.build import build_dataset
 from kinectdata.dataset.config import DEFAULT_PIPELINE, BuildConfig
 from kinectdata.dataset.executors import EXECUTORS, make_executor
@@ -206,7 +207,7 @@ def build_dataset_command(
             raise click.BadParameter(f"applies to STFT features, not {features.extractor}", param_hint="--power")
         try:
             features = StftConfig.from_dict({**features.to_dict(), "power": power})
-        except ValueError as exc:
+        except ConfigError as exc:
             raise click.BadParameter(f"not with these features: {exc}", param_hint="--power") from None
     config = BuildConfig.from_pipeline(
         pipeline,

@@ -6,6 +6,8 @@ from __future__ import annotations
 import click
 from click.core import ParameterSource
 
+from kinectdata.core.errors import ConfigError
+
 DIALECTS = ("dumpkinectskeleton", "kinectreader", "lsl_kinect", "canonical")
 MAX_DURATION_S = 600.0  # the generator needs about 5 MB of memory per second of audio
 
@@ -121,7 +123,7 @@ def synth(
             rec = synthesize_recording(
                 seed=s, duration_s=duration, tempo_bpm=tempo, offset_s=offset, clap=not no_clap, sample_rate=sample_rate
             )
-        except ValueError as exc:  # the generator's own checks of option combinations
+        except ConfigError as exc:  # the generator's own checks of option combinations: a usage error
             raise click.UsageError(str(exc)) from exc
         stem = name or f"synth_{s:03d}"
         if output_format == "openpose":

@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-from kinectdata.core.errors import SchemaError
+from kinectdata.core.errors import ConfigError, SchemaError
 from kinectdata.core.resources import load_json, shipped_names, shipped_path, validate
 
 
@@ -48,9 +48,9 @@ class JointSet:
         if not self.has_orientation:
             object.__setattr__(self, "has_orientation", (True,) * len(self.names))
         if not (len(self.names) == len(self.parents) == len(self.has_orientation)):
-            raise ValueError("names, parents and has_orientation must have the same length")
+            raise ConfigError("names, parents and has_orientation must have the same length")
         if len(set(self.names)) != len(self.names):
-            raise ValueError(f"joint set {self.name!r} repeats a joint name")
+            raise ConfigError(f"joint set {self.name!r} repeats a joint name")
 
     @classmethod
     def custom(

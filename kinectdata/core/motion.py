@@ -24,6 +24,7 @@ from typing import Any
 
 import numpy as np
 
+from kinectdata.core.errors import ConfigError
 from kinectdata.core.jointsets import JointSet
 
 
@@ -46,36 +47,36 @@ class Motion:
         T, J = self.times.shape[0], len(self.joint_set)
         D = self.joint_set.dimensions
         if self.times.ndim != 1:
-            raise ValueError(f"times must be [T], got shape {self.times.shape}")
+            raise ConfigError(f"times must be [T], got shape {self.times.shape}")
         if self.positions.shape != (T, J, D):
-            raise ValueError(f"positions must be [T={T}, J={J}, {D}], got {self.positions.shape}")
+            raise ConfigError(f"positions must be [T={T}, J={J}, {D}], got {self.positions.shape}")
         if T > 1 and not np.all(np.diff(self.times) > 0):
-            raise ValueError("times must be strictly increasing")
+            raise ConfigError("times must be strictly increasing")
         if self.position_mask is None:
             self.position_mask = np.isfinite(self.positions).all(axis=-1)
         self.position_mask = np.array(self.position_mask, dtype=bool)
         if self.position_mask.shape != (T, J):
-            raise ValueError(f"position_mask must be [T, J] = {(T, J)}, got {self.position_mask.shape}")
+            raise ConfigError(f"position_mask must be [T, J] = {(T, J)}, got {self.position_mask.shape}")
         self.positions[~self.position_mask] = np.nan
         if self.confidence is None:
             self.confidence = self.position_mask.astype(np.float32)
         self.confidence = np.asarray(self.confidence, dtype=np.float32)
         if self.confidence.shape != (T, J):
-            raise ValueError(f"confidence must be [T, J] = {(T, J)}, got {self.confidence.shape}")
+            raise ConfigError(f"confidence must be [T, J] = {(T, J)}, got {self.confidence.shape}")
         self.confidence = np.where(self.position_mask, self.confidence, np.float32(0.0))
         if self.orientations is not None:
             self.orientations = np.array(self.orientations, dtype=np.float64)
             if self.orientations.shape != (T, J, 4):
-                raise ValueError(f"orientations must be [T, J, 4], got {self.orientations.shape}")
+                raise ConfigError(f"orientations must be [T, J, 4], got {self.orientations.shape}")
             if self.orientation_mask is None:
                 self.orientation_mask = np.isfinite(self.orientations).all(axis=-1)
             self.orientation_mask = np.array(self.orientation_mask, dtype=bool)
             if self.orientation_mask.shape != (T, J):
-                raise ValueError(f"orientation_mask must be [T, J], got {self.orientation_mask.shape}")
+                raise ConfigError(f"orientation_mask must be [T, J], got {self.orientation_mask.shape}")
             self.orientation_mask &= self.joint_set.orientation_mask[None, :]
             self.orientations[~self.orientation_mask] = np.nan
         elif self.orientation_mask is not None:
-            raise ValueError("orientation_mask given without orientations")
+            raise ConfigError("orientation_mask given without orientations")
 
     # -- shape ---------------------------------------------------------------------------------
     @property

@@ -12,6 +12,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from kinectdata.core.errors import ConfigError
+
 UNIT_TOLERANCE = 0.05
 """A stored quaternion whose norm is further than this from 1 is rejected as not a rotation."""
 
@@ -32,7 +34,7 @@ def reorder(q: np.ndarray, order: str) -> np.ndarray:
         return q
     if order == "wxyz":
         return wxyz_to_xyzw(q)
-    raise ValueError(f"unknown quaternion order {order!r}")
+    raise ConfigError(f"unknown quaternion order {order!r}")
 
 
 def split_missing_and_normalise(q: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -23,6 +23,7 @@ from typing import Any
 
 import numpy as np
 
+from kinectdata.core.errors import ConfigError
 from kinectdata.features.mel import MelConfig, mel_features
 from kinectdata.features.stft import PRESETS as STFT_PRESETS
 from kinectdata.features.stft import StftConfig, stft_features
@@ -58,14 +59,14 @@ def register_extractor(name: str, fn: Extractor | None = None, *, replace: bool 
     registering the same callable again is a no-op. Returns ``fn`` (so the decorator keeps it).
     """
     if not isinstance(name, str) or not name:
-        raise ValueError(f"extractor name must be a non-empty string, got {name!r}")
+        raise ConfigError(f"extractor name must be a non-empty string, got {name!r}")
 
     def add(f: Extractor) -> Extractor:
         if not callable(f):
             raise TypeError(f"extractor {name!r} must be callable, got {type(f).__name__}")
         old = _EXTRACTORS.get(name)
         if old is not None and old is not f and not replace:
-            raise ValueError(f"extractor {name!r} is already registered ({old!r}); pass replace=True")
+            raise ConfigError(f"extractor {name!r} is already registered ({old!r}); pass replace=True")
         _EXTRACTORS[name] = f
         return f
 
@@ -89,7 +90,7 @@ def feature_config(d: dict[str, Any]) -> FeatureConfig:
     """The configuration object of a stored features dict (its ``"extractor"``, default ``stft``)."""
     name = d.get("extractor", "stft")
     if name not in _CONFIG_TYPES:
-        raise ValueError(f"unknown feature extractor {name!r}; known: {', '.join(sorted(_CONFIG_TYPES))}")
+        raise ConfigError(f"unknown feature extractor {name!r}; known: {', '.join(sorted(_CONFIG_TYPES))}")
     return _CONFIG_TYPES[name].from_dict(d)
 
 

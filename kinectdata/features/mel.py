@@ -36,6 +36,8 @@ from typing import Any, ClassVar
 
 import numpy as np
 
+from kinectdata.core.errors import ConfigError
+
 __all__ = ["MelConfig", "mel_features", "mel_filterbank"]
 
 
@@ -70,14 +72,14 @@ class MelConfig:
         for name in ("sample_rate", "slice_samples", "n_fft", "n_mels"):
             value = getattr(self, name)
             if isinstance(value, bool) or int(value) != value or value < 1:
-                raise ValueError(f"{name} must be a positive integer, got {value!r}")
+                raise ConfigError(f"{name} must be a positive integer, got {value!r}")
             object.__setattr__(self, name, int(value))
         object.__setattr__(self, "centre_offset", int(self.centre_offset))
         if not 0 <= self.fmin < self.fmax <= self.sample_rate / 2:
-            raise ValueError(f"need 0 <= fmin < fmax <= {self.sample_rate / 2:g} Hz, got {self.fmin}, {self.fmax}")
+            raise ConfigError(f"need 0 <= fmin < fmax <= {self.sample_rate / 2:g} Hz, got {self.fmin}, {self.fmax}")
         lo, hi = (float(v) for v in self.db_range)
         if not lo < hi:
-            raise ValueError(f"db_range must be (low, high) with low < high, got {self.db_range!r}")
+            raise ConfigError(f"db_range must be (low, high) with low < high, got {self.db_range!r}")
         object.__setattr__(self, "db_range", (lo, hi))
 
     @property
@@ -99,13 +101,13 @@ class MelConfig:
 
     @classmethod
     def from_dict(cls, d: dict[str, Any]) -> MelConfig:
-        """The config of a :meth:`to_dict` dict; unknown keys raise ValueError."""
+        """The config of a :meth:`to_dict` dict; unknown keys raise ConfigError."""
         kw = {k: v for k, v in d.items() if k != "extractor"}
         if d.get("extractor", cls.extractor) != cls.extractor:
-            raise ValueError(f"not a mel configuration (extractor {d['extractor']!r})")
+            raise ConfigError(f"not a mel configuration (extractor {d['extractor']!r})")
         unknown = sorted(set(kw) - {f.name for f in dataclasses.fields(cls)})
         if unknown:
-            raise ValueError(f"unknown MelConfig keys: {unknown}")
+            raise ConfigError(f"unknown MelConfig keys: {unknown}")
         if "db_range" in kw:
             kw["db_range"] = tuple(kw["db_range"])
         return cls(**kw)
@@ -164,7 +166,7 @@ def mel_features(
     """
     x = np.asarray(samples, dtype=np.float64)
     if x.ndim != 1:
-        raise ValueError(f"samples must be [S] mono, got shape {x.shape}")
+        raise ConfigError(f"samples must be [S] mono, got shape {x.shape}")
     starts = np.asarray(starts, dtype=np.int64)
     window, bank_t = _plan(config)
     lo, hi = config.span

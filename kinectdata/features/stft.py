@@ -95,6 +95,8 @@ from typing import Any, ClassVar
 import numpy as np
 from numpy.lib.stride_tricks import sliding_window_view
 
+from kinectdata.core.errors import ConfigError
+
 __all__ = ["PRESETS", "StftConfig", "stft_features"]
 
 POWERS = ("log", "linear")
@@ -161,23 +163,23 @@ class StftConfig:
         for name in ("sample_rate", "slice_samples", "frame_samples", "hop_samples", "n_frames", "n_fft"):
             value = getattr(self, name)
             if isinstance(value, bool) or int(value) != value or value < 1:
-                raise ValueError(f"{name} must be a positive integer, got {value!r}")
+                raise ConfigError(f"{name} must be a positive integer, got {value!r}")
             put(name, int(value))
         if self.used_samples > self.slice_samples:
-            raise ValueError(
+            raise ConfigError(
                 f"{self.n_frames} frames of {self.frame_samples} at hop {self.hop_samples} need "
                 f"{self.used_samples} samples, more than slice_samples={self.slice_samples}"
             )
         if self.n_fft < self.frame_samples:
-            raise ValueError(f"n_fft={self.n_fft} is shorter than frame_samples={self.frame_samples}")
+            raise ConfigError(f"n_fft={self.n_fft} is shorter than frame_samples={self.frame_samples}")
         if not isinstance(self.window, str):
-            raise ValueError(f"window must be a scipy.signal.get_window name, got {self.window!r}")
+            raise ConfigError(f"window must be a scipy.signal.get_window name, got {self.window!r}")
         if self.power not in POWERS:
-            raise ValueError(f"power must be one of {POWERS}, got {self.power!r}")
+            raise ConfigError(f"power must be one of {POWERS}, got {self.power!r}")
         if self.normalisation not in NORMALISATIONS:
-            raise ValueError(f"normalisation must be one of {NORMALISATIONS}, got {self.normalisation!r}")
+            raise ConfigError(f"normalisation must be one of {NORMALISATIONS}, got {self.normalisation!r}")
         if self.normalisation == "fixed_db" and self.power != "log":
-            raise ValueError('normalisation="fixed_db" maps dB values: it needs power="log"')
+            raise ConfigError('normalisation="fixed_db" maps dB values: it needs power="log"')
         for name in ("top_db", "silence_db"):
             value = getattr(self, name)
             if value is not None:
@@ -187,17 +189,17 @@ class StftConfig:
             and self.power == "log"
             and not (self.top_db is not None and 0 < self.top_db < math.inf)
         ):
-            raise ValueError(f"top_db must be a positive finite number of dB, got {self.top_db!r}")
+            raise ConfigError(f"top_db must be a positive finite number of dB, got {self.top_db!r}")
         if self.silence_db is not None and math.isnan(self.silence_db):
-            raise ValueError("silence_db must be a number or None")
+            raise ConfigError("silence_db must be a number or None")
         for name in ("db_range", "out_range"):
             lo, hi = (float(v) for v in getattr(self, name))
             if not (math.isfinite(lo) and math.isfinite(hi) and lo < hi):
-                raise ValueError(f"{name} must be (low, high) with low < high, got {getattr(self, name)!r}")
+                raise ConfigError(f"{name} must be (low, high) with low < high, got {getattr(self, name)!r}")
             put(name, (lo, hi))
         put("amin", float(self.amin))
         if not 0 < self.amin < math.inf:
-            raise ValueError(f"amin must be positive, got {self.amin!r}")
+            raise ConfigError(f"amin must be positive, got {self.amin!r}")
         # the window name is checked when the window is first built (_window): checking it here
         # would import scipy.signal whenever this module is imported
 
@@ -236,14 +238,14 @@ class StftConfig:
     @classmethod
     def from_dict(cls, d: dict[str, Any]) -> StftConfig:
         """The config of a :meth:`to_dict` dict (also after a JSON round trip). Missing keys take
-        their defaults; unknown keys raise ValueError. An ``"extractor"`` key must say ``"stft"``."""
+        their defaults; unknown keys raise ConfigError. An ``"extractor"`` key must say ``"stft"``."""
         if d.get("extractor", cls.extractor) != cls.extractor:
-            raise ValueError(f"not an STFT configuration (extractor {d['extractor']!r})")
+            raise ConfigError(f"not an STFT configuration (extractor {d['extractor']!r})")
         d = {k: v for k, v in d.items() if k != "extractor"}
         names = {f.name for f in dataclasses.fields(cls)}
         unknown = sorted(set(d) - names)
         if unknown:
-            raise ValueError(f"unknown StftConfig keys: {unknown}")
+            raise ConfigError(f"unknown StftConfig keys: {unknown}")
         kw = dict(d)
         for name in ("db_range", "out_range"):
             if name in kw:
@@ -281,7 +283,7 @@ def _window(name: str, size: int) -> np.ndarray:
     try:
         return get_window(name, size, fftbins=True).astype(np.float64)
     except ValueError as exc:
-        raise ValueError(f"window must be a scipy.signal.get_window name, got {name!r} ({exc})") from exc
+        raise ConfigError(f"window must be a scipy.signal.get_window name, got {name!r} ({exc})") from exc
 
 
 @dataclass(frozen=True)
@@ -318,7 +320,7 @@ def stft_features(
     Args:
         samples: [S] mono audio at ``config.sample_rate`` Hz, float32 or float64 (any real
             floating dtype), full scale +-1. Must be finite; frames whose mean square exceeds
-            1.8e300 (|x| around 1e150, only possible in float64) raise ValueError.
+            1.8e300 (|x| around 1e150, only possible in float64) raise ConfigError.
         starts: [N] integer sample indices into ``samples`` where each motion frame's slice
             begins. May be negative or run past ``S``: the missing samples are zeros.
         config: the parameters; ``PRESETS["yalta2016"]`` (the default) or ``PRESETS["motion_dance"]``.
@@ -339,17 +341,17 @@ def stft_features(
     """
     x = np.asarray(samples)
     if x.ndim != 1:
-        raise ValueError(f"samples must be 1-D mono, got shape {x.shape}")
+        raise ConfigError(f"samples must be 1-D mono, got shape {x.shape}")
     if not np.issubdtype(x.dtype, np.floating):
         raise TypeError(f"samples must be floating point in -1..1, got {x.dtype} (convert PCM first)")
     st = np.asarray(starts)
     if st.ndim != 1:
-        raise ValueError(f"starts must be 1-D, got shape {st.shape}")
+        raise ConfigError(f"starts must be 1-D, got shape {st.shape}")
     if st.size and not np.issubdtype(st.dtype, np.integer):
         raise TypeError(f"starts must be integer sample indices, got {st.dtype}")
     st = st.astype(np.int64, copy=False)
     if isinstance(chunk_frames, bool) or int(chunk_frames) != chunk_frames or chunk_frames < 1:
-        raise ValueError(f"chunk_frames must be a positive integer, got {chunk_frames!r}")
+        raise ConfigError(f"chunk_frames must be a positive integer, got {chunk_frames!r}")
     chunk_frames = int(chunk_frames)
     if not isinstance(config, StftConfig):
         raise TypeError(f"config must be a StftConfig, got {type(config).__name__}")
@@ -405,7 +407,7 @@ def _normalised_spectra(frames: np.ndarray, config: StftConfig, plan: _Plan) -> 
     mean_square = np.einsum("...i,...i->...", frames, frames)
     mean_square /= config.frame_samples
     if not np.all(mean_square <= _MEAN_SQUARE_LIMIT * np.finfo(frames.dtype).max):  # also catches NaN, inf
-        raise ValueError("samples must be finite, with |x| well below 1e150 (audio is expected in -1..1)")
+        raise ConfigError("samples must be finite, with |x| well below 1e150 (audio is expected in -1..1)")
     frames *= plan.window
     spec = np.fft.rfft(frames, n=config.n_fft, axis=-1)
     del frames  # freed here when the caller passed a temporary (stft_features does): less peak memory

@@ -13,7 +13,7 @@ import numpy as np
 import pandas as pd
 
 from kinectdata.core.atomic import atomic_output
-from kinectdata.core.errors import KinectDataError
+from kinectdata.core.errors import ConfigError, KinectDataError
 from kinectdata.core.jointsets import shipped_joint_sets
 from kinectdata.core.motion import Motion
 from kinectdata.core.quaternions import xyzw_to_wxyz
@@ -30,7 +30,7 @@ def _state_column(motion: Motion, spec: dict, states: np.ndarray | None) -> np.n
         cells = np.asarray(states).astype(str).astype(object)
         bad = sorted(set(np.unique(cells)) - allowed)
         if bad:
-            raise ValueError(f"states {bad} are not among the dialect's tracking values {keys}")
+            raise ConfigError(f"states {bad} are not among the dialect's tracking values {keys}")
         return cells
     values = np.array([spec["values"][k] for k in keys])
     nearest = np.argmin(np.abs(motion.confidence[..., None] - values), axis=-1)

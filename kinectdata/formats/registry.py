@@ -14,7 +14,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from kinectdata.core.errors import FormatError
+from kinectdata.core.errors import ConfigError, FormatError
 from kinectdata.core.motion import Motion
 
 SNIFF_BYTES = 4096
@@ -51,7 +51,7 @@ def register_reader(
 
     def decorate(read: Callable[..., Motion]) -> Callable[..., Motion]:
         if name in _READERS:
-            raise ValueError(f"a reader named {name!r} is already registered")
+            raise ConfigError(f"a reader named {name!r} is already registered")
         exts = tuple(e.lower() for e in extensions)
         _READERS[name] = Reader(name, read, exts, sniff, description or (read.__doc__ or "").split("\n")[0])
         return read

@@ -25,6 +25,7 @@ from typing import Any
 
 import numpy as np
 
+from kinectdata.core.errors import KinectDataWarning
 from kinectdata.oni.codecs import CodecError, decode_8z, decode_16z, decode_jpeg, decode_raw, fourcc
 from kinectdata.oni.records import OniError
 
@@ -62,7 +63,7 @@ _LAYOUTS = {
 MAX_FRAME_VALUES = 1 << 28  # 268 M values: far beyond any sensor, so a damaged size is refused
 
 
-class OniWarning(UserWarning):
+class OniWarning(KinectDataWarning):
     """A recording was read only in part (cut short or damaged); the message says where."""
 
 
@@ -152,11 +153,11 @@ class OniStream:
         """Shape and dtype of a decoded frame: depth uint16 [H, W], RGB uint8 [H, W, 3]...
 
         Raises:
-            ValueError: the stream's properties give no resolution.
+            OniError: the stream's properties give no resolution.
         """
         res = self.resolution
         if res is None:
-            raise ValueError(f"stream {self.name!r} has no resolution (no xnMapOutputMode property)")
+            raise OniError(f"stream {self.name!r} has no resolution (no xnMapOutputMode property)")
         dtype, channels = _LAYOUTS.get(self.pixel_format, (np.uint16 if self.kind == "depth" else np.uint8, 1))
         if self.kind == "depth":
             dtype, channels = np.uint16, 1
@@ -441,7 +442,7 @@ def decode_frame(stream: OniStream, payload, what: str) -> np.ndarray:
     """A frame's payload decoded by the stream's codec into :attr:`OniStream.frame_layout`."""
     try:
         shape, dtype = stream.frame_layout
-    except ValueError as exc:
+    except OniError as exc:
         raise CodecError(f"{what}: {exc}") from None
     count = math.prod(int(d) for d in shape)
     if not 0 < count <= MAX_FRAME_VALUES:

@@ -25,7 +25,7 @@ from pathlib import Path
 
 import numpy as np
 
-from kinectdata.core.errors import KinectDataError
+from kinectdata.core.errors import KinectDataError, KinectDataWarning
 from kinectdata.core.jointsets import load_joint_set
 from kinectdata.core.motion import Motion
 from kinectdata.oni.reader import OniFile, OniWarning
@@ -33,6 +33,10 @@ from kinectdata.oni.reader import OniFile, OniWarning
 NITE_LIBRARY = "libNiTE2.so"
 NITE_JOINTS = 15
 OPENNI2_LIBRARY_DIRS = ("/usr/lib/x86_64-linux-gnu", "/usr/lib/aarch64-linux-gnu", "/usr/lib", "/usr/local/lib")
+
+
+class TrackingWarning(KinectDataWarning):
+    """NiTE2 tracked only part of a recording."""
 
 
 @dataclass(frozen=True)
@@ -238,7 +242,11 @@ def track_skeleton(
         reason = "stalled" if stalled else f"failed (exit {child.returncode}): {stderr.strip()[-400:]}"
         raise KinectDataError(f"{path}: NiTE2 tracking {reason}")
     if len(frames) < total:
-        warnings.warn(f"{path}: NiTE2 tracked {len(frames)} of {total} frames before playback stopped", stacklevel=2)
+        warnings.warn(
+            f"{path}: NiTE2 tracked {len(frames)} of {total} frames before playback stopped",
+            TrackingWarning,
+            stacklevel=2,
+        )
     return nite_motion(frames, str(path), user)
 
 

@@ -30,6 +30,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from kinectdata.core.errors import ConfigError
 from kinectdata.core.jointsets import JointSet, load_joint_set
 from kinectdata.core.motion import Motion
 from kinectdata.core.quaternions import make_continuous
@@ -232,10 +233,10 @@ def dance(
     """
     t = np.asarray(times_s, dtype=np.float64)
     if t.ndim != 1 or t.size == 0:
-        raise ValueError("times_s must be a non-empty one-dimensional array")
+        raise ConfigError("times_s must be a non-empty one-dimensional array")
     period = 60.0 / tempo_bpm
     if clap_time_s is not None and clap_time_s > music_start_s - CLAP_CLEARANCE_S:
-        raise ValueError(
+        raise ConfigError(
             f"the clap ({clap_time_s} s) must be at least {CLAP_CLEARANCE_S} s before the music "
             f"starts ({music_start_s} s)"
         )
@@ -245,7 +246,7 @@ def dance(
     sc = plan.height_m / 1.70
     beat = _beat_coordinate(t, np.asarray(beat_times_s, float), music_start_s, period)
     if beat.size and beat.max() >= (MAX_BLOCKS - 1) * BLOCK_BEATS:
-        raise ValueError("the dance is too long for the choreography plan")
+        raise ConfigError("the dance is too long for the choreography plan")
     groove = _smootherstep((t - music_start_s) / (2 * period))
     bounce_shape = 0.5 * (1 + np.cos(2 * np.pi * beat))  # 1 on the beat, 0 half-way
     alt = np.cos(np.pi * beat)  # +1 on even beats, -1 on odd ones
@@ -592,7 +593,7 @@ def _figure(name: str, beat: np.ndarray, amp: float, side: float, mode: int) -> 
             "curl": 0.4 * ones,
             "shimmy": 0.06 * amp * np.sin(2 * np.pi * beat),
         }
-    raise ValueError(f"unknown figure {name!r}")
+    raise ConfigError(f"unknown figure {name!r}")
 
 
 _ELBOW_POLE = np.array([0.6, -0.55, -0.55])

@@ -16,6 +16,8 @@ from typing import Any
 import numpy as np
 from scipy import signal
 
+from kinectdata.core.errors import ConfigError
+
 BEATS_PER_BAR = 4
 INTRO_BARS = 2
 """Bars of drums only at the start of the music; the dancer keeps its arms quiet during them."""
@@ -84,11 +86,11 @@ def synthesize_music(
         ``progression`` (chord names, one per bar), ``sample_rate``, ``duration_s``.
     """
     if duration_s <= 0 or sample_rate <= 0 or tempo_bpm <= 0:
-        raise ValueError("duration_s, sample_rate and tempo_bpm must be positive")
+        raise ConfigError("duration_s, sample_rate and tempo_bpm must be positive")
     if not 0 <= music_start_s < duration_s:
-        raise ValueError(f"music_start_s={music_start_s} must lie in [0, duration_s={duration_s})")
+        raise ConfigError(f"music_start_s={music_start_s} must lie in [0, duration_s={duration_s})")
     if clap_time_s is not None and not 0 <= clap_time_s <= duration_s - CLAP_LENGTH_S:
-        raise ValueError(f"clap_time_s={clap_time_s} must lie inside the track")
+        raise ConfigError(f"clap_time_s={clap_time_s} must lie inside the track")
 
     rng = np.random.default_rng(seed)
     sr = int(sample_rate)

@@ -22,6 +22,7 @@ import numpy as np
 import soundfile as sf
 
 from kinectdata.core.atomic import atomic_output
+from kinectdata.core.errors import ConfigError
 from kinectdata.core.motion import Motion
 from kinectdata.core.version import __version__
 from kinectdata.formats.csv_writer import write_csv
@@ -116,9 +117,9 @@ def synthesize_recording(
         ``dancer`` (height, floor, choreography blocks with start times on both clocks).
     """
     if not isinstance(seed, (int, np.integer)) or seed < 0:
-        raise ValueError(f"seed must be a non-negative integer, got {seed!r}")
+        raise ConfigError(f"seed must be a non-negative integer, got {seed!r}")
     if duration_s < MIN_DURATION_S:
-        raise ValueError(f"duration_s must be at least {MIN_DURATION_S} s, got {duration_s}")
+        raise ConfigError(f"duration_s must be at least {MIN_DURATION_S} s, got {duration_s}")
     root = np.random.SeedSequence(int(seed))
     s_timeline, s_music, s_dance, s_times, s_sensor = root.spawn(5)
     rng = np.random.default_rng(s_timeline)
@@ -131,11 +132,11 @@ def synthesize_recording(
 
     tempo = float(drawn_tempo if tempo_bpm is None else tempo_bpm)
     if not 30 <= tempo <= 300:
-        raise ValueError(f"tempo_bpm must lie in 30..300, got {tempo}")
+        raise ConfigError(f"tempo_bpm must lie in 30..300, got {tempo}")
     needed_after_offset = clap_after + music_after + _MIN_MUSIC_BEATS * 60.0 / tempo + tail
     hi = min(OFFSET_RANGE_S[1], duration_s - needed_after_offset)
     if hi < OFFSET_RANGE_S[0]:
-        raise ValueError(
+        raise ConfigError(
             f"duration_s={duration_s} is too short for {tempo} bpm "
             f"(needs about {needed_after_offset + OFFSET_RANGE_S[0]:.1f} s)"
         )
@@ -144,9 +145,9 @@ def synthesize_recording(
     else:
         offset = float(offset_s)
         if not np.isfinite(offset):
-            raise ValueError(f"offset_s must be a finite number of seconds, got {offset_s!r}")
+            raise ConfigError(f"offset_s must be a finite number of seconds, got {offset_s!r}")
         if offset < -5.0 or max(offset, 0.0) + needed_after_offset > duration_s:
-            raise ValueError(
+            raise ConfigError(
                 f"offset_s={offset} leaves too little music in {duration_s} s "
                 f"(at most {duration_s - needed_after_offset:.3f} s, at least -5 s)"
             )
@@ -330,7 +331,7 @@ def write_recording(
     timestamp, in the dialect's unit), ``files`` and the full ``command``.
     """
     if audio_format not in AUDIO_FORMATS:
-        raise ValueError(f"audio_format must be one of {sorted(AUDIO_FORMATS)}, got {audio_format!r}")
+        raise ConfigError(f"audio_format must be one of {sorted(AUDIO_FORMATS)}, got {audio_format!r}")
     out = Path(out_dir)
     paths = {
         "audio": out / f"{name}.{audio_format}",

@@ -25,6 +25,8 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from kinectdata.core.errors import ConfigError
+
 if TYPE_CHECKING:
     from kinectdata.targets.specs import TargetSpec
 
@@ -69,10 +71,10 @@ class NormStats:
         """Stats of values [N, D] (a recording's targets) where mask [N, D] is True (default: finite)."""
         values = np.asarray(values, dtype=np.float64)
         if values.ndim != 2:
-            raise ValueError(f"values must be [N, D], got shape {values.shape}")
+            raise ConfigError(f"values must be [N, D], got shape {values.shape}")
         mask = np.isfinite(values) if mask is None else np.asarray(mask, dtype=bool)
         if mask.shape != values.shape:
-            raise ValueError(f"mask must have the shape of values {values.shape}, got {mask.shape}")
+            raise ConfigError(f"mask must have the shape of values {values.shape}, got {mask.shape}")
         count = mask.sum(axis=0).astype(np.int64)
         lo = np.where(mask, values, np.inf).min(axis=0, initial=np.inf)
         hi = np.where(mask, values, -np.inf).max(axis=0, initial=-np.inf)
@@ -91,7 +93,7 @@ class NormStats:
         count, lo, hi = self.count.copy(), self.min.copy(), self.max.copy()
         for o in others:
             if o.dim != self.dim or (self.names is not None and o.names is not None and o.names != self.names):
-                raise ValueError("cannot merge stats of different target layouts (dimension or component names)")
+                raise ConfigError("cannot merge stats of different target layouts (dimension or component names)")
             count += o.count
             lo = np.fmin(lo, o.min)  # fmin/fmax ignore the NaN of empty components
             hi = np.fmax(hi, o.max)
@@ -110,7 +112,7 @@ class NormStats:
         """Merge of a non-empty sequence of stats (e.g. one per training recording)."""
         stats = list(stats)
         if not stats:
-            raise ValueError("merge_all needs at least one NormStats")
+            raise ConfigError("merge_all needs at least one NormStats")
         return stats[0].merge(*stats[1:])
 
     def to_dict(self) -> dict[str, Any]:
@@ -138,7 +140,7 @@ def _names(names: Sequence[str] | None, dim: int) -> tuple[str, ...] | None:
         return None
     names = tuple(names)
     if len(names) != dim:
-        raise ValueError(f"{len(names)} component names for {dim} components")
+        raise ConfigError(f"{len(names)} component names for {dim} components")
     return names
 
 
@@ -161,12 +163,12 @@ class Normalizer:
 
     def __post_init__(self) -> None:
         if self.method not in METHODS:
-            raise ValueError(f"unknown normalisation method {self.method!r} (known: {', '.join(METHODS)})")
+            raise ConfigError(f"unknown normalisation method {self.method!r} (known: {', '.join(METHODS)})")
         for key in ("scale", "offset"):
             object.__setattr__(self, key, np.asarray(getattr(self, key), dtype=np.float64))
         object.__setattr__(self, "count", np.asarray(self.count, dtype=np.int64))
         if not (self.scale.shape == self.offset.shape == self.count.shape) or self.scale.ndim != 1:
-            raise ValueError("scale, offset and count must be [D] arrays of one length")
+            raise ConfigError("scale, offset and count must be [D] arrays of one length")
         object.__setattr__(self, "names", _names(self.names, self.dim))
 
     @property
@@ -187,7 +189,7 @@ class Normalizer:
     def fit(cls, stats: NormStats, method: str = "maxabs") -> Normalizer:
         """The normaliser of a training split's (merged) stats."""
         if method not in METHODS:
-            raise ValueError(f"unknown normalisation method {method!r} (known: {', '.join(METHODS)})")
+            raise ConfigError(f"unknown normalisation method {method!r} (known: {', '.join(METHODS)})")
         D = stats.dim
         scale, offset = np.ones(D), np.zeros(D)
         ok = stats.count > 0
@@ -231,7 +233,7 @@ class Normalizer:
             x = np.where(mask, x, 0.0)
         if spec is not None:
             if spec.dim != self.dim or (self.names is not None and tuple(spec.component_names()) != self.names):
-                raise ValueError(f"target spec {spec.name!r} does not describe this normaliser's components")
+                raise ConfigError(f"target spec {spec.name!r} does not describe this normaliser's components")
             for s in spec.quaternion_slices:
                 q = x[..., s]
                 n = np.linalg.norm(q, axis=-1, keepdims=True)
@@ -240,7 +242,7 @@ class Normalizer:
 
     def _check(self, a: np.ndarray) -> None:
         if a.shape[-1:] != (self.dim,):
-            raise ValueError(f"expected [..., {self.dim}] values, got shape {a.shape}")
+            raise ConfigError(f"expected [..., {self.dim}] values, got shape {a.shape}")
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-able dict: method, formula, scale, offset, count (lists), names."""
@@ -256,7 +258,7 @@ class Normalizer:
     @classmethod
     def from_dict(cls, doc: Mapping[str, Any]) -> Normalizer:
         if doc.get("formula", FORMULA) != FORMULA:
-            raise ValueError(f"unsupported normaliser formula {doc['formula']!r} (expected {FORMULA!r})")
+            raise ConfigError(f"unsupported normaliser formula {doc['formula']!r} (expected {FORMULA!r})")
         names = doc.get("names")
         return cls(doc["method"], doc["scale"], doc["offset"], doc["count"], None if names is None else tuple(names))
 

@@ -31,7 +31,7 @@ from typing import Any
 
 import numpy as np
 
-from kinectdata.core.errors import KinectDataError, SchemaError
+from kinectdata.core.errors import ConfigError, KinectDataError, SchemaError
 from kinectdata.core.jointsets import JointSet, load_joint_set, shipped_joint_sets
 from kinectdata.core.motion import Motion
 from kinectdata.core.quaternions import make_continuous
@@ -112,7 +112,7 @@ class TargetSpec:
         if kind == "limb":
             k = self.limb_slice.start + self.limbs.index(joint)
             return slice(k, k + 1)
-        raise ValueError(f"kind must be 'position', 'orientation' or 'limb', not {kind!r}")
+        raise ConfigError(f"kind must be 'position', 'orientation' or 'limb', not {kind!r}")
 
     def limb_pairs(self) -> list[tuple[str, str]]:
         """(joint, parent) of each limb, in the order of :attr:`limbs`."""
