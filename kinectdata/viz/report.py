@@ -1,8 +1,8 @@
 """``kinectdata report``: a dataset on one self-contained HTML page, to look at before training.
 
-:func:`write_report` checks a dataset folder (the manifest against its schema, every shard
-against the layout, its SHA-256 and the manifest's account of it) and writes one HTML file whose
-figures are embedded as base64 PNG data URIs: no scripts, fonts or other files. The page holds:
+:func:`write_report` draws what :mod:`kinectdata.dataset.report` finds (the checks of ``kinectdata
+verify``, then per recording its rows, evidence and warnings) as one HTML file whose figures are
+embedded as base64 PNG data URIs: no scripts, fonts or other files. The page holds:
 
 - the build (key, pipeline, features, target, normalisation) and each split's recordings and rows;
 - warnings, each naming its recording: clipping (normalised targets outside the normalisation's
@@ -26,274 +26,34 @@ from __future__ import annotations
 import base64
 import html
 import io
-from collections.abc import Callable, Iterator
-from dataclasses import dataclass, field
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-import h5py
 import numpy as np
 
-from kinectdata.align.aligned import AlignedRecording
-from kinectdata.align.audio import AudioReader
-from kinectdata.align.envelopes import audio_envelopes
-from kinectdata.align.offset import OffsetEstimate, estimate_offset, xcorr_estimate
-from kinectdata.align.recipe import DEFAULT_MAX_GAP, DEFAULT_MIN_COVERAGE, plan_timeline, resample_onto
+from kinectdata.align.recipe import DEFAULT_MAX_GAP
 from kinectdata.core.atomic import atomic_output
 from kinectdata.core.errors import KinectDataError
-from kinectdata.core.jointsets import JointSet
 from kinectdata.core.version import __version__
-from kinectdata.dataset.inputs import RecordingEntry
 from kinectdata.dataset.layout import SPLITS
 from kinectdata.dataset.pipelines import PIPELINES
-from kinectdata.dataset.prepare import source_hashes
-from kinectdata.dataset.shards import read_index
-from kinectdata.dataset.verify import verified_manifest
+from kinectdata.dataset.report import (
+    LOW_CONFIDENCE,
+    MASKED_WARNING,
+    RecordingReport,
+    ReportWarning,
+    masked_spans,
+    offset_used,
+    scan_dataset,
+    span_union,
+)
 from kinectdata.features import PRESETS, MelConfig, feature_config
-from kinectdata.targets.normalization import Normalizer, count_out_of_range
+from kinectdata.targets.normalization import Normalizer
 from kinectdata.targets.specs import TargetSpec
 from kinectdata.viz import plots
 
-LOW_CONFIDENCE = 0.8
-"""Offsets estimated with less confidence than this are warned about."""
-MASKED_WARNING = 0.05
-"""A recording with more than this share of its target values masked is warned about."""
-FEATURE_SAMPLE_S = 4.0
-"""Seconds of audio features shown per recording (from its middle)."""
-
-
-@dataclass(frozen=True)
-class _Finding:
-    """A warning at the top of the page: ``kind`` is ``clipping``, ``long-gap``, ``offset`` or
-    ``masked``; ``count`` the values (clipping, masked) or spans (long-gap) concerned, 0 for offset."""
-
-    kind: str
-    recording: str
-    message: str
-    count: int = 0
-
-
-@dataclass
-class _Evidence:
-    """What re-reading a recording's sources adds; ``missing`` says what could not be had, and why."""
-
-    interpolated: np.ndarray | None = None  # [N, D] bool: target components filled across a gap
-    gaps: list[dict[str, Any]] = field(default_factory=list)  # gaps longer than max_gap, dataset clock
-    estimate: OffsetEstimate | None = None
-    curve: tuple[np.ndarray, np.ndarray] | None = None  # (offsets s, cross-correlation score)
-    expected: float | None = None  # the offset (s) the evidence should point at
-    expected_label: str = ""
-    clock: str = ""
-    missing: list[str] = field(default_factory=list)
-
-
-@dataclass
-class _Recording:
-    """One recording as the shards hold it (its clean variant) and the manifest lists it."""
-
-    record: dict[str, Any]  # the manifest's record
-    info: dict[str, Any]  # the shard index's info: sources, offset, alignment summary
-    current: np.ndarray  # [N, D] float32 normalised targets
-    mask: np.ndarray  # [N, D] bool, True where valid
-    features: np.ndarray  # [n, ...] float32: the rows of the feature sample
-    sample_start: int  # frame of the sample's first row
-    copies: list[dict[str, Any]] = field(default_factory=list)  # manifest records of its noisy copies
-    evidence: _Evidence | None = None
-
-
-# ---------------------------------------------------------------------------------------------
-# Reading and checking the dataset
-# ---------------------------------------------------------------------------------------------
-def masked_spans(mask: np.ndarray, fps: float, longer_than: float = 0.0) -> list[tuple[float, float, int]]:
-    """Runs of masked values per target component.
-
-    Args:
-        mask: [N, D] bool, True where valid.
-        fps: frames per second; frame k covers k / fps to (k + 1) / fps seconds.
-        longer_than: seconds; shorter or equal runs are left out.
-
-    Returns:
-        ``(start_s, end_s, component)`` per run of consecutive masked frames, by start then component.
-    """
-    masked = ~np.asarray(mask, bool)
-    pad = np.zeros((1, masked.shape[1]), np.int8)
-    edges = np.diff(np.vstack([pad, masked.astype(np.int8), pad]), axis=0).T  # [D, N + 1]
-    column, first = np.nonzero(edges == 1)
-    _, stop = np.nonzero(edges == -1)  # runs alternate within each column: the i-th stop ends the i-th start
-    spans = [(a / fps, b / fps, int(c)) for a, b, c in zip(first, stop, column) if (b - a) / fps > longer_than + 1e-9]
-    return sorted(spans, key=lambda s: (s[0], s[2]))
-
-
-def _union(spans: list[tuple[float, float, int]]) -> list[tuple[float, float]]:
-    """The time intervals (s) covered by any of ``spans``, merged."""
-    merged: list[list[float]] = []
-    for start, end, _ in sorted(spans):
-        if merged and start <= merged[-1][1]:
-            merged[-1][1] = max(merged[-1][1], end)
-        else:
-            merged.append([start, end])
-    return [(a, b) for a, b in merged]
-
-
-def _recordings(root: Path, manifest: dict[str, Any], totals: dict[str, np.ndarray]) -> Iterator[_Recording]:
-    """Each clean recording's rows, shard by shard; adds every record's [valid values, values,
-    values outside the bounds] (noisy copies included) to ``totals[split]``."""
-    bounds = Normalizer.from_dict(manifest["normalisation"]).bounds
-    fps = float(manifest["config"]["fps"])
-    copies: dict[str, list[dict[str, Any]]] = {}
-    for record in manifest["recordings"]:
-        if record.get("snr_db") is not None:
-            copies.setdefault(record["recording"], []).append(record)
-    for shard in manifest["shards"]:
-        listed = [r for r in manifest["recordings"] if r["shard"] == shard["file"]]
-        with h5py.File(root / shard["file"], "r") as f:
-            for record, row in zip(listed, read_index(f)):
-                rows = slice(record["start"], record["start"] + record["frames"])
-                current, mask = f["current"][rows], f["mask"][rows]
-                outside = int(count_out_of_range(current, mask, bounds).sum())
-                totals.setdefault(shard["split"], np.zeros(3, np.int64))[:] += (mask.sum(), mask.size, outside)
-                if record.get("snr_db") is not None:
-                    continue
-                n = min(record["frames"], max(1, round(FEATURE_SAMPLE_S * fps)))
-                k0 = (record["frames"] - n) // 2
-                features = f["input"][record["start"] + k0 : record["start"] + k0 + n]
-                yield _Recording(record, row["info"], current, mask, features, k0, copies.get(record["recording"], []))
-
-
-# ---------------------------------------------------------------------------------------------
-# Re-reading the sources
-# ---------------------------------------------------------------------------------------------
-def _component_flags(
-    spec: TargetSpec, joint_set: JointSet, positions: np.ndarray, orientations: np.ndarray | None
-) -> np.ndarray:
-    """[N, D] bool per target component from per-joint flags [N, J] (a limb length from both of its
-    joints); orientation components use the position flags when there are no orientation flags."""
-    j = joint_set.index
-    quats = positions if orientations is None else orientations
-    columns = [positions[:, j(name)] for name in spec.positions for _ in spec.position_axes]
-    columns += [quats[:, j(name)] for name in spec.orientations for _ in range(4)]
-    columns += [positions[:, j(a)] | positions[:, j(b)] for a, b in spec.limb_pairs()]
-    return np.stack(columns, axis=1)
-
-
-def _offset_of(r: _Recording) -> dict[str, Any]:
-    """The offset the build used: ``{"seconds", "source", "confidence", ...}`` (empty if not recorded)."""
-    return r.record.get("offset") or r.info.get("offset") or {}
-
-
-def _evidence(entry: RecordingEntry, r: _Recording, config: dict[str, Any], spec: TargetSpec) -> _Evidence:
-    """Re-read a recording's sources: interpolation flags, long gaps and the offset's evidence."""
-    ev, record, offset = _Evidence(), r.record, _offset_of(r)
-    absent = [p for p in (entry.recording, entry.audio) if p is not None and not Path(p).exists()]
-    if absent:
-        ev.missing.append(f"{absent[0]} is not there any more (moved or deleted)")
-        return ev
-    if not entry.aligned and "seconds" not in offset:
-        ev.missing.append("the dataset does not record the offset it used: nothing to re-align with")
-        return ev
-    if record.get("sources") and source_hashes(entry) != record["sources"]:
-        ev.missing.append(f"{entry.recording} or its audio changed since the build (SHA-256 differs)")
-        return ev
-    sr, max_gap = int(config["sample_rate"]), float(config.get("max_gap", DEFAULT_MAX_GAP))
-    try:
-        if entry.aligned:
-            rec = AlignedRecording.load(entry.recording)
-            motion, n, gaps = rec.motion, rec.n_frames, rec.gaps
-            flags = rec.position_interpolated, rec.orientation_interpolated
-            envelopes = audio_envelopes([rec.audio], rec.sample_rate)
-            ev.expected, ev.expected_label = 0.0, "0 s: the file is aligned"
-            ev.clock = "the aligned file's own clocks (0 s once aligned)"
-        else:
-            motion = entry.read_motion()
-            reader = AudioReader(entry.audio, sr)
-            ev.expected = float(offset["seconds"])
-            ev.expected_label = f"offset used ({offset.get('source', '?')})"
-            timeline = plan_timeline(
-                motion,
-                reader.n_samples,
-                sr,
-                ev.expected,
-                fps=float(config["fps"]),
-                min_coverage=float(config.get("min_coverage", DEFAULT_MIN_COVERAGE)),
-                audio_name=str(entry.audio),
-            )
-            resampled, gaps = resample_onto(motion, timeline, max_gap)
-            n, flags = timeline.n_frames, (resampled.position_interpolated, resampled.orientation_interpolated)
-            envelopes = audio_envelopes(reader.blocks(), sr)
-            ev.clock = "the source recording's and audio's clocks"
-    except KinectDataError as exc:
-        ev.missing.append(f"re-reading the sources failed: {exc}")
-        return ev
-    if n == record["frames"]:
-        ev.interpolated, ev.gaps = _component_flags(spec, motion.joint_set, *flags), gaps
-    else:
-        ev.missing.append(f"the sources give {n} frames on the dataset's timeline, the dataset {record['frames']}")
-    try:
-        ev.estimate = estimate_offset(motion, envelopes, min_confidence=0.0)
-        ev.curve = ev.estimate.curve if ev.estimate.curve is not None else xcorr_estimate(motion, envelopes, None).curve
-    except KinectDataError as exc:
-        ev.missing.append(f"the offset could not be re-estimated: {exc}")
-    return ev
-
-
-# ---------------------------------------------------------------------------------------------
-# Warnings
-# ---------------------------------------------------------------------------------------------
-def _groups(spans: list[tuple[float, float, int]], names: list[str]) -> list[tuple[float, float, list[str]]]:
-    """Spans at the same times as one (start, end, joints or limbs), by start time."""
-    seen: dict[tuple[float, float], list[str]] = {}
-    for start, end, c in spans:
-        joint = names[c].split(".")[0]
-        members = seen.setdefault((start, end), [])
-        if joint not in members:
-            members.append(joint)
-    return [(start, end, members) for (start, end), members in seen.items()]
-
-
-def _findings(r: _Recording, manifest: dict[str, Any]) -> list[_Finding]:
-    """The warnings about one recording (see the module docstring)."""
-    norm = Normalizer.from_dict(manifest["normalisation"])
-    lo, hi = norm.bounds
-    names = TargetSpec.from_dict(manifest["config"]["target"]).component_names()
-    fps = float(manifest["config"]["fps"])
-    max_gap = float(manifest["config"].get("max_gap", DEFAULT_MAX_GAP))
-    name, split = r.record["recording"], r.record["split"]
-    found = []
-    beyond = count_out_of_range(r.current, r.mask, norm.bounds)
-    if beyond.any():
-        excess = np.where(r.mask, np.maximum(r.current - hi, lo - r.current), -np.inf).max(axis=0)
-        worst = int(np.argmax(excess))
-        column = r.current[r.mask[:, worst], worst]
-        value = column[np.argmax(np.abs(column - (lo + hi) / 2))]
-        why = "fitted on this split: check the build" if split == "train" else f"not fitted on the {split} split"
-        message = (
-            f"{int(beyond.sum())} target values in {int((beyond > 0).sum())} components lie outside "
-            f"{lo:g}..{hi:g} (the normalisation was {why}); farthest: {names[worst]} = {value:.3f}"
-        )
-        found.append(_Finding("clipping", name, message, int(beyond.sum())))
-    groups = _groups(masked_spans(r.mask, fps, max_gap), names)
-    if groups:
-        listed = "; ".join(f"{a:.2f}-{b:.2f} s ({', '.join(g)})" for a, b, g in groups[:6])
-        more = f" and {len(groups) - 6} more" if len(groups) > 6 else ""
-        message = f"{len(groups)} target span(s) masked for longer than max_gap {max_gap:g} s: {listed}{more}"
-        found.append(_Finding("long-gap", name, message, len(groups)))
-    offset = _offset_of(r)
-    given = offset.get("source") == "given"
-    if given or float(offset.get("confidence", 1.0)) < LOW_CONFIDENCE:
-        said = (
-            "was given, not estimated: nothing checked it"
-            if given
-            else f"was estimated by {offset.get('source')} with confidence {offset.get('confidence', 0):.2f} "
-            f"< {LOW_CONFIDENCE:g}"
-        )
-        est = r.evidence.estimate if r.evidence is not None else None
-        again = "" if est is None else f"; re-estimated: {est.offset:+.3f} s ({est.method}, {est.confidence:.2f})"
-        found.append(_Finding("offset", name, f"offset {offset.get('seconds', 0.0):+.3f} s {said}{again}"))
-    share = 1.0 - float(r.mask.mean())
-    if share > MASKED_WARNING:
-        message = f"{100 * share:.1f}% of its target values are masked (more than {100 * MASKED_WARNING:g}%)"
-        found.append(_Finding("masked", name, message, int((~r.mask).sum())))
-    return found
+__all__ = ["LOW_CONFIDENCE", "MASKED_WARNING", "masked_spans", "write_report"]
 
 
 # ---------------------------------------------------------------------------------------------
@@ -388,7 +148,7 @@ def _summary(root: Path, manifest: dict[str, Any], totals: dict[str, np.ndarray]
     )
 
 
-def _warnings(found: list[_Finding]) -> str:
+def _warnings(found: list[ReportWarning]) -> str:
     if not found:
         return '<section id="warnings"><h2>Warnings</h2><p>No warnings.</p></section>'
     items = "".join(
@@ -403,11 +163,11 @@ def _yes(flag: bool) -> str:
     return "yes" if flag else ""
 
 
-def _tracking(r: _Recording, fps: float, max_gap: float, joints: dict[str, set[str]]) -> str:
+def _tracking(r: RecordingReport, fps: float, max_gap: float, joints: dict[str, set[str]]) -> str:
     """The tracking-quality figure and facts; ``joints``: per quantity (position, orientation) the
     joints the target is computed from."""
     ev, summary = r.evidence, r.info.get("alignment", {})
-    spans = _union(masked_spans(r.mask, fps, max_gap))
+    spans = span_union(masked_spans(r.mask, fps, max_gap))
     interpolated = None if ev is None or ev.interpolated is None else ev.interpolated.mean(axis=1)
     uri = _png(
         plots.tracking_quality,
@@ -453,8 +213,8 @@ def _tracking(r: _Recording, fps: float, max_gap: float, joints: dict[str, set[s
     return _figure(uri, "Tracking quality over time") + f'<p class="note">{_e(note)}</p>' + _table(facts) + gaps
 
 
-def _offset(r: _Recording) -> str:
-    offset = _offset_of(r)
+def _offset(r: RecordingReport) -> str:
+    offset = offset_used(r)
     rows = [
         ("offset (audio_time = motion_time + offset)", f"{offset.get('seconds', float('nan')):+.4f} s"),
         ("source", offset.get("source", "?")),
@@ -490,7 +250,7 @@ def _offset(r: _Recording) -> str:
     return "".join(parts)
 
 
-def _features(r: _Recording, manifest: dict[str, Any]) -> str:
+def _features(r: RecordingReport, manifest: dict[str, Any]) -> str:
     cfg = feature_config(manifest["config"]["features"])
     fps = float(manifest["config"]["fps"])
     start, end = r.sample_start / fps, (r.sample_start + r.features.shape[0]) / fps
@@ -518,7 +278,7 @@ def _features(r: _Recording, manifest: dict[str, Any]) -> str:
     )
 
 
-def _distributions(r: _Recording, norm: Normalizer, names: list[str]) -> str:
+def _distributions(r: RecordingReport, norm: Normalizer, names: list[str]) -> str:
     values = [r.current[r.mask[:, c], c] for c in range(r.current.shape[1])]
     uri = _png(
         plots.target_distributions,
@@ -530,7 +290,7 @@ def _distributions(r: _Recording, norm: Normalizer, names: list[str]) -> str:
     return _figure(uri, "Target value distributions per component (red: some values outside the bounds)")
 
 
-def _where(r: _Recording, entry: dict[str, Any] | None) -> str:
+def _where(r: RecordingReport, entry: dict[str, Any] | None) -> str:
     rec = r.record
     rows = [
         ("split", rec["split"]),
@@ -547,7 +307,7 @@ def _where(r: _Recording, entry: dict[str, Any] | None) -> str:
     return _table(rows)
 
 
-def _section(r: _Recording, manifest: dict[str, Any], found: list[_Finding]) -> str:
+def _section(r: RecordingReport, manifest: dict[str, Any], found: list[ReportWarning]) -> str:
     cfg = manifest["config"]
     norm = Normalizer.from_dict(manifest["normalisation"])
     spec = TargetSpec.from_dict(cfg["target"])
@@ -600,22 +360,14 @@ def write_report(
     root, out = Path(dataset), Path(out)
     if out.suffix.lower() not in (".html", ".htm"):
         raise KinectDataError(f"{out}: the report is an HTML page; name it *.html")
-    manifest = verified_manifest(root)  # the checks of kinectdata verify: schema, checksums, layouts, indexes
-    spec = TargetSpec.from_dict(manifest["config"]["target"])
-    inputs = {e["name"]: e for e in manifest["inputs"]}
-    total = sum(1 for r in manifest["recordings"] if r.get("snr_db") is None)
-    totals: dict[str, np.ndarray] = {}
-    found: list[_Finding] = []
+    scan = scan_dataset(root, sources=sources)
+    manifest, total = scan.manifest, scan.clean_recordings
+    found: list[ReportWarning] = []
     sections, contents = [], []
-    for r in _recordings(root, manifest, totals):
+    for r in scan.recordings():
         name = r.record["recording"]
-        if sources and name in inputs:
-            r.evidence = _evidence(RecordingEntry(**inputs[name]), r, manifest["config"], spec)
-        elif sources:
-            r.evidence = _Evidence(missing=["the manifest's inputs do not list this recording"])
-        mine = _findings(r, manifest)
-        found += mine
-        sections.append(_section(r, manifest, mine))
+        found += r.warnings
+        sections.append(_section(r, manifest, r.warnings))
         contents.append(f'<li><a href="#rec-{_e(name)}">{_e(name)}</a> ({_e(r.record["split"])})</li>')
         if progress:
             progress(len(sections), total)
@@ -624,7 +376,7 @@ def write_report(
         f"<style>{_CSS}</style></head><body><h1>Dataset report: {_e(root.name)}</h1>"
         f'<p class="note">Written by kinectdata {_e(__version__)}. Times are on the dataset clock: frame k at k / fps '
         "seconds.</p>"
-        + _summary(root, manifest, totals)
+        + _summary(root, manifest, scan.totals)
         + _warnings(found)
         + f'<nav id="contents"><h2>Recordings ({len(sections)})</h2><ul>{"".join(contents)}</ul></nav>'
         + "".join(sections)
