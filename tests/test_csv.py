@@ -370,7 +370,7 @@ def test_schema_naming_unknown_joints_or_joint_set_is_refused_in_its_own_file(tm
     for change, expected in [
         ({"joints": ["SpineBase", "Nope"]}, "joints: 'Nope' is not a joint of kinect_v2"),
         ({"joint_names": {"Spine_Base": "SpineBottom"}}, "joint_names: 'Spine_Base' maps to 'SpineBottom'"),
-        ({"joint_set": "kinect_v3"}, "joint_set 'kinect_v3': no shipped jointsets file named 'kinect_v3'"),
+        ({"joint_set": "kinect_v3"}, "joint_set 'kinect_v3': unknown joint set 'kinect_v3': no such file"),
     ]:
         path = tmp_path / "mine.json"
         path.write_text(json.dumps({**doc, **change}))

@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from kinectdata.core.errors import ConfigError, SchemaError
-from kinectdata.core.resources import load_json, shipped_names, shipped_path, validate
+from kinectdata.core.resources import load_json, resolve_resource, shipped_names, shipped_path, validate
 
 
 @dataclass(frozen=True)
@@ -147,13 +147,8 @@ def _load_shipped(name: str) -> JointSet:
 
 def load_joint_set(name_or_path: str | Path) -> JointSet:
     """A shipped joint set by name (``kinect_v2``...) or a joint-set JSON file by path."""
-    text = str(name_or_path)
-    if text in shipped_names("jointsets"):
-        return _load_shipped(text)
-    path = Path(text)
-    if path.suffix == ".json" and path.exists():
-        return _from_document(load_json(path), path)
-    return _load_shipped(text)  # raises the "no shipped joint set" error listing what exists
+    name, path = resolve_resource("jointsets", name_or_path, "joint set")
+    return _load_shipped(name) if name else _from_document(load_json(path), path)
 
 
 def shipped_joint_sets() -> list[str]:

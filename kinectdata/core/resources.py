@@ -34,6 +34,30 @@ def shipped_path(kind: str, name: str) -> Path:
     return path
 
 
+def resolve_resource(kind: str, name_or_path: str | Path, what: str) -> tuple[str | None, Path]:
+    """Where a resource given as "a shipped name or a path" is: ``(name, path)`` for a shipped file
+    (``schemas/<kind>/<name>.json``), ``(None, path)`` for a file of the user's.
+
+    A shipped name wins over a file of that name in the working folder. SchemaError when neither
+    exists: naming the path when the text looks like one (it ends in ``.json`` or holds a ``/``),
+    else listing the shipped names (``what`` is how the message calls the resource, e.g.
+    "CSV schema").
+    """
+    text = str(name_or_path)
+    if text in shipped_names(kind):
+        return text, shipped_path(kind, text)
+    path = Path(text)
+    if path.exists():
+        return None, path
+    if path.suffix.lower() == ".json" or "/" in text:
+        raise SchemaError(path, f"{what} file not found")
+    raise SchemaError(
+        None,
+        f"unknown {what} {text!r}: no such file, and no shipped {what} has that name "
+        f"(shipped: {', '.join(shipped_names(kind)) or 'none'})",
+    )
+
+
 def load_json(path: str | Path) -> Any:
     """Parse a JSON file, raising SchemaError with the line and column of a syntax error."""
     path = Path(path)

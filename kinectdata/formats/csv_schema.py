@@ -16,7 +16,7 @@ from typing import Any
 
 from kinectdata.core.errors import SchemaError
 from kinectdata.core.jointsets import JointSet, load_joint_set
-from kinectdata.core.resources import load_json, shipped_names, shipped_path, validate
+from kinectdata.core.resources import load_json, resolve_resource, shipped_names, shipped_path, validate
 
 JOINT = "{joint}"
 TIME_UNITS_S = {"s": 1.0, "ms": 1e-3, "us": 1e-6, "ns": 1e-9, "ticks": 1e-7}
@@ -180,16 +180,5 @@ def load_csv_schema(name_or_path: str | Path | CsvSchema) -> CsvSchema:
     """A shipped schema by name, or a schema file by path; SchemaError if invalid."""
     if isinstance(name_or_path, CsvSchema):
         return name_or_path
-    text = str(name_or_path)
-    if text in shipped_csv_schemas():
-        return _shipped(text)
-    path = Path(text)
-    if path.exists():
-        return _from_file(path)
-    if path.suffix.lower() == ".json" or "/" in text:
-        raise SchemaError(path, "schema file not found")
-    raise SchemaError(
-        None,
-        f"unknown CSV schema {text!r}: no such file, and no shipped schema has that name "
-        f"(shipped: {', '.join(shipped_csv_schemas())})",
-    )
+    name, path = resolve_resource("csv", name_or_path, "CSV schema")
+    return _shipped(name) if name else _from_file(path)

@@ -35,7 +35,7 @@ from kinectdata.core.errors import ConfigError, KinectDataError, SchemaError
 from kinectdata.core.jointsets import JointSet, load_joint_set, shipped_joint_sets
 from kinectdata.core.motion import Motion
 from kinectdata.core.quaternions import make_continuous
-from kinectdata.core.resources import load_json, shipped_names, shipped_path, validate
+from kinectdata.core.resources import load_json, resolve_resource, shipped_names, shipped_path, validate
 
 POSITION_AXES = ("x", "y", "z")
 POSITION_SCALES = ("none", "recording_minmax")
@@ -225,19 +225,8 @@ def load_target_spec(name_or_path: str | Path | TargetSpec) -> TargetSpec:
     """A shipped target spec by name (``yalta65``...) or a spec file by path; SchemaError if invalid."""
     if isinstance(name_or_path, TargetSpec):
         return name_or_path
-    text = str(name_or_path)
-    if text in shipped_target_specs():
-        return _shipped(text)
-    path = Path(text)
-    if path.exists():
-        return _from_document(load_json(path), path)
-    if path.suffix.lower() == ".json" or "/" in text:
-        raise SchemaError(path, "target spec file not found")
-    raise SchemaError(
-        None,
-        f"unknown target spec {text!r}: no such file, and no shipped spec has that name "
-        f"(shipped: {', '.join(shipped_target_specs())})",
-    )
+    name, path = resolve_resource("targets", name_or_path, "target spec")
+    return _shipped(name) if name else _from_document(load_json(path), path)
 
 
 # -- extraction ---------------------------------------------------------------------------------
