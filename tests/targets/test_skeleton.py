@@ -2,16 +2,14 @@
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import numpy as np
+from conftest import REPO
 
 from kinectdata.formats import read_motion
 from kinectdata.synth import synthesize_recording
 from kinectdata.targets.skeleton import bone_offsets, merge_bone_offsets, rebuild_positions
 from kinectdata.targets.specs import extract_targets, load_target_spec
 
-REPO = Path(__file__).parent.parent
 YALTA = load_target_spec("yalta65")
 
 

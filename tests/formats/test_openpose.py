@@ -8,12 +8,13 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import DATA as TEST_DATA
 
 from kinectdata.core.errors import FormatError
 from kinectdata.formats import detect_format, read_motion
 from kinectdata.formats.openpose import LAYOUTS, read_openpose, to_mpi15
 
-DATA = Path(__file__).parent / "data" / "openpose"
+DATA = TEST_DATA / "openpose"
 FPS = 30.0
 
 # OpenPose's keypoint orders (output documentation), written out as the tests' expectation.

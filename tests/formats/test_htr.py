@@ -2,16 +2,15 @@
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import numpy as np
 import pytest
+from conftest import DATA as TEST_DATA
 
 from kinectdata.core.errors import FormatError
 from kinectdata.formats import detect_format, read_motion, readers
 from kinectdata.formats.htr import read_htr
 
-DATA = Path(__file__).parent / "data" / "htr"
+DATA = TEST_DATA / "htr"
 ORDERS = ["XYZ", "XZY", "YXZ", "YZX", "ZXY", "ZYX"]
 
 

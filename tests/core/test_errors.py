@@ -8,10 +8,10 @@ import importlib
 import inspect
 import pkgutil
 import warnings
-from pathlib import Path
 
 import pytest
 from click.testing import CliRunner
+from conftest import DATA, REPO
 
 import kinectdata
 from kinectdata.align import aligned as aligned_module
@@ -23,8 +23,7 @@ from kinectdata.features import StftConfig
 from kinectdata.oni.reader import OniFile
 from kinectdata.targets.normalization import Normalizer, NormStats
 
-DATA = Path(__file__).parent / "data"
-SAMPLES = Path(__file__).resolve().parents[1] / "sample_data"
+SAMPLES = REPO / "sample_data"
 
 
 def test_bad_settings_are_config_errors_and_value_errors():

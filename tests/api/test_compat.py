@@ -4,11 +4,11 @@ read, and the regrouped code computes the same dataset rows from the same aligne
 from __future__ import annotations
 
 import shutil
-from pathlib import Path
 
 import h5py
 import numpy as np
 import pytest
+from conftest import DATA
 
 from kinectdata.align.aligned import AlignedRecording, Provenance
 from kinectdata.align.offset import OffsetChoice
@@ -16,7 +16,7 @@ from kinectdata.dataset.build import build_dataset
 from kinectdata.dataset.config import BuildConfig
 from kinectdata.dataset.verify import verify_dataset
 
-OLD = Path(__file__).parent / "data" / "v0.1"
+OLD = DATA / "v0.1"
 
 
 def test_an_aligned_file_of_v01_reads_with_typed_offset_and_provenance():

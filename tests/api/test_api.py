@@ -11,11 +11,11 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import REPO
 
 import kinectdata as kd
 from kinectdata.core.errors import ConfigError, KinectDataError
 
-REPO = Path(__file__).resolve().parents[1]
 SAMPLES = REPO / "sample_data"
 
 
