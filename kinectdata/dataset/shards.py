@@ -14,6 +14,7 @@ import signal
 import subprocess
 import sys
 from dataclasses import dataclass
+from functools import cache
 from pathlib import Path
 from typing import Any
 
@@ -287,30 +288,37 @@ def _show(value: Any, limit: int = 60) -> str:
     return text if len(text) <= limit else text[: limit - 3] + "..."
 
 
+@cache
+def _json_attribute_validator():
+    """The JSON Schema of the shard's JSON attributes (``schemas/shard-json-attributes.schema.json``)."""
+    import jsonschema
+
+    schema = load_json(schemas_dir() / "shard-json-attributes.schema.json")
+    return jsonschema.validators.validator_for(schema)(schema)
+
+
 def _check_json_attributes(f: h5py.File, path: Path, sizes: dict[str, int]) -> None:
     """The JSON attributes say what the datasets hold: check they agree with them."""
-    spec = json_attribute(f, "target_spec")
-    norm = json_attribute(f, "normalisation")
-    feats = json_attribute(f, "features")
-    if not (
-        isinstance(spec, dict)
-        and isinstance(spec.get("positions"), list)
-        and isinstance(spec.get("orientations"), list)
-    ):
-        raise FormatError(path, "attribute 'target_spec' is not a target spec (positions and orientations lists)")
+    doc = {key: json_attribute(f, key) for key in ("target_spec", "normalisation", "features")}
+    problem = next(iter(sorted(_json_attribute_validator().iter_errors(doc), key=lambda e: list(e.path))), None)
+    if problem is not None:
+        key = str(problem.path[0]) if problem.path else "?"
+        what = {
+            "target_spec": "is not a target spec (positions and orientations lists)",
+            "normalisation": "must hold 'scale' and 'offset' lists of numbers",
+            "features": "is not a feature configuration (a JSON object)",
+        }.get(key, "is not valid")
+        at = "/".join(str(p) for p in list(problem.path)[1:])
+        raise FormatError(path, f"attribute {key!r} {what}: {problem.message}" + (f" at {at}" if at else ""))
+    spec, norm, feats = doc["target_spec"], doc["normalisation"], doc["features"]
     try:
         dim = TargetSpec.from_dict(spec).dim
     except (KinectDataError, KeyError, TypeError, ValueError) as exc:
         raise FormatError(path, f"attribute 'target_spec' is not a valid target spec ({exc})") from None
     if dim != sizes["D"]:
         raise FormatError(path, f"'current' has {sizes['D']} components, the target spec {dim}")
-    if not (
-        isinstance(norm, dict)
-        and all(isinstance(norm.get(k), list) and len(norm[k]) == dim for k in ("scale", "offset"))
-    ):
+    if any(len(norm[k]) != dim for k in ("scale", "offset")):
         raise FormatError(path, f"attribute 'normalisation' must hold 'scale' and 'offset' lists of {dim} numbers")
-    if not isinstance(feats, dict):
-        raise FormatError(path, "attribute 'features' is not a feature configuration (a JSON object)")
     try:
         shape = feature_config(feats).output_shape
     except (KeyError, TypeError, ValueError) as exc:
