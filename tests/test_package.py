@@ -17,3 +17,11 @@ def test_schema_files_are_found_through_the_package():
     assert (schemas_dir() / "csv-schema.schema.json").is_file()
     assert {"jointsets", "csv", "targets"} <= {p.name for p in schemas_dir().iterdir() if p.is_dir()}
     assert "yalta65" in shipped_names("targets") and "kinect_v2" in shipped_names("jointsets")
+
+
+def test_the_report_templates_are_found_through_the_package():
+    from importlib import resources
+
+    templates = resources.files("kinectdata.viz") / "templates"
+    assert {"report.html.j2", "report_parts.html.j2"} <= {p.name for p in templates.iterdir()}
+    assert (schemas_dir() / "shard-json-attributes.schema.json").is_file()

@@ -24,13 +24,14 @@ found them with the same SHA-256; otherwise the page says why not. ``sources=Fal
 from __future__ import annotations
 
 import base64
-import html
 import io
 from collections.abc import Callable
+from functools import cache
 from pathlib import Path
 from typing import Any
 
 import numpy as np
+from markupsafe import Markup
 
 from kinectdata.align.recipe import DEFAULT_MAX_GAP
 from kinectdata.core.atomic import atomic_output
@@ -68,10 +69,6 @@ figure { margin: 0.5em 0; } img { max-width: 100%; } section.recording { border-
 """
 
 
-def _e(value: Any) -> str:
-    return html.escape(str(value), quote=True)
-
-
 def _png(draw: Callable[..., Any], *args: Any, **kwargs: Any) -> str:
     """A data URI of the PNG that ``draw(*args, out, **kwargs)`` writes into a stream."""
     buffer = io.BytesIO()
@@ -79,20 +76,19 @@ def _png(draw: Callable[..., Any], *args: Any, **kwargs: Any) -> str:
     return "data:image/png;base64," + base64.b64encode(buffer.getvalue()).decode("ascii")
 
 
-def _figure(uri: str, caption: str) -> str:
-    return f'<figure><img src="{uri}" alt="{_e(caption)}"><figcaption>{_e(caption)}</figcaption></figure>'
+@cache
+def _template(name: str = "report.html.j2"):
+    """One of the page's Jinja2 templates (``templates/``, shipped with the package), autoescaped:
+    ``report.html.j2`` the page, ``report_parts.html.j2`` its macros (a recording's section...)."""
+    import jinja2
 
-
-def _table(rows: list[tuple[Any, ...]], header: tuple[str, ...] | None = None, *, attrs: str = "") -> str:
-    """An HTML table; numbers right-aligned; ``attrs`` go into the opening tag as they are."""
-    head = "" if header is None else "<tr>" + "".join(f"<th>{_e(h)}</th>" for h in header) + "</tr>"
-    body = "".join(
-        "<tr>"
-        + "".join(f'<td class="n">{_e(v)}</td>' if isinstance(v, (int, float)) else f"<td>{_e(v)}</td>" for v in row)
-        + "</tr>"
-        for row in rows
+    env = jinja2.Environment(
+        loader=jinja2.PackageLoader("kinectdata.viz", "templates"),
+        autoescape=True,
+        undefined=jinja2.StrictUndefined,
+        keep_trailing_newline=True,
     )
-    return f"<table {attrs}>{head}{body}</table>"
+    return env.get_template(name)
 
 
 def _pipeline(config: dict[str, Any]) -> tuple[str, str]:
@@ -106,7 +102,7 @@ def _pipeline(config: dict[str, Any]) -> tuple[str, str]:
     return pipeline, preset
 
 
-def _summary(root: Path, manifest: dict[str, Any], totals: dict[str, np.ndarray]) -> str:
+def _summary(root: Path, manifest: dict[str, Any], totals: dict[str, np.ndarray]) -> dict[str, Any]:
     """The build and the splits' table; ``totals`` [valid values, values, values outside the bounds] per split."""
     cfg = manifest["config"]
     norm = Normalizer.from_dict(manifest["normalisation"])
@@ -139,31 +135,14 @@ def _summary(root: Path, manifest: dict[str, Any], totals: dict[str, np.ndarray]
             (s, len(info["recordings"]), info["rows"], copies, ", ".join(info["shards"]) or "-", share, outside)
         )
     header = ("split", "recordings", "rows", "noisy copies", "shards", "valid target values (%)", "outside bounds")
-    return (
-        '<section id="summary"><h2>Dataset</h2>'
-        + _table(facts, attrs='class="facts"')
-        + "<h3>Splits</h3>"
-        + _table(rows, header, attrs='id="splits"')
-        + "</section>"
-    )
-
-
-def _warnings(found: list[ReportWarning]) -> str:
-    if not found:
-        return '<section id="warnings"><h2>Warnings</h2><p>No warnings.</p></section>'
-    items = "".join(
-        f'<li class="warning" data-kind="{_e(w.kind)}" data-recording="{_e(w.recording)}" data-count="{w.count}">'
-        f'<b>{_e(w.kind)}</b> <a href="#rec-{_e(w.recording)}">{_e(w.recording)}</a>: {_e(w.message)}</li>'
-        for w in found
-    )
-    return f'<section id="warnings"><h2>Warnings ({len(found)})</h2><ul>{items}</ul></section>'
+    return {"facts": facts, "splits": rows, "header": header}
 
 
 def _yes(flag: bool) -> str:
     return "yes" if flag else ""
 
 
-def _tracking(r: RecordingReport, fps: float, max_gap: float, joints: dict[str, set[str]]) -> str:
+def _tracking(r: RecordingReport, fps: float, max_gap: float, joints: dict[str, set[str]]) -> dict[str, Any]:
     """The tracking-quality figure and facts; ``joints``: per quantity (position, orientation) the
     joints the target is computed from."""
     ev, summary = r.evidence, r.info.get("alignment", {})
@@ -192,7 +171,7 @@ def _tracking(r: RecordingReport, fps: float, max_gap: float, joints: dict[str, 
         ("alignment: joint positions masked", f"{100 * summary.get('masked_share', 0):.2f}%"),
         ("alignment: gaps longer than max_gap (any joint)", summary.get("long_gaps", "-")),
     ]
-    gaps = ""
+    gaps, more = [], ""
     if ev is not None and ev.gaps:
         rows = [
             (
@@ -207,13 +186,11 @@ def _tracking(r: RecordingReport, fps: float, max_gap: float, joints: dict[str, 
             for g in sorted(ev.gaps, key=lambda g: (g["start_s"], g["joint"], g["quantity"]))
         ]
         more = f" (the first 20 of {len(rows)})" if len(rows) > 20 else ""
-        gaps = f"<p>Gaps longer than max_gap in the sources{more}, seconds on the dataset clock:</p>" + _table(
-            rows[:20], ("joint", "quantity", "start", "end", "length", "at an edge", "in the target")
-        )
-    return _figure(uri, "Tracking quality over time") + f'<p class="note">{_e(note)}</p>' + _table(facts) + gaps
+        gaps = rows[:20]
+    return {"uri": uri, "note": note, "facts": facts, "gaps": gaps, "more": more}
 
 
-def _offset(r: RecordingReport) -> str:
+def _offset(r: RecordingReport) -> dict[str, Any]:
     offset = offset_used(r)
     rows = [
         ("offset (audio_time = motion_time + offset)", f"{offset.get('seconds', float('nan')):+.4f} s"),
@@ -223,18 +200,15 @@ def _offset(r: RecordingReport) -> str:
     rows += [
         (f"candidate {i + 1}", f"{o:+.4f} s (score {s:.3f})") for i, (o, s) in enumerate(offset.get("candidates", []))
     ]
-    parts = [_table(rows)]
     ev = r.evidence
     if ev is None:
-        parts.append('<p class="note">Correlation curve not computed: sources not read (--no-sources).</p>')
-        return "".join(parts)
+        return {"rows": rows, "read": False}
+    found: dict[str, Any] = {"rows": rows, "read": True, "estimate": "", "uri": None, "missing": ev.missing}
     est = ev.estimate
     if est is not None:
-        parts.append(
-            f"<p>Re-estimated on {_e(ev.clock)}: {est.offset:+.4f} s by {_e(est.method)}, confidence "
-            f"{est.confidence:.2f}; candidates "
-            + _e(", ".join(f"{o:+.3f} s ({s:.3f})" for o, s in est.candidates[:5]))
-            + "</p>"
+        found["estimate"] = (
+            f"Re-estimated on {ev.clock}: {est.offset:+.4f} s by {est.method}, confidence {est.confidence:.2f}; "
+            "candidates " + ", ".join(f"{o:+.3f} s ({s:.3f})" for o, s in est.candidates[:5])
         )
     if ev.curve is not None:
         markers = [(ev.expected, ev.expected_label)]
@@ -243,14 +217,12 @@ def _offset(r: RecordingReport) -> str:
             for i, (o, _) in enumerate(est.candidates[:3])
             if abs(o - ev.expected) > 0.01  # one lag step of the curve: the same offset as the one used
         ]
-        uri = _png(plots.offset_curve, *ev.curve, markers=markers, title=f"{r.record['recording']}: offset evidence")
-        parts.append(_figure(uri, "Cross-correlation of the audio onsets with the motion energy against the offset"))
-    for why in ev.missing:
-        parts.append(f'<p class="note">{_e(why)}</p>')
-    return "".join(parts)
+        title = f"{r.record['recording']}: offset evidence"
+        found["uri"] = _png(plots.offset_curve, *ev.curve, markers=markers, title=title)
+    return found
 
 
-def _features(r: RecordingReport, manifest: dict[str, Any]) -> str:
+def _features(r: RecordingReport, manifest: dict[str, Any]) -> dict[str, Any]:
     cfg = feature_config(manifest["config"]["features"])
     fps = float(manifest["config"]["fps"])
     start, end = r.sample_start / fps, (r.sample_start + r.features.shape[0]) / fps
@@ -273,9 +245,8 @@ def _features(r: RecordingReport, manifest: dict[str, Any]) -> str:
         colorbar_label="feature value (as in the shard)",
         title=f"{r.record['recording']}: audio features, {start:.1f}-{end:.1f} s",
     )
-    return _figure(uri, f"Audio features, frames {r.sample_start}-{r.sample_start + r.features.shape[0] - 1}") + (
-        f'<p class="note">{_e(note)}</p>'
-    )
+    caption = f"Audio features, frames {r.sample_start}-{r.sample_start + r.features.shape[0] - 1}"
+    return {"uri": uri, "caption": caption, "note": note}
 
 
 def _distributions(r: RecordingReport, norm: Normalizer, names: list[str]) -> str:
@@ -287,10 +258,10 @@ def _distributions(r: RecordingReport, norm: Normalizer, names: list[str]) -> st
         norm.bounds,
         title=f"{r.record['recording']} ({r.record['split']}): normalised targets, {norm.method}",
     )
-    return _figure(uri, "Target value distributions per component (red: some values outside the bounds)")
+    return uri
 
 
-def _where(r: RecordingReport, entry: dict[str, Any] | None) -> str:
+def _where(r: RecordingReport, entry: dict[str, Any] | None) -> list[tuple[str, Any]]:
     rec = r.record
     rows = [
         ("split", rec["split"]),
@@ -304,7 +275,7 @@ def _where(r: RecordingReport, entry: dict[str, Any] | None) -> str:
         rows += [("recording", entry["recording"])] + ([("audio", entry["audio"])] if entry.get("audio") else [])
     if rec.get("flipped_orientations"):
         rows.append(("quaternions negated", ", ".join(rec["flipped_orientations"])))
-    return _table(rows)
+    return rows
 
 
 def _section(r: RecordingReport, manifest: dict[str, Any], found: list[ReportWarning]) -> str:
@@ -318,23 +289,17 @@ def _section(r: RecordingReport, manifest: dict[str, Any], found: list[ReportWar
     }
     name = r.record["recording"]
     entry = next((e for e in manifest["inputs"] if e["name"] == name), None)
-    flagged = "".join(f'<li class="warning">{_e(w.kind)}: {_e(w.message)}</li>' for w in found)
     fps, max_gap = float(cfg["fps"]), float(cfg.get("max_gap", DEFAULT_MAX_GAP))
-    return (
-        f'<section class="recording" id="rec-{_e(name)}"><h2>{_e(name)}</h2>'
-        + (f"<ul>{flagged}</ul>" if flagged else "")
-        + "<h3>Where it is</h3>"
-        + _where(r, entry)
-        + "<h3>Tracking quality</h3>"
-        + _tracking(r, fps, max_gap, joints)
-        + "<h3>Offset</h3>"
-        + _offset(r)
-        + "<h3>Audio features</h3>"
-        + _features(r, manifest)
-        + "<h3>Targets</h3>"
-        + _distributions(r, norm, names)
-        + "</section>"
-    )
+    data = {
+        "name": name,
+        "warnings": found,
+        "where": _where(r, entry),
+        "tracking": _tracking(r, fps, max_gap, joints),
+        "offset": _offset(r),
+        "features": _features(r, manifest),
+        "targets_uri": _distributions(r, norm, names),
+    }
+    return str(_template("report_parts.html.j2").module.recording(data))
 
 
 def write_report(
@@ -363,24 +328,20 @@ def write_report(
     scan = scan_dataset(root, sources=sources)
     manifest, total = scan.manifest, scan.clean_recordings
     found: list[ReportWarning] = []
-    sections, contents = [], []
+    sections = []
     for r in scan.recordings():
-        name = r.record["recording"]
         found += r.warnings
-        sections.append(_section(r, manifest, r.warnings))
-        contents.append(f'<li><a href="#rec-{_e(name)}">{_e(name)}</a> ({_e(r.record["split"])})</li>')
+        html = Markup(_section(r, manifest, r.warnings))  # rendered (and escaped) by the template's macro
+        sections.append({"name": r.record["recording"], "split": r.record["split"], "html": html})
         if progress:
             progress(len(sections), total)
-    page = (
-        f'<!DOCTYPE html><html lang="en"><head><meta charset="utf-8"><title>Dataset report: {_e(root.name)}</title>'
-        f"<style>{_CSS}</style></head><body><h1>Dataset report: {_e(root.name)}</h1>"
-        f'<p class="note">Written by kinectdata {_e(__version__)}. Times are on the dataset clock: frame k at k / fps '
-        "seconds.</p>"
-        + _summary(root, manifest, scan.totals)
-        + _warnings(found)
-        + f'<nav id="contents"><h2>Recordings ({len(sections)})</h2><ul>{"".join(contents)}</ul></nav>'
-        + "".join(sections)
-        + "</body></html>\n"
+    page = _template().render(
+        name=root.name,
+        css=Markup(_CSS),
+        version=__version__,
+        summary=_summary(root, manifest, scan.totals),
+        warnings=found,
+        sections=sections,
     )
     with atomic_output(out) as tmp:
         tmp.write_text(page, encoding="utf-8")
