@@ -147,6 +147,13 @@ def _text(value: Any) -> str:
     return value.decode() if isinstance(value, bytes) else str(value)
 
 
+def _parse_json(path: Path, key: str, value: Any) -> Any:
+    try:
+        return json.loads(value.decode() if isinstance(value, bytes) else value)
+    except (TypeError, ValueError) as exc:  # not text; not JSON or not UTF-8
+        raise FormatError(path, f"attribute {key!r} is not JSON text ({exc})") from None
+
+
 def json_attribute(f: h5py.File, key: str) -> Any:
     """An attribute of an open shard holding JSON text, parsed; FormatError naming the shard if it
     is missing or not JSON."""
@@ -203,10 +210,30 @@ def validate_shard(path: str | Path, *, isolated: bool = True) -> dict[str, int]
     except _DAMAGE as exc:
         raise FormatError(path, f"not a readable HDF5 file ({exc})") from exc
     with f:
-        try:
-            return _validate(f, path, spec)
-        except _DAMAGE as exc:
-            raise FormatError(path, f"damaged HDF5 file ({type(exc).__name__}: {exc})") from exc
+        attrs, datasets = _read_layout(f, path, spec)
+        sizes = _validate(path, spec, attrs, datasets)
+        _check_index(path, read_index(f), sizes)
+        _check_json_attributes(f, path, sizes, datasets["input"][1])
+        return sizes
+
+
+_MISSING = object()
+
+
+def _read_layout(f: h5py.File, path: Path, spec: dict[str, Any]) -> tuple[dict[str, Any], dict[str, Any]]:
+    """The layout's attributes (value or ``_MISSING``) and datasets (``(dtype, shape)`` or None where
+    absent or not a dataset) of an open shard. Only this reading is guarded against what h5py raises
+    on a damaged file (:data:`_DAMAGE`): the checks that follow are plain Python, so a bug in them
+    surfaces as itself."""
+    try:
+        attrs = {key: f.attrs[key] if key in f.attrs else _MISSING for key in spec["attributes"]}
+        datasets = {}
+        for name in spec["datasets"]:
+            d = f[name] if name in f else None
+            datasets[name] = (d.dtype, tuple(d.shape)) if isinstance(d, h5py.Dataset) else None
+        return attrs, datasets
+    except _DAMAGE as exc:
+        raise FormatError(path, f"damaged HDF5 file ({type(exc).__name__}: {exc})") from exc
 
 
 def _validate_in_child(path: Path) -> dict[str, int]:
@@ -228,39 +255,44 @@ def _validate_in_child(path: Path) -> dict[str, int]:
     raise FormatError(path, f"reading the file's structure crashed the HDF5 library ({how}): the file is damaged")
 
 
-def _validate(f: h5py.File, path: Path, spec: dict[str, Any]) -> dict[str, int]:
+def _validate(path: Path, spec: dict[str, Any], attrs: dict[str, Any], datasets: dict[str, Any]) -> dict[str, int]:
+    """The attributes and datasets read by :func:`_read_layout` against the layout; the sizes."""
     for key, rule in spec["attributes"].items():
-        if key not in f.attrs:
+        value = attrs[key]
+        if value is _MISSING:
             raise FormatError(path, f"missing attribute {key!r} ({rule.get('description', rule['type'])})")
-        value = f.attrs[key]
         if not _has_type(value, rule["type"]):
             raise FormatError(path, f"attribute {key!r} is {_show(value)}, expected {rule['type']}")
         if "const" in rule and value != rule["const"]:
             raise FormatError(path, f"attribute {key!r} is {_show(value)}, expected {rule['const']!r}")
         if rule["type"] == "json":
-            json_attribute(f, key)
+            _parse_json(path, key, value)
     sizes: dict[str, int] = {}
     for name, rule in spec["datasets"].items():
-        if name not in f or not isinstance(f[name], h5py.Dataset):
+        if datasets[name] is None:
             raise FormatError(path, f"missing dataset {name!r}")
-        d = f[name]
+        dtype, shape = datasets[name]
         if rule["dtype"] == "string":
-            if d.dtype.kind not in "OSU":
-                raise FormatError(path, f"dataset {name!r} has dtype {d.dtype}, expected strings")
-        elif d.dtype != _DTYPES[rule["dtype"]]:
-            raise FormatError(path, f"dataset {name!r} has dtype {d.dtype}, expected {rule['dtype']}")
+            if dtype.kind not in "OSU":
+                raise FormatError(path, f"dataset {name!r} has dtype {dtype}, expected strings")
+        elif dtype != _DTYPES[rule["dtype"]]:
+            raise FormatError(path, f"dataset {name!r} has dtype {dtype}, expected {rule['dtype']}")
         open_ended = rule["shape"][-1] == "..."  # any further axes (checked against an attribute)
         fixed = rule["shape"][:-1] if open_ended else rule["shape"]
-        if len(d.shape) < len(fixed) or (not open_ended and len(d.shape) != len(fixed)):
-            raise FormatError(path, f"dataset {name!r} has shape {d.shape}, expected {rule['shape']}")
-        for axis, (want, got) in enumerate(zip(fixed, d.shape)):
+        if len(shape) < len(fixed) or (not open_ended and len(shape) != len(fixed)):
+            raise FormatError(path, f"dataset {name!r} has shape {shape}, expected {rule['shape']}")
+        for axis, (want, got) in enumerate(zip(fixed, shape)):
             if isinstance(want, int):
                 ok = want == got
             else:
                 ok = sizes.setdefault(want, got) == got
             if not ok:
                 raise FormatError(path, f"dataset {name!r} axis {axis} is {got}, expected {sizes.get(want, want)}")
-    index = read_index(f)
+    return sizes
+
+
+def _check_index(path: Path, index: list[dict[str, Any]], sizes: dict[str, int]) -> None:
+    """The recordings index covers the rows in order, each recording at least one row."""
     expected = 0
     for i, r in enumerate(index):
         where = f"recordings[{i}] ({r['name']})"
@@ -271,8 +303,6 @@ def _validate(f: h5py.File, path: Path, spec: dict[str, Any]) -> dict[str, int]:
         expected += r["length"]
     if expected != sizes["N"]:
         raise FormatError(path, f"the recordings cover {expected} rows, the shard has {sizes['N']}")
-    _check_json_attributes(f, path, sizes)
-    return sizes
 
 
 def _has_type(value: Any, kind: str) -> bool:
@@ -297,7 +327,7 @@ def _json_attribute_validator():
     return jsonschema.validators.validator_for(schema)(schema)
 
 
-def _check_json_attributes(f: h5py.File, path: Path, sizes: dict[str, int]) -> None:
+def _check_json_attributes(f: h5py.File, path: Path, sizes: dict[str, int], input_shape: tuple[int, ...]) -> None:
     """The JSON attributes say what the datasets hold: check they agree with them."""
     doc = {key: json_attribute(f, key) for key in ("target_spec", "normalisation", "features")}
     problem = next(iter(sorted(_json_attribute_validator().iter_errors(doc), key=lambda e: list(e.path))), None)
@@ -323,7 +353,5 @@ def _check_json_attributes(f: h5py.File, path: Path, sizes: dict[str, int]) -> N
         shape = feature_config(feats).output_shape
     except (KeyError, TypeError, ValueError) as exc:
         raise FormatError(path, f"attribute 'features' is not a valid feature configuration ({exc})") from None
-    if tuple(f["input"].shape[1:]) != tuple(shape):
-        raise FormatError(
-            path, f"'input' holds frames of shape {list(f['input'].shape[1:])}, the features {list(shape)}"
-        )
+    if tuple(input_shape[1:]) != tuple(shape):
+        raise FormatError(path, f"'input' holds frames of shape {list(input_shape[1:])}, the features {list(shape)}")
