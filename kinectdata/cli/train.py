@@ -33,6 +33,16 @@ _LOOP_OPTIONS = (
     ("clip_norm", click.FloatRange(min=0, min_open=True), "Clip the gradient's global norm to this before the noise."),
     ("seed", click.IntRange(min=0), "Seed of initialisation, batch order and noise."),
     ("device", click.Choice(["auto", "cpu", "cuda"]), "auto: CUDA when present, else CPU."),
+    (
+        "previous_noise",
+        click.FloatRange(min=0),
+        "Noise (standard deviation, normalised units) on the true previous poses fed in training; 0: none.",
+    ),
+    (
+        "max_minutes",
+        click.FloatRange(min=0, min_open=True),
+        "Time budget: when it runs out, the epoch ends there and the run finishes with a usable model.",
+    ),
 )
 """The training loop's options (:data:`kinectdata.training.config.LOOP_DEFAULTS`): every model's."""
 
@@ -131,6 +141,7 @@ def _row(row: dict) -> str:
     return (
         f"epoch {row['epoch']:>3}: train loss {row['train_loss']:.5f}, validation loss {val}, "
         f"validation SMAPE {smape} ({row['seconds']:.1f} s, {row['frames_per_second']:.0f} frames/s)"
+        + ("; the time budget ran out: training ends here" if row.get("stopped") else "")
     )
 
 
@@ -162,7 +173,14 @@ def train_baseline(data, out, resume, **options) -> None:
         config = TrainConfig.from_dict(read_config(out)["train"]).replace(**typed)
     else:
         config = make_train_config(data=data, **options)
-    history = train(data, out, config, resume=resume, progress=lambda r: click.echo(_row(r)))
+    import warnings
+
+    from kinectdata.training.train import TrainingWarning
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("always", TrainingWarning)
+        warnings.showwarning = lambda message, *_a, **_k: click.echo(f"warning: {message}", err=True)
+        history = train(data, out, config, resume=resume, progress=lambda r: click.echo(_row(r)))
     from kinectdata.training.distributed import World
 
     if World.from_environment().main:  # under torchrun, one line from rank 0

@@ -30,6 +30,8 @@ from __future__ import annotations
 
 import platform
 import time
+from collections.abc import Callable
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -40,8 +42,15 @@ import torch
 from kinectdata.core.errors import KinectDataError
 from kinectdata.dataset.shards import read_index
 from kinectdata.evaluation.figures import rhythm_plot, trajectories
+from kinectdata.evaluation.listening import HeldOutSong, listening_report
 from kinectdata.evaluation.metrics import motion_energy, smape
-from kinectdata.evaluation.rhythm_eval import rhythm_evaluation, summarize_rhythm
+from kinectdata.evaluation.rhythm_eval import (
+    recording_audio,
+    rhythm_evaluation,
+    split_beats,
+    summarize_rhythm,
+    target_positions,
+)
 from kinectdata.features import compute_features, feature_config
 from kinectdata.inference.engines import engine_pairs, make_engine, onnxruntime_available
 from kinectdata.models.kind import ModelKind
@@ -274,8 +283,10 @@ def evaluate(
     results["silence_test"] = sil
     results["figures"] = [str(fig6), str(fig7)]
     real = {r["name"]: (norm.invert(r["current"], spec, mask=r["mask"]), r["mask"]) for r in recordings}
-    per_recording = rhythm_evaluation(recordings, free, real, spec, manifest, fps)
+    beats = split_beats(recordings, manifest, fps)
+    per_recording = rhythm_evaluation(recordings, free, real, spec, beats, fps)
     results["rhythm"] = {"summary": summarize_rhythm(per_recording), "recordings": per_recording}
+    results["listening"] = listening_controls(net, recordings, beats, manifest, config)
     shown_rhythm = next((name for name, r in per_recording.items() if "real" in r), None)
     if shown_rhythm is not None:
         for which in ("real", "generated"):
@@ -287,6 +298,102 @@ def evaluate(
             results["figures"].append(str(fig))
     write_json(out / "results.json", results)
     return results
+
+
+@dataclass
+class SongSet:
+    """A split's recordings ready for the listening controls.
+
+    Attributes:
+        songs: the recordings whose music's beats are known (ground truth or tracked).
+        generate: ``generate(features [T, ...], first_pose [D]) -> positions [T-1, J, C]``, the
+            network run free as its model runs it, denormalised into the target's units.
+        features_of: ``features_of(samples [S]) -> features [T, ...]`` of mono audio at
+            ``features_of.sample_rate``, on the motion clock.
+        unavailable: why no recording has beats ("" when some have).
+    """
+
+    songs: list[HeldOutSong]
+    generate: Callable[[np.ndarray, np.ndarray], np.ndarray]
+    features_of: Callable[[np.ndarray], np.ndarray]
+    unavailable: str = ""
+
+
+def _song_set(
+    net: torch.nn.Module,
+    recordings: list[dict[str, Any]],
+    beats: dict[str, tuple],
+    manifest: dict[str, Any],
+    config: dict[str, Any],
+) -> SongSet:
+    kind = model_kind(model_name(config))
+    spec = TargetSpec.from_dict(config["dataset"]["target"])
+    norm = Normalizer.from_dict(config["dataset"]["normalisation"])
+    fps = config["dataset"]["fps"]
+    cfg = feature_config(config["dataset"]["features"])
+    inputs = {e["name"]: e for e in manifest["inputs"]}
+
+    def features_of(samples: np.ndarray) -> np.ndarray:
+        frames = int(len(samples) / cfg.sample_rate * fps)
+        starts = np.round(np.arange(frames) * cfg.sample_rate / fps).astype(np.int64)
+        return compute_features(np.asarray(samples, np.float32), starts, cfg)[0]
+
+    features_of.sample_rate = cfg.sample_rate  # type: ignore[attr-defined]
+
+    def generate(features: np.ndarray, first_pose: np.ndarray) -> np.ndarray:
+        values = norm.invert(kind.free_run(net, features, first_pose), spec)
+        return target_positions(values, np.ones_like(values, bool), spec)[0]
+
+    songs = []
+    for r in recordings:
+        music = beats[r["name"]][0]
+        if music is None:
+            continue
+        try:
+            samples = recording_audio(inputs[r["recording"]], r["info"], len(r["current"]), fps, cfg.sample_rate)
+            rms = float(np.sqrt(np.mean(np.square(samples, dtype=np.float64)))) if samples.size else None
+        except (KinectDataError, OSError):
+            rms = None
+        first = r.get("first_pose")
+        if first is None:
+            first = kind.fill_previous(r["current"][0], r["mask"][0], config["dataset"]["start_pose"])
+        positions, pmask = target_positions(norm.invert(r["current"], spec, mask=r["mask"]), r["mask"], spec)
+        songs.append(HeldOutSong(r["name"], r["input"], first, positions, pmask, music, fps, rms))
+    why = "" if songs else "no recording of the split has music beats (ground truth or tracked)"
+    return SongSet(songs, generate, features_of, why)
+
+
+def split_songs(net: torch.nn.Module, run_config: dict[str, Any], dataset: str | Path, split: str = "test") -> SongSet:
+    """The clean recordings of a dataset split as :class:`SongSet` for a network trained with
+    ``run_config`` (a run's ``config.json``): e.g. to measure beat following during training."""
+    dataset = Path(dataset)
+    manifest = read_manifest(dataset)
+    recordings = _recordings(dataset, manifest, split)
+    return _song_set(
+        net, recordings, split_beats(recordings, manifest, run_config["dataset"]["fps"]), manifest, run_config
+    )
+
+
+def listening_controls(
+    net: torch.nn.Module,
+    recordings: list[dict[str, Any]],
+    beats: dict[str, tuple],
+    manifest: dict[str, Any],
+    config: dict[str, Any],
+    *,
+    seed: int = 0,
+) -> dict[str, Any]:
+    """The beat-following figures with their chance levels and the listening controls
+    (:func:`~kinectdata.evaluation.listening.listening_report`) over the recordings whose beats are
+    known (ground truth or tracked), as JSON-ready figures with ``verdicts``; ``{"unavailable": why}``
+    when no recording has beats or the motion is too short for them."""
+    found = _song_set(net, recordings, beats, manifest, config)
+    if not found.songs:
+        return {"unavailable": found.unavailable}
+    try:
+        return listening_report(found.songs, found.generate, found.features_of, seed=seed).to_dict()
+    except KinectDataError as exc:  # too short for two bars of lags, too few beats
+        return {"unavailable": str(exc)}
 
 
 def _shown_components(names: list[str]) -> list[int]:
@@ -318,15 +425,11 @@ def format_results(results: dict[str, Any]) -> str:
         f"silent features identical: {sil['silent_features_identical']} (all {sil['silent_feature_value']:g})"
     )
     rhythm = results.get("rhythm", {}).get("summary", {})
-    for which in ("real", "generated"):
-        if which in rhythm:
-            v = rhythm[which]
-            lines.append(
-                f"  rhythm {which:<9} y peak at the beat period in {100 * v['y_peak_at_beat_share']:.0f}% of "
-                f"recordings (x: {100 * v['x_peak_at_beat_share']:.0f}%), y autocorrelation at the beat "
-                f"{v['y_autocorrelation_at_beat']:.2f}; Beat Align Score {v['beat_align_score']:.3f}, "
-                f"F-measure {v['f_measure']:.3f}"
-            )
+    listening = results.get("listening", {})
+    if "verdicts" in listening:
+        lines += [f"  {line}" for line in listening["verdicts"]]
+    elif listening:
+        lines.append(f"  listening      not measured: {listening['unavailable']}")
     if rhythm.get("unavailable"):
         lines.append(f"  rhythm         {rhythm['unavailable']} recordings without beats (see results.json)")
     lines.append("  figures        " + ", ".join(results["figures"]))

@@ -55,17 +55,23 @@ def recording_beats(entry: dict[str, Any], info: dict[str, Any], frames: int, fp
             except (OSError, ValueError, KeyError, TypeError) as exc:
                 return None, None, f"{truth}: no readable beat_times_s ({exc})"
     try:
-        if audio is not None:
-            reader = AudioReader(audio, sample_rate)
-            samples = np.concatenate(list(reader.blocks()))
-            first = int(round(start * sample_rate))
-            samples = samples[first : first + int(np.ceil(frames / fps * sample_rate))]
-        else:  # an aligned recording: its audio starts at frame 0
-            samples = np.concatenate(list(audio_blocks(entry["recording"])))
-        beats, _ = music_beats(samples, sample_rate)
+        beats, _ = music_beats(recording_audio(entry, info, frames, fps, sample_rate), sample_rate)
     except (KinectDataError, OSError) as exc:
         return None, None, str(exc)
     return beats, "beat tracker", None
+
+
+def recording_audio(entry: dict[str, Any], info: dict[str, Any], frames: int, fps: float, sample_rate: int):
+    """[S] float32 mono samples at ``sample_rate`` of a recording's music over its ``frames`` motion
+    frames, sample 0 at frame 0: from the audio file the manifest names (from its aligned start), or
+    from an aligned ``.h5``'s own audio. Raises KinectDataError or OSError when it cannot be read."""
+    audio = entry.get("audio")
+    if audio is not None:
+        start = float(info.get("alignment", {}).get("audio_trimmed_start_s", 0.0))
+        samples = np.concatenate(list(AudioReader(audio, sample_rate).blocks()))
+        first = int(round(start * sample_rate))
+        return samples[first : first + int(np.ceil(frames / fps * sample_rate))]
+    return np.concatenate(list(audio_blocks(entry["recording"])))
 
 
 def _aligned_from(aligned: str) -> Path | None:
@@ -95,25 +101,35 @@ def motion_rhythm(
     return report
 
 
+def split_beats(
+    recordings: list[dict[str, Any]], manifest: dict[str, Any], fps: float
+) -> dict[str, tuple[np.ndarray | None, str | None, str | None]]:
+    """Per recording of a split (dicts with ``name``, ``recording``, ``info``, ``current``): its
+    music's beats as :func:`recording_beats` finds them, ``(beats, source, why not)``."""
+    inputs = {e["name"]: e for e in manifest["inputs"]}
+    rate = manifest["config"]["sample_rate"]
+    return {
+        r["name"]: recording_beats(inputs[r["recording"]], r["info"], len(r["current"]), fps, rate) for r in recordings
+    }
+
+
 def rhythm_evaluation(
     recordings: list[dict[str, Any]],
     generated: dict[str, np.ndarray],
     real_values: dict[str, tuple[np.ndarray, np.ndarray]],
     spec: TargetSpec,
-    manifest: dict[str, Any],
+    beats: dict[str, tuple[np.ndarray | None, str | None, str | None]],
     fps: float,
 ) -> dict[str, Any]:
     """Per recording: the beats' source and period, and :func:`motion_rhythm` of the real motion
     (frames 0..T-1) and the generated one (frames 1..T-1). ``real_values[name]`` = (denormalised
-    targets [T, D], mask [T, D]); ``generated[name]`` = denormalised [T-1, D]."""
-    inputs = {e["name"]: e for e in manifest["inputs"]}
+    targets [T, D], mask [T, D]); ``generated[name]`` = denormalised [T-1, D]; ``beats[name]`` as
+    :func:`split_beats` gives them."""
     out: dict[str, Any] = {}
     for rec in recordings:
         values, mask = real_values[rec["name"]]
-        beats, source, why = recording_beats(
-            inputs[rec["recording"]], rec["info"], len(values), fps, manifest["config"]["sample_rate"]
-        )
-        if beats is None:
+        music, source, why = beats[rec["name"]]
+        if music is None:
             out[rec["name"]] = {"unavailable": why}
             continue
         real_pos, real_mask = target_positions(values, mask, spec)
@@ -121,8 +137,8 @@ def rhythm_evaluation(
         try:
             out[rec["name"]] = {
                 "beat_source": source,
-                "real": motion_rhythm(real_pos, real_mask, fps, beats, source),
-                "generated": motion_rhythm(gen_pos, None, fps, beats, source, first_frame=1),
+                "real": motion_rhythm(real_pos, real_mask, fps, music, source),
+                "generated": motion_rhythm(gen_pos, None, fps, music, source, first_frame=1),
             }
         except KinectDataError as exc:  # too short for its beat period, too few beats
             out[rec["name"]] = {"unavailable": str(exc)}

@@ -22,7 +22,7 @@ import numpy as np
 
 from kinectdata.core.errors import ConfigError
 from kinectdata.models.kind import ModelKind, Sweep
-from kinectdata.models.losses import masked_mse
+from kinectdata.models.losses import masked_mse, masked_velocity_mse
 
 YALTA_ACTIVATIONS = ("tanh", "relu", "elu")
 FEEDBACKS = ("predicted", "teacher")
@@ -44,6 +44,13 @@ class YaltaSettings:
             "choices": FEEDBACKS,
         },
     )
+    velocity_weight: float = field(
+        default=0.0,
+        metadata={
+            "help": "weight of a loss on the frame-to-frame changes added to the pose loss (0: the paper's MSE).",
+            "min": 0,
+        },
+    )
 
     def __post_init__(self) -> None:
         if self.feedback not in FEEDBACKS:
@@ -52,6 +59,8 @@ class YaltaSettings:
             raise ConfigError(f"activation must be one of {', '.join(YALTA_ACTIVATIONS)}, not {self.activation!r}")
         if not isinstance(self.units, int) or self.units < 1:
             raise ConfigError(f"units must be a positive integer, not {self.units!r}")
+        if not self.velocity_weight >= 0:
+            raise ConfigError("velocity_weight must be at least 0")
 
 
 YALTA_SWEEP = Sweep(
@@ -127,7 +136,10 @@ class YaltaKind(ModelKind):
         return net(audio, previous if settings.feedback == "teacher" else previous[:, 0], settings.feedback)
 
     def loss(self, net, pred, pose, mask, settings: YaltaSettings):
-        return masked_mse(pred, pose, mask)
+        loss = masked_mse(pred, pose, mask)
+        if settings.velocity_weight > 0:
+            loss = loss + settings.velocity_weight * masked_velocity_mse(pred, pose, mask)
+        return loss
 
     def free_batch(self, net, audio, previous, pred, settings: YaltaSettings) -> np.ndarray:
         """Predicted feedback already runs free in training: its predictions are the free run."""
@@ -170,7 +182,8 @@ class YaltaKind(ModelKind):
         return f"{settings.units} units, {settings.activation}, {settings.feedback} feedback"
 
     def loss_name(self, settings: YaltaSettings) -> str:
-        return "mean squared error (normalised targets)"
+        velocity = f" + {settings.velocity_weight:g} x velocity MSE" if settings.velocity_weight else ""
+        return f"mean squared error (normalised targets){velocity}"
 
 
 @dataclass(frozen=True)

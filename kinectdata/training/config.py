@@ -26,6 +26,8 @@ LOOP_DEFAULTS: dict[str, Any] = {
     "clip_norm": None,
     "seed": 0,
     "device": "auto",
+    "max_minutes": None,
+    "previous_noise": 0.0,
 }
 """The training loop's settings and their base defaults (Yalta et al.'s; a model's
 ``training_defaults`` change them)."""
@@ -56,6 +58,12 @@ class TrainConfig:
         clip_norm: clip the gradient's global norm to this before the noise (None: no clipping).
         seed: every random choice (initialisation, batch order, noise).
         device: ``auto`` (CUDA when present, else CPU), ``cpu`` or ``cuda``.
+        previous_noise: standard deviation of Gaussian noise added in training to the true previous
+            poses a model is fed (normalised units; teacher feedback), so that it cannot just copy
+            them and must take the motion from the music (0: none, the papers' training).
+        max_minutes: a time budget for training (None: none). When it runs out the current epoch
+            ends at the step it reached, is validated and logged, and the run finishes as if its
+            epochs were done (``model.pt`` and the exports written).
     """
 
     model: str
@@ -69,6 +77,8 @@ class TrainConfig:
     clip_norm: float | None
     seed: int
     device: str
+    max_minutes: float | None
+    previous_noise: float
     settings: Any
 
     def __init__(self, model: str | None = None, *, settings: Any = None, **given: Any) -> None:
@@ -90,6 +100,10 @@ class TrainConfig:
             raise ConfigError("sequence, stride, batch size and epochs must be positive")
         if self.lr <= 0 or self.noise_eta < 0 or self.noise_gamma < 0 or (self.clip_norm or 1) <= 0:
             raise ConfigError("lr and clip_norm must be positive, noise_eta and noise_gamma at least 0")
+        if not self.previous_noise >= 0:
+            raise ConfigError(f"previous_noise must be at least 0, not {self.previous_noise!r}")
+        if self.max_minutes is not None and not self.max_minutes > 0:
+            raise ConfigError(f"max_minutes must be positive, not {self.max_minutes!r}")
         if self.device not in ("auto", "cpu", "cuda"):
             raise ConfigError(f"device must be auto, cpu or cuda, not {self.device!r}")
 

@@ -37,7 +37,7 @@ import torch
 from torch.utils.data import DataLoader
 
 from kinectdata.core.atomic import atomic_output
-from kinectdata.core.errors import KinectDataError
+from kinectdata.core.errors import KinectDataError, KinectDataWarning
 from kinectdata.dataset.windows import WindowDataset
 from kinectdata.evaluation.metrics import smape
 from kinectdata.inference.export import export_network, stream_metadata
@@ -69,7 +69,34 @@ from kinectdata.training.distributed import (
 )
 from kinectdata.training.figures import loss_curves
 
-LOG_FIELDS = ["epoch", "step", "train_loss", "val_loss", "val_smape", "seconds", "frames_per_second"]
+LOG_FIELDS = ["epoch", "step", "train_loss", "val_loss", "val_smape", "seconds", "frames_per_second", "stopped"]
+"""``log.csv``'s columns; ``stopped`` is ``time budget`` on the epoch that the time budget cut short."""
+
+
+MIN_STEPS = 300
+"""Fewer optimiser steps than this in a whole run draw a :class:`TrainingWarning`: the learning
+benchmark's models need about a thousand to follow the beat (docs/training.md)."""
+
+
+class TrainingWarning(KinectDataWarning):
+    """A run that will finish but is unlikely to learn (e.g. far too few optimiser steps)."""
+
+
+def _warn_if_too_few_steps(windows: int, config: TrainConfig, world: World) -> None:
+    import warnings
+
+    per_epoch = math.ceil(windows / config.batch_size)
+    total = per_epoch * config.epochs
+    if total < MIN_STEPS and world.main:
+        warnings.warn(
+            f"this run takes {per_epoch} optimiser step{'s' if per_epoch != 1 else ''} per epoch, {total} in all "
+            f"({windows} training windows of {config.sequence} frames, batches of {config.batch_size}, "
+            f"{config.epochs} epochs): too few to learn to follow the music (a model needs about a thousand). "
+            f"Give more data, --stride below --sequence (overlapping windows), a smaller --batch-size or more "
+            f"--epochs (with --max-minutes as the limit)",
+            TrainingWarning,
+            stacklevel=3,
+        )
 
 
 @contextmanager
@@ -98,8 +125,8 @@ def _start_pose(dataset: Path, manifest: dict[str, Any]) -> list[float]:
     return (total / np.maximum(count, 1)).tolist()
 
 
-RESUMABLE_CHANGES = ("epochs", "device")
-"""Settings a resumed run may change: neither alters what the finished epochs computed."""
+RESUMABLE_CHANGES = ("epochs", "device", "max_minutes")
+"""Settings a resumed run may change: none alters what the finished epochs computed."""
 
 
 def _resumed_config(run: Path, saved: dict[str, Any], asked: TrainConfig | None) -> TrainConfig:
@@ -209,6 +236,7 @@ def train(
     resume: bool = False,
     stop_after: int | None = None,
     progress: Callable[[dict], None] | None = None,
+    epoch_metrics: Callable[[torch.nn.Module], dict[str, Any]] | None = None,
 ) -> list[dict]:
     """Train a registered model (``config.model``) on a dataset folder into the run folder ``out``.
 
@@ -221,6 +249,9 @@ def train(
             ``epochs`` (to train longer) and ``device`` may differ from the run's settings.
         stop_after: stop after this epoch (as an interruption would; the run stays resumable).
         progress: called with each epoch's log row.
+        epoch_metrics: called after each epoch's validation with the network (in evaluation mode,
+            on the main process); the values it returns are added to the epoch's row (e.g. beat
+            following measured on held-out songs, as ``benchmarks/bench_learning.py`` does).
 
     Returns:
         The log rows of all epochs so far.
@@ -248,6 +279,8 @@ def train(
     val_windows = WindowDataset(dataset, "val", config.sequence, config.sequence)
     if len(train_windows) == 0:
         raise KinectDataError(f"{dataset}: no training window of {config.sequence} frames (recordings too short?)")
+    if config.max_minutes is None:
+        _warn_if_too_few_steps(len(train_windows), config, world)
     run_config = {
         "train": config.to_dict(),
         "model": model_config,
@@ -288,13 +321,20 @@ def train(
         model = replicate(net, world, device)
         net.train()
         params = list(net.parameters())
+        deadline = None if config.max_minutes is None else time.monotonic() + 60 * config.max_minutes
+        out_of_time = False
         for epoch in range(len(history) + 1, config.epochs + 1):
             started, frames, total, weight = time.perf_counter(), 0, 0.0, 0.0
             for batch in _training_batches(train_windows, config, order, world):
+                if deadline is not None and frames and from_main([float(time.monotonic() > deadline)], world)[0]:
+                    out_of_time = True  # every rank stops at the same step: the main one decides
+                    break
                 audio, pose, mask = batch["audio"].to(device), batch["pose"].to(device), batch["mask"].to(device)
                 previous = kind.fill_previous(
                     batch["previous"].to(device), batch["previous_mask"].to(device), start_pose
                 )
+                if config.previous_noise > 0:  # torch's generator: seeded, and saved in the checkpoint
+                    previous = previous + config.previous_noise * torch.randn(previous.shape).to(device)
                 pred = kind.predict(model, audio, previous, config.settings)
                 loss = kind.loss(net, pred, pose, mask, config.settings)
                 valid = float(mask.sum())
@@ -321,7 +361,13 @@ def train(
                 "val_smape": val_smape if math.isfinite(val_smape) else None,
                 "seconds": round(seconds, 3),
                 "frames_per_second": round(frames / seconds, 1),
+                "stopped": "time budget" if out_of_time else None,
             }
+            if epoch_metrics is not None and world.main:
+                net.eval()
+                with torch.no_grad():
+                    row.update(epoch_metrics(net))
+                net.train()
             history.append(row)
             if world.main:  # the others keep no files
                 _write_log(run, history)
@@ -346,6 +392,8 @@ def train(
                     progress(row)
             if stop_after is not None and epoch >= stop_after and epoch < config.epochs:
                 return history
+            if out_of_time:
+                break
         if writer is not None:
             writer.close()
     if not world.main:

@@ -201,3 +201,29 @@ def test_teacher_feedback_trains_too(sample_dataset, tmp_path):
     history = train(sample_dataset, tmp_path / "t", TrainConfig(**{**TINY_TRAINING, "feedback": "teacher"}))
     assert history[1]["train_loss"] < history[0]["train_loss"]
     assert math.isfinite(history[1]["val_smape"])
+
+
+def test_a_time_budget_ends_training_cleanly_with_a_usable_model(sample_dataset, tmp_path):
+    calls = []
+
+    def metrics(net):
+        calls.append(net.training)
+        return {"probe": 1.5}
+
+    config = TrainConfig(**{**TINY_TRAINING, "epochs": 50, "max_minutes": 1e-5})
+    history = train(sample_dataset, tmp_path / "t", config, epoch_metrics=metrics)
+    assert len(history) == 1 and history[0]["stopped"] == "time budget" and history[0]["step"] >= 1
+    assert history[0]["probe"] == 1.5 and calls == [False]  # measured in evaluation mode
+    assert (tmp_path / "t" / "model.pt").is_file() and (tmp_path / "t" / "stream.ts").is_file()
+    net, _ = load_model(tmp_path / "t")
+    rows = list(csv.DictReader((tmp_path / "t" / "log.csv").open()))
+    assert rows[0]["stopped"] == "time budget"
+    with pytest.raises(KinectDataError, match="max_minutes"):
+        TrainConfig(**{**TINY_TRAINING, "max_minutes": 0})
+
+
+def test_a_run_with_too_few_optimiser_steps_is_warned_about(sample_dataset, tmp_path):
+    from kinectdata.training.train import TrainingWarning
+
+    with pytest.warns(TrainingWarning, match=r"optimiser steps? per epoch, \d+ in all .* too few to learn"):
+        train(sample_dataset, tmp_path / "t", TrainConfig(**{**TINY_TRAINING, "epochs": 1, "batch_size": 50}))

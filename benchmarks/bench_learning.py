@@ -1,0 +1,267 @@
+"""Do the bundled models learn to dance to the music? Trained on a synthetic corpus with known beats,
+scored on songs at tempi never seen in training, with the listening controls.
+
+The corpus (``kinectdata.synth``): sessions at tempi spread over 80-160 BPM, each with its own
+seed (arm figures, steps, sway), :data:`CORPUS_MINUTES` of training music in all; validation and
+test sessions at tempi that no training session has (:data:`VAL_TEMPI`, :data:`TEST_TEMPI`).
+Both pipelines' datasets are built from it (``yalta2016``: the Kinect v2 skeleton with STFT
+inputs; ``listen-to-dance``: the same dances seen by OpenPose, log-mel inputs).
+
+Each model is trained with its learning recipe (:data:`RECIPES`, stated in the output) within a
+time budget (``--minutes``, default 30 per model on this 2-core machine), measuring beat following
+on the test songs after every epoch, then ``evaluate`` runs on the test split: beat following with
+chance levels, the tempo's rank correlation, the swapped-song, noise, shifted-audio and silence
+controls, phase against baselines, energy against the real motion, SMAPE with and without reset.
+``--ablations`` trains each ablation of :data:`ABLATIONS` with the same budget and prints the same
+figures for each (what the recipe's changes are worth, and the paper's own settings).
+
+Run alone: ``python -m benchmarks.bench_learning --minutes 30 --seed 0 [--models yalta,cdhc]
+[--ablations] [--out DIR]``. Goals (issue 13): beat following >= 80 % of test songs, tempo rank
+correlation >= 0.9, the controls, Beat Align Score >= 0.8 x the real motion's and above the
+baselines, energy 0.5-2 x the real motion's.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import tempfile
+import time
+from pathlib import Path
+from typing import Any
+
+import torch
+
+from kinectdata.dataset.build import build_dataset
+from kinectdata.dataset.config import BuildConfig
+from kinectdata.evaluation.beat_following import RecordingBeats, beat_following
+from kinectdata.evaluation.evaluate import evaluate, split_songs
+from kinectdata.synth import synthesize_recording, write_openpose_recording, write_recording
+from kinectdata.training.config import TrainConfig
+from kinectdata.training.train import train
+
+from .summary import record
+
+CORPUS_MINUTES = 30.0
+TRAIN_TEMPI = tuple(range(80, 161, 4))
+"""21 training sessions, 80..160 BPM every 4."""
+VAL_TEMPI = (94, 142)
+TEST_TEMPI = (86, 102, 118, 134, 150)
+"""Test tempi: none is a training or validation tempo."""
+TEST_SECONDS = 60.0
+PIPELINES = {"yalta": "yalta2016", "cdhc": "listen-to-dance"}
+
+RECIPES: dict[str, dict[str, Any]] = {
+    "yalta": {
+        "units": 250,
+        "feedback": "teacher",
+        "previous_noise": 0.05,
+        "sequence": 150,
+        "batch_size": 8,
+        "lr": 1e-3,
+        "noise_eta": 0.0,
+        "clip_norm": 1.0,
+    },
+    "cdhc": {
+        "channels": 128,
+        "decoder_channels": 128,
+        "sequence": 150,
+        "batch_size": 8,
+        "lr": 1e-3,
+    },
+}
+"""The settings each model learns the beat with on 2 CPU cores (see docs/training.md, "Learning the beat")."""
+ABLATIONS: dict[str, dict[str, dict[str, Any]]] = {
+    "yalta": {
+        "the paper's settings (500 units, predicted feedback, batch 50, lr 1e-4, gradient noise)": {
+            "units": 500,
+            "feedback": "predicted",
+            "previous_noise": 0.0,
+            "batch_size": 50,
+            "lr": 1e-4,
+            "noise_eta": 0.01,
+            "clip_norm": None,
+        },
+        "teacher feedback without noise on the previous pose": {"previous_noise": 0.0},
+        "predicted feedback (the paper's), recipe otherwise": {"feedback": "predicted", "previous_noise": 0.0},
+    },
+    "cdhc": {
+        "the paper's width (256/128 channels), batch 16, lr 2e-4, 300-frame sequences": {
+            "channels": 256,
+            "decoder_channels": 128,
+            "batch_size": 16,
+            "lr": 2e-4,
+            "sequence": 300,
+        },
+    },
+}
+
+
+def make_corpus(root: Path, seed: int, corpus_minutes: float = CORPUS_MINUTES, models=("yalta", "cdhc")) -> dict:
+    """Synthesise the sessions and build the datasets the ``models`` need; returns their paths."""
+    per_session = max(30.0, 60 * corpus_minutes / len(TRAIN_TEMPI))
+    plan = (
+        [(t, "train", per_session) for t in TRAIN_TEMPI]
+        + [(t, "val", TEST_SECONDS) for t in VAL_TEMPI]
+        + [(t, "test", TEST_SECONDS) for t in TEST_TEMPI]
+    )
+    datasets = {}
+    started = time.perf_counter()
+    for model in models:
+        sessions = root / f"{model}_sessions"
+        lines = ["recordings:"]
+        for i, (tempo, split, seconds) in enumerate(plan):
+            rec = synthesize_recording(seed=1000 * seed + i, duration_s=seconds, tempo_bpm=float(tempo))
+            name = f"{split}_{i:02d}_{tempo}bpm"
+            if model == "yalta":
+                paths = write_recording(rec, sessions, name)
+                skeleton = Path(paths["skeleton"]).name
+            else:
+                paths = write_openpose_recording(rec, sessions, name)
+                skeleton = Path(paths["openpose"]).name
+            lines.append(f"  - {{recording: {skeleton}, audio: {Path(paths['audio']).name}, split: {split}}}")
+        (sessions / "recordings.yaml").write_text("\n".join(lines) + "\n")
+        config = BuildConfig.from_pipeline(PIPELINES[model])
+        manifest = build_dataset(
+            sessions / "recordings.yaml", root / f"{model}_dataset", config, jobs=2, video_fps=30.0
+        )
+        datasets[model] = root / f"{model}_dataset"
+        minutes = {s: manifest["splits"][s]["rows"] / 30 / 60 for s in ("train", "val", "test")}
+        print(
+            f"  {model} corpus: {len(plan)} sessions, train {minutes['train']:.1f} min at {TRAIN_TEMPI[0]}-"
+            f"{TRAIN_TEMPI[-1]} BPM, val {minutes['val']:.1f} min at {VAL_TEMPI}, test {minutes['test']:.1f} min at "
+            f"{TEST_TEMPI} BPM ({time.perf_counter() - started:.0f} s so far)",
+            flush=True,
+        )
+    return datasets
+
+
+def beat_metrics(run: Path, dataset: Path):
+    """An ``epoch_metrics`` for :func:`train`: beat following of the generated motion on the test songs."""
+
+    def measure(net: torch.nn.Module) -> dict[str, float]:
+        config = json.loads((run / "config.json").read_text())
+        found = split_songs(net, config, dataset, "test")
+        recs = [
+            RecordingBeats(s.name, found.generate(s.features, s.first_pose), None, s.fps, s.beats_s, first_frame=1)
+            for s in found.songs
+        ]
+        result = beat_following(recs, draws=100)
+        return {
+            "test_at_beat": result.at_beat.value,
+            "test_beat_align": result.beat_align_music.value,
+            "test_beat_align_chance": result.beat_align_music.chance,
+        }
+
+    return measure
+
+
+def train_and_score(
+    name: str, model: str, settings: dict[str, Any], dataset: Path, out: Path, minutes: float, seed: int
+) -> dict[str, Any]:
+    """Train within ``minutes``, then ``evaluate`` on the test split; print and return the figures."""
+    run = out / name
+    config = TrainConfig.for_model(model, **settings, epochs=1000, max_minutes=minutes, seed=seed)
+    print(
+        f"  [{name}] {model}: {', '.join(f'{k} {v}' for k, v in settings.items())}; budget {minutes:g} min", flush=True
+    )
+
+    def progress(row: dict[str, Any]) -> None:
+        print(
+            f"    epoch {row['epoch']:3d} step {row['step']:5d}: train {row['train_loss']:.4f} val "
+            f"{row['val_loss']:.4f}, test songs at the beat {row['test_at_beat']:.0%}, Beat Align Score "
+            f"{row['test_beat_align']:.3f} (chance {row['test_beat_align_chance']:.3f}), "
+            f"{row['frames_per_second']:.0f} frames/s",
+            flush=True,
+        )
+
+    started = time.perf_counter()
+    history = train(dataset, run, config, progress=progress, epoch_metrics=beat_metrics(run, dataset))
+    trained = time.perf_counter() - started
+    results = evaluate(run, dataset, "test", engines=[])
+    listening = results["listening"]
+    figure = learning_curves(history, run / "learning.png", f"{name}: {model}")
+    smape = results["smape"]
+    print(f"  [{name}] trained {trained / 60:.1f} min, {history[-1]['step']} steps, {len(history)} epochs")
+    for mode, v in smape.items():
+        print(f"    SMAPE {mode.replace('_', ' ')}: {v['smape_normalised']:.2f} % normalised")
+    for line in listening.get("verdicts", [f"listening not measured: {listening.get('unavailable')}"]):
+        print(f"    {line}")
+    print(f"    curves: {figure}")
+    return {"history": history, "results": results, "minutes": trained / 60, "figure": str(figure)}
+
+
+def learning_curves(history: list[dict[str, Any]], path: Path, title: str) -> Path:
+    """Training and validation loss, and the test songs' beat figures, per epoch."""
+    from kinectdata.core.figures import pyplot
+
+    plt = pyplot()
+    epochs = [r["epoch"] for r in history]
+    fig, (top, bottom) = plt.subplots(2, 1, figsize=(8, 6), sharex=True)
+    top.plot(epochs, [r["train_loss"] for r in history], label="training loss")
+    top.plot(epochs, [r["val_loss"] for r in history], label="validation loss")
+    top.set_yscale("log")
+    top.legend()
+    top.set_title(title)
+    bottom.plot(epochs, [r["test_at_beat"] for r in history], label="test songs with the period at the beat")
+    bottom.plot(epochs, [r["test_beat_align"] for r in history], label="Beat Align Score")
+    bottom.plot(epochs, [r["test_beat_align_chance"] for r in history], "--", label="its chance level")
+    bottom.set_xlabel("epoch")
+    bottom.set_ylim(0, 1.05)
+    bottom.legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+    return path
+
+
+def _headline(model: str, name: str, scored: dict[str, Any]) -> None:
+    listening = scored["results"]["listening"]
+    if "generated" not in listening:
+        return
+    g = listening["generated"]
+    record(
+        "learning",
+        f"{model} ({name}, {scored['minutes']:.0f} min): test songs at the beat / tempo rho / BAS vs real",
+        f"{g['at_beat']['value']:.0%} (chance {g['at_beat']['chance']:.0%}) / "
+        f"{g['tempo_correlation'] if g['tempo_correlation'] is None else round(g['tempo_correlation'], 2)} / "
+        f"{listening['phase_ratio']:.2f}x",
+    )
+
+
+def main(argv: list[str] | None = None) -> None:
+    parser = argparse.ArgumentParser(prog="python -m benchmarks.bench_learning", description=__doc__.split("\n")[0])
+    parser.add_argument("--minutes", type=float, default=30.0, help="training budget per model and ablation")
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--models", default="yalta,cdhc")
+    parser.add_argument("--corpus-minutes", type=float, default=CORPUS_MINUTES)
+    parser.add_argument("--ablations", action="store_true", help="also train every ablation (same budget each)")
+    parser.add_argument("--out", type=Path, default=None, help="keep the corpus, runs and figures here")
+    args = parser.parse_args(argv or [])
+    models = [m.strip() for m in args.models.split(",") if m.strip()]
+    torch.set_num_threads(2)
+    with tempfile.TemporaryDirectory() as tmp:
+        out = args.out or Path(tmp)
+        out.mkdir(parents=True, exist_ok=True)
+        datasets = make_corpus(out, args.seed, args.corpus_minutes, models)
+        summary = {}
+        for model in models:
+            scored = train_and_score(
+                "recipe", model, RECIPES[model], datasets[model], out / model, args.minutes, args.seed
+            )
+            _headline(model, "recipe", scored)
+            summary[f"{model} recipe"] = scored["results"]["listening"]
+            if args.ablations:
+                for label, change in ABLATIONS[model].items():
+                    name = "ablation-" + str(list(ABLATIONS[model]).index(label) + 1)
+                    print(f"  {name}: {label}")
+                    scored = train_and_score(
+                        name, model, {**RECIPES[model], **change}, datasets[model], out / model, args.minutes, args.seed
+                    )
+                    _headline(model, label, scored)
+        (out / "learning.json").write_text(json.dumps(summary, indent=1, default=str))
+
+
+if __name__ == "__main__":
+    main(sys.argv[1:])

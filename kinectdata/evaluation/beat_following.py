@@ -1,0 +1,494 @@
+"""Does motion follow the music? Its dominant period, the metrical level it sits at, and every rhythm
+figure beside its chance level (definitions: docs/rhythm.md, "Beat following and chance levels").
+
+- :func:`dominant_period`: the period of the vertical motion, from the autocorrelation of the joints'
+  up-axis trajectories (the analysis of Lee et al. 2018, "Listen to Dance"), looked at up to two bars;
+- :func:`metrical_level`: which level of the music's metre that period is (half beat, beat, two
+  beats, bar, two bars), within a tolerance of 10 %;
+- :func:`beat_following`: over a set of recordings (motion + the music's beats), the share whose
+  motion has its dominant period at the beat, the rank correlation of motion period and beat period
+  across songs, both Beat Align Scores and the beat F-measure, each with a chance level computed
+  from the same motion (the music's beats shifted by random phases; for the period, other songs'
+  tempi) and a one-sided p-value, and plain verdicts that say "yes" only when a figure is
+  significantly above its chance level.
+
+Why chance levels: the Beat Align Score grows with the number of motion beats (speed minima), so a
+motion that merely jitters scores high against any beat grid; and any motion's autocorrelation has
+some peak near some metrical level. Compared with the same motion against beats it was not made for,
+neither can pass for following the music.
+
+Times are seconds; motion frames are on a uniform grid, frame i at ``i / fps`` s.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from kinectdata.core.errors import KinectDataError
+from kinectdata.evaluation.rhythm import (
+    BEAT_ALIGN_SIGMA_S,
+    DRIFT_WINDOW_S,
+    autocorrelation_peaks,
+    beat_align_score,
+    beat_period_s,
+    motion_beat_fmeasure,
+    motion_beats,
+    trajectory_autocorrelation,
+)
+
+PERIOD_TOLERANCE = 0.10
+"""A period is at a metrical level when within 10 % of it."""
+BEATS_PER_BAR = 4
+"""Beats per bar when the music's metre is not known (most dance music is in 4)."""
+LEVELS = (("half beat", 0.5), ("beat", 1.0), ("two beats", 2.0), ("bar", None), ("two bars", None))
+"""The metrical levels looked at, in beats (the bar's from ``beats_per_bar``)."""
+DOMINANT_FRACTION = 0.8
+"""The dominant period is the shortest-lag autocorrelation peak at least this fraction of the
+highest peak's height: a motion that repeats every beat also repeats every two beats and every bar,
+with peaks about as high, and its period is the shortest of them."""
+MIN_PERIOD_S = 0.2
+"""Lags below this are not looked at (300 BPM: faster than any dance beat; sensor jitter lives here)."""
+FMEASURE_WINDOW_S = 0.1
+"""Tolerance of the beat F-measure in seconds (3 frames at 30 fps, the motion_dance window)."""
+CHANCE_DRAWS = 1000
+"""Random phase shifts drawn per recording for the chance levels."""
+SIGNIFICANCE = 0.05
+"""A verdict says "yes" only when the figure's one-sided p-value against chance is below this."""
+TEMPO_PRIOR_BPM = (60.0, 200.0)
+"""With fewer than two songs, the period's chance level is that of a tempo drawn log-uniformly here."""
+
+
+@dataclass(frozen=True)
+class PeriodEstimate:
+    """The dominant period of one motion's vertical movement.
+
+    Attributes:
+        period_s: the dominant period in seconds, or None when the autocorrelation has no peak.
+        height: the autocorrelation at that period (unitless, -1..1; 0 when none).
+        peaks: every peak found, ``(lag_s, height)`` in increasing lag.
+        max_lag_s: the largest lag looked at, seconds.
+    """
+
+    period_s: float | None
+    height: float
+    peaks: tuple[tuple[float, float], ...]
+    max_lag_s: float
+
+
+def vertical_autocorrelation(
+    positions: np.ndarray, mask: np.ndarray | None, fps: float, max_lag_s: float, up_axis: int = 1
+) -> np.ndarray:
+    """Autocorrelation [L + 1] of the joints' up-axis trajectories at lags 0..L frames, averaged over
+    joints, slow drift removed (:func:`~kinectdata.evaluation.rhythm.trajectory_autocorrelation`).
+
+    Args:
+        positions: [T, J, C] joint positions, any unit.
+        mask: [T, J] bool validity, or None.
+        fps: frames per second.
+        max_lag_s: largest lag in seconds (cut to half the motion).
+        up_axis: index of the vertical axis in C (1: y up, the Kinect's camera space).
+    """
+    pos = np.asarray(positions, dtype=np.float64)
+    if pos.ndim != 3 or not 0 <= up_axis < pos.shape[2]:
+        raise KinectDataError(f"positions must be [T, J, C] with up axis {up_axis} among C, got shape {pos.shape}")
+    if not fps > 0:
+        raise KinectDataError(f"fps must be positive, got {fps}")
+    max_lag = min(int(np.ceil(max_lag_s * fps)), pos.shape[0] // 2)
+    if max_lag < 2:
+        raise KinectDataError(f"{pos.shape[0]} frames are too few for an autocorrelation up to {max_lag_s:.2f} s")
+    vertical = pos[:, :, up_axis : up_axis + 1]
+    return trajectory_autocorrelation(vertical, mask, max_lag, max(1, round(DRIFT_WINDOW_S * fps)))[:, 0]
+
+
+def dominant_period(
+    positions: np.ndarray,
+    mask: np.ndarray | None,
+    fps: float,
+    max_lag_s: float,
+    up_axis: int = 1,
+) -> PeriodEstimate:
+    """The dominant period of the vertical motion: the shortest-lag autocorrelation peak (of
+    :func:`vertical_autocorrelation`, peaks as :func:`~kinectdata.evaluation.rhythm.autocorrelation_peaks`
+    finds them, lags of at least :data:`MIN_PERIOD_S`) whose height is at least
+    :data:`DOMINANT_FRACTION` of the highest peak's.
+
+    Args:
+        positions: [T, J, C] joint positions, any unit.
+        mask: [T, J] bool validity, or None.
+        fps: frames per second.
+        max_lag_s: largest lag in seconds (e.g. two bars and their tolerance).
+        up_axis: index of the vertical axis in C.
+    """
+    curve = vertical_autocorrelation(positions, mask, fps, max_lag_s, up_axis)
+    peaks = tuple((lag, h) for lag, h in autocorrelation_peaks(curve, fps) if lag >= MIN_PERIOD_S)
+    looked = (len(curve) - 1) / fps
+    if not peaks or max(h for _, h in peaks) <= 0:
+        return PeriodEstimate(None, 0.0, peaks, looked)
+    highest = max(h for _, h in peaks)
+    lag, height = next((lag, h) for lag, h in peaks if h >= DOMINANT_FRACTION * highest)
+    return PeriodEstimate(float(lag), float(height), peaks, looked)
+
+
+def metrical_level(
+    period_s: float | None, beat_period: float, beats_per_bar: int = BEATS_PER_BAR, tolerance: float = PERIOD_TOLERANCE
+) -> str | None:
+    """The metrical level (a name of :data:`LEVELS`) within ``tolerance`` of ``period_s``, or None.
+
+    Args:
+        period_s: a motion's period in seconds (None: None).
+        beat_period: the music's beat period in seconds.
+        beats_per_bar: beats per bar (4 unless the metre is known).
+        tolerance: relative tolerance (0.1: within 10 %).
+    """
+    if period_s is None:
+        return None
+    best, error = None, tolerance
+    for name, beats in _levels(beats_per_bar):
+        e = abs(period_s / (beats * beat_period) - 1)
+        if e <= error:
+            best, error = name, e
+    return best
+
+
+def _levels(beats_per_bar: int) -> list[tuple[str, float]]:
+    return [(n, b if b is not None else (beats_per_bar if n == "bar" else 2 * beats_per_bar)) for n, b in LEVELS]
+
+
+@dataclass(frozen=True)
+class ChanceFigure:
+    """A rhythm figure beside its chance level.
+
+    Attributes:
+        value: the figure (mean over recordings).
+        chance: its expected value by chance (mean over the chance draws).
+        chance_spread: the standard deviation of the chance draws' means (0 for an exact chance level).
+        p_value: one-sided probability of a value at least this high by chance.
+        chance_from: how the chance level was made.
+    """
+
+    value: float
+    chance: float
+    chance_spread: float
+    p_value: float
+    chance_from: str
+
+    @property
+    def above_chance(self) -> bool:
+        return self.p_value < SIGNIFICANCE
+
+    def describe(self, fmt: str = ".3f") -> str:
+        return f"{self.value:{fmt}} (chance {self.chance:{fmt}} +- {self.chance_spread:{fmt}}, p = {_p(self.p_value)})"
+
+
+@dataclass(frozen=True)
+class RecordingBeats:
+    """One recording's motion and its music's beats, on the motion's clock.
+
+    Attributes:
+        name: the recording's name.
+        positions: [T, J, C] joint positions (metres or any unit), row 0 at ``first_frame / fps`` s.
+        mask: [T, J] validity, or None.
+        fps: frames per second.
+        beats_s: [B] the music's beat times in seconds on the motion's clock (frame 0 at 0 s).
+        first_frame: the frame number of row 0 (1 for generated motion that starts from frame 0's true pose).
+        beats_per_bar: the metre (4 when unknown).
+        up_axis: the vertical axis' index in C.
+    """
+
+    name: str
+    positions: np.ndarray
+    mask: np.ndarray | None
+    fps: float
+    beats_s: np.ndarray
+    first_frame: int = 0
+    beats_per_bar: int = BEATS_PER_BAR
+    up_axis: int = 1
+
+    @property
+    def span_s(self) -> tuple[float, float]:
+        return self.first_frame / self.fps, (self.first_frame + len(self.positions) - 1) / self.fps
+
+    def beats_inside(self, beats: np.ndarray | None = None) -> np.ndarray:
+        b = self.beats_s if beats is None else beats
+        lo, hi = self.span_s
+        return b[(b >= lo) & (b <= hi)]
+
+    @property
+    def beat_period_s(self) -> float:
+        inside = self.beats_inside()
+        return beat_period_s(inside if inside.size >= 2 else self.beats_s)
+
+
+@dataclass(frozen=True)
+class RecordingRhythm:
+    """The rhythm figures of one recording's motion.
+
+    Attributes:
+        name: the recording. beat_period_s: the music's, seconds.
+        period: the motion's dominant period. level: its metrical level (None: none).
+        at_beat: the period is at the beat (within 10 %).
+        beat_align_music, beat_align_motion: Beat Align Scores averaged over the music's beats and
+            over the motion's beats (sigma 0.05 s).
+        f_measure: motion beats against music beats within :data:`FMEASURE_WINDOW_S`.
+        motion_beats: how many motion beats (speed minima) the motion has.
+    """
+
+    name: str
+    beat_period_s: float
+    period: PeriodEstimate
+    level: str | None
+    at_beat: bool
+    beat_align_music: float
+    beat_align_motion: float
+    f_measure: float
+    motion_beats: int
+    beat_times_s: np.ndarray = field(repr=False, default_factory=lambda: np.zeros(0))
+
+
+def recording_rhythm(rec: RecordingBeats) -> RecordingRhythm:
+    """The dominant period (looked at up to two bars and its tolerance), its metrical level, and the
+    beat scores of one recording's motion."""
+    period_s = rec.beat_period_s
+    estimate = dominant_period(
+        rec.positions, rec.mask, rec.fps, 2 * rec.beats_per_bar * period_s * (1 + 2 * PERIOD_TOLERANCE), rec.up_axis
+    )
+    level = metrical_level(estimate.period_s, period_s, rec.beats_per_bar)
+    beats = motion_beats(rec.positions, rec.mask, rec.fps) + rec.span_s[0]
+    music = rec.beats_inside()
+    return RecordingRhythm(
+        name=rec.name,
+        beat_period_s=period_s,
+        period=estimate,
+        level=level,
+        at_beat=level == "beat",
+        beat_align_music=_bas(music, beats, "music"),
+        beat_align_motion=_bas(music, beats, "motion"),
+        f_measure=motion_beat_fmeasure(music, beats, FMEASURE_WINDOW_S) if music.size else 0.0,
+        motion_beats=int(beats.size),
+        beat_times_s=beats,
+    )
+
+
+def _bas(music: np.ndarray, motion: np.ndarray, direction: str) -> float:
+    averaged = music if direction == "music" else motion
+    return beat_align_score(music, motion, BEAT_ALIGN_SIGMA_S, direction) if averaged.size else 0.0
+
+
+@dataclass(frozen=True)
+class BeatFollowing:
+    """Rhythm figures over a set of recordings, each beside its chance level.
+
+    Attributes:
+        recordings: per recording, :class:`RecordingRhythm`.
+        at_beat: share of recordings whose dominant period is at the beat, with the chance that a
+            song's beat period matches the motion's period (other songs' tempi).
+        levels: per metrical level (and "none"), how many recordings' periods sit there.
+        tempo_correlation: Spearman rank correlation, across recordings, of the motion's period with
+            the music's beat period (None with fewer than 3 recordings or equal periods).
+        beat_align_music, beat_align_motion, f_measure: means over recordings with their chance
+            levels from the same motion against the music's beats shifted by random phases.
+        beat_align_other_songs: the music-direction Beat Align Score of each motion against the
+            other songs' beats (None with one song): a second chance level.
+    """
+
+    recordings: list[RecordingRhythm]
+    at_beat: ChanceFigure
+    levels: dict[str, int]
+    tempo_correlation: float | None
+    beat_align_music: ChanceFigure
+    beat_align_motion: ChanceFigure
+    f_measure: ChanceFigure
+    beat_align_other_songs: float | None
+
+    @property
+    def follows_beat(self) -> bool:
+        """Most recordings' periods are at the beat, significantly more than by chance."""
+        return self.at_beat.value >= 0.5 and self.at_beat.above_chance
+
+    @property
+    def on_beat(self) -> bool:
+        """The motion's beats fall on the music's beats significantly more than by chance."""
+        return self.beat_align_music.above_chance and self.beat_align_motion.above_chance
+
+    @property
+    def dominant_level(self) -> str:
+        return max(self.levels, key=lambda k: self.levels[k]) if self.levels else "none"
+
+    def verdicts(self, what: str = "motion") -> list[str]:
+        """Plain lines with a yes or no and the figures next to it."""
+        periods = [r.period.period_s for r in self.recordings if r.period.period_s is not None]
+        music = float(np.median([r.beat_period_s for r in self.recordings]))
+        period = f"period {np.median(periods):.2f} s" if periods else "no period"
+        n = len(self.recordings)
+        level = self.dominant_level
+        lines = [
+            f"{what} follows the beat: {_yes(self.follows_beat)} ({period}, music {music:.2f} s; "
+            f"{round(self.at_beat.value * n)} of {n} at the beat, chance {self.at_beat.chance:.0%}, "
+            f"p = {_p(self.at_beat.p_value)}; most often at: {level})",
+            f"{what} moves on the beats: {_yes(self.on_beat)} (Beat Align Score {self.beat_align_music.describe()} "
+            f"over music beats, {self.beat_align_motion.describe()} over motion beats; "
+            f"F-measure {self.f_measure.describe('.2f')})",
+        ]
+        if self.tempo_correlation is not None:
+            lines.append(
+                f"{what} follows the tempo: {_yes(self.tempo_correlation >= 0.9)} "
+                f"(rank correlation of motion period and beat period {self.tempo_correlation:.2f} over {n} songs)"
+            )
+        return lines
+
+    def to_dict(self) -> dict:
+        """JSON-ready figures."""
+
+        def figure(f: ChanceFigure) -> dict:
+            return {
+                "value": f.value,
+                "chance": f.chance,
+                "chance_spread": f.chance_spread,
+                "p_value": f.p_value,
+                "chance_from": f.chance_from,
+                "above_chance": f.above_chance,
+            }
+
+        return {
+            "follows_beat": self.follows_beat,
+            "on_beat": self.on_beat,
+            "at_beat": figure(self.at_beat),
+            "levels": self.levels,
+            "tempo_correlation": self.tempo_correlation,
+            "beat_align_music": figure(self.beat_align_music),
+            "beat_align_motion": figure(self.beat_align_motion),
+            "f_measure": figure(self.f_measure),
+            "beat_align_other_songs": self.beat_align_other_songs,
+            "recordings": {
+                r.name: {
+                    "beat_period_s": r.beat_period_s,
+                    "period_s": r.period.period_s,
+                    "period_height": r.period.height,
+                    "level": r.level,
+                    "at_beat": r.at_beat,
+                    "beat_align_music": r.beat_align_music,
+                    "beat_align_motion": r.beat_align_motion,
+                    "f_measure": r.f_measure,
+                    "motion_beats": r.motion_beats,
+                    "peaks": [{"lag_s": lag, "height": h} for lag, h in r.period.peaks],
+                }
+                for r in self.recordings
+            },
+        }
+
+
+def beat_following(recordings: Sequence[RecordingBeats], *, draws: int = CHANCE_DRAWS, seed: int = 0) -> BeatFollowing:
+    """Rhythm figures over ``recordings``, each with its chance level and p-value.
+
+    - **At the beat** (:func:`recording_rhythm`): the share of recordings whose dominant period is
+      within 10 % of their music's beat period. Its chance level per recording is the share of the
+      other songs' beat periods the motion's period matches (one song: a tempo drawn log-uniformly
+      from :data:`TEMPO_PRIOR_BPM`); the p-value is the binomial tail of that many matches at the
+      mean chance rate.
+    - **Beat Align Scores and F-measure**: chance levels from the same motion against its music's
+      beats shifted by ``draws`` random phases (uniform over one beat period, the beats wrapped
+      around the motion's span so their number stays); the p-value is the share of draws whose
+      mean over recordings is at least the observed mean (plus one, over draws plus one).
+
+    Args:
+        recordings: the motions and their music's beats.
+        draws: random phase shifts per recording.
+        seed: the draws' random generator.
+    """
+    from scipy.stats import binomtest, spearmanr
+
+    if not recordings:
+        raise KinectDataError("beat following needs at least one recording")
+    rhythms = [recording_rhythm(r) for r in recordings]
+    n = len(rhythms)
+    periods = np.array([r.beat_period_s for r in rhythms])
+    chance_rates = []
+    for i, r in enumerate(rhythms):
+        others = np.delete(periods, i)
+        if others.size:
+            chance_rates.append(float(np.mean([_matches(r.period.period_s, p) for p in others])))
+        else:
+            chance_rates.append(_prior_match_rate(r.period.period_s))
+    hits = sum(r.at_beat for r in rhythms)
+    rate = float(np.mean(chance_rates))
+    p_at_beat = float(binomtest(hits, n, rate, alternative="greater").pvalue) if 0 < rate < 1 else float(rate >= 1)
+    at_beat = ChanceFigure(
+        hits / n,
+        rate,
+        0.0,
+        p_at_beat if hits else 1.0,
+        "other songs' beat periods" if n > 1 else f"a tempo drawn log-uniformly in {TEMPO_PRIOR_BPM}",
+    )
+    levels: dict[str, int] = {}
+    for r in rhythms:
+        levels[r.level or "none"] = levels.get(r.level or "none", 0) + 1
+    tempo = None
+    motion_periods = [r.period.period_s for r in rhythms]
+    if n >= 3 and all(p is not None for p in motion_periods) and np.ptp(periods) > 0 and np.ptp(motion_periods) > 0:
+        rho = spearmanr(motion_periods, periods).statistic
+        tempo = float(rho) if np.isfinite(rho) else None
+
+    rng = np.random.default_rng(seed)
+    shifted = np.zeros((3, draws, n))
+    for i, (rec, rhythm) in enumerate(zip(recordings, rhythms)):
+        for k, phase in enumerate(rng.uniform(0, rhythm.beat_period_s, draws)):
+            music = _wrapped(rec, phase)
+            shifted[0, k, i] = _bas(music, rhythm.beat_times_s, "music")
+            shifted[1, k, i] = _bas(music, rhythm.beat_times_s, "motion")
+            shifted[2, k, i] = motion_beat_fmeasure(music, rhythm.beat_times_s, FMEASURE_WINDOW_S) if music.size else 0
+    observed = np.array(
+        [[r.beat_align_music for r in rhythms], [r.beat_align_motion for r in rhythms], [r.f_measure for r in rhythms]]
+    )
+    figures = [_shifted_figure(observed[m].mean(), shifted[m].mean(axis=1)) for m in range(3)]
+    other_songs = None
+    if n > 1:
+        other_songs = float(
+            np.mean(
+                [
+                    _bas(rec.beats_inside(recordings[j].beats_s), rhythm.beat_times_s, "music")
+                    for i, (rec, rhythm) in enumerate(zip(recordings, rhythms))
+                    for j in range(n)
+                    if j != i
+                ]
+            )
+        )
+    return BeatFollowing(rhythms, at_beat, levels, tempo, *figures, other_songs)
+
+
+def _shifted_figure(value: float, draws: np.ndarray) -> ChanceFigure:
+    p = (1 + np.count_nonzero(draws >= value - 1e-12)) / (1 + draws.size)
+    return ChanceFigure(
+        float(value), float(draws.mean()), float(draws.std()), float(p), "beats shifted by random phases"
+    )
+
+
+def _wrapped(rec: RecordingBeats, phase: float) -> np.ndarray:
+    """The recording's music beats inside its span, shifted by ``phase`` s and wrapped around the span."""
+    lo, hi = rec.span_s
+    inside = rec.beats_inside()
+    return np.sort(lo + np.mod(inside + phase - lo, hi - lo + 1 / rec.fps))
+
+
+def _matches(period_s: float | None, beat_period: float) -> bool:
+    return period_s is not None and abs(period_s / beat_period - 1) <= PERIOD_TOLERANCE
+
+
+def _prior_match_rate(period_s: float | None) -> float:
+    """Probability that a beat period drawn log-uniformly from :data:`TEMPO_PRIOR_BPM` lies within
+    10 % of ``period_s`` (that the period is within 10 % of it)."""
+    if period_s is None:
+        return 0.0
+    lo, hi = 60.0 / TEMPO_PRIOR_BPM[1], 60.0 / TEMPO_PRIOR_BPM[0]
+    a, b = max(lo, period_s / (1 + PERIOD_TOLERANCE)), min(hi, period_s / (1 - PERIOD_TOLERANCE))
+    return max(0.0, float(np.log(b / a) / np.log(hi / lo))) if b > a else 0.0
+
+
+def _yes(flag: bool) -> str:
+    return "yes" if flag else "no"
+
+
+def _p(p: float) -> str:
+    return f"{p:.2g}" if p >= 0.001 else "< 0.001"

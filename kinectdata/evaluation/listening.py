@@ -1,0 +1,330 @@
+"""Does a trained model listen to the music? Its generated motion against the real one, and the
+controls that tell a model that listens from one that ignores the audio (docs/rhythm.md).
+
+For a set of test songs (each: its features, the true first pose, the real motion and the music's
+beats), with one trained network:
+
+- **generated** motion for each song, and the real motion, through
+  :func:`~kinectdata.evaluation.beat_following.beat_following` (period, metrical level, Beat
+  Align Scores, F-measure, each beside its chance level);
+- **swapped songs**: each song's start pose with another test song of a different tempo (the
+  one whose tempo differs most): the motion's period must follow the new song;
+- **noise**: the audio replaced by white noise of the song's loudness (RMS): beat following falls
+  to its chance level;
+- **shifted**: the audio shifted against the motion by a random time (2 s or more, a fraction of
+  a beat off the grid): the Beat Align Score against the original beats falls to its chance level;
+- **silence**: all-silent audio: the motion's energy against the energy with music (the paper's
+  Figure 7: the motion stops);
+- **baselines** for the phase: the mean real pose with Gaussian noise of the real motion's
+  per-coordinate spread, and the real motion of another song, each scored against the song's beats;
+- **alive**: the generated motion's energy (mean squared joint speed) against the real motion's.
+
+Every function takes plain arrays; the network is run through its model kind's ``free_run``.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from kinectdata.core.errors import KinectDataError
+from kinectdata.evaluation.beat_following import (
+    PERIOD_TOLERANCE,
+    BeatFollowing,
+    RecordingBeats,
+    beat_following,
+)
+
+ALIVE_RANGE = (0.5, 2.0)
+"""Generated motion is alive, not frozen or wild, when its energy is within these times the real motion's."""
+SILENCE_STOPS = 0.1
+"""Silence stops the motion when the energy under silence is below this fraction of the energy with music."""
+MIN_SHIFT_S = 2.0
+
+
+@dataclass(frozen=True)
+class HeldOutSong:
+    """One test recording for the listening controls.
+
+    Attributes:
+        name: the recording.
+        features: [T, *feature shape] the model's inputs, one per motion frame.
+        first_pose: [D] the model's previous pose for frame 1 (the true pose of frame 0).
+        real_positions: [T, J, C] the real motion (metres, or the target's units).
+        real_mask: [T, J] its validity.
+        beats_s: [B] the music's beat times on the motion's clock, seconds.
+        fps: motion frames per second.
+        rms: the audio's root mean square (full scale 1), for the noise control (None: no noise control).
+    """
+
+    name: str
+    features: np.ndarray
+    first_pose: np.ndarray
+    real_positions: np.ndarray
+    real_mask: np.ndarray | None
+    beats_s: np.ndarray
+    fps: float
+    rms: float | None = None
+
+
+@dataclass(frozen=True)
+class Listening:
+    """The figures and controls of :func:`listening_report`.
+
+    Attributes:
+        real, generated: beat following of the real and the generated motion.
+        swapped: the swapped-song control's beat following against the new songs' beats (None: one song).
+        swapped_follows_new: share of swapped runs whose period is at the new song's beat.
+        swapped_follows_old: share at the original song's beat instead.
+        noise: beat following of the motion generated from noise (None: no audio loudness known).
+        shifted: beat following of the motion generated from shifted audio, against the original beats.
+        silence_energy_ratio: energy under silence over energy with music.
+        energy_ratio: generated motion energy over real motion energy.
+        baselines: Beat Align Score (music direction) of the mean pose with noise and of another
+            song's real motion, against each song's beats.
+        generated_positions: per song, the generated motion [T-1, J, C] (frames 1..T-1).
+    """
+
+    real: BeatFollowing
+    generated: BeatFollowing
+    swapped: BeatFollowing | None
+    swapped_follows_new: float | None
+    swapped_follows_old: float | None
+    noise: BeatFollowing | None
+    shifted: BeatFollowing
+    silence_energy_ratio: float
+    energy_ratio: float
+    baselines: dict[str, float | None]
+    generated_positions: dict[str, np.ndarray] = field(repr=False, default_factory=dict)
+
+    @property
+    def alive(self) -> bool:
+        return ALIVE_RANGE[0] <= self.energy_ratio <= ALIVE_RANGE[1]
+
+    @property
+    def listens(self) -> bool:
+        """The motion follows the music it is given and not the music it came with, and noise does not
+        make it follow the beat."""
+        swapped = self.swapped is None or (self.swapped.follows_beat and self.swapped_follows_new > 0.5)
+        noise = self.noise is None or not self.noise.follows_beat
+        return self.generated.follows_beat and swapped and noise
+
+    @property
+    def phase_ratio(self) -> float:
+        """The generated motion's Beat Align Score (music direction) over the real motion's."""
+        real = self.real.beat_align_music.value
+        return self.generated.beat_align_music.value / real if real > 0 else float("nan")
+
+    def verdicts(self) -> list[str]:
+        """Plain lines: a yes or no, and the figures beside it."""
+        lines = self.generated.verdicts("generated motion")
+        lines += [f"  (real motion: {line.split(': ', 1)[1]})" for line in self.real.verdicts("real")[:2]]
+        if self.swapped is not None:
+            lines.append(
+                f"listens to the music: {'yes' if self.listens else 'no'} (swapped-song control: the period "
+                f"follows the new song in {self.swapped_follows_new:.0%} of runs, the old one in "
+                f"{self.swapped_follows_old:.0%}; noise control: "
+                + (
+                    f"at the beat in {self.noise.at_beat.value:.0%}, chance {self.noise.at_beat.chance:.0%}"
+                    if self.noise is not None
+                    else "not run (audio loudness unknown)"
+                )
+                + ")"
+            )
+        lines.append(
+            f"moves with the music's phase: {'yes' if self.phase_ratio >= 0.8 else 'no'} (Beat Align Score "
+            f"{self.generated.beat_align_music.value:.3f} = {self.phase_ratio:.2f} x the real motion's "
+            f"{self.real.beat_align_music.value:.3f}; shifted audio {self.shifted.beat_align_music.describe()}; "
+            f"baselines: mean pose + noise {_fmt(self.baselines['mean_pose_noise'])}, "
+            f"another song's real motion {_fmt(self.baselines['other_song'])})"
+        )
+        lines.append(
+            f"generated motion is alive: {'yes' if self.alive else 'no'} (energy {self.energy_ratio:.2f} x the real "
+            f"motion's; wanted {ALIVE_RANGE[0]:g}-{ALIVE_RANGE[1]:g})"
+        )
+        lines.append(
+            f"stops in silence: {'yes' if self.silence_energy_ratio < SILENCE_STOPS else 'no'} (energy "
+            f"{self.silence_energy_ratio:.2g} x the energy with music)"
+        )
+        return lines
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "real": self.real.to_dict(),
+            "generated": self.generated.to_dict(),
+            "swapped": None if self.swapped is None else self.swapped.to_dict(),
+            "swapped_follows_new": self.swapped_follows_new,
+            "swapped_follows_old": self.swapped_follows_old,
+            "noise": None if self.noise is None else self.noise.to_dict(),
+            "shifted": self.shifted.to_dict(),
+            "silence_energy_ratio": self.silence_energy_ratio,
+            "energy_ratio": self.energy_ratio,
+            "alive": self.alive,
+            "listens": self.listens,
+            "phase_ratio": self.phase_ratio,
+            "baselines": self.baselines,
+            "verdicts": self.verdicts(),
+        }
+
+
+def motion_energy_per_s(positions: np.ndarray, mask: np.ndarray | None, fps: float) -> float:
+    """Mean squared joint speed, (units / s)^2: central-difference velocities of [T, J, C]
+    positions, averaged over the joints and frames where the joint and both neighbours are valid."""
+    pos = np.asarray(positions, np.float64)
+    valid = np.isfinite(pos).all(axis=2) if mask is None else np.asarray(mask, bool) & np.isfinite(pos).all(axis=2)
+    if pos.shape[0] < 3:
+        raise KinectDataError(f"motion energy needs at least 3 frames, got {pos.shape[0]}")
+    velocity = (pos[2:] - pos[:-2]) * fps / 2
+    ok = valid[2:] & valid[:-2]
+    if not ok.any():
+        raise KinectDataError("motion energy: no joint is valid in two frames two apart")
+    return float((velocity**2).sum(axis=2)[ok].mean())
+
+
+def listening_report(
+    songs: list[HeldOutSong],
+    generate: Callable[[np.ndarray, np.ndarray], np.ndarray],
+    features_of: Callable[[np.ndarray], np.ndarray],
+    *,
+    seed: int = 0,
+    draws: int = 500,
+) -> Listening:
+    """Run the generated-motion figures and the listening controls (module docstring).
+
+    Args:
+        songs: the test songs.
+        generate: ``generate(features [T, ...], first_pose [D]) -> positions [T-1, J, C]``: the
+            model run free from the first pose, its output as positions in the real motion's units.
+        features_of: ``features_of(samples [S]) -> features [T, ...]``: the model's features of mono
+            audio on the songs' motion clock (frame k at k / fps); its ``sample_rate`` attribute
+            gives the rate (default 16 kHz). Makes the noise and silence controls' inputs.
+        seed: the random choices (noise, shifts, chance draws).
+        draws: chance draws per recording.
+    """
+    if not songs:
+        raise KinectDataError("the listening controls need at least one test song")
+    rng = np.random.default_rng(seed)
+
+    def following(motions: list[tuple[str, np.ndarray, np.ndarray | None, HeldOutSong]], first: int) -> BeatFollowing:
+        recs = [RecordingBeats(n, p, m, s.fps, s.beats_s, first_frame=first) for n, p, m, s in motions]
+        return beat_following(recs, draws=draws, seed=seed)
+
+    real = following([(s.name, s.real_positions, s.real_mask, s) for s in songs], 0)
+    generated_positions = {s.name: generate(s.features, s.first_pose) for s in songs}
+    generated = following([(s.name, generated_positions[s.name], None, s) for s in songs], 1)
+
+    swapped = follows_new = follows_old = None
+    partners = _swap_partners(songs, real)
+    if partners:
+        runs = []
+        for i, j in partners:
+            length = min(len(songs[i].features), len(songs[j].features))
+            motion = generate(songs[j].features[:length], songs[i].first_pose)
+            runs.append((f"{songs[i].name} with {songs[j].name}'s music", motion, None, songs[j], songs[i]))
+        swapped = following([(n, p, m, s) for n, p, m, s, _ in runs], 1)
+        follows_new = float(np.mean([r.at_beat for r in swapped.recordings]))
+        old = [
+            abs(r.period.period_s / _period(orig) - 1) <= PERIOD_TOLERANCE if r.period.period_s else False
+            for r, (*_, orig) in zip(swapped.recordings, runs)
+        ]
+        follows_old = float(np.mean(old))
+
+    noise = None
+    if all(s.rms is not None for s in songs):
+        motions = []
+        for s in songs:
+            audio = rng.normal(0.0, s.rms, _samples_for(s, features_of)).astype(np.float32)
+            features = features_of(audio)[: len(s.features)]
+            motions.append((s.name, generate(features, s.first_pose), None, s))
+        noise = following(motions, 1)
+
+    shifted_motions = []
+    for s, rhythm in zip(songs, real.recordings):
+        frames = len(s.features)
+        shift = int(round((MIN_SHIFT_S + rng.uniform(0.25, 0.75) * rhythm.beat_period_s) * s.fps))
+        shift = shift % frames if frames > 2 * shift else max(1, frames // 3)
+        shifted_motions.append((s.name, generate(np.roll(s.features, shift, axis=0), s.first_pose), None, s))
+    shifted = following(shifted_motions, 1)
+
+    silence = []
+    for s in songs:
+        quiet = features_of(np.zeros(_samples_for(s, features_of), np.float32))[: len(s.features)]
+        still = generate(quiet, s.first_pose)
+        moving = generated_positions[s.name]
+        silence.append(motion_energy_per_s(still[_settle(s) :], None, s.fps) / motion_energy_per_s(moving, None, s.fps))
+    energy = float(
+        np.mean(
+            [
+                motion_energy_per_s(generated_positions[s.name], None, s.fps)
+                / motion_energy_per_s(s.real_positions, s.real_mask, s.fps)
+                for s in songs
+            ]
+        )
+    )
+    return Listening(
+        real=real,
+        generated=generated,
+        swapped=swapped,
+        swapped_follows_new=follows_new,
+        swapped_follows_old=follows_old,
+        noise=noise,
+        shifted=shifted,
+        silence_energy_ratio=float(np.mean(silence)),
+        energy_ratio=energy,
+        baselines=_baselines(songs, real, rng, draws, seed),
+        generated_positions=generated_positions,
+    )
+
+
+def _settle(song: HeldOutSong) -> int:
+    """Frames given to the motion to stop when the music goes silent (one second)."""
+    return int(round(song.fps))
+
+
+def _samples_for(song: HeldOutSong, features_of: Callable[[np.ndarray], np.ndarray]) -> int:
+    """Audio samples for the song's frames, as ``features_of`` declares its rate (``sample_rate``
+    attribute, default 16 kHz)."""
+    rate = getattr(features_of, "sample_rate", 16000)
+    return int(np.ceil((len(song.features) + 1) / song.fps * rate)) + rate // 10
+
+
+def _period(song: HeldOutSong) -> float:
+    from kinectdata.evaluation.rhythm import beat_period_s
+
+    return beat_period_s(song.beats_s)
+
+
+def _swap_partners(songs: list[HeldOutSong], real: BeatFollowing) -> list[tuple[int, int]]:
+    """(i, j) pairs: each song with the song whose beat period differs most from its own, when that
+    differs by more than twice the period tolerance (so that following either can be told apart)."""
+    periods = np.array([r.beat_period_s for r in real.recordings])
+    pairs = []
+    for i, p in enumerate(periods):
+        ratio = np.abs(np.log(periods / p))
+        j = int(np.argmax(ratio))
+        if ratio[j] > np.log(1 + 2 * PERIOD_TOLERANCE):
+            pairs.append((i, j))
+    return pairs
+
+
+def _baselines(
+    songs: list[HeldOutSong], real: BeatFollowing, rng: np.random.Generator, draws: int, seed: int
+) -> dict[str, float | None]:
+    """Beat Align Scores (music direction) of the mean pose with noise and of another song's real motion."""
+    noisy = []
+    for s in songs:
+        pos = np.asarray(s.real_positions, np.float64)
+        valid = np.isfinite(pos).all(axis=2) if s.real_mask is None else np.asarray(s.real_mask, bool)
+        masked = np.where(valid[..., None], pos, np.nan)
+        mean, spread = np.nanmean(masked, axis=0), np.nanstd(masked, axis=0)
+        fake = mean + rng.normal(size=pos.shape) * np.nan_to_num(spread)
+        noisy.append(RecordingBeats(s.name, np.nan_to_num(fake), None, s.fps, s.beats_s))
+    noise_score = beat_following(noisy, draws=min(draws, 50), seed=seed).beat_align_music.value
+    return {"mean_pose_noise": noise_score, "other_song": real.beat_align_other_songs}
+
+
+def _fmt(v: float | None) -> str:
+    return "n/a" if v is None else f"{v:.3f}"

@@ -1,0 +1,152 @@
+"""Beat following, metrical levels and chance levels on motions with known periods and phases."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from kinectdata.core.errors import KinectDataError
+from kinectdata.evaluation.beat_following import (
+    TEMPO_PRIOR_BPM,
+    RecordingBeats,
+    _prior_match_rate,
+    beat_following,
+    dominant_period,
+    metrical_level,
+)
+
+FPS = 30.0
+
+
+def bouncer(period_s: float, seconds: float = 40.0, *, phase_s: float = 0.0, seed: int = 0, joints: int = 8):
+    """[T, J, 3] metres: every joint bounces down and up once per ``period_s`` (lowest at
+    ``phase_s + k * period_s``), over a slow sway in x, with 2 mm of sensor noise."""
+    rng = np.random.default_rng(seed)
+    t = np.arange(int(seconds * FPS)) / FPS
+    pos = np.zeros((t.size, joints, 3))
+    for j in range(joints):
+        pos[:, j, 0] = 0.1 * j + 0.2 * np.sin(2 * np.pi * t / 7.3) + rng.normal(0, 0.002, t.size)
+        pos[:, j, 1] = 0.2 * j - rng.uniform(0.03, 0.06) * np.cos(2 * np.pi * (t - phase_s) / period_s)
+        pos[:, j, 1] += rng.normal(0, 0.002, t.size)
+        pos[:, j, 2] = 2.5 + rng.normal(0, 0.002, t.size)
+    return pos
+
+
+def beats(period_s: float, seconds: float = 40.0, first: float = 0.0) -> np.ndarray:
+    return np.arange(first, seconds, period_s)
+
+
+@pytest.mark.parametrize(
+    ("motion_beats", "level"), [(1, "beat"), (2, "two beats"), (4, "bar"), (8, "two bars"), (0.5, "half beat")]
+)
+def test_dominant_period_and_its_metrical_level(motion_beats, level):
+    beat = 0.5
+    pos = bouncer(beat * motion_beats, seconds=60.0)
+    estimate = dominant_period(pos, None, FPS, max_lag_s=2 * 4 * beat * 1.2)
+    assert estimate.period_s == pytest.approx(beat * motion_beats, rel=0.03)
+    assert metrical_level(estimate.period_s, beat) == level
+
+
+def test_a_motion_that_repeats_per_beat_is_at_the_beat_not_its_multiples():
+    """A bounce every beat plus a sway every bar: the autocorrelation peaks at 1, 2, 3, 4 beats;
+    the shortest strong one is the period."""
+    beat = 0.6
+    pos = bouncer(beat, seconds=60.0)
+    t = np.arange(len(pos)) / FPS
+    pos[:, :, 1] += 0.01 * np.sin(2 * np.pi * t / (4 * beat))[:, None]
+    estimate = dominant_period(pos, None, FPS, max_lag_s=2 * 4 * beat * 1.2)
+    assert metrical_level(estimate.period_s, beat) == "beat"
+    assert len(estimate.peaks) >= 4
+
+
+def test_metrical_level_tolerance_is_ten_percent():
+    assert metrical_level(0.545, 0.5) == "beat"
+    assert metrical_level(0.56, 0.5) is None
+    assert metrical_level(1.5, 0.5, beats_per_bar=3) == "bar"
+    assert metrical_level(None, 0.5) is None
+
+
+def test_white_noise_has_no_dominant_period_at_the_beat():
+    pos = np.random.default_rng(3).normal(0, 0.01, (1200, 8, 3))
+    estimate = dominant_period(pos, None, FPS, max_lag_s=5.0)
+    assert estimate.period_s is None or metrical_level(estimate.period_s, 0.5) is None
+
+
+def test_prior_match_rate_equals_monte_carlo():
+    rng = np.random.default_rng(0)
+    tempi = np.exp(rng.uniform(*np.log(TEMPO_PRIOR_BPM), 400_000))
+    for period in (0.35, 0.5, 0.9, 1.05):
+        expected = np.mean(np.abs(period / (60 / tempi) - 1) <= 0.1)
+        assert _prior_match_rate(period) == pytest.approx(expected, abs=0.003)
+
+
+def _set(periods, *, phase_s=0.0, motion_periods=None, seconds=40.0):
+    recs = []
+    for i, p in enumerate(periods):
+        mp = p if motion_periods is None else motion_periods[i]
+        recs.append(
+            RecordingBeats(f"r{i}", bouncer(mp, seconds, phase_s=phase_s, seed=i), None, FPS, beats(p, seconds))
+        )
+    return recs
+
+
+def test_motion_locked_to_the_beat_follows_it_significantly():
+    periods = [0.75, 0.63, 0.55, 0.48, 0.41]  # 80..146 BPM
+    result = beat_following(_set(periods), draws=300)
+    assert result.at_beat.value == 1.0
+    assert result.at_beat.chance < 0.3 and result.at_beat.p_value < 0.01
+    assert result.levels == {"beat": 5}
+    assert result.tempo_correlation == pytest.approx(1.0)
+    assert result.beat_align_music.value > result.beat_align_music.chance + 3 * result.beat_align_music.chance_spread
+    assert result.beat_align_music.p_value < 0.01 and result.on_beat and result.follows_beat
+    assert result.beat_align_other_songs < result.beat_align_music.value
+    lines = result.verdicts("generated motion")
+    assert lines[0].startswith("generated motion follows the beat: yes")
+    assert lines[1].startswith("generated motion moves on the beats: yes")
+    assert lines[2].startswith("generated motion follows the tempo: yes")
+
+
+def test_motion_at_the_right_tempo_but_off_phase_follows_the_beat_but_not_on_the_beats():
+    """Lowest half-way between the beats: the period is right, the phase is not. Speed minima (at
+    the bottom and top of the bounce) then sit a quarter beat from every music beat."""
+    periods = [0.75, 0.63, 0.55, 0.48, 0.41]
+    recs = [
+        RecordingBeats(f"r{i}", bouncer(p, phase_s=p / 4, seed=i), None, FPS, beats(p)) for i, p in enumerate(periods)
+    ]
+    result = beat_following(recs, draws=300)
+    assert result.follows_beat
+    assert not result.on_beat
+    assert result.beat_align_music.p_value > 0.5  # below its chance level: anti-phase
+
+
+def test_motion_of_another_tempo_does_not_follow_the_beat():
+    periods = [0.75, 0.63, 0.55, 0.48, 0.41]
+    result = beat_following(_set(periods, motion_periods=[0.93] * 5), draws=200)
+    assert result.at_beat.value == 0.0 and not result.follows_beat
+    assert result.tempo_correlation is None or result.tempo_correlation < 0.9  # the same period for every song
+    assert "follows the beat: no" in result.verdicts()[0]
+
+
+def test_jitter_scores_a_high_beat_align_score_but_not_above_its_chance_level():
+    """Many speed minima: every music beat has one nearby, so the score is high, and it is just as
+    high against beats at any phase."""
+    rng = np.random.default_rng(5)
+    periods = [0.75, 0.63, 0.55, 0.48, 0.41]
+    recs = [
+        RecordingBeats(f"r{i}", rng.normal(0, 0.005, (1200, 8, 3)), None, FPS, beats(p)) for i, p in enumerate(periods)
+    ]
+    result = beat_following(recs, draws=300)
+    assert result.beat_align_music.value > 0.2
+    assert result.beat_align_music.p_value > 0.05
+    assert not result.on_beat and not result.follows_beat
+
+
+def test_one_recording_uses_the_tempo_prior_for_the_period_chance():
+    result = beat_following(_set([0.5]), draws=100)
+    assert result.at_beat.chance == pytest.approx(_prior_match_rate(result.recordings[0].period.period_s))
+    assert result.tempo_correlation is None and result.beat_align_other_songs is None
+
+
+def test_no_recordings_is_an_error():
+    with pytest.raises(KinectDataError):
+        beat_following([])

@@ -1,0 +1,95 @@
+"""The listening controls on models with known behaviour: one that dances to the beats it hears, one
+that ignores the audio."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from kinectdata.evaluation.listening import HeldOutSong, listening_report, motion_energy_per_s
+
+FPS = 30.0
+RATE = 1000  # audio samples per second of the fake feature extractor
+PERIODS = (0.75, 0.6, 0.5, 0.42)
+SECONDS = 40.0
+
+
+def bounce(lowest_frames: np.ndarray, frames: int, joints: int = 6) -> np.ndarray:
+    """[frames, J, 3]: every joint lowest at the given frames, a cosine between them; still without them."""
+    y = np.zeros(frames)
+    if len(lowest_frames) >= 2:
+        t = np.arange(frames)
+        phase = np.interp(t, lowest_frames, np.arange(len(lowest_frames)))  # beat count
+        y = -0.05 * np.cos(2 * np.pi * phase)
+    pos = np.zeros((frames, joints, 3))
+    pos[:, :, 0] = np.arange(joints) * 0.1
+    pos[:, :, 1] = y[:, None] + np.arange(joints) * 0.2
+    pos[:, :, 2] = 2.5
+    return pos
+
+
+def features_of(samples: np.ndarray) -> np.ndarray:
+    """[T, 1]: the mean absolute sample per motion frame (an onset shows as 1.0 in the songs' features)."""
+    per_frame = RATE / FPS
+    frames = int(len(samples) / per_frame)
+    return np.array([[np.abs(samples[int(k * per_frame) : int((k + 1) * per_frame)]).mean()] for k in range(frames)])
+
+
+features_of.sample_rate = RATE
+
+
+def songs() -> list[HeldOutSong]:
+    out = []
+    frames = int(SECONDS * FPS)
+    for i, period in enumerate(PERIODS):
+        beats = np.arange(0.4, SECONDS, period)
+        features = np.zeros((frames, 1))
+        features[np.round(beats * FPS).astype(int), 0] = 1.0
+        real = bounce(beats * FPS, frames)
+        out.append(HeldOutSong(f"song{i}", features, real[0], real, None, beats, FPS, rms=0.1))
+    return out
+
+
+def listener(features: np.ndarray, first_pose: np.ndarray) -> np.ndarray:
+    """Frames 1..T-1, lowest on every onset it hears."""
+    onsets = np.flatnonzero(features[:, 0] > 0.5)
+    return bounce(onsets, len(features))[1:]
+
+
+def deaf(features: np.ndarray, first_pose: np.ndarray) -> np.ndarray:
+    """Frames 1..T-1, a bounce every 0.93 s whatever it hears."""
+    return bounce(np.arange(0, len(features) + 60, 0.93 * FPS), len(features))[1:]
+
+
+def test_a_model_that_listens_passes_every_control():
+    result = listening_report(songs(), listener, features_of, draws=100)
+    assert result.generated.follows_beat and result.generated.on_beat
+    assert result.generated.tempo_correlation == pytest.approx(1.0)
+    assert result.swapped_follows_new == 1.0 and result.swapped_follows_old == 0.0
+    assert result.noise is not None and not result.noise.follows_beat
+    assert not result.shifted.on_beat  # against the beats the motion was paired with
+    assert result.silence_energy_ratio < 0.01
+    assert result.energy_ratio == pytest.approx(1.0, rel=0.05) and result.alive
+    assert result.phase_ratio == pytest.approx(1.0, rel=0.05)
+    assert result.baselines["mean_pose_noise"] < result.generated.beat_align_music.value
+    assert result.listens
+    text = "\n".join(result.verdicts())
+    assert "generated motion follows the beat: yes" in text and "listens to the music: yes" in text
+    assert "stops in silence: yes" in text and "is alive: yes" in text
+
+
+def test_a_model_that_ignores_the_audio_fails_them():
+    result = listening_report(songs(), deaf, features_of, draws=100)
+    assert not result.generated.follows_beat
+    assert not result.listens
+    assert result.silence_energy_ratio == pytest.approx(1.0, rel=0.05)
+    text = "\n".join(result.verdicts())
+    assert "generated motion follows the beat: no" in text and "listens to the music: no" in text
+    assert "stops in silence: no" in text
+
+
+def test_motion_energy_is_the_mean_squared_speed():
+    t = np.arange(300) / FPS
+    pos = np.zeros((300, 1, 3))
+    pos[:, 0, 0] = 0.5 * t  # 0.5 m/s
+    assert motion_energy_per_s(pos, None, FPS) == pytest.approx(0.25)
