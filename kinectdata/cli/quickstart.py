@@ -23,27 +23,43 @@ import click
     help="yalta2016: Kinect sessions, STFT, the DCNN + LSTM. listen-to-dance: synthetic OpenPose sessions, "
     "log-mel, the CDHC model, the rhythm analysis.",
 )
-@click.option("--epochs", default=3, show_default=True, type=click.IntRange(min=1), help="Training epochs.")
 @click.option(
-    "--units", default=250, show_default=True, type=click.IntRange(min=1), help="yalta2016: LSTM units per layer."
+    "--minutes", default=4.0, show_default=True, type=click.FloatRange(min=0, min_open=True), help="Training budget."
 )
-def quickstart(out, samples, pipeline, epochs, units) -> None:
-    """Run the toolkit end to end on the bundled sample data in about a minute on 2 CPU cores:
-    synthesise a session, align every session (offset from the sync clap, checked against the
-    ground truth), build and inspect a dataset, train the reference network briefly, evaluate
-    it (SMAPE, forward time, plots, silence test) and generate motion for a test song. With
-    --pipeline listen-to-dance: the same for OpenPose poses and the CDHC model."""
+@click.option(
+    "--corpus-minutes",
+    default=8.0,
+    show_default=True,
+    type=click.FloatRange(min=0, min_open=True),
+    help="Minutes of music synthesised to train on.",
+)
+@click.option(
+    "--epochs", default=None, type=click.IntRange(min=1), help="Stop after this many epochs (default: the budget)."
+)
+@click.option(
+    "--units", default=None, type=click.IntRange(min=1), help="yalta2016: LSTM units per layer.  [default: 128]"
+)
+def quickstart(out, samples, pipeline, minutes, corpus_minutes, epochs, units) -> None:
+    """Run the toolkit end to end in about 6 minutes on 2 CPU cores: synthesise a session, align
+    every sample session (offset from the sync clap, checked against the ground truth), build and
+    inspect a dataset; then synthesise a corpus to learn from, train the reference network within
+    --minutes, evaluate it on songs at tempi it never heard (SMAPE, forward time, plots, silence
+    test, and verdicts: does the motion follow the beat and the tempo, does the model listen) and
+    generate motion for a test song. With --pipeline listen-to-dance: the same for OpenPose poses
+    and the CDHC model."""
     from kinectdata.apps.quickstart import (  # imports the synthesiser, slow to load
         run_listen_quickstart,
         run_quickstart,
     )
 
+    overrides = {k: v for k, v in {"epochs": epochs, "units": units}.items() if v is not None}
     if pipeline == "listen-to-dance":
         if samples is not None:
             raise click.UsageError("--samples applies to the yalta2016 quickstart (its sessions are synthesised)")
-        run_listen_quickstart(out, echo=click.echo, epochs=epochs)
+        overrides.pop("units", None)
+        run_listen_quickstart(out, echo=click.echo, minutes=minutes, corpus_minutes=corpus_minutes, **overrides)
     else:
-        run_quickstart(out, samples, echo=click.echo, epochs=epochs, units=units)
+        run_quickstart(out, samples, echo=click.echo, minutes=minutes, corpus_minutes=corpus_minutes, **overrides)
 
 
 COMMANDS = [quickstart]

@@ -180,7 +180,7 @@ class ChanceFigure:
         return self.p_value < SIGNIFICANCE
 
     def describe(self, fmt: str = ".3f") -> str:
-        return f"{self.value:{fmt}} (chance {self.chance:{fmt}} +- {self.chance_spread:{fmt}}, p = {_p(self.p_value)})"
+        return f"{self.value:{fmt}} (chance {self.chance:{fmt}} +- {self.chance_spread:{fmt}}, p {_p(self.p_value)})"
 
 
 @dataclass(frozen=True)
@@ -241,6 +241,7 @@ class RecordingRhythm:
     period: PeriodEstimate
     level: str | None
     at_beat: bool
+    in_metre: bool
     beat_align_music: float
     beat_align_motion: float
     f_measure: float
@@ -264,6 +265,7 @@ def recording_rhythm(rec: RecordingBeats) -> RecordingRhythm:
         period=estimate,
         level=level,
         at_beat=level == "beat",
+        in_metre=level is not None,
         beat_align_music=_bas(music, beats, "music"),
         beat_align_motion=_bas(music, beats, "motion"),
         f_measure=motion_beat_fmeasure(music, beats, FMEASURE_WINDOW_S) if music.size else 0.0,
@@ -283,11 +285,15 @@ class BeatFollowing:
 
     Attributes:
         recordings: per recording, :class:`RecordingRhythm`.
-        at_beat: share of recordings whose dominant period is at the beat, with the chance that a
-            song's beat period matches the motion's period (other songs' tempi).
+        in_metre: share of recordings whose dominant period is at a metrical level of their music
+            (half beat, beat, two beats, bar, two bars), with the chance that it is at one of another
+            song's (other songs' tempi).
+        at_beat: share of recordings whose dominant period is at the beat itself, with its chance level.
         levels: per metrical level (and "none"), how many recordings' periods sit there.
-        tempo_correlation: Spearman rank correlation, across recordings, of the motion's period with
-            the music's beat period (None with fewer than 3 recordings or equal periods).
+        tempo_correlation: Spearman rank correlation, across recordings, of the motion's period at
+            the level most recordings follow (the autocorrelation peak nearest that level's lag, within
+            a third of it) with the music's beat period (None with fewer than 3 recordings, no such
+            peaks or no spread in either).
         beat_align_music, beat_align_motion, f_measure: means over recordings with their chance
             levels from the same motion against the music's beats shifted by random phases.
         beat_align_other_songs: the music-direction Beat Align Score of each motion against the
@@ -295,6 +301,7 @@ class BeatFollowing:
     """
 
     recordings: list[RecordingRhythm]
+    in_metre: ChanceFigure
     at_beat: ChanceFigure
     levels: dict[str, int]
     tempo_correlation: float | None
@@ -305,8 +312,9 @@ class BeatFollowing:
 
     @property
     def follows_beat(self) -> bool:
-        """Most recordings' periods are at the beat, significantly more than by chance."""
-        return self.at_beat.value >= 0.5 and self.at_beat.above_chance
+        """Most recordings' periods are at a metrical level of their music (the beat or a multiple),
+        significantly more often than at another song's."""
+        return self.in_metre.value >= 0.5 and self.in_metre.above_chance
 
     @property
     def on_beat(self) -> bool:
@@ -315,27 +323,33 @@ class BeatFollowing:
 
     @property
     def dominant_level(self) -> str:
-        return max(self.levels, key=lambda k: self.levels[k]) if self.levels else "none"
+        """The metrical level most recordings' periods sit at ("none" when most sit at none)."""
+        return max(self.levels, key=lambda k: (self.levels[k], k != "none")) if self.levels else "none"
 
     def verdicts(self, what: str = "motion") -> list[str]:
         """Plain lines with a yes or no and the figures next to it."""
-        periods = [r.period.period_s for r in self.recordings if r.period.period_s is not None]
-        music = float(np.median([r.beat_period_s for r in self.recordings]))
-        period = f"period {np.median(periods):.2f} s" if periods else "no period"
         n = len(self.recordings)
         level = self.dominant_level
+        at_level = [r for r in self.recordings if r.level == level]
+        if level != "none" and at_level:
+            period = float(np.median([r.period.period_s for r in at_level]))
+            music = float(np.median([r.beat_period_s for r in at_level]))
+            where = f"at {level}: period {period:.2f} s = {period / music:.1f} x the beat of {music:.2f} s"
+        else:
+            where = "at no metrical level"
+        spread = ", ".join(f"{k} {v}" for k, v in sorted(self.levels.items(), key=lambda kv: -kv[1]))
         lines = [
-            f"{what} follows the beat: {_yes(self.follows_beat)} ({period}, music {music:.2f} s; "
-            f"{round(self.at_beat.value * n)} of {n} at the beat, chance {self.at_beat.chance:.0%}, "
-            f"p = {_p(self.at_beat.p_value)}; most often at: {level})",
+            f"{what} follows the beat: {_yes(self.follows_beat)} ({where}; {round(self.in_metre.value * n)} of {n} "
+            f"songs at a metrical level ({spread}), chance {self.in_metre.chance:.0%}, p {_p(self.in_metre.p_value)};"
+            f" at the beat itself {round(self.at_beat.value * n)} of {n})",
             f"{what} moves on the beats: {_yes(self.on_beat)} (Beat Align Score {self.beat_align_music.describe()} "
             f"over music beats, {self.beat_align_motion.describe()} over motion beats; "
             f"F-measure {self.f_measure.describe('.2f')})",
         ]
         if self.tempo_correlation is not None:
             lines.append(
-                f"{what} follows the tempo: {_yes(self.tempo_correlation >= 0.9)} "
-                f"(rank correlation of motion period and beat period {self.tempo_correlation:.2f} over {n} songs)"
+                f"{what} follows the tempo: {_yes(self.tempo_correlation >= 0.9)} (rank correlation of the motion's "
+                f"period at {level} with the beat period {self.tempo_correlation:.2f} over {n} songs)"
             )
         return lines
 
@@ -355,7 +369,9 @@ class BeatFollowing:
         return {
             "follows_beat": self.follows_beat,
             "on_beat": self.on_beat,
+            "in_metre": figure(self.in_metre),
             "at_beat": figure(self.at_beat),
+            "dominant_level": self.dominant_level,
             "levels": self.levels,
             "tempo_correlation": self.tempo_correlation,
             "beat_align_music": figure(self.beat_align_music),
@@ -369,6 +385,7 @@ class BeatFollowing:
                     "period_height": r.period.height,
                     "level": r.level,
                     "at_beat": r.at_beat,
+                    "in_metre": r.in_metre,
                     "beat_align_music": r.beat_align_music,
                     "beat_align_motion": r.beat_align_motion,
                     "f_measure": r.f_measure,
@@ -398,38 +415,36 @@ def beat_following(recordings: Sequence[RecordingBeats], *, draws: int = CHANCE_
         draws: random phase shifts per recording.
         seed: the draws' random generator.
     """
-    from scipy.stats import binomtest, spearmanr
+    from scipy.stats import binomtest
 
     if not recordings:
         raise KinectDataError("beat following needs at least one recording")
     rhythms = [recording_rhythm(r) for r in recordings]
     n = len(rhythms)
     periods = np.array([r.beat_period_s for r in rhythms])
-    chance_rates = []
-    for i, r in enumerate(rhythms):
-        others = np.delete(periods, i)
-        if others.size:
-            chance_rates.append(float(np.mean([_matches(r.period.period_s, p) for p in others])))
-        else:
-            chance_rates.append(_prior_match_rate(r.period.period_s))
-    hits = sum(r.at_beat for r in rhythms)
-    rate = float(np.mean(chance_rates))
-    p_at_beat = float(binomtest(hits, n, rate, alternative="greater").pvalue) if 0 < rate < 1 else float(rate >= 1)
-    at_beat = ChanceFigure(
-        hits / n,
-        rate,
-        0.0,
-        p_at_beat if hits else 1.0,
-        "other songs' beat periods" if n > 1 else f"a tempo drawn log-uniformly in {TEMPO_PRIOR_BPM}",
-    )
+    bars = [r.beats_per_bar for r in recordings]
+    figures = []
+    for hit, matches in (
+        (lambda r: r.in_metre, lambda p, beat, bar: metrical_level(p, beat, bar) is not None),
+        (lambda r: r.at_beat, lambda p, beat, bar: metrical_level(p, beat, bar) == "beat"),
+    ):
+        rates = []
+        for i, r in enumerate(rhythms):
+            if n > 1:
+                others = [matches(r.period.period_s, p, bars[j]) for j, p in enumerate(periods) if j != i]
+                rates.append(float(np.mean(others)))
+            else:
+                rates.append(_prior_match_rate(r.period.period_s, lambda p, b, m=matches: m(p, b, bars[0])))
+        hits = sum(hit(r) for r in rhythms)
+        rate = float(np.mean(rates))
+        p = float(binomtest(hits, n, rate, alternative="greater").pvalue) if 0 < rate < 1 else float(rate >= 1)
+        chance_from = "other songs' beat periods" if n > 1 else f"a tempo drawn log-uniformly in {TEMPO_PRIOR_BPM} BPM"
+        figures.append(ChanceFigure(hits / n, rate, 0.0, p if hits else 1.0, chance_from))
+    in_metre, at_beat = figures
     levels: dict[str, int] = {}
     for r in rhythms:
         levels[r.level or "none"] = levels.get(r.level or "none", 0) + 1
-    tempo = None
-    motion_periods = [r.period.period_s for r in rhythms]
-    if n >= 3 and all(p is not None for p in motion_periods) and np.ptp(periods) > 0 and np.ptp(motion_periods) > 0:
-        rho = spearmanr(motion_periods, periods).statistic
-        tempo = float(rho) if np.isfinite(rho) else None
+    tempo = _tempo_correlation(rhythms, levels, bars)
 
     rng = np.random.default_rng(seed)
     shifted = np.zeros((3, draws, n))
@@ -442,7 +457,7 @@ def beat_following(recordings: Sequence[RecordingBeats], *, draws: int = CHANCE_
     observed = np.array(
         [[r.beat_align_music for r in rhythms], [r.beat_align_motion for r in rhythms], [r.f_measure for r in rhythms]]
     )
-    figures = [_shifted_figure(observed[m].mean(), shifted[m].mean(axis=1)) for m in range(3)]
+    phase = [_shifted_figure(observed[m].mean(), shifted[m].mean(axis=1)) for m in range(3)]
     other_songs = None
     if n > 1:
         other_songs = float(
@@ -455,7 +470,28 @@ def beat_following(recordings: Sequence[RecordingBeats], *, draws: int = CHANCE_
                 ]
             )
         )
-    return BeatFollowing(rhythms, at_beat, levels, tempo, *figures, other_songs)
+    return BeatFollowing(rhythms, in_metre, at_beat, levels, tempo, *phase, other_songs)
+
+
+def _tempo_correlation(rhythms: list[RecordingRhythm], levels: dict[str, int], bars: list[int]) -> float | None:
+    """Spearman correlation of each motion's period at the most common level (its autocorrelation
+    peak nearest that level's lag, within a third of it) with its music's beat period."""
+    from scipy.stats import spearmanr
+
+    level = max(levels, key=lambda k: (levels[k], k != "none"))
+    if len(rhythms) < 3 or level == "none":
+        return None
+    motion, music = [], []
+    for r, bar in zip(rhythms, bars):
+        lag = dict(_levels(bar))[level] * r.beat_period_s
+        near = [p for p, _ in r.period.peaks if abs(p / lag - 1) <= 1 / 3]
+        if near:
+            motion.append(min(near, key=lambda p: abs(p / lag - 1)))
+            music.append(r.beat_period_s)
+    if len(motion) < 3 or np.ptp(motion) == 0 or np.ptp(music) == 0:
+        return None
+    rho = spearmanr(motion, music).statistic
+    return float(rho) if np.isfinite(rho) else None
 
 
 def _shifted_figure(value: float, draws: np.ndarray) -> ChanceFigure:
@@ -476,14 +512,15 @@ def _matches(period_s: float | None, beat_period: float) -> bool:
     return period_s is not None and abs(period_s / beat_period - 1) <= PERIOD_TOLERANCE
 
 
-def _prior_match_rate(period_s: float | None) -> float:
-    """Probability that a beat period drawn log-uniformly from :data:`TEMPO_PRIOR_BPM` lies within
-    10 % of ``period_s`` (that the period is within 10 % of it)."""
+def _prior_match_rate(period_s: float | None, matches=None, samples: int = 2001) -> float:
+    """Probability that a beat period drawn log-uniformly from :data:`TEMPO_PRIOR_BPM` is matched
+    by ``period_s`` (``matches(period_s, beat_period)``; default: within 10 % of it), integrated on
+    a log-spaced grid of ``samples`` tempi."""
     if period_s is None:
         return 0.0
-    lo, hi = 60.0 / TEMPO_PRIOR_BPM[1], 60.0 / TEMPO_PRIOR_BPM[0]
-    a, b = max(lo, period_s / (1 + PERIOD_TOLERANCE)), min(hi, period_s / (1 - PERIOD_TOLERANCE))
-    return max(0.0, float(np.log(b / a) / np.log(hi / lo))) if b > a else 0.0
+    matches = matches or (lambda p, b: _matches(p, b))
+    tempi = np.geomspace(*TEMPO_PRIOR_BPM, samples)
+    return float(np.mean([matches(period_s, 60.0 / t) for t in tempi]))
 
 
 def _yes(flag: bool) -> str:
@@ -491,4 +528,4 @@ def _yes(flag: bool) -> str:
 
 
 def _p(p: float) -> str:
-    return f"{p:.2g}" if p >= 0.001 else "< 0.001"
+    return f"= {p:.2g}" if p >= 0.001 else "< 0.001"

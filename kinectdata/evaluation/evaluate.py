@@ -57,6 +57,7 @@ from kinectdata.models.kind import ModelKind
 from kinectdata.models.registry import kind_of, model_kind
 from kinectdata.models.run import interface_mismatch, load_model, model_name, read_manifest, write_json
 from kinectdata.targets.normalization import Normalizer
+from kinectdata.targets.skeleton import rebuild_positions
 from kinectdata.targets.specs import TargetSpec
 
 SILENCE_S = 5.0
@@ -319,6 +320,25 @@ class SongSet:
     unavailable: str = ""
 
 
+def body_positions(
+    values: np.ndarray, mask: np.ndarray, spec: TargetSpec, dataset_config: dict[str, Any]
+) -> tuple[np.ndarray, np.ndarray]:
+    """The body's joint positions [T, J, C] and mask [T, J] from denormalised target vectors [T, D]
+    and their mask: every joint the target's orientations reach, by forward kinematics over the
+    dataset's rest skeleton (:func:`~kinectdata.targets.skeleton.rebuild_positions`), when the
+    target has orientations and the dataset a skeleton; else the target's own positions. The
+    rhythm of a dance lives in the whole body (knees, feet, head), not only in the few joints a
+    target positions."""
+    skeleton = dataset_config.get("skeleton")
+    if not (spec.orientations and skeleton and spec.dimensions == 3):
+        return target_positions(values, mask, spec)
+    positions, placed = rebuild_positions(
+        np.where(mask, values, np.nan), spec, skeleton, root_centred=bool(dataset_config.get("root_centre"))
+    )
+    used = placed.any(axis=0)
+    return positions[:, used], placed[:, used]
+
+
 def _song_set(
     net: torch.nn.Module,
     recordings: list[dict[str, Any]],
@@ -340,9 +360,12 @@ def _song_set(
 
     features_of.sample_rate = cfg.sample_rate  # type: ignore[attr-defined]
 
+    def body(values: np.ndarray, mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        return body_positions(values, mask, spec, config["dataset"])
+
     def generate(features: np.ndarray, first_pose: np.ndarray) -> np.ndarray:
         values = norm.invert(kind.free_run(net, features, first_pose), spec)
-        return target_positions(values, np.ones_like(values, bool), spec)[0]
+        return body(values, np.ones_like(values, bool))[0]
 
     songs = []
     for r in recordings:
@@ -357,7 +380,7 @@ def _song_set(
         first = r.get("first_pose")
         if first is None:
             first = kind.fill_previous(r["current"][0], r["mask"][0], config["dataset"]["start_pose"])
-        positions, pmask = target_positions(norm.invert(r["current"], spec, mask=r["mask"]), r["mask"], spec)
+        positions, pmask = body(norm.invert(r["current"], spec, mask=r["mask"]), r["mask"])
         songs.append(HeldOutSong(r["name"], r["input"], first, positions, pmask, music, fps, rms))
     why = "" if songs else "no recording of the split has music beats (ground truth or tracked)"
     return SongSet(songs, generate, features_of, why)

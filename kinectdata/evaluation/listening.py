@@ -36,6 +36,7 @@ from kinectdata.evaluation.beat_following import (
     BeatFollowing,
     RecordingBeats,
     beat_following,
+    metrical_level,
 )
 
 ALIVE_RANGE = (0.5, 2.0)
@@ -77,8 +78,8 @@ class Listening:
     Attributes:
         real, generated: beat following of the real and the generated motion.
         swapped: the swapped-song control's beat following against the new songs' beats (None: one song).
-        swapped_follows_new: share of swapped runs whose period is at the new song's beat.
-        swapped_follows_old: share at the original song's beat instead.
+        swapped_follows_new: share of swapped runs whose period is at a metrical level of the new song.
+        swapped_follows_old: share at a metrical level of the original song instead.
         noise: beat following of the motion generated from noise (None: no audio loudness known).
         shifted: beat following of the motion generated from shifted audio, against the original beats.
         silence_energy_ratio: energy under silence over energy with music.
@@ -113,6 +114,14 @@ class Listening:
         return self.generated.follows_beat and swapped and noise
 
     @property
+    def in_phase(self) -> bool:
+        """The generated motion's beats fall on the music's beats significantly more than by chance,
+        with a Beat Align Score at least 0.8 times the real motion's and above both baselines."""
+        baselines = [b for b in self.baselines.values() if b is not None]
+        score = self.generated.beat_align_music.value
+        return self.generated.on_beat and self.phase_ratio >= 0.8 and all(score > b for b in baselines)
+
+    @property
     def phase_ratio(self) -> float:
         """The generated motion's Beat Align Score (music direction) over the real motion's."""
         real = self.real.beat_align_music.value
@@ -125,17 +134,17 @@ class Listening:
         if self.swapped is not None:
             lines.append(
                 f"listens to the music: {'yes' if self.listens else 'no'} (swapped-song control: the period "
-                f"follows the new song in {self.swapped_follows_new:.0%} of runs, the old one in "
+                f"is at the new song's metre in {self.swapped_follows_new:.0%} of runs, the old one in "
                 f"{self.swapped_follows_old:.0%}; noise control: "
                 + (
-                    f"at the beat in {self.noise.at_beat.value:.0%}, chance {self.noise.at_beat.chance:.0%}"
+                    f"at a metrical level in {self.noise.in_metre.value:.0%}, chance {self.noise.in_metre.chance:.0%}"
                     if self.noise is not None
                     else "not run (audio loudness unknown)"
                 )
                 + ")"
             )
         lines.append(
-            f"moves with the music's phase: {'yes' if self.phase_ratio >= 0.8 else 'no'} (Beat Align Score "
+            f"moves with the music's phase: {'yes' if self.in_phase else 'no'} (Beat Align Score "
             f"{self.generated.beat_align_music.value:.3f} = {self.phase_ratio:.2f} x the real motion's "
             f"{self.real.beat_align_music.value:.3f}; shifted audio {self.shifted.beat_align_music.describe()}; "
             f"baselines: mean pose + noise {_fmt(self.baselines['mean_pose_noise'])}, "
@@ -165,6 +174,7 @@ class Listening:
             "alive": self.alive,
             "listens": self.listens,
             "phase_ratio": self.phase_ratio,
+            "in_phase": self.in_phase,
             "baselines": self.baselines,
             "verdicts": self.verdicts(),
         }
@@ -225,12 +235,15 @@ def listening_report(
             motion = generate(songs[j].features[:length], songs[i].first_pose)
             runs.append((f"{songs[i].name} with {songs[j].name}'s music", motion, None, songs[j], songs[i]))
         swapped = following([(n, p, m, s) for n, p, m, s, _ in runs], 1)
-        follows_new = float(np.mean([r.at_beat for r in swapped.recordings]))
-        old = [
-            abs(r.period.period_s / _period(orig) - 1) <= PERIOD_TOLERANCE if r.period.period_s else False
-            for r, (*_, orig) in zip(swapped.recordings, runs)
-        ]
-        follows_old = float(np.mean(old))
+        follows_new = float(np.mean([r.in_metre for r in swapped.recordings]))
+        follows_old = float(
+            np.mean(
+                [
+                    metrical_level(r.period.period_s, _period(orig)) is not None
+                    for r, (*_, orig) in zip(swapped.recordings, runs)
+                ]
+            )
+        )
 
     noise = None
     if all(s.rms is not None for s in songs):

@@ -91,25 +91,32 @@ def test_synth_is_deterministic(tmp_path):
 def test_quickstart_runs_on_the_bundled_samples(tmp_path, monkeypatch):
     pytest.importorskip("torch")
     monkeypatch.chdir(REPO)
-    result = run("quickstart", "--out", tmp_path / "qs", "--epochs", 1, "--units", 16)
+    result = run(
+        "quickstart", "--out", tmp_path / "qs", "--epochs", 1, "--units", 16, "--corpus-minutes", 1.5, "--minutes", 1
+    )
     assert result.exit_code == 0, result.output
     assert result.output.count("offset error against the ground truth") == 4
     assert len(list((tmp_path / "qs" / "aligned").glob("*.h5"))) == 4
     assert "input [N, 1, 129, 5] float32" in result.output and "current [N, 65] float32" in result.output
     assert (tmp_path / "qs" / "dataset" / "manifest.json").is_file()
+    assert (tmp_path / "qs" / "learn_dataset" / "manifest.json").is_file()
     assert "epoch 1: train loss" in result.output and "SMAPE without reset" in result.output
     assert "silence test" in result.output and "forward time" in result.output
+    for verdict in ("generated motion follows the beat: ", "listens to the music: ", "generated motion is alive: "):
+        assert verdict in result.output
     for name in ("loss.png", "model.pt", "stream.ts", "generated.csv", "evaluation/results.json"):
         assert (tmp_path / "qs" / "run" / name).is_file(), name
 
 
 def test_listen_to_dance_quickstart(tmp_path):
     pytest.importorskip("torch")
-    result = run("quickstart", "--pipeline", "listen-to-dance", "--out", tmp_path / "qs", "--epochs", 1)
+    result = run(
+        "quickstart", "--pipeline", "listen-to-dance", "--out", tmp_path / "qs", "--epochs", 1, "--corpus-minutes", 1.5
+    )
     assert result.exit_code == 0, result.output
     assert result.output.count("(clap)") == 4  # every offset from the 2-D clap
     assert "input [N, 80] float32" in result.output and "current [N, 44] float32" in result.output
-    assert "rhythm real      y peak at the beat period in 100% of recordings (x: 0%)" in result.output
+    assert "(real motion: " in result.output and "generated motion follows the beat: " in result.output
     for name in ("loss.png", "model.pt", "generated.jsonl", "evaluation/rhythm_real.png"):
         assert (tmp_path / "qs" / "run" / name).is_file(), name
     assert run("quickstart", "--pipeline", "listen-to-dance", "--samples", tmp_path).exit_code == 2

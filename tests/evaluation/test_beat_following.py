@@ -93,8 +93,9 @@ def _set(periods, *, phase_s=0.0, motion_periods=None, seconds=40.0):
 def test_motion_locked_to_the_beat_follows_it_significantly():
     periods = [0.75, 0.63, 0.55, 0.48, 0.41]  # 80..146 BPM
     result = beat_following(_set(periods), draws=300)
-    assert result.at_beat.value == 1.0
+    assert result.at_beat.value == 1.0 and result.in_metre.value == 1.0
     assert result.at_beat.chance < 0.3 and result.at_beat.p_value < 0.01
+    assert result.in_metre.chance < 0.6 and result.in_metre.p_value < 0.05
     assert result.levels == {"beat": 5}
     assert result.tempo_correlation == pytest.approx(1.0)
     assert result.beat_align_music.value > result.beat_align_music.chance + 3 * result.beat_align_music.chance_spread
@@ -121,7 +122,7 @@ def test_motion_at_the_right_tempo_but_off_phase_follows_the_beat_but_not_on_the
 
 def test_motion_of_another_tempo_does_not_follow_the_beat():
     periods = [0.75, 0.63, 0.55, 0.48, 0.41]
-    result = beat_following(_set(periods, motion_periods=[0.93] * 5), draws=200)
+    result = beat_following(_set(periods, motion_periods=[0.83] * 5), draws=200)
     assert result.at_beat.value == 0.0 and not result.follows_beat
     assert result.tempo_correlation is None or result.tempo_correlation < 0.9  # the same period for every song
     assert "follows the beat: no" in result.verdicts()[0]
@@ -141,9 +142,19 @@ def test_jitter_scores_a_high_beat_align_score_but_not_above_its_chance_level():
     assert not result.on_beat and not result.follows_beat
 
 
+def test_motion_at_two_beats_follows_the_metre_and_its_tempo():
+    """Like the synthetic dancer's steps: a period of two beats, at every tempo."""
+    periods = [0.75, 0.63, 0.55, 0.48, 0.41]
+    result = beat_following(_set(periods, motion_periods=[2 * p for p in periods]), draws=200)
+    assert result.levels == {"two beats": 5} and result.dominant_level == "two beats"
+    assert result.at_beat.value == 0.0 and result.in_metre.value == 1.0 and result.follows_beat
+    assert result.tempo_correlation == pytest.approx(1.0)
+    assert "follows the beat: yes (at two beats: period" in result.verdicts()[0]
+
+
 def test_one_recording_uses_the_tempo_prior_for_the_period_chance():
     result = beat_following(_set([0.5]), draws=100)
-    assert result.at_beat.chance == pytest.approx(_prior_match_rate(result.recordings[0].period.period_s))
+    assert result.at_beat.chance == pytest.approx(_prior_match_rate(result.recordings[0].period.period_s), abs=1e-3)
     assert result.tempo_correlation is None and result.beat_align_other_songs is None
 
 

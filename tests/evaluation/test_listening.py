@@ -70,7 +70,7 @@ def test_a_model_that_listens_passes_every_control():
     assert not result.shifted.on_beat  # against the beats the motion was paired with
     assert result.silence_energy_ratio < 0.01
     assert result.energy_ratio == pytest.approx(1.0, rel=0.05) and result.alive
-    assert result.phase_ratio == pytest.approx(1.0, rel=0.05)
+    assert result.phase_ratio == pytest.approx(1.0, rel=0.05) and result.in_phase
     assert result.baselines["mean_pose_noise"] < result.generated.beat_align_music.value
     assert result.listens
     text = "\n".join(result.verdicts())
@@ -81,7 +81,7 @@ def test_a_model_that_listens_passes_every_control():
 def test_a_model_that_ignores_the_audio_fails_them():
     result = listening_report(songs(), deaf, features_of, draws=100)
     assert not result.generated.follows_beat
-    assert not result.listens
+    assert not result.listens and not result.in_phase
     assert result.silence_energy_ratio == pytest.approx(1.0, rel=0.05)
     text = "\n".join(result.verdicts())
     assert "generated motion follows the beat: no" in text and "listens to the music: no" in text
