@@ -76,8 +76,9 @@ def learning_corpus(
     """Synthesise sessions to learn from into ``folder`` and a ``recordings.yaml`` that splits them:
     ``corpus_minutes`` of training sessions (45 s each, at least 2) at tempi spread evenly over
     80-160 BPM, one validation and three test sessions (40 s) at tempi spread over the same range,
-    each at least 2 BPM from every training tempo (never heard in training). Offsets are the synthesiser's truth (the quickstart shows
-    ``--offset auto`` on the sample sessions). Returns the manifest's path."""
+    each at least 2 BPM from every training tempo (never heard in training). Offsets are the
+    synthesiser's truth (the quickstart shows ``--offset auto`` on the sample sessions). Returns
+    the manifest's path."""
     folder = Path(folder)
     count = max(2, int(round(corpus_minutes * 60 / SESSION_S)))
     tempi = np.linspace(*TEMPO_RANGE_BPM, count)
