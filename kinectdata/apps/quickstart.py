@@ -189,7 +189,7 @@ def run_quickstart(
         learn,
         "yalta2016",
         {**QUICK_TRAINING, "max_minutes": minutes, **training},
-        lambda test: corpus.parent / f"{test}.flac",
+        lambda test: _audio_of(learn, test),
         "generated.csv",
         echo,
         dataset=out / "learn_dataset",
@@ -202,6 +202,12 @@ def run_quickstart(
             f"trajectories.png, silence.png)\n       generated motion: {run / 'generated.csv'}"
         )
     return summary | learned
+
+
+def _audio_of(manifest: dict[str, Any], recording: str) -> Path:
+    """The audio file a dataset's recording was built from (its manifest's input entry)."""
+    source = next(r["recording"] for r in manifest["recordings"] if r["name"] == recording)
+    return Path(next(e["audio"] for e in manifest["inputs"] if e["name"] == source))
 
 
 def _train_evaluate_generate(
@@ -308,7 +314,7 @@ def run_listen_quickstart(
         learn,
         "listen-to-dance",
         {**QUICK_CDHC, "max_minutes": minutes, **training},
-        lambda test: corpus.parent / f"{test}.flac",
+        lambda test: _audio_of(learn, test),
         "generated.jsonl",
         echo,
         dataset=out / "learn_dataset",

@@ -290,6 +290,8 @@ class BeatFollowing:
             song's (other songs' tempi).
         at_beat: share of recordings whose dominant period is at the beat itself, with its chance level.
         levels: per metrical level (and "none"), how many recordings' periods sit there.
+        tempo_p_value: the one-sided p-value of ``tempo_correlation`` (exact over every ordering for
+            up to 8 songs): with 3 songs even a perfect correlation has p = 1/6.
         tempo_correlation: Spearman rank correlation, across recordings, of the motion's period at
             the level most recordings follow (the autocorrelation peak nearest that level's lag, within
             a third of it) with the music's beat period (None with fewer than 3 recordings, no such
@@ -305,6 +307,7 @@ class BeatFollowing:
     at_beat: ChanceFigure
     levels: dict[str, int]
     tempo_correlation: float | None
+    tempo_p_value: float | None
     beat_align_music: ChanceFigure
     beat_align_motion: ChanceFigure
     f_measure: ChanceFigure
@@ -315,6 +318,16 @@ class BeatFollowing:
         """Most recordings' periods are at a metrical level of their music (the beat or a multiple),
         significantly more often than at another song's."""
         return self.in_metre.value >= 0.5 and self.in_metre.above_chance
+
+    @property
+    def follows_tempo(self) -> bool:
+        """The motion's period rises and falls with the beat period: rank correlation >= 0.9, p < 0.05."""
+        return (
+            self.tempo_correlation is not None
+            and self.tempo_correlation >= 0.9
+            and self.tempo_p_value is not None
+            and self.tempo_p_value < SIGNIFICANCE
+        )
 
     @property
     def on_beat(self) -> bool:
@@ -348,8 +361,9 @@ class BeatFollowing:
         ]
         if self.tempo_correlation is not None:
             lines.append(
-                f"{what} follows the tempo: {_yes(self.tempo_correlation >= 0.9)} (rank correlation of the motion's "
-                f"period at {level} with the beat period {self.tempo_correlation:.2f} over {n} songs)"
+                f"{what} follows the tempo: {_yes(self.follows_tempo)} (rank correlation of the motion's "
+                f"period at {level} with the beat period {self.tempo_correlation:.2f} over {n} songs, "
+                f"p {_p(self.tempo_p_value)})"
             )
         return lines
 
@@ -374,6 +388,8 @@ class BeatFollowing:
             "dominant_level": self.dominant_level,
             "levels": self.levels,
             "tempo_correlation": self.tempo_correlation,
+            "tempo_p_value": self.tempo_p_value,
+            "follows_tempo": self.follows_tempo,
             "beat_align_music": figure(self.beat_align_music),
             "beat_align_motion": figure(self.beat_align_motion),
             "f_measure": figure(self.f_measure),
@@ -444,7 +460,7 @@ def beat_following(recordings: Sequence[RecordingBeats], *, draws: int = CHANCE_
     levels: dict[str, int] = {}
     for r in rhythms:
         levels[r.level or "none"] = levels.get(r.level or "none", 0) + 1
-    tempo = _tempo_correlation(rhythms, levels, bars)
+    tempo, tempo_p = _tempo_correlation(rhythms, levels, bars)
 
     rng = np.random.default_rng(seed)
     shifted = np.zeros((3, draws, n))
@@ -470,17 +486,22 @@ def beat_following(recordings: Sequence[RecordingBeats], *, draws: int = CHANCE_
                 ]
             )
         )
-    return BeatFollowing(rhythms, in_metre, at_beat, levels, tempo, *phase, other_songs)
+    return BeatFollowing(rhythms, in_metre, at_beat, levels, tempo, tempo_p, *phase, other_songs)
 
 
-def _tempo_correlation(rhythms: list[RecordingRhythm], levels: dict[str, int], bars: list[int]) -> float | None:
-    """Spearman correlation of each motion's period at the most common level (its autocorrelation
-    peak nearest that level's lag, within a third of it) with its music's beat period."""
-    from scipy.stats import spearmanr
+def _tempo_correlation(
+    rhythms: list[RecordingRhythm], levels: dict[str, int], bars: list[int]
+) -> tuple[float | None, float | None]:
+    """(Spearman correlation, one-sided p-value) of each motion's period at the most common level
+    (its autocorrelation peak nearest that level's lag, within a third of it) with its music's beat
+    period; (None, None) when fewer than 3 songs have such a peak or either side does not vary."""
+    from itertools import permutations
+
+    from scipy.stats import rankdata, spearmanr
 
     level = max(levels, key=lambda k: (levels[k], k != "none"))
     if len(rhythms) < 3 or level == "none":
-        return None
+        return None, None
     motion, music = [], []
     for r, bar in zip(rhythms, bars):
         lag = dict(_levels(bar))[level] * r.beat_period_s
@@ -489,9 +510,19 @@ def _tempo_correlation(rhythms: list[RecordingRhythm], levels: dict[str, int], b
             motion.append(min(near, key=lambda p: abs(p / lag - 1)))
             music.append(r.beat_period_s)
     if len(motion) < 3 or np.ptp(motion) == 0 or np.ptp(music) == 0:
-        return None
-    rho = spearmanr(motion, music).statistic
-    return float(rho) if np.isfinite(rho) else None
+        return None, None
+    result = spearmanr(motion, music)
+    rho = float(result.statistic)
+    if not np.isfinite(rho):
+        return None, None
+    if len(motion) <= 8:  # exact: the share of orderings of the motion periods that correlate as well
+        a, b = rankdata(motion), rankdata(music)
+        orders = np.array(list(permutations(a - a.mean())))  # [n!, n]
+        draws = orders @ (b - b.mean()) / (np.linalg.norm(a - a.mean()) * np.linalg.norm(b - b.mean()))
+        p = float(np.mean(draws >= rho - 1e-12))
+    else:
+        p = float(result.pvalue) / 2 if rho > 0 else 1.0
+    return rho, p
 
 
 def _shifted_figure(value: float, draws: np.ndarray) -> ChanceFigure:

@@ -98,6 +98,7 @@ def test_motion_locked_to_the_beat_follows_it_significantly():
     assert result.in_metre.chance < 0.6 and result.in_metre.p_value < 0.05
     assert result.levels == {"beat": 5}
     assert result.tempo_correlation == pytest.approx(1.0)
+    assert result.tempo_p_value == pytest.approx(1 / 120) and result.follows_tempo  # 5 songs: 5! orderings
     assert result.beat_align_music.value > result.beat_align_music.chance + 3 * result.beat_align_music.chance_spread
     assert result.beat_align_music.p_value < 0.01 and result.on_beat and result.follows_beat
     assert result.beat_align_other_songs < result.beat_align_music.value
@@ -161,3 +162,10 @@ def test_one_recording_uses_the_tempo_prior_for_the_period_chance():
 def test_no_recordings_is_an_error():
     with pytest.raises(KinectDataError):
         beat_following([])
+
+
+def test_three_songs_cannot_show_tempo_following():
+    """A perfect rank correlation over 3 songs happens in 1 of 6 orderings: not significant."""
+    result = beat_following(_set([0.7, 0.55, 0.42]), draws=50)
+    assert result.tempo_correlation == pytest.approx(1.0)
+    assert result.tempo_p_value == pytest.approx(1 / 6) and not result.follows_tempo
