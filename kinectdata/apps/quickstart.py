@@ -52,6 +52,7 @@ FRAME_S = 1 / 30
 QUICK_TRAINING = {
     "units": 128,
     "feedback": "teacher",
+    "velocity_weight": 10.0,
     "sequence": 150,
     "batch_size": 8,
     "epochs": 1000,

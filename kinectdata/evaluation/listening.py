@@ -108,8 +108,8 @@ class Listening:
     @property
     def listens(self) -> bool:
         """The motion follows the music it is given and not the music it came with, and noise does not
-        make it follow the beat."""
-        swapped = self.swapped is None or (self.swapped.follows_beat and self.swapped_follows_new > 0.5)
+        make it follow the beat (False when the swapped-song control could not run)."""
+        swapped = self.swapped is not None and self.swapped.follows_beat and self.swapped_follows_new > 0.5
         noise = self.noise is None or not self.noise.follows_beat
         return self.generated.follows_beat and swapped and noise
 
@@ -131,17 +131,21 @@ class Listening:
         """Plain lines: a yes or no, and the figures beside it."""
         lines = self.generated.verdicts("generated motion")
         lines += [f"  (real motion: {line.split(': ', 1)[1]})" for line in self.real.verdicts("real")[:2]]
+        noise = (
+            f"at a metrical level in {self.noise.in_metre.value:.0%}, chance {self.noise.in_metre.chance:.0%}"
+            if self.noise is not None
+            else "not run (audio loudness unknown)"
+        )
         if self.swapped is not None:
             lines.append(
                 f"listens to the music: {'yes' if self.listens else 'no'} (swapped-song control: the period "
-                f"is at the new song's metre in {self.swapped_follows_new:.0%} of runs, the old one in "
-                f"{self.swapped_follows_old:.0%}; noise control: "
-                + (
-                    f"at a metrical level in {self.noise.in_metre.value:.0%}, chance {self.noise.in_metre.chance:.0%}"
-                    if self.noise is not None
-                    else "not run (audio loudness unknown)"
-                )
-                + ")"
+                f"is at the new song's metre in {self.swapped_follows_new:.0%} of runs, the old one's in "
+                f"{self.swapped_follows_old:.0%}; noise control: {noise})"
+            )
+        else:
+            lines.append(
+                "listens to the music: not shown (the swapped-song control needs two test songs whose tempi differ "
+                f"by more than {2 * PERIOD_TOLERANCE:.0%}; noise control: {noise})"
             )
         lines.append(
             f"moves with the music's phase: {'yes' if self.in_phase else 'no'} (Beat Align Score "

@@ -22,7 +22,7 @@ import numpy as np
 
 from kinectdata.core.errors import ConfigError
 from kinectdata.models.kind import ModelKind, Sweep
-from kinectdata.models.losses import masked_mse, masked_velocity_mse
+from kinectdata.models.losses import masked_mse, masked_velocity_l1, masked_velocity_mse
 
 YALTA_ACTIVATIONS = ("tanh", "relu", "elu")
 FEEDBACKS = ("predicted", "teacher")
@@ -198,10 +198,19 @@ class CdhcSettings:
     limb_weight: float = field(
         default=1.0, metadata={"help": "weight of the limb-length loss added to the L1 loss.", "min": 0}
     )
+    velocity_weight: float = field(
+        default=0.0,
+        metadata={
+            "help": "weight of an L1 loss on the frame-to-frame changes added to the loss (0: the paper's).",
+            "min": 0,
+        },
+    )
 
     def __post_init__(self) -> None:
         if min(self.channels, self.decoder_channels) < 1 or not 0 <= self.dropout < 1 or self.limb_weight < 0:
             raise ConfigError("channels must be positive, dropout in [0, 1) and limb_weight at least 0")
+        if not self.velocity_weight >= 0:
+            raise ConfigError("velocity_weight must be at least 0")
 
 
 class CdhcKind(ModelKind):
@@ -292,7 +301,10 @@ class CdhcKind(ModelKind):
     def loss(self, net, pred, pose, mask, settings: CdhcSettings):
         from kinectdata.models.cdhc import cdhc_loss
 
-        return cdhc_loss(pred, pose, mask, net.config, settings.limb_weight)[0]
+        loss = cdhc_loss(pred, pose, mask, net.config, settings.limb_weight)[0]
+        if settings.velocity_weight > 0:
+            loss = loss + settings.velocity_weight * masked_velocity_l1(pred, pose, mask)
+        return loss
 
     def init_output(self, net, start_pose: list[float]) -> None:
         from kinectdata.models.cdhc import init_output_bias
@@ -322,4 +334,5 @@ class CdhcKind(ModelKind):
         return f"cdhc, {settings.channels}/{settings.decoder_channels} channels, L1 + {settings.limb_weight:g} limb"
 
     def loss_name(self, settings: CdhcSettings) -> str:
-        return f"L1 + {settings.limb_weight:g} x limb-length L1 (0..1 targets)"
+        velocity = f" + {settings.velocity_weight:g} x velocity L1" if settings.velocity_weight else ""
+        return f"L1 + {settings.limb_weight:g} x limb-length L1{velocity} (0..1 targets)"

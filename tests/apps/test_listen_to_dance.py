@@ -159,8 +159,14 @@ def test_evaluate_reports_rhythm_with_the_real_motion_peaking_at_the_beat(cdhc_r
     run, _ = cdhc_run
     result = run_cli("evaluate", "--run", run, "--data", ltd_dataset, "--out", tmp_path / "ev")
     assert result.exit_code == 0, result.output
-    assert "rhythm real" in result.output and "with reset" not in result.output
+    assert "(real motion: " in result.output and "with reset" not in result.output
+    assert "generated motion follows the beat: " in result.output and "listens to the music: " in result.output
     results = json.loads((tmp_path / "ev" / "results.json").read_text())
+    listening = results["listening"]
+    (name, real), *_ = listening["real"]["recordings"].items()
+    assert real["in_metre"] and real["level"] in ("beat", "two beats")  # the dancer bounces each beat, steps each two
+    assert abs(real["beat_period_s"] - 60 / real_tempo(ltd_dataset, name)) < 1e-6
+    assert set(listening["generated"]["recordings"]) == set(listening["real"]["recordings"])
     (name, rec), *_ = results["rhythm"]["recordings"].items()
     assert rec["beat_source"] == "ground truth"
     real = rec["real"]
