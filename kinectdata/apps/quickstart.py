@@ -75,22 +75,25 @@ def learning_corpus(
     folder: str | Path, corpus_minutes: float = CORPUS_MINUTES, *, openpose: bool = False, seed: int = 500
 ) -> Path:
     """Synthesise sessions to learn from into ``folder`` and a ``recordings.yaml`` that splits them:
-    ``corpus_minutes`` of training sessions (45 s each, at least 2) at tempi spread evenly over
-    80-160 BPM, one validation and three test sessions (40 s) at tempi spread over the same range,
+    ``corpus_minutes`` of training sessions (45 s each, at least 2; shorter for a corpus under 90 s) at
+    tempi spread evenly over 80-160 BPM, one validation and three test sessions (40 s; at least 20 s)
+    at tempi spread over the same range,
     each at least 2 BPM from every training tempo (never heard in training). Offsets are the
     synthesiser's truth (the quickstart shows ``--offset auto`` on the sample sessions). Returns
     the manifest's path."""
     folder = Path(folder)
-    count = max(2, int(round(corpus_minutes * 60 / SESSION_S)))
+    session_s = min(SESSION_S, max(15.0, corpus_minutes * 60 / 2))  # a tiny corpus (tests): shorter sessions
+    test_s = min(TEST_SESSION_S, max(20.0, session_s))
+    count = max(2, int(round(corpus_minutes * 60 / session_s)))
     tempi = np.linspace(*TEMPO_RANGE_BPM, count)
     held_out = []
     for tempo in np.linspace(TEMPO_RANGE_BPM[0] + 5, TEMPO_RANGE_BPM[1] - 5, 4):
         while np.min(np.abs(tempi - tempo)) < 2:  # never a training tempo
             tempo += 2.5
         held_out.append(float(tempo))
-    plan = [(float(t), "train", SESSION_S) for t in tempi]
-    plan += [(held_out[1], "val", TEST_SESSION_S)]
-    plan += [(t, "test", TEST_SESSION_S) for t in (held_out[0], *held_out[2:])]
+    plan = [(float(t), "train", session_s) for t in tempi]
+    plan += [(held_out[1], "val", test_s)]
+    plan += [(t, "test", test_s) for t in (held_out[0], *held_out[2:])]
     lines = ["recordings:"]
     for i, (tempo, split, seconds) in enumerate(plan):
         rec = synthesize_recording(seed=seed + i, duration_s=seconds, tempo_bpm=round(tempo, 1))

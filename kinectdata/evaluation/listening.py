@@ -129,7 +129,13 @@ class Listening:
 
     def verdicts(self) -> list[str]:
         """Plain lines: a yes or no, and the figures beside it."""
-        lines = self.generated.verdicts("generated motion")
+        lines = []
+        if self.energy_ratio < ALIVE_RANGE[0] / 5:
+            lines.append(
+                f"note: the generated motion is nearly still (energy {self.energy_ratio:.2g} x the real motion's): the "
+                "rhythm verdicts below describe movements too small to see"
+            )
+        lines += self.generated.verdicts("generated motion")
         lines += [f"  (real motion: {line.split(': ', 1)[1]})" for line in self.real.verdicts("real")[:2]]
         noise = (
             f"at a metrical level in {self.noise.in_metre.value:.0%}, chance {self.noise.in_metre.chance:.0%}"

@@ -92,7 +92,7 @@ def test_quickstart_runs_on_the_bundled_samples(tmp_path, monkeypatch):
     pytest.importorskip("torch")
     monkeypatch.chdir(REPO)
     result = run(
-        "quickstart", "--out", tmp_path / "qs", "--epochs", 1, "--units", 16, "--corpus-minutes", 1.5, "--minutes", 1
+        "quickstart", "--out", tmp_path / "qs", "--epochs", 1, "--units", 16, "--corpus-minutes", 0.5, "--minutes", 1
     )
     assert result.exit_code == 0, result.output
     assert result.output.count("offset error against the ground truth") == 4
@@ -111,7 +111,7 @@ def test_quickstart_runs_on_the_bundled_samples(tmp_path, monkeypatch):
 def test_listen_to_dance_quickstart(tmp_path):
     pytest.importorskip("torch")
     result = run(
-        "quickstart", "--pipeline", "listen-to-dance", "--out", tmp_path / "qs", "--epochs", 1, "--corpus-minutes", 1.5
+        "quickstart", "--pipeline", "listen-to-dance", "--out", tmp_path / "qs", "--epochs", 1, "--corpus-minutes", 0.5
     )
     assert result.exit_code == 0, result.output
     assert result.output.count("(clap)") == 4  # every offset from the 2-D clap

@@ -169,3 +169,28 @@ def test_three_songs_cannot_show_tempo_following():
     result = beat_following(_set([0.7, 0.55, 0.42]), draws=50)
     assert result.tempo_correlation == pytest.approx(1.0)
     assert result.tempo_p_value == pytest.approx(1 / 6) and not result.follows_tempo
+
+
+def test_the_rhythm_of_an_orientation_target_is_measured_on_the_whole_body():
+    """yalta65 positions three joints; with the dataset's rest skeleton the evaluation sees the 21
+    joints its orientations reach, exactly the dancer's (against the synthesiser's own positions),
+    and a masked orientation takes the joints below it out."""
+    from kinectdata.evaluation.evaluate import body_positions
+    from kinectdata.synth import synthesize_recording
+    from kinectdata.targets.skeleton import bone_offsets
+    from kinectdata.targets.specs import extract_targets, load_target_spec
+
+    spec = load_target_spec("yalta65")
+    motion = synthesize_recording(seed=4, duration_s=10.0).true_motion
+    values, mask = extract_targets(motion, spec)
+    config = {"skeleton": bone_offsets(motion, spec), "root_centre": False}
+    positions, placed = body_positions(values, mask, spec, config)
+    assert positions.shape[1] == 21 and placed.all()
+    body = motion.positions[:, np.isfinite(motion.positions).all(axis=(0, 2))]  # joints compared by coordinates
+    found = {tuple(np.round(p, 9)) for p in positions[0]}
+    assert found <= {tuple(np.round(p, 9)) for p in body[0]}
+    mask[:, spec.columns("KneeLeft", "orientation")] = False
+    _, placed = body_positions(values, mask, spec, config)
+    assert placed.shape[1] == 20  # AnkleLeft hangs off KneeLeft's frame: no longer placed
+    only, _ = body_positions(values, mask, load_target_spec("yalta65"), {"skeleton": {}})
+    assert only.shape[1] == 3  # no rest skeleton: the target's own positions
