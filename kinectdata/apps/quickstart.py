@@ -8,7 +8,7 @@ dances to music it has never heard, and the verdicts that show it.
    normalised into -0.9..0.9, HDF5 shards and a manifest), then ``inspect`` it;
 4. the four sample sessions hold 88 s of dance, too little to learn a beat from: a **learning
    corpus** is synthesised (:func:`learning_corpus`: sessions at tempi spread over 80-160 BPM to
-   train on, three at tempi none of them has to test on) and built the same way;
+   train on, five at tempi none of them has to test on) and built the same way;
 5. ``train-baseline``: the Yalta et al. (2016) network with the learning recipe
    (:data:`QUICK_TRAINING`: teacher feedback, small batches, Adam 1e-3; docs/training.md,
    "Learning the beat") within a time budget (``minutes``);
@@ -62,7 +62,7 @@ QUICK_TRAINING = {
 }
 """The quickstart's training: the learning benchmark's recipe (docs/training.md, "Learning the
 beat") at a width that learns within a few minutes on 2 CPU cores; the time budget ends it."""
-QUICK_MINUTES = 4.0
+QUICK_MINUTES = 6.0
 """The quickstart's training budget, minutes."""
 CORPUS_MINUTES = 8.0
 """Minutes of training music the quickstart synthesises."""
@@ -76,18 +76,18 @@ def learning_corpus(
 ) -> Path:
     """Synthesise sessions to learn from into ``folder`` and a ``recordings.yaml`` that splits them:
     ``corpus_minutes`` of training sessions (45 s each, at least 2; shorter for a corpus under 90 s) at
-    tempi spread evenly over 80-160 BPM, one validation and three test sessions (40 s; at least 20 s)
+    tempi spread evenly over 80-160 BPM, one validation and five test sessions (40 s; at least 16 s)
     at tempi spread over the same range,
     each at least 2 BPM from every training tempo (never heard in training). Offsets are the
     synthesiser's truth (the quickstart shows ``--offset auto`` on the sample sessions). Returns
     the manifest's path."""
     folder = Path(folder)
     session_s = min(SESSION_S, max(15.0, corpus_minutes * 60 / 2))  # a tiny corpus (tests): shorter sessions
-    test_s = min(TEST_SESSION_S, max(20.0, session_s))
+    test_s = min(TEST_SESSION_S, max(16.0, session_s))  # two bars of lags at 84 BPM fit twice
     count = max(2, int(round(corpus_minutes * 60 / session_s)))
     tempi = np.linspace(*TEMPO_RANGE_BPM, count)
     held_out = []
-    for tempo in np.linspace(TEMPO_RANGE_BPM[0] + 5, TEMPO_RANGE_BPM[1] - 5, 4):
+    for tempo in np.linspace(TEMPO_RANGE_BPM[0] + 4, TEMPO_RANGE_BPM[1] + 4 - 8, 6):
         while np.min(np.abs(tempi - tempo)) < 2:  # never a training tempo
             tempo += 2.5
         held_out.append(float(tempo))
@@ -181,7 +181,7 @@ def run_quickstart(
     echo(
         f"[learn] the sample sessions hold {seconds:.0f} s of dance, too little to learn a beat from: synthesising "
         f"{corpus_minutes:g} min of sessions at {TEMPO_RANGE_BPM[0]:.0f}-{TEMPO_RANGE_BPM[1]:.0f} BPM to train on and "
-        f"three at tempi never heard in training to test on -> {out / 'corpus'}"
+        f"five at tempi never heard in training to test on -> {out / 'corpus'}"
     )
     corpus = learning_corpus(out / "corpus", corpus_minutes)
     echo(f"[build-dataset] {corpus} -> {out / 'learn_dataset'}")
@@ -308,7 +308,7 @@ def run_listen_quickstart(
     summary = {"dataset": str(out / "dataset"), "rows": manifest["totals"]["rows"]}
     echo(
         f"[learn] synthesising {corpus_minutes:g} min of OpenPose sessions at {TEMPO_RANGE_BPM[0]:.0f}-"
-        f"{TEMPO_RANGE_BPM[1]:.0f} BPM to train on and three at unheard tempi to test on -> {out / 'corpus'}"
+        f"{TEMPO_RANGE_BPM[1]:.0f} BPM to train on and five at unheard tempi to test on -> {out / 'corpus'}"
     )
     corpus = learning_corpus(out / "corpus", corpus_minutes, openpose=True)
     echo(f"[build-dataset] {corpus} -> {out / 'learn_dataset'} (--pipeline listen-to-dance)")

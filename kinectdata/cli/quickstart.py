@@ -24,7 +24,7 @@ import click
     "log-mel, the CDHC model, the rhythm analysis.",
 )
 @click.option(
-    "--minutes", default=4.0, show_default=True, type=click.FloatRange(min=0, min_open=True), help="Training budget."
+    "--minutes", default=6.0, show_default=True, type=click.FloatRange(min=0, min_open=True), help="Training budget."
 )
 @click.option(
     "--corpus-minutes",
@@ -40,7 +40,7 @@ import click
     "--units", default=None, type=click.IntRange(min=1), help="yalta2016: LSTM units per layer.  [default: 128]"
 )
 def quickstart(out, samples, pipeline, minutes, corpus_minutes, epochs, units) -> None:
-    """Run the toolkit end to end in about 6 minutes on 2 CPU cores: synthesise a session, align
+    """Run the toolkit end to end in about 7 minutes on 2 CPU cores: synthesise a session, align
     every sample session (offset from the sync clap, checked against the ground truth), build and
     inspect a dataset; then synthesise a corpus to learn from, train the reference network within
     --minutes, evaluate it on songs at tempi it never heard (SMAPE, forward time, plots, silence

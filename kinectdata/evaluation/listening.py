@@ -107,9 +107,16 @@ class Listening:
 
     @property
     def listens(self) -> bool:
-        """The motion follows the music it is given and not the music it came with, and noise does not
-        make it follow the beat (False when the swapped-song control could not run)."""
-        swapped = self.swapped is not None and self.swapped.follows_beat and self.swapped_follows_new > 0.5
+        """The motion follows the music it is given (its period at the new song's metre in most swapped
+        runs, more often than at the old song's), and noise does not make it follow the beat (False when
+        the swapped-song control could not run)."""
+        # the swapped runs share partner songs, so their own chance level (other songs' tempi) says nothing:
+        # the control compares the new song's metre with the old one's
+        swapped = (
+            self.swapped is not None
+            and self.swapped_follows_new > 0.5
+            and self.swapped_follows_new > self.swapped_follows_old
+        )
         noise = self.noise is None or not self.noise.follows_beat
         return self.generated.follows_beat and swapped and noise
 
