@@ -193,10 +193,8 @@ def run_quickstart(
         learn,
         "yalta2016",
         {**QUICK_TRAINING, "max_minutes": minutes, **training},
-        lambda test: _audio_of(learn, test),
         "generated.csv",
         echo,
-        dataset=out / "learn_dataset",
     )
     if learned:
         run = Path(learned["run"])
@@ -219,14 +217,12 @@ def _train_evaluate_generate(
     manifest: dict[str, Any],
     pipeline: str,
     settings: dict[str, Any],
-    audio_of: Callable[[str], Path],
     generated: str,
     echo: Callable[[str], Any],
-    dataset: Path | None = None,
 ) -> dict[str, Any]:
-    """Train the pipeline's model on ``dataset`` (default ``out/dataset``) into ``out/run``,
-    evaluate it on the test split and generate motion for the first test recording's audio
-    (``audio_of(name)``) into ``run/generated``. Returns ``{"run", "history", "evaluation",
+    """Train the pipeline's model on ``out/learn_dataset`` (its ``manifest``) into ``out/run``,
+    evaluate it on the test split and generate motion for the first test recording's audio (as the
+    manifest names it) into ``run/generated``. Returns ``{"run", "history", "evaluation",
     "generated_frames"}``, or ``{}`` (said through ``echo``) when PyTorch is not installed."""
     try:
         import torch  # noqa: F401
@@ -242,7 +238,7 @@ def _train_evaluate_generate(
     from kinectdata.training.train import train
 
     model = PIPELINES[pipeline]["model"]
-    dataset = dataset or out / "dataset"
+    dataset = out / "learn_dataset"
     run = out / "run"
     shutil.rmtree(run, ignore_errors=True)  # a fresh run each time (a run folder refuses to be overwritten)
     shown = {k: v for k, v in settings.items() if not (k == "epochs" and settings.get("max_minutes"))}
@@ -260,7 +256,7 @@ def _train_evaluate_generate(
     echo(f"[evaluate] {run} on the test split (songs at tempi never heard in training)")
     results = evaluate(run, dataset, "test")
     echo(format_results(results))
-    audio = audio_of(manifest["splits"]["test"]["recordings"][0])
+    audio = _audio_of(manifest, manifest["splits"]["test"]["recordings"][0])
     echo(f"[generate] {audio} -> {run / generated}")
     motion, _ = generate(run, audio, run / generated)
     return {"run": str(run), "history": history, "evaluation": results, "generated_frames": motion.n_frames}
@@ -318,10 +314,8 @@ def run_listen_quickstart(
         learn,
         "listen-to-dance",
         {**QUICK_CDHC, "max_minutes": minutes, **training},
-        lambda test: _audio_of(learn, test),
         "generated.jsonl",
         echo,
-        dataset=out / "learn_dataset",
     )
     if learned:
         run = Path(learned["run"])

@@ -287,7 +287,7 @@ def evaluate(
     beats = split_beats(recordings, manifest, fps)
     per_recording = rhythm_evaluation(recordings, free, real, spec, beats, fps)
     results["rhythm"] = {"summary": summarize_rhythm(per_recording), "recordings": per_recording}
-    results["listening"] = listening_controls(net, recordings, beats, manifest, config)
+    results["listening"] = listening_controls(net, recordings, beats, manifest, config, free=free)
     shown_rhythm = next((name for name, r in per_recording.items() if "real" in r), None)
     if shown_rhythm is not None:
         for which in ("real", "generated"):
@@ -405,16 +405,23 @@ def listening_controls(
     config: dict[str, Any],
     *,
     seed: int = 0,
+    free: dict[str, np.ndarray] | None = None,
 ) -> dict[str, Any]:
     """The beat-following figures with their chance levels and the listening controls
     (:func:`~kinectdata.evaluation.listening.listening_report`) over the recordings whose beats are
     known (ground truth or tracked), as JSON-ready figures with ``verdicts``; ``{"unavailable": why}``
-    when no recording has beats or the motion is too short for them."""
+    when no recording has beats or the motion is too short for them. ``free``: per recording, its
+    free run without reset, denormalised [T-1, D], when the caller has made it (not run again)."""
     found = _song_set(net, recordings, beats, manifest, config)
     if not found.songs:
         return {"unavailable": found.unavailable}
     try:
-        return listening_report(found.songs, found.generate, found.features_of, seed=seed).to_dict()
+        spec = TargetSpec.from_dict(config["dataset"]["target"])
+        done = {
+            name: body_positions(values, np.ones_like(values, bool), spec, config["dataset"])[0]
+            for name, values in (free or {}).items()
+        }
+        return listening_report(found.songs, found.generate, found.features_of, seed=seed, generated=done).to_dict()
     except KinectDataError as exc:  # too short for two bars of lags, too few beats
         return {"unavailable": str(exc)}
 

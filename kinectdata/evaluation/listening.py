@@ -218,6 +218,7 @@ def listening_report(
     *,
     seed: int = 0,
     draws: int = 500,
+    generated: dict[str, np.ndarray] | None = None,
 ) -> Listening:
     """Run the generated-motion figures and the listening controls (module docstring).
 
@@ -230,6 +231,8 @@ def listening_report(
             gives the rate (default 16 kHz). Makes the noise and silence controls' inputs.
         seed: the random choices (noise, shifts, chance draws).
         draws: chance draws per recording.
+        generated: per song name, ``generate(features, first_pose)`` when the caller has run it
+            already (the rest are generated here).
     """
     if not songs:
         raise KinectDataError("the listening controls need at least one test song")
@@ -240,7 +243,10 @@ def listening_report(
         return beat_following(recs, draws=draws, seed=seed)
 
     real = following([(s.name, s.real_positions, s.real_mask, s) for s in songs], 0)
-    generated_positions = {s.name: generate(s.features, s.first_pose) for s in songs}
+    given = generated or {}
+    generated_positions = {
+        s.name: given[s.name] if s.name in given else generate(s.features, s.first_pose) for s in songs
+    }
     generated = following([(s.name, generated_positions[s.name], None, s) for s in songs], 1)
 
     swapped = follows_new = follows_old = None
