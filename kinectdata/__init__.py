@@ -60,6 +60,11 @@ _API = {
     "evaluate": ("kinectdata.evaluation.evaluate", "evaluate"),
     "generate": ("kinectdata.inference.generate", "generate"),
     "export_run": ("kinectdata.inference.export", "export_run"),
+    # the field's metrics of two sets of dance (numpy only)
+    "load_dance_set": ("kinectdata.evaluation.motion_sets", "load_dance_set"),
+    "motion_as_dance": ("kinectdata.evaluation.motion_sets", "motion_as_dance"),
+    "score_sets": ("kinectdata.evaluation.field_scores", "score_sets"),
+    "get_protocol": ("kinectdata.evaluation.protocols", "get_protocol"),
     # errors
     "KinectDataError": ("kinectdata.core.errors", "KinectDataError"),
     "InputError": ("kinectdata.core.errors", "InputError"),

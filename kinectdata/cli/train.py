@@ -200,13 +200,24 @@ def train_baseline(data, out, resume, **options) -> None:
     type=click.FloatRange(min=2),
     help="Seconds of silence inserted for the silence test (the first second lets the motion settle).",
 )
-def evaluate_command(run_dir, data, split, out, silence) -> None:
+@click.option(
+    "--protocol",
+    default="bailando",
+    show_default=True,
+    type=click.Choice(["aist", "bailando", "edge"]),
+    help="Whose table the field's metrics (FID, Div, BAS, PFC) reproduce; see docs/metrics.md.",
+)
+@click.option("--bootstrap", default=1000, show_default=True, type=click.IntRange(min=0),
+              help="Resamples for the field's metrics' 95 %% intervals (0: none).")  # fmt: skip
+def evaluate_command(run_dir, data, split, out, silence, protocol, bootstrap) -> None:
     """Score a run as the paper does: SMAPE (%) free-running without and with reset, on normalised
-    and denormalised values; per-frame forward time; generated-against-real plots; the silence test."""
+    and denormalised values; per-frame forward time; generated-against-real plots; the silence test;
+    beat following with its chance levels and the listening controls; and the field's table (FID,
+    diversity, Beat Align Score, PFC) of the generated motion against the real, in metrics.json."""
     _torch_or_fail()
     from kinectdata.evaluation.evaluate import evaluate, format_results
 
-    results = evaluate(run_dir, data, split, out=out, silence_seconds=silence)
+    results = evaluate(run_dir, data, split, out=out, silence_seconds=silence, protocol=protocol, bootstrap=bootstrap)
     click.echo(format_results(results))
 
 

@@ -1,9 +1,9 @@
 """Joint sets: the names, hierarchy and roles of a skeleton's joints, read from data files.
 
 Shipped joint sets live in ``kinectdata/schemas/jointsets/*.json`` (``kinect_v2``, ``nite``,
-``azure_kinect``, ``openpose_mpi``) and follow ``schemas/jointset.schema.json``. Formats that bring
-their own hierarchy (HTR, Azure JSON with other joint lists) build a JointSet with
-:meth:`JointSet.custom`.
+``azure_kinect``, ``openpose_mpi``, and ``smpl24``, the field's) and follow
+``schemas/jointset.schema.json``. Formats that bring their own hierarchy (HTR, Azure JSON with
+other joint lists) build a JointSet with :meth:`JointSet.custom`.
 """
 
 from __future__ import annotations

@@ -31,6 +31,7 @@ from kinectdata.core.errors import KinectDataError
 from kinectdata.evaluation.rhythm import (
     BEAT_ALIGN_SIGMA_S,
     DRIFT_WINDOW_S,
+    FMEASURE_WINDOW_S,
     autocorrelation_peaks,
     beat_align_score,
     beat_period_s,
@@ -51,8 +52,6 @@ highest peak's height: a motion that repeats every beat also repeats every two b
 with peaks about as high, and its period is the shortest of them."""
 MIN_PERIOD_S = 0.2
 """Lags below this are not looked at (300 BPM: faster than any dance beat; sensor jitter lives here)."""
-FMEASURE_WINDOW_S = 0.1
-"""Tolerance of the beat F-measure in seconds (3 frames at 30 fps, the motion_dance window)."""
 CHANCE_DRAWS = 1000
 """Random phase shifts drawn per recording for the chance levels."""
 SIGNIFICANCE = 0.05
@@ -266,8 +265,8 @@ def recording_rhythm(rec: RecordingBeats) -> RecordingRhythm:
         level=level,
         at_beat=level == "beat",
         in_metre=level is not None,
-        beat_align_music=_bas(music, beats, "music"),
-        beat_align_motion=_bas(music, beats, "motion"),
+        beat_align_music=_bas(music, beats, "music_to_motion"),
+        beat_align_motion=_bas(music, beats, "motion_to_music"),
         f_measure=motion_beat_fmeasure(music, beats, FMEASURE_WINDOW_S) if music.size else 0.0,
         motion_beats=int(beats.size),
         beat_times_s=beats,
@@ -275,7 +274,7 @@ def recording_rhythm(rec: RecordingBeats) -> RecordingRhythm:
 
 
 def _bas(music: np.ndarray, motion: np.ndarray, direction: str) -> float:
-    averaged = music if direction == "music" else motion
+    averaged = music if direction == "music_to_motion" else motion
     return beat_align_score(music, motion, BEAT_ALIGN_SIGMA_S, direction) if averaged.size else 0.0
 
 
@@ -467,8 +466,8 @@ def beat_following(recordings: Sequence[RecordingBeats], *, draws: int = CHANCE_
     for i, (rec, rhythm) in enumerate(zip(recordings, rhythms)):
         for k, phase in enumerate(rng.uniform(0, rhythm.beat_period_s, draws)):
             music = _wrapped(rec, phase)
-            shifted[0, k, i] = _bas(music, rhythm.beat_times_s, "music")
-            shifted[1, k, i] = _bas(music, rhythm.beat_times_s, "motion")
+            shifted[0, k, i] = _bas(music, rhythm.beat_times_s, "music_to_motion")
+            shifted[1, k, i] = _bas(music, rhythm.beat_times_s, "motion_to_music")
             shifted[2, k, i] = motion_beat_fmeasure(music, rhythm.beat_times_s, FMEASURE_WINDOW_S) if music.size else 0
     observed = np.array(
         [[r.beat_align_music for r in rhythms], [r.beat_align_motion for r in rhythms], [r.f_measure for r in rhythms]]
@@ -479,7 +478,7 @@ def beat_following(recordings: Sequence[RecordingBeats], *, draws: int = CHANCE_
         other_songs = float(
             np.mean(
                 [
-                    _bas(rec.beats_inside(recordings[j].beats_s), rhythm.beat_times_s, "music")
+                    _bas(rec.beats_inside(recordings[j].beats_s), rhythm.beat_times_s, "music_to_motion")
                     for i, (rec, rhythm) in enumerate(zip(recordings, rhythms))
                     for j in range(n)
                     if j != i

@@ -41,9 +41,11 @@ import torch
 
 from kinectdata.core.errors import KinectDataError
 from kinectdata.dataset.shards import read_index
+from kinectdata.evaluation.field_scores import write_metrics_json
 from kinectdata.evaluation.figures import rhythm_plot, trajectories
 from kinectdata.evaluation.listening import HeldOutSong, listening_report
 from kinectdata.evaluation.metrics import motion_energy, smape
+from kinectdata.evaluation.protocols import Protocol, get_protocol
 from kinectdata.evaluation.rhythm_eval import (
     recording_audio,
     rhythm_evaluation,
@@ -51,6 +53,7 @@ from kinectdata.evaluation.rhythm_eval import (
     summarize_rhythm,
     target_positions,
 )
+from kinectdata.evaluation.run_field import run_field_scores
 from kinectdata.features import compute_features, feature_config
 from kinectdata.inference.engines import engine_pairs, make_engine, onnxruntime_available
 from kinectdata.models.kind import ModelKind
@@ -196,11 +199,16 @@ def evaluate(
     silence_seconds: float = SILENCE_S,
     timing_frames: int = 300,
     engines: list[tuple[str, str]] | None = None,
+    protocol: str | Protocol = "bailando",
+    bootstrap: int = 1000,
 ) -> dict[str, Any]:
-    """Score a run on a dataset split; write ``results.json`` and figures into ``out``
-    (default ``RUN/evaluation``); return the results. ``engines``: the (engine, precision)
-    pairs whose forward time is measured (default :func:`default_engines`; pairs the run's model
-    does not run on are left out)."""
+    """Score a run on a dataset split; write ``results.json``, ``metrics.json`` (the field's table)
+    and figures into ``out`` (default ``RUN/evaluation``); return the results. ``engines``: the
+    (engine, precision) pairs whose forward time is measured (default :func:`default_engines`;
+    pairs the run's model does not run on are left out). ``protocol``: whose table the field's
+    metrics reproduce (:data:`~kinectdata.evaluation.protocols.PROTOCOLS`), with ``bootstrap``
+    resamples for their intervals (:mod:`kinectdata.evaluation.run_field`)."""
+    protocol = get_protocol(protocol) if isinstance(protocol, str) else protocol
     run, dataset = Path(run), Path(dataset)
     net, config = load_model(run)
     manifest = read_manifest(dataset)
@@ -288,6 +296,18 @@ def evaluate(
     per_recording = rhythm_evaluation(recordings, free, real, spec, beats, fps)
     results["rhythm"] = {"summary": summarize_rhythm(per_recording), "recordings": per_recording}
     results["listening"] = listening_controls(net, recordings, beats, manifest, config, free=free)
+    try:
+        field = run_field_scores(free, real, beats, spec, config["dataset"], protocol, bootstrap=bootstrap)
+        record = field.to_dict()
+        results["field"] = {
+            "metrics_json": str(write_metrics_json(field, out / "metrics.json")),
+            "protocol": protocol.name,
+            "metrics": record["metrics"],
+            "warnings": record["warnings"],
+            "table": field.table(),
+        }
+    except KinectDataError as exc:  # 2-D targets, a joint set without a mapping, joints never placed
+        results["field"] = {"unavailable": str(exc)}
     shown_rhythm = next((name for name, r in per_recording.items() if "real" in r), None)
     if shown_rhythm is not None:
         for which in ("real", "generated"):
@@ -460,6 +480,12 @@ def format_results(results: dict[str, Any]) -> str:
         lines += [f"  {line}" for line in listening["verdicts"]]
     elif listening:
         lines.append(f"  listening      not measured: {listening['unavailable']}")
+    field = results.get("field", {})
+    if "table" in field:
+        lines.append("  the field's metrics, generated against the real motion of the same songs (metrics.json):")
+        lines += [f"    {line}" for line in field["table"].splitlines()]
+    elif field:
+        lines.append(f"  field metrics  not measured: {field['unavailable']}")
     if rhythm.get("unavailable"):
         lines.append(f"  rhythm         {rhythm['unavailable']} recordings without beats (see results.json)")
     lines.append("  figures        " + ", ".join(results["figures"]))

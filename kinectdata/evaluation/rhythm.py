@@ -3,8 +3,11 @@
 - Lee et al. (2018), "Listen to Dance": the autocorrelation of the joints' x and y trajectories
   peaks at the music's beat period in y and not in x (:func:`trajectory_autocorrelation`,
   :func:`autocorrelation_peaks`, :func:`rhythm_report`);
-- the AIST++ / Bailando Beat Align Score (:func:`motion_beats`, :func:`beat_align_score`);
-- the motion-beat F-measure within a tolerance window (:func:`motion_beat_fmeasure`, mir_eval).
+- the Beat Align Score in both directions (:func:`motion_beats`, :func:`beat_align_score`): averaged
+  over the music beats as Bailando's code does, or over the motion beats as the AI Choreographer
+  (AIST++) paper defines it; on recordings with masks and sub-frame beats (the peers' exact
+  computation on frame indices is :mod:`kinectdata.evaluation.metrics.beat_alignment`);
+- the motion-beat F-measure within a tolerance window in seconds (:func:`motion_beat_fmeasure`, mir_eval).
 
 Times are seconds; motion frames are on a uniform grid, frame i at ``i / fps`` s.
 """
@@ -16,6 +19,9 @@ from collections.abc import Sequence
 import numpy as np
 
 from kinectdata.core.errors import KinectDataError
+from kinectdata.evaluation.metrics.beat_alignment import DIRECTIONS as BAS_DIRECTIONS
+from kinectdata.evaluation.metrics.beat_alignment import SIGMA_S as BEAT_ALIGN_SIGMA_S
+from kinectdata.evaluation.metrics.beat_alignment import SMOOTHING_S as MOTION_BEAT_SMOOTHING_S
 
 DRIFT_WINDOW_S = 2.0
 """Seconds; the centred moving average subtracted from each trajectory before autocorrelation."""
@@ -28,12 +34,9 @@ PEAK_PROMINENCE = 0.1
 PERIOD_TOLERANCE = 0.10
 PERIOD_TOLERANCE_FRAMES = 2
 """A peak is "at the beat period" within max(10% of the period, 2 frames)."""
-BEAT_ALIGN_SIGMA_S = 3 / 60
-"""0.05 s: 3 frames at 60 fps, the AIST++ / Bailando value."""
-MOTION_BEAT_SMOOTHING_S = 5 / 60
-"""Gaussian sigma of the speed smoothing: 5 frames at 60 fps, as the AIST++ / Bailando code."""
-FMEASURE_WINDOW_FRAMES = 3
-"""Tolerance of the motion-beat F-measure in motion frames (+-3 frames, as motion_dance)."""
+FMEASURE_WINDOW_S = 0.1
+"""Tolerance of the motion-beat F-measure in seconds (+-3 frames at 30 fps, as motion_dance), the
+same at every frame rate."""
 BEAT_TRACKER_HOP_S = 0.01
 """Seconds between librosa onset frames (its default 512 samples is 32 ms at 16 kHz: too coarse)."""
 
@@ -240,15 +243,15 @@ def rhythm_report(
 def motion_beats(
     positions: np.ndarray, mask: np.ndarray | None, fps: float, sigma_frames: float | None = None
 ) -> np.ndarray:
-    """Motion beats: the local minima of the mean joint speed after Gaussian smoothing (AIST++).
+    """Motion beats: the local minima of the mean joint speed after Gaussian smoothing (as Bailando).
 
     Each joint's speed at frame t is the norm of its central-difference velocity
     (p[t + 1] - p[t - 1]) * fps / 2 (one-sided at the ends), so it is not shifted by half a frame as
-    the forward differences of the AIST++ code are; a joint counts at frame t when both frames it
+    the forward differences of Bailando's code are; a joint counts at frame t when both frames it
     uses are valid. The speeds are averaged over the counted joints; frames where none counts are
     filled by linear interpolation. The result is smoothed by ``scipy.ndimage.gaussian_filter1d``
     (``mode="nearest"``) with ``sigma_frames``, and its strict local minima
-    (``scipy.signal.argrelmin``, as the AIST++ code's ``argrelextrema(np.less)``: a flat plateau is
+    (``scipy.signal.argrelmin``, as Bailando's ``argrelextrema(np.less)``: a flat plateau is
     no minimum) are the beats, refined to sub-frame by a parabola through the three samples; minima
     on filled frames are dropped.
 
@@ -291,32 +294,35 @@ def beat_align_score(
     music_beats_s: Sequence[float],
     motion_beats_s: Sequence[float],
     sigma_s: float = BEAT_ALIGN_SIGMA_S,
-    direction: str = "music",
+    direction: str = "music_to_motion",
 ) -> float:
     """Beat Align Score: mean of exp(-d^2 / (2 sigma^2)) over one set of beats, in 0..1.
 
-    ``direction="music"`` (AIST++'s paper): averaged over the music beats, d the distance to the
-    nearest motion beat; ``"motion"`` (Bailando's code): averaged over the motion beats, d the
-    distance to the nearest music beat. The default sigma is 0.05 s (3 frames at 60 fps).
+    ``direction="music_to_motion"`` (Bailando's code, ``utils/beat_align_score.py``, and the tables
+    of Bailando, EDGE and FineDance): averaged over the music beats, d the distance to the nearest
+    motion beat. ``"motion_to_music"`` (the AI Choreographer / AIST++ paper's definition): averaged
+    over the motion beats, d the distance to the nearest music beat. The default sigma is 0.05 s
+    (3 frames at 60 fps).
 
     Args:
         music_beats_s: [B] music beat times in seconds.
         motion_beats_s: [K] motion beat times in seconds, same clock.
         sigma_s: Gaussian width in seconds.
-        direction: "music" or "motion": which beats are averaged over.
+        direction: one of :data:`BAS_DIRECTIONS`.
 
     Returns:
         The score; 0 if the other set is empty. An empty set to average over is an error.
     """
     music = _beat_array(music_beats_s, "music beats")
     motion = _beat_array(motion_beats_s, "motion beats")
-    if direction not in ("music", "motion"):
-        raise KinectDataError(f"Beat Align Score direction must be 'music' or 'motion', got {direction!r}")
+    if direction not in BAS_DIRECTIONS:
+        raise KinectDataError(f"Beat Align Score direction must be one of {BAS_DIRECTIONS}, got {direction!r}")
     if not sigma_s > 0:
         raise KinectDataError(f"Beat Align Score sigma must be positive, got {sigma_s} s")
-    averaged, other = (music, motion) if direction == "music" else (motion, music)
+    averaged, other = (music, motion) if direction == "music_to_motion" else (motion, music)
     if averaged.size == 0:
-        raise KinectDataError(f"Beat Align Score averages over the {direction} beats, and there are none")
+        over = "music" if direction == "music_to_motion" else "motion"
+        raise KinectDataError(f"Beat Align Score {direction} averages over the {over} beats, and there are none")
     if other.size == 0:
         return 0.0
     distance = np.min(np.abs(averaged[:, None] - other[None, :]), axis=1)
@@ -356,8 +362,8 @@ def beat_alignment_report(
     motion_beats_s: Sequence[float],
     fps: float,
     sigma_s: float = BEAT_ALIGN_SIGMA_S,
-    direction: str = "music",
-    window_frames: float = FMEASURE_WINDOW_FRAMES,
+    direction: str = "music_to_motion",
+    window_s: float = FMEASURE_WINDOW_S,
 ) -> dict:
     """Beat Align Score and F-measure with every choice stated (JSON-ready).
 
@@ -366,8 +372,8 @@ def beat_alignment_report(
         motion_beats_s: [K] motion beat times in seconds, same clock.
         fps: the motion's frames per second, to state sigma and the window in frames.
         sigma_s: Beat Align Score sigma in seconds (default 3 frames at 60 fps).
-        direction: "music" or "motion", see :func:`beat_align_score`.
-        window_frames: F-measure tolerance in frames at ``fps``.
+        direction: one of :data:`BAS_DIRECTIONS`, see :func:`beat_align_score`.
+        window_s: F-measure tolerance in seconds.
 
     Returns:
         ``beat_align_score``, ``direction``, ``sigma_s``, ``sigma_frames``, ``f_measure``,
@@ -377,7 +383,6 @@ def beat_alignment_report(
 
     if not fps > 0:
         raise KinectDataError(f"fps must be positive, got {fps}")
-    window_s = window_frames / fps
     score = beat_align_score(music_beats_s, motion_beats_s, sigma_s, direction)
     f = motion_beat_fmeasure(music_beats_s, motion_beats_s, window_s)
     music, motion = np.asarray(music_beats_s, np.float64), np.asarray(motion_beats_s, np.float64)
@@ -391,7 +396,7 @@ def beat_alignment_report(
         "precision": matched / motion.size if motion.size else 0.0,
         "recall": matched / music.size if music.size else 0.0,
         "window_s": window_s,
-        "window_frames": float(window_frames),
+        "window_frames": float(window_s * fps),
         "music_beats": int(music.size),
         "motion_beats": int(motion.size),
     }

@@ -76,6 +76,31 @@ def evaluation(trained_run, sample_dataset, tmp_path_factory):
     return evaluate(run, sample_dataset, "test", out=out, silence_seconds=3.0, timing_frames=60), out
 
 
+def test_evaluate_gives_the_fields_table_and_records_its_protocol(evaluation, tmp_path):
+    results, out = evaluation
+    record = json.loads((out / "metrics.json").read_text())
+    assert results["field"]["metrics_json"] == str(out / "metrics.json")
+    assert record["protocol"]["name"] == "bailando" and record["protocol"]["fps"] == 60.0
+    assert record["sets"]["generated"]["sequences"] == record["sets"]["reference"]["sequences"] == ["synth_002"]
+    mapping = record["joint_mappings"][0]
+    assert mapping["source"] == "kinect_v2" and "AnkleLeft" in mapping["stand_ins"]["FootLeft"]  # yalta65: no feet
+    assert record["metrics"]["FID_k"]["generated"] is None and "needs 2 sequences" in record["metrics"]["FID_k"]["note"]
+    # independent: the real motion rebuilt from its targets scores as the recording aligned and read from its file
+    aligned = align_files(REPO / "sample_data" / "synth_002.csv", SONG, tmp_path / "s2.h5")
+    assert aligned.n_frames > 300
+    from kinectdata.evaluation.field_scores import score_sets
+    from kinectdata.evaluation.motion_sets import load_dance_set
+    from kinectdata.evaluation.protocols import PROTOCOLS
+
+    from_file = load_dance_set(tmp_path / "s2.h5", PROTOCOLS["bailando"])
+    assert from_file[0].music_beats_s is not None  # ground truth beside the song
+    bas = score_sets(from_file, from_file, PROTOCOLS["bailando"], bootstrap=0).metric("BAS").generated
+    assert record["metrics"]["BAS"]["reference"] == pytest.approx(bas, abs=0.02)
+    assert bas > 0.5  # the synthetic dancer bounces on the beat
+    printed = format_results(results)
+    assert "protocol bailando" in printed and "BAS      higher" in printed
+
+
 def test_evaluate_scores_against_an_independent_free_run(trained_run, sample_dataset, evaluation):
     import h5py
 

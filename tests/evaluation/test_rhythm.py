@@ -136,14 +136,14 @@ def test_beat_align_score_by_hand():
     by_music = (math.exp(-(0.02**2) / 0.005) + math.exp(-(0.1**2) / 0.005) + math.exp(-(0.9**2) / 0.005)) / 3
     by_motion = (math.exp(-(0.02**2) / 0.005) + math.exp(-(0.1**2) / 0.005)) / 2  # 2 sigma^2 = 0.005 s^2
     assert beat_align_score(music, motion) == pytest.approx(by_music, rel=1e-12)
-    assert beat_align_score(music, motion, direction="motion") == pytest.approx(by_motion, rel=1e-12)
+    assert beat_align_score(music, motion, direction="motion_to_music") == pytest.approx(by_motion, rel=1e-12)
     assert beat_align_score(music, motion, sigma_s=0.1) == pytest.approx(
         (math.exp(-(0.02**2) / 0.02) + math.exp(-(0.1**2) / 0.02) + math.exp(-(0.9**2) / 0.02)) / 3, rel=1e-12
     )
     assert beat_align_score(music, music) == 1.0
     assert beat_align_score(music, []) == 0.0
     with pytest.raises(KinectDataError, match="motion beats, and there are none"):
-        beat_align_score(music, [], direction="motion")
+        beat_align_score(music, [], direction="motion_to_music")
     with pytest.raises(KinectDataError, match="direction"):
         beat_align_score(music, motion, direction="both")
 
@@ -156,12 +156,14 @@ def test_fmeasure_by_hand():
     assert motion_beat_fmeasure(music, motion, 0.1) == pytest.approx(expected)
     assert motion_beat_fmeasure(music, music, 0.1) == 1.0
     assert motion_beat_fmeasure(music, [], 0.1) == 0.0
-    report = beat_alignment_report(music, motion, fps=20.0, window_frames=2)  # 2 frames at 20 fps = 0.1 s
+    report = beat_alignment_report(music, motion, fps=20.0, window_s=0.1)  # 2 frames at 20 fps
     assert report["f_measure"] == pytest.approx(expected)
     assert (report["precision"], report["recall"]) == pytest.approx((precision, recall))
     assert report["window_s"] == pytest.approx(0.1) and report["window_frames"] == 2
-    assert report["direction"] == "music" and report["sigma_s"] == 0.05 and report["sigma_frames"] == 1.0
-    assert beat_alignment_report(music, motion, fps=60.0)["sigma_frames"] == pytest.approx(3.0)
+    assert report["direction"] == "music_to_motion" and report["sigma_s"] == 0.05 and report["sigma_frames"] == 1.0
+    at_60 = beat_alignment_report(music, motion, fps=60.0)
+    assert at_60["sigma_frames"] == pytest.approx(3.0)
+    assert at_60["window_s"] == pytest.approx(0.1) and at_60["f_measure"] == pytest.approx(expected)  # not per frame
     with pytest.raises(KinectDataError, match="beat 2 at 1.0 s comes after 2.0 s"):
         motion_beat_fmeasure([1.0, 2.0, 1.0], motion, 0.1)
 

@@ -1,0 +1,48 @@
+"""Metrics on arrays: plain numpy functions, shapes and units in their docstrings.
+
+- :mod:`.pose_error`: SMAPE and motion energy of generated against real poses (Yalta et al.);
+- :mod:`.kinetic`, :mod:`.geometric`: the field's per-sequence motion features (AIST++ API);
+- :mod:`.distribution`: FID and diversity over sets of those features, bootstrap intervals;
+- :mod:`.beat_alignment`: the Beat Align Score as the peers compute it, both directions;
+- :mod:`.foot_contact`: EDGE's physical foot contact score;
+- :mod:`.quality`: bone-length consistency and jitter (jerk).
+
+Definitions, sources and the fixtures that prove them: docs/metrics.md.
+"""
+
+from kinectdata.evaluation.metrics.beat_alignment import (
+    music_beat_frames,
+    peer_beat_align_score,
+    peer_motion_beats,
+)
+from kinectdata.evaluation.metrics.distribution import (
+    bootstrap_interval,
+    constant_reference_features,
+    diversity,
+    frechet_distance,
+    standardise_by_reference,
+)
+from kinectdata.evaluation.metrics.foot_contact import foot_contact_score, physical_foot_contact
+from kinectdata.evaluation.metrics.geometric import geometric_features
+from kinectdata.evaluation.metrics.kinetic import kinetic_features
+from kinectdata.evaluation.metrics.pose_error import motion_energy, smape
+from kinectdata.evaluation.metrics.quality import bone_length_variation, mean_jerk
+
+__all__ = [
+    "bone_length_variation",
+    "bootstrap_interval",
+    "constant_reference_features",
+    "diversity",
+    "foot_contact_score",
+    "frechet_distance",
+    "geometric_features",
+    "kinetic_features",
+    "mean_jerk",
+    "motion_energy",
+    "music_beat_frames",
+    "peer_beat_align_score",
+    "peer_motion_beats",
+    "physical_foot_contact",
+    "smape",
+    "standardise_by_reference",
+]
