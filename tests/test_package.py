@@ -25,3 +25,16 @@ def test_the_report_templates_are_found_through_the_package():
     templates = resources.files("kinectdata.viz") / "templates"
     assert {"report.html.j2", "report_parts.html.j2"} <= {p.name for p in templates.iterdir()}
     assert (schemas_dir() / "shard-json-attributes.schema.json").is_file()
+
+
+def test_every_data_file_of_the_checkout_is_installed():
+    """Each schema, joint set, mapping and template in the checkout is found through the installed
+    package (a package-data pattern that misses a nested folder ships nothing from it)."""
+    from importlib import resources
+
+    checkout = REPO / "kinectdata"
+    installed = resources.files("kinectdata")
+    wanted = [p.relative_to(checkout) for p in checkout.rglob("*") if p.suffix in (".json", ".j2")]
+    assert wanted
+    missing = [str(p) for p in wanted if not installed.joinpath(*p.parts).is_file()]
+    assert not missing, f"not installed: {missing}"
