@@ -171,9 +171,9 @@ def test_real_audio_capture_where_an_input_exists(tmp_path):
     try:
         devices = input_devices()
     except KinectDataError as exc:
-        pytest.skip(f"no audio capture here: {exc}")
+        pytest.skip(f"hardware: no audio capture here: {exc}")
     if not devices:
-        pytest.skip("no audio input device on this machine")
+        pytest.skip("hardware: no audio input device on this machine")
     capture = AudioCapture(tmp_path / "a.wav", devices[0]["index"], int(devices[0]["sample_rate"]))
     capture.start()
     time.sleep(0.5)

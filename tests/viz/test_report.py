@@ -19,6 +19,7 @@ import pytest
 import yaml
 from click.testing import CliRunner
 from conftest import REPO
+from helpers import skip_unless_installed
 
 from kinectdata.cli import main
 from kinectdata.core.errors import KinectDataError
@@ -227,8 +228,7 @@ def test_long_gaps_given_offsets_masked_data_and_moved_sources(gap_dataset, tmp_
 
 def test_report_loads_in_headless_chromium_with_every_image(report, tmp_path):
     chromium = shutil.which("chromium")
-    if chromium is None:
-        pytest.skip("Debian's chromium is not installed (apt-get install chromium)")
+    skip_unless_installed(None if chromium else "apt-get install chromium", "Debian's chromium")
     probe = (
         "<script>window.addEventListener('load', () => { const p = document.createElement('pre'); p.id = 'probe';"
         " p.textContent = JSON.stringify({images: [...document.images].map(i => i.complete && i.naturalWidth > 0),"
