@@ -3,12 +3,20 @@
 Every command turns a :class:`~kinectdata.core.errors.KinectDataError` into a one-line message on
 standard error and exit status 1, and prints each
 :class:`~kinectdata.core.errors.KinectDataWarning` as one ``warning: ...`` line; click's own usage
-errors exit with 2.
+errors exit with 2. An environment fault (:class:`OSError`: a path that cannot be written or read,
+a full disk) is one line naming the path, exit status 1. Anything else is a bug: one line saying so
+and naming the file its traceback was saved to, exit status 70 (``EX_SOFTWARE``).
 """
 
 from __future__ import annotations
 
+import os
+import sys
+import tempfile
+import time
+import traceback
 import warnings
+from pathlib import Path
 
 import click
 
@@ -32,6 +40,49 @@ class _Group(click.Group):
                 return super().invoke(ctx)
             except KinectDataError as exc:
                 raise click.ClickException(str(exc)) from exc
+            except (click.exceptions.Exit, click.ClickException, click.Abort, KeyboardInterrupt, SystemExit):
+                raise
+            except OSError as exc:
+                raise click.ClickException(os_error_line(exc)) from exc
+            except Exception as exc:
+                raise Bug(exc) from exc
+
+
+class Bug(click.ClickException):
+    """An exception kinectdata did not expect: one line, the traceback saved to a file it names."""
+
+    exit_code = 70
+
+    def __init__(self, exc: BaseException) -> None:
+        saved = save_traceback(exc)
+        where = f"the traceback is in {saved}" if saved else "the traceback could not be saved"
+        super().__init__(
+            f"internal error, a bug in kinectdata {__version__} ({type(exc).__name__}: {exc}); {where}: "
+            "please report it with that file"
+        )
+
+
+def os_error_line(exc: OSError) -> str:
+    """``path: reason`` of an OSError (both paths of a failed rename or copy)."""
+    reason = exc.strerror or str(exc)
+    paths = [str(p) for p in (exc.filename, exc.filename2) if p is not None]
+    return f"{' -> '.join(paths)}: {reason}" if paths else reason
+
+
+def save_traceback(exc: BaseException) -> Path | None:
+    """Write the traceback of ``exc`` with the command line and versions to a new file in the
+    temporary folder; its path, or None when even that cannot be written."""
+    stamp = time.strftime("%Y%m%d-%H%M%S")
+    path = Path(tempfile.gettempdir()) / f"kinectdata-crash-{stamp}-{os.getpid()}.txt"
+    text = (
+        f"kinectdata {__version__}, Python {sys.version.split()[0]}, {sys.platform}\n"
+        f"command: {' '.join(sys.argv)}\n\n" + "".join(traceback.format_exception(exc))
+    )
+    try:
+        path.write_text(text, encoding="utf-8")
+    except OSError:
+        return None
+    return path
 
 
 @click.group(cls=_Group, context_settings={"help_option_names": ["-h", "--help"], "max_content_width": 100})

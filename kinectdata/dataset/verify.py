@@ -48,6 +48,8 @@ def manifest_problems(folder: str | Path) -> tuple[dict[str, Any] | None, list[I
     schema violation. The manifest is None unless it is valid."""
     folder = Path(folder)
     path = folder / MANIFEST
+    if folder.is_file():
+        return None, [FormatError(folder, "a file, not a dataset folder (give the folder build-dataset wrote)")]
     if not folder.is_dir():
         return None, [FormatError(folder, "not a dataset folder (no such folder)")]
     if not path.is_file():
