@@ -10,6 +10,9 @@ from pathlib import Path
 
 import numpy as np
 
+EXTRAS = {"torch": "train", "onnxruntime": "export", "imageio_ffmpeg": "video", "librosa": "music", "dask": "dask"}
+"""Optional packages a benchmark may need, and the extra that installs each."""
+
 
 def machine() -> str:
     import os
@@ -28,7 +31,15 @@ def main(argv: list[str]) -> None:
     print(f"machine: {machine()}")
     for name in names:
         print(f"\n== {name} ==")
-        importlib.import_module(f"benchmarks.{name}").main()
+        try:
+            module = importlib.import_module(f"benchmarks.{name}")
+        except ModuleNotFoundError as exc:
+            top = (exc.name or "").split(".")[0]
+            if top not in EXTRAS:
+                raise
+            print(f"  skipped: needs pip install 'kinectdata[{EXTRAS[top]}]' ({top} is not installed)")
+            continue
+        module.main()
     print(f"\n== summary ==\nmachine: {machine()}\n")
     print(table())
 

@@ -16,7 +16,7 @@ offset), not silently trimmed.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -35,6 +35,8 @@ from kinectdata.formats import read_motion
 DEFAULT_FPS = 30.0
 DEFAULT_MAX_GAP = 0.2
 DEFAULT_MIN_COVERAGE = 0.9
+MIN_AUTO_OFFSET_S = 2.0
+"""A recording shorter than this (seconds) cannot have its offset estimated: give it."""
 
 
 def resolve_offset(
@@ -51,7 +53,17 @@ def resolve_offset(
     its envelopes by :func:`kinectdata.align.offset.estimate_offset`).
     """
     if offset is None or offset == "auto":
-        est = estimate_offset(motion, audio, max_offset=max_offset, min_confidence=min_confidence)
+        recording = motion.metadata.get("source", "the recording")
+        heard = audio.source.get("path", "its audio") if isinstance(audio, Audio) else "its audio"
+        if motion.duration < MIN_AUTO_OFFSET_S:
+            raise AlignmentError(
+                f"{recording}: {motion.n_frames} frame(s), {motion.duration:.2f} s: too short to find its offset to "
+                f"{heard} (a clap or the music's rhythm needs at least {MIN_AUTO_OFFSET_S:g} s); give --offset SECONDS"
+            )
+        try:
+            est = estimate_offset(motion, audio, max_offset=max_offset, min_confidence=min_confidence)
+        except AlignmentError as exc:
+            raise AlignmentError(f"{recording} with {heard}: {exc}") from None
         return OffsetChoice.from_estimate(est)
     try:
         seconds = float(offset)
@@ -234,6 +246,7 @@ def align(
     Raises:
         AlignmentError: no reliable offset, or too little overlap between audio and motion.
     """
+    motion, implausible = mask_implausible(motion)
     off = resolve_offset(motion, audio, offset, max_offset=max_offset, min_confidence=min_confidence)
     tl = plan_timeline(
         motion,
@@ -255,9 +268,33 @@ def align(
         orientation_interpolated=res.orientation_interpolated,
         offset=off,
         provenance=Provenance(motion=dict(motion.metadata), audio=dict(audio.source)),
-        summary=summarize(motion, tl, res, long_gaps, off, audio.samples.size, samples.size),
+        summary=summarize(motion, tl, res, long_gaps, off, audio.samples.size, samples.size)
+        | {"implausible_positions": implausible},
         gaps=long_gaps,
     )
+
+
+MAX_ABS_POSITION = {3: 1e3, 2: 1e6}
+"""Largest believable coordinate by joint-set dimensions: 1 km in camera space, 10^6 pixels."""
+
+
+def mask_implausible(motion: Motion) -> tuple[Motion, int]:
+    """The motion with positions that are not finite or beyond :data:`MAX_ABS_POSITION` (a
+    recorder's overflow, 1e300, inf) masked as tracking loss, and how many joint positions that was.
+    Masked, not refused: one bad value should not cost a take; the count is in ``align``'s summary."""
+    limit = MAX_ABS_POSITION.get(motion.joint_set.dimensions, 1e6)
+    with np.errstate(invalid="ignore"):
+        bad = motion.position_mask & ~(np.abs(motion.positions) <= limit).all(axis=-1)
+    count = int(bad.sum())
+    if not count:
+        return motion, 0
+    cleaned = replace(
+        motion,
+        positions=np.where(bad[..., None], np.nan, motion.positions),
+        position_mask=motion.position_mask & ~bad,
+        metadata=dict(motion.metadata),
+    )
+    return cleaned, count
 
 
 def align_files(
@@ -312,7 +349,7 @@ def format_summary(rec: AlignedRecording) -> str:
     lines = [
         f"frames          {s['frames']} at {s['fps']:g} fps = {s['duration_s']:.3f} s; "
         f"audio {s['audio_samples']} samples at {s['sample_rate']} Hz",
-        f"source          {s['source_frames']} frames, {s['source_fps']:.2f} fps (median), "
+        f"source          {s['source_frames']} frames, {s['source_fps']:.2f} fps (from the timestamps), "
         f"jitter {s['source_jitter_ms']:.2f} ms, {s['dropped_frames']} dropped",
         f"trimmed         motion {s['motion_trimmed_start_s']:.3f} s at start, "
         f"{s['motion_trimmed_end_s']:.3f} s at end; "
@@ -320,6 +357,11 @@ def format_summary(rec: AlignedRecording) -> str:
         f"gaps            {100 * s['interpolated_share']:.2f}% of joint positions interpolated, "
         f"{100 * s['masked_share']:.2f}% masked, {s['long_gaps']} gap(s) longer than max-gap",
     ]
+    if s.get("implausible_positions"):
+        lines.append(
+            f"implausible     {s['implausible_positions']} joint position(s) not finite or beyond "
+            f"{MAX_ABS_POSITION.get(rec.motion.joint_set.dimensions, 1e6):g} units: masked as tracking loss"
+        )
     if "orientation_interpolated_share" in s:
         lines.append(f"orientations    {100 * s['orientation_interpolated_share']:.2f}% interpolated")
     lines.append(

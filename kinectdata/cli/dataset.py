@@ -252,7 +252,23 @@ def inspect_command(path, components) -> None:
     if components != "all" and not components.isdigit():
         raise click.BadParameter(f"{components!r} is neither a number nor 'all'", param_hint="--components")
     limit = None if components == "all" else int(components)
+    if _is_aligned(path):  # an aligned recording, not a shard: what info shows of it
+        from kinectdata.align.aligned import AlignedRecording
+        from kinectdata.cli.info import aligned_lines
+
+        click.echo(aligned_lines(path, AlignedRecording.load(path)))
+        return
     click.echo(inspect_report(path, components=limit))
+
+
+def _is_aligned(path: str) -> bool:
+    import h5py
+
+    try:
+        with h5py.File(path, "r") as f:
+            return f.attrs.get("format") == "kinectdata.aligned"
+    except OSError:
+        return False
 
 
 COMMANDS = [build_dataset_command, inspect_command]

@@ -22,7 +22,13 @@ def info(
     person: str | None,
     video_fps: float | None,
 ) -> None:
-    """Show what a skeleton RECORDING holds: format, joints, frames, timing, tracking."""
+    """Show what a skeleton RECORDING holds: format, joints, frames, timing, tracking. An aligned
+    .h5 written by `kinectdata align` shows its motion, audio and offset."""
+    if recording.lower().endswith((".h5", ".hdf5")):
+        from kinectdata.align.aligned import AlignedRecording
+
+        click.echo(aligned_lines(recording, AlignedRecording.load(recording)))
+        return
     m = read_motion(recording, format=format_, schema=schema, body=body, person=person, video_fps=video_fps)
     t = m.timing()
     md = m.metadata
@@ -39,13 +45,20 @@ def info(
             + ", ".join(f"{p} ({n} frames)" for p, n in md["people"].items())
             + f"; {md['layout']} keypoints at {md['video_fps']:g} fps"
         )
-    click.echo(
-        f"frames          {m.n_frames} over {m.duration:.3f} s; {t['fps']:.2f} fps (median interval "
-        f"{t['interval_ms']:.2f} ms), jitter {t['jitter_ms']:.2f} ms, {t['dropped_frames']} dropped"
-    )
+    if m.n_frames < 2:
+        click.echo(f"frames          {m.n_frames}: no frame rate from a single frame")
+    else:
+        click.echo(
+            f"frames          {m.n_frames} over {m.duration:.3f} s; {t['fps']:.2f} fps (mean interval "
+            f"{t['interval_ms']:.2f} ms), jitter {t['jitter_ms']:.2f} ms, {t['dropped_frames']} dropped"
+        )
+    for line in _timing_doubts(md, t):
+        click.echo(line)
     click.echo(
         f"positions       {100 * m.position_mask.mean():.1f}% valid; mean confidence {np.mean(m.confidence):.3f}"
     )
+    if md.get("confidences_clipped"):
+        click.echo(f"confidences     {md['confidences_clipped']} above 1 (as OpenPose writes at times), clipped to 1")
     if m.has_orientations:
         can = m.joint_set.orientation_mask
         share = m.orientation_mask[:, can].mean() if can.any() else 0.0
@@ -77,3 +90,62 @@ def _headline(text: str, width: int = 76) -> str:
 
 
 COMMANDS = [info, formats]
+
+
+DECLARED_RATE_TOLERANCE = 0.02
+"""A declared frame rate more than this share away from the timestamps' is reported."""
+
+
+def _declared_fps(metadata: dict) -> tuple[str, float] | None:
+    """A frame rate the file itself declares (a recorder's preamble ``Stream nominal rate : 30``,
+    a ``# fps: 30`` comment): (where, value), or None."""
+    for key, value in (metadata.get("file_metadata") or {}).items():
+        words = key.lower()
+        if "rate" in words or "fps" in words or "frequency" in words:
+            try:
+                number = float(str(value).split()[0])
+            except (ValueError, IndexError):
+                continue
+            if number > 0:
+                return key, number
+    return None
+
+
+def _timing_doubts(metadata: dict, timing: dict) -> list[str]:
+    """Lines for a declared rate the timestamps contradict, and for frozen (repeated) frames."""
+    lines = []
+    declared = _declared_fps(metadata)
+    fps = timing["fps"]
+    if declared is not None and np.isfinite(fps) and abs(declared[1] / fps - 1) > DECLARED_RATE_TOLERANCE:
+        lines.append(
+            f"declared rate   {declared[1]:g} fps in the file ({declared[0]}), but the timestamps give {fps:.2f} fps: "
+            "the timestamps are used"
+        )
+    frozen = timing.get("frozen_frames", 0)
+    if frozen:
+        lines.append(
+            f"frozen frames   {frozen} repeat the frame before exactly (a stalled tracker writing its last pose "
+            "again); they count as tracked"
+        )
+    return lines
+
+
+def aligned_lines(path: str, rec) -> str:
+    """What ``info`` shows of an aligned recording."""
+    m = rec.motion
+    off = rec.offset
+    offset = f"{off.seconds:+.3f} s ({off.source})" if off is not None else "none recorded"
+    lines = [
+        f"file            {path}",
+        "format          aligned recording (kinectdata align)",
+        f"joint set       {m.joint_set.name} ({m.n_joints} joints, {m.joint_set.dimensions}-D)",
+        f"frames          {m.n_frames} at {rec.fps:g} fps, {m.n_frames / rec.fps:.3f} s",
+        f"audio           {rec.audio.size} samples at {rec.sample_rate} Hz, {rec.audio.size / rec.sample_rate:.3f} s",
+        f"offset          {offset}: audio time = motion time + offset",
+        f"positions       {100 * m.position_mask.mean():.1f}% valid, {100 * rec.position_interpolated.mean():.1f}% "
+        f"filled across gaps; {len(rec.gaps)} gaps longer than the fill limit",
+    ]
+    sources = rec.provenance.motion.get("path"), rec.provenance.audio.get("path")
+    if any(sources):
+        lines.append(f"aligned from    {sources[0]} + {sources[1]}")
+    return "\n".join(lines)

@@ -121,22 +121,42 @@ class Motion:
     def timing(self) -> dict[str, float | int]:
         """Frame timing of the recording.
 
-        Returns ``fps`` (1 / median frame interval), ``interval_ms`` (median), ``jitter_ms``
-        (standard deviation of the intervals that are not drops) and ``dropped_frames`` (frames
-        missing where an interval exceeds 1.5 median intervals, counted as round(dt / median) - 1).
+        Returns ``fps`` (the slope of a least-squares line through the timestamps against frame
+        numbers, dropped frames counted: a recorder whose intervals alternate 33.0 and 34.1 ms is
+        at the rate of their mean, not of their median), ``interval_ms`` (1000 / fps),
+        ``jitter_ms`` (standard deviation of the intervals that are not drops), ``dropped_frames``
+        (frames missing where an interval exceeds 1.5 median intervals, counted as
+        round(dt / median) - 1) and ``frozen_frames`` (frames whose positions repeat the previous
+        frame's exactly, valid joints only: a tracker that stalled and wrote its last pose again).
         """
         if self.n_frames < 2:
-            return {"fps": float("nan"), "interval_ms": float("nan"), "jitter_ms": float("nan"), "dropped_frames": 0}
+            return {
+                "fps": float("nan"),
+                "interval_ms": float("nan"),
+                "jitter_ms": float("nan"),
+                "dropped_frames": 0,
+                "frozen_frames": 0,
+            }
         dt = np.diff(self.times)
         med = float(np.median(dt))
-        drop = dt > 1.5 * med
-        regular = dt[~drop]
+        steps = np.maximum(1, np.round(dt / med)) if med > 0 else np.ones_like(dt)
+        number = np.concatenate([[0.0], np.cumsum(steps)])  # frame numbers, drops counted
+        slope = np.polyfit(number, self.times, 1)[0]
+        regular = dt[steps == 1]
         return {
-            "fps": 1.0 / med,
-            "interval_ms": med * 1e3,
+            "fps": 1.0 / slope if slope > 0 else float("nan"),
+            "interval_ms": slope * 1e3,
             "jitter_ms": float(np.std(regular) * 1e3) if regular.size else 0.0,
-            "dropped_frames": int(np.sum(np.round(dt[drop] / med) - 1)),
+            "dropped_frames": int(np.sum(steps - 1)),
+            "frozen_frames": self.frozen_frames(),
         }
+
+    def frozen_frames(self) -> int:
+        """Frames (after the first) whose valid joint positions all equal the previous frame's
+        exactly, with at least one joint valid in both."""
+        same = (self.positions[1:] == self.positions[:-1]).all(axis=-1)
+        both = self.position_mask[1:] & self.position_mask[:-1]
+        return int(np.sum(both.any(axis=1) & (same | ~both).all(axis=1)))
 
     def __repr__(self) -> str:
         return (

@@ -24,6 +24,7 @@ from __future__ import annotations
 import hashlib
 import json
 import shutil
+import warnings
 from collections.abc import Callable
 from contextlib import ExitStack
 from pathlib import Path
@@ -33,12 +34,13 @@ import h5py
 import numpy as np
 
 from kinectdata.core.atomic import atomic_output, remove
-from kinectdata.core.errors import KinectDataError
+from kinectdata.core.errors import KinectDataError, KinectDataWarning
 from kinectdata.core.hashing import file_sha256
 from kinectdata.core.version import __version__
 from kinectdata.dataset.executors import Executor, LocalExecutor
 from kinectdata.dataset.inputs import RecordingEntry, assign_splits, read_recordings
-from kinectdata.dataset.layout import MANIFEST, SHARD_FORMAT, SHARD_NAME, SPLITS, WORK, shard_name
+from kinectdata.dataset.layout import LOCK, LOCK_OWNER, MANIFEST, SHARD_FORMAT, SHARD_NAME, SPLITS, WORK, shard_name
+from kinectdata.dataset.lock import FolderBusyError, build_lock
 from kinectdata.dataset.prepare import BuildConfig, Unit, prepare_recording, source_hashes
 from kinectdata.dataset.shards import ShardRecording, row_bytes, write_shard
 from kinectdata.targets.hemispheres import apply_flips, flipped_columns, reference_orientations, track_flips
@@ -174,6 +176,11 @@ def build_dataset(
         video_fps: the frame rate of OpenPose recordings that do not give their own.
         allow_outside_paths: let a recordings manifest name files outside its folder (absolute
             paths, ``..``, symbolic links leading out); refused by default.
+
+    One build writes a folder at a time (:mod:`.lock`): a second one fails at once with
+    :class:`~kinectdata.dataset.lock.FolderBusyError` naming the first. A failed build removes the
+    folder if it created it and left nothing in it; prepared recordings in ``.work`` stay for the
+    rerun. A split left empty by the ratios is warned about (:class:`EmptySplitWarning`).
     """
     out = Path(out_dir)
     if executor is not None and jobs != 1:
@@ -192,6 +199,57 @@ def build_dataset(
             "sources": hashes,
         }
     )
+    empty_splits = [s for s in SPLITS if s not in splits.values()]
+    if empty_splits:
+        lost = {"val": "training has no validation loss", "test": "evaluate has no songs to score"}
+        warnings.warn(
+            f"{source}: {len(entries)} recordings leave the {' and '.join(empty_splits)} split"
+            f"{'s' * (len(empty_splits) > 1)} empty at split ratios {tuple(config.split_ratios)} "
+            f"({'; '.join(lost[s] for s in empty_splits)}): add recordings or change --split-ratios",
+            EmptySplitWarning,
+            stacklevel=2,
+        )
+    existed = out.exists()
+    try:
+        with build_lock(out):
+            return _build_locked(
+                out, entries, splits, hashes, build_key, config, executor, jobs, progress, keep_work, source
+            )
+    except FolderBusyError:
+        raise  # the folder is the other build's: touch nothing
+    except BaseException:
+        _tidy_after_failure(out, existed)
+        raise
+
+
+class EmptySplitWarning(KinectDataWarning):
+    """A build leaves a split with no recording."""
+
+
+def _tidy_after_failure(out: Path, existed: bool) -> None:
+    """After a failed build: an empty ``.work`` goes (one with prepared recordings stays, for the
+    rerun to resume from), and so does the dataset folder if this build created it and left it empty."""
+    work = out / WORK
+    if work.is_dir() and not any(work.iterdir()):
+        work.rmdir()
+    if not existed and out.is_dir() and not any(p.name not in (LOCK, LOCK_OWNER) for p in out.iterdir()):
+        shutil.rmtree(out, ignore_errors=True)
+
+
+def _build_locked(
+    out: Path,
+    entries: list[RecordingEntry],
+    splits: dict[str, str],
+    hashes: dict[str, dict[str, str]],
+    build_key: str,
+    config: BuildConfig,
+    executor: Executor | None,
+    jobs: int,
+    progress: Callable[[int, int], None] | None,
+    keep_work: bool,
+    source: str | Path,
+) -> dict[str, Any]:
+    """The build, under the folder's lock."""
     done = _complete(out, build_key)
     if done is not None:
         _clean(out, {s["file"] for s in done["shards"]}, keep_work)

@@ -16,6 +16,9 @@ the same kinectdata installed.
 
 from __future__ import annotations
 
+import os
+import threading
+import time
 from collections.abc import Callable, Sequence
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
@@ -24,6 +27,23 @@ from typing import Any
 from kinectdata.core.errors import KinectDataError
 
 Progress = Callable[[int, int], None] | None
+
+
+PARENT_POLL_S = 0.5
+
+
+def exit_with_parent(parent: int) -> None:
+    """In a worker process: exit as soon as ``parent`` is gone (this process is re-parented),
+    whatever the worker is doing, even blocked on the pipe to the parent that no longer reads it.
+    The parent's own work files are atomic, so what the worker was writing is a ``.partial`` the
+    rerun removes."""
+
+    def watch() -> None:
+        while os.getppid() == parent:
+            time.sleep(PARENT_POLL_S)
+        os._exit(1)
+
+    threading.Thread(target=watch, name="exit-with-parent", daemon=True).start()
 
 
 @dataclass(frozen=True)
@@ -43,7 +63,8 @@ class LocalExecutor:
         (``names`` are not needed: the worker's own error travels back)."""
         results = []
         if self.jobs > 1 and len(tasks) > 1:
-            with ProcessPoolExecutor(max_workers=self.jobs) as pool:
+            pool = ProcessPoolExecutor(max_workers=self.jobs, initializer=exit_with_parent, initargs=(os.getpid(),))
+            with pool:
                 for i, result in enumerate(pool.map(function, tasks)):
                     results.append(result)
                     if progress:

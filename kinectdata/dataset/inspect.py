@@ -95,7 +95,8 @@ def _report(name: str, st: _SplitStats, components: list[str], limit: int | None
     t = st.targets
     valid_share = t.count / st.rows
     lines.append(
-        f"  current  min {np.min(t.low):.4f}  max {np.max(t.high):.4f}  valid {100 * valid_share.mean():.2f}%  "
+        f"  current  min {_cell(np.min(t.low)).strip()}  max {_cell(np.max(t.high)).strip()}  "
+        f"valid {100 * valid_share.mean():.2f}%  "
         f"out of range: {int(st.beyond.sum())} values in {int((st.beyond > 0).sum())} components"
     )
     header = f"  {'component':<22} {'min':>8} {'max':>8} {'mean':>8} {'std':>8} {'valid%':>7} {'out':>6}"
@@ -104,8 +105,9 @@ def _report(name: str, st: _SplitStats, components: list[str], limit: int | None
     lines.append(header)
     shown = range(len(components)) if limit is None else range(min(limit, len(components)))
     for c in shown:
+        values = (t.low[c], t.high[c], t.mean()[c], t.std()[c]) if t.count[c] else (np.nan,) * 4
         row = (
-            f"  {components[c]:<22} {t.low[c]:8.4f} {t.high[c]:8.4f} {t.mean()[c]:8.4f} {t.std()[c]:8.4f} "
+            f"  {components[c]:<22} {' '.join(_cell(v) for v in values)} "
             f"{100 * valid_share[c]:7.2f} {int(st.beyond[c]):6d}"
         )
         if fitted is not None:
@@ -201,3 +203,8 @@ def _feature_line(cfg: dict[str, Any]) -> str:
 def _norm_line(norm: dict[str, Any]) -> str:
     scale = np.array(norm["scale"], float)
     return f"{norm['method']} (scale {scale.min():.4g}..{scale.max():.4g})"
+
+
+def _cell(value: float) -> str:
+    """A table cell of 8 characters: the value, or "-" where no value was valid (all masked)."""
+    return f"{value:8.4f}" if np.isfinite(value) else f"{'-':>8}"

@@ -5,7 +5,8 @@ A dataset folder holds ``manifest.json`` (:data:`MANIFEST`, validated by
 ``schemas/dataset-manifest.schema.json``) and shards named ``<split>-<nnnnn>.h5``
 (:func:`shard_name`), each an HDF5 file whose ``format`` attribute is :data:`SHARD_FORMAT`
 (layout: ``schemas/shard-layout.json``). ``.work/`` (:data:`WORK`) holds a build's per-recording
-intermediates until the build finishes.
+intermediates until the build finishes. ``.build.lock`` (:data:`LOCK`) is held by the one build
+writing the folder, and ``.build.owner`` (:data:`LOCK_OWNER`) says which build that is.
 """
 
 from __future__ import annotations
@@ -17,6 +18,8 @@ MANIFEST_SCHEMA = "dataset-manifest.schema.json"
 SHARD_FORMAT = "kinectdata.shard"
 SHARD_NAME = re.compile(r"(train|val|test)-\d{5}\.h5")
 WORK = ".work"
+LOCK = ".build.lock"
+LOCK_OWNER = ".build.owner"
 SPLITS = ("train", "val", "test")
 
 

@@ -28,12 +28,29 @@ from kinectdata.dataset.layout import MANIFEST
 class WindowDataset(Dataset):
     """Windows of ``length`` frames from one split of a dataset folder."""
 
-    def __init__(self, dataset: str | Path, split: str = "train", length: int = 150, stride: int | None = None):
+    def __init__(
+        self,
+        dataset: str | Path,
+        split: str = "train",
+        length: int = 150,
+        stride: int | None = None,
+        *,
+        verify: bool = True,
+        checksums: bool = True,
+    ):
+        """``verify``: check the folder against its manifest first (shards, sizes, layout and,
+        with ``checksums``, their SHA-256: :func:`~kinectdata.dataset.verify.verify_dataset`);
+        False for a caller that has just checked it."""
         self.root = Path(dataset)
-        try:
-            manifest = json.loads((self.root / MANIFEST).read_text())
-        except OSError as exc:
-            raise KinectDataError(f"{self.root}: no readable manifest.json ({exc.strerror or exc})") from exc
+        if verify:
+            from kinectdata.dataset.verify import verified_manifest  # here: importing the class stays light
+
+            manifest = verified_manifest(self.root, checksums=checksums)
+        else:
+            try:
+                manifest = json.loads((self.root / MANIFEST).read_text())
+            except OSError as exc:
+                raise KinectDataError(f"{self.root}: no readable manifest.json ({exc.strerror or exc})") from exc
         if length < 1:
             raise KinectDataError(f"window length must be at least 1 frame, not {length}")
         self.length, self.stride = length, stride or length

@@ -201,17 +201,19 @@ def evaluate(
     engines: list[tuple[str, str]] | None = None,
     protocol: str | Protocol = "bailando",
     bootstrap: int = 1000,
+    checksums: bool = True,
 ) -> dict[str, Any]:
     """Score a run on a dataset split; write ``results.json``, ``metrics.json`` (the field's table)
     and figures into ``out`` (default ``RUN/evaluation``); return the results. ``engines``: the
     (engine, precision) pairs whose forward time is measured (default :func:`default_engines`;
     pairs the run's model does not run on are left out). ``protocol``: whose table the field's
     metrics reproduce (:data:`~kinectdata.evaluation.protocols.PROTOCOLS`), with ``bootstrap``
-    resamples for their intervals (:mod:`kinectdata.evaluation.run_field`)."""
+    resamples for their intervals (:mod:`kinectdata.evaluation.run_field`). The dataset folder is
+    verified first (``checksums=False`` skips the shards' SHA-256)."""
     protocol = get_protocol(protocol) if isinstance(protocol, str) else protocol
     run, dataset = Path(run), Path(dataset)
     net, config = load_model(run)
-    manifest = read_manifest(dataset)
+    manifest = read_manifest(dataset, checksums=checksums)
     differ = interface_mismatch(config, dataset, manifest)
     if differ:
         raise KinectDataError(

@@ -204,6 +204,15 @@ def _strip_trailing(line: str, delimiter: str) -> str:
     return stripped[: -len(delimiter)] if stripped.endswith(delimiter) else line
 
 
+_PREAMBLE_PAIR = re.compile(r"^\s*([A-Za-z][\w .-]*?)\s*:\s*(.+?)\s*$")
+
+
+def _preamble_pairs(line: str) -> dict[str, str]:
+    """``key : value`` pairs of a comma-separated preamble line (the file's own metadata)."""
+    pairs = [_PREAMBLE_PAIR.match(part) for part in line.split(",")]
+    return {m.group(1): m.group(2) for m in pairs if m}
+
+
 def _load_table(path: Path, schema: CsvSchema, joint_set: JointSet | None) -> _Table:
     """First pass: which lines are comments, header and data; every data row's field count."""
     try:
@@ -239,6 +248,8 @@ def _scan(path: Path, schema: CsvSchema, joint_set: JointSet | None, encoding: s
         for i, line in enumerate(f):
             stripped = line.strip()
             if i < first_data or not stripped:
+                if i < first_data:  # a recorder's preamble: "Software : LSL_Kinect,Stream nominal rate : 30,..."
+                    meta.update(_preamble_pairs(stripped))
                 skipped.append(i)
                 continue
             if comment and stripped.startswith(comment):

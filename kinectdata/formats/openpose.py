@@ -43,7 +43,10 @@ feet (BODY_25 15-24, COCO 14-17) are not used.
 
 Values: positions [T, 15, 2] are pixels as written, in image axes (x right, y down), not
 flipped; OpenPose's ``c`` (0..1) becomes ``confidence``; ``c == 0`` (OpenPose writes ``0, 0, 0``
-for a keypoint it did not find) masks the joint. Nothing is interpolated here: alignment fills
+for a keypoint it did not find) masks the joint. Real OpenPose output holds confidences a little
+above 1 (up to about 1.4): they are clipped to 1 and counted (``metadata["confidences_clipped"]``,
+of the person read), so ``info`` shows them; above :data:`MAX_CONFIDENCE` the file is refused.
+Nothing is interpolated here: alignment fills
 gaps up to its ``max_gap`` later.
 
 Several people: one person per Motion. When OpenPose wrote ids (``person_id`` other than -1)
@@ -417,6 +420,11 @@ def _layout_mismatch(k: int, n_values: int, layout: Layout, forced: bool) -> str
     return f"{found} but earlier people have {expected}" + (": mixed layouts" if other else "")
 
 
+MAX_CONFIDENCE = 2.0
+"""Confidences above 1 (OpenPose writes up to about 1.4) are clipped to 1 and counted; above this,
+the values are not confidences."""
+
+
 def _detections(frames: list[_Frame], forced: Layout | None):
     """Every person of every frame: frame row [n], person_id [n], keypoints [n, K, 3], layout, places."""
     layout = forced
@@ -427,6 +435,13 @@ def _detections(frames: list[_Frame], forced: Layout | None):
     for row, fr in enumerate(frames):
         for k, person in enumerate(fr.people):
             kp = person.get("pose_keypoints_2d") if isinstance(person, dict) else None
+            if kp is None and isinstance(person, dict) and "pose_keypoints" in person:
+                message = (
+                    f"people[{k}] has 'pose_keypoints', the key of OpenPose before 1.2 (2017), which kinectdata "
+                    "does not read; OpenPose 1.2 and later write 'pose_keypoints_2d' (rename the key if the layout "
+                    "is the same)"
+                )
+                raise FormatError(**fr.where, message=message)
             if not isinstance(kp, list):
                 raise FormatError(**fr.where, message=f"people[{k}] must be an object with a 'pose_keypoints_2d' list")
             try:
@@ -461,11 +476,14 @@ def _check_values(keypoints: np.ndarray, places: list[tuple[dict[str, Any], int]
             **where, message=f"people[{k}].pose_keypoints_2d keypoint {j} is not finite: {keypoints[d, j]}"
         )
     c = keypoints[..., 2]
-    bad = (c < 0) | (c > 1)
+    bad = (c < 0) | (c > MAX_CONFIDENCE)
     if bad.any():
         d, j = np.argwhere(bad)[0]
         where, k = places[d]
-        message = f"people[{k}].pose_keypoints_2d keypoint {j} has confidence {c[d, j]:g}, outside 0..1"
+        message = (
+            f"people[{k}].pose_keypoints_2d keypoint {j} has confidence {c[d, j]:g}, outside 0..{MAX_CONFIDENCE:g} "
+            "(OpenPose writes 0..1, at times a little above 1): is the file x, y, c triples?"
+        )
         raise FormatError(**where, message=message)
 
 
@@ -541,6 +559,10 @@ def read_openpose(
     T = len(frames)
     if found is None:  # nobody in any frame
         choose_body(path, {}, person, n_frames=T)
+    above_one = keypoints[..., 2] > 1
+    if above_one.any():
+        keypoints = keypoints.copy()
+        keypoints[..., 2] = np.minimum(keypoints[..., 2], 1.0)
     det_positions, det_confidence = to_mpi15(keypoints, found)
     ids, how = _track_ids(pids, rows, numbers, det_positions, places, fps)
     people = count_bodies(ids)
@@ -567,6 +589,7 @@ def read_openpose(
             "person": chosen_id,
             "people": people,
             "person_ids": how,
+            "confidences_clipped": int(above_one[chosen].sum()),
             "source": str(path),
         },
     )

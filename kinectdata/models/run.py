@@ -11,16 +11,19 @@ robots). Checkpoints hold only tensors and plain values and are loaded with
 
 from __future__ import annotations
 
+import hashlib
 import io
 import json
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import torch
 
 from kinectdata.core.atomic import atomic_output
 from kinectdata.core.errors import KinectDataError
 from kinectdata.dataset.verify import read_manifest as read_dataset_manifest
+from kinectdata.dataset.verify import verified_manifest
 from kinectdata.models.registry import DEFAULT_MODEL, load_network
 
 CONFIG = "config.json"
@@ -51,9 +54,13 @@ def read_config(run: str | Path) -> dict[str, Any]:
     return _read_json(run, CONFIG, "a training run")
 
 
-def read_manifest(dataset: str | Path) -> dict[str, Any]:
-    """A dataset folder's manifest.json, checked against ``schemas/dataset-manifest.schema.json``;
-    errors name the file."""
+def read_manifest(dataset: str | Path, *, verify: bool = True, checksums: bool = True) -> dict[str, Any]:
+    """A dataset folder's manifest.json, checked against ``schemas/dataset-manifest.schema.json``,
+    and with ``verify`` the whole folder against it (:func:`~kinectdata.dataset.verify.verify_dataset`:
+    shards present, sizes, layout, accounts, and SHA-256 unless ``checksums`` is False), so that
+    nothing trains on or is scored against a damaged or mixed folder; errors name the file."""
+    if verify:
+        return verified_manifest(dataset, checksums=checksums)
     return read_dataset_manifest(dataset)
 
 
@@ -85,17 +92,28 @@ def interface_mismatch(run_config: dict[str, Any], dataset: Path, manifest: dict
     return [k for k in MODEL_INTERFACE if summary[k] != run_config["dataset"][k]]
 
 
+DIGEST = "sha256"
+"""The checkpoint key holding the SHA-256 of everything else in it (:func:`state_digest`)."""
+
+
 def save_checkpoint(path: Path, state: dict[str, Any]) -> None:
-    """Write a checkpoint atomically (tensors and plain values only)."""
+    """Write a checkpoint atomically (tensors and plain values only), with the SHA-256 of its
+    content under :data:`DIGEST`, so that a damaged one is refused instead of trained on."""
     buffer = io.BytesIO()
-    torch.save(state, buffer)
+    torch.save({**state, DIGEST: state_digest(state)}, buffer)
     with atomic_output(path) as tmp:
         tmp.write_bytes(buffer.getvalue())
 
 
 def load_checkpoint(path: Path) -> dict[str, Any]:
+    """A checkpoint written by :func:`save_checkpoint`, its digest checked (checkpoints written
+    before digests, without one, are read as they are).
+
+    Raises:
+        KinectDataError: no such file, not a checkpoint, or its content differs from its digest.
+    """
     try:
-        return torch.load(path, map_location="cpu", weights_only=True)
+        state = torch.load(path, map_location="cpu", weights_only=True)
     except FileNotFoundError as exc:
         raise KinectDataError(f"{path}: no checkpoint") from exc
     except Exception as exc:  # a damaged or foreign file: never unpickled
@@ -103,6 +121,47 @@ def load_checkpoint(path: Path) -> dict[str, Any]:
         first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
         reason = "it holds objects other than tensors and plain values" if "weights_only" in str(exc) else first
         raise KinectDataError(f"{path}: not a readable kinectdata checkpoint ({reason}); it was not loaded") from exc
+    if not isinstance(state, dict):
+        raise KinectDataError(f"{path}: not a kinectdata checkpoint (holds a {type(state).__name__}, not a dict)")
+    said = state.pop(DIGEST, None)
+    if said is not None and said != state_digest(state):
+        raise KinectDataError(
+            f"{path}: damaged: its content differs from the SHA-256 written with it; it was not loaded "
+            "(train again, or resume from a copy)"
+        )
+    return state
+
+
+def state_digest(value: Any) -> str:
+    """SHA-256 over a checkpoint's content: tensors by dtype, shape and bytes, containers in order
+    (dicts by key), other values by ``repr``; independent of how torch lays out the file."""
+    digest = hashlib.sha256()
+
+    def walk(v: Any) -> None:
+        if isinstance(v, torch.Tensor):
+            t = v.detach().cpu().contiguous()
+            digest.update(f"T{t.dtype}{tuple(t.shape)}".encode())
+            digest.update(t.reshape(-1).view(torch.uint8).numpy().tobytes() if t.numel() else b"")
+        elif isinstance(v, np.ndarray):  # repr would abbreviate a long array
+            a = np.ascontiguousarray(v)
+            digest.update(f"A{a.dtype.str}{a.shape}".encode())
+            digest.update(a.tobytes() if a.dtype != object else repr(a.tolist()).encode())
+        elif isinstance(v, dict):
+            digest.update(b"{")
+            for key in sorted(v, key=repr):
+                digest.update(repr(key).encode())
+                walk(v[key])
+            digest.update(b"}")
+        elif isinstance(v, (list, tuple)):
+            digest.update(b"[")
+            for item in v:
+                walk(item)
+            digest.update(b"]")
+        else:
+            digest.update(repr(v).encode())
+
+    walk(value)
+    return digest.hexdigest()
 
 
 def model_name(run_config: dict[str, Any]) -> str:

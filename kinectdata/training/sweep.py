@@ -48,11 +48,13 @@ def sweep(
     base: TrainConfig | None = None,
     variants: list[str] | None = None,
     progress: Callable[[str, dict], None] | None = None,
+    checksums: bool = True,
 ) -> list[dict[str, Any]]:
     """Train and evaluate each variant of the model's sweep (``base.model``'s; default: the
     dataset's model with the sweep's base settings), all by default; returns the rows of the
-    table, also written to ``OUT/results.md`` and ``OUT/results.json``."""
-    manifest = read_manifest(dataset)
+    table, also written to ``OUT/results.md`` and ``OUT/results.json``. The dataset folder is
+    verified once, first (``checksums=False`` skips the shards' SHA-256)."""
+    manifest = read_manifest(dataset, checksums=checksums)
     kind = model_kind(base.model if base is not None else model_for_dataset(manifest))
     table = model_sweep(kind)
     base = base or TrainConfig(kind.name, **table.base)
@@ -68,10 +70,10 @@ def sweep(
         if (run / MODEL).exists():  # a finished variant of an interrupted sweep is kept, if it is this one
             _check_finished(run, config, manifest)
         else:
-            train(dataset, run, config, resume=(run / CHECKPOINT).exists())
+            train(dataset, run, config, resume=(run / CHECKPOINT).exists(), checksums=False)  # verified above
         with open(run / LOG) as f:
             minutes = sum(float(r["seconds"]) for r in csv.DictReader(f)) / 60
-        result = evaluate(run, dataset, "test", engines=[("torch", "float32")])
+        result = evaluate(run, dataset, "test", engines=[("torch", "float32")], checksums=False)
         timed = result["forward_time"].get("torch float32", {})  # none for a model that does not stream
         row = {
             "setting": name,

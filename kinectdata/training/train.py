@@ -99,6 +99,33 @@ def _warn_if_too_few_steps(windows: int, config: TrainConfig, world: World) -> N
         )
 
 
+RISING_EPOCHS = 3
+"""A training loss that rises this many epochs in a row draws a :class:`TrainingWarning`."""
+
+
+def loss_warning(history: list[dict], lr: float) -> str | None:
+    """What to say when the training loss of the epochs so far (log rows, newest last) has just
+    become non-finite, or has just risen :data:`RISING_EPOCHS` epochs in a row; else None. Said once
+    per streak: on the epoch the condition starts."""
+    losses = [float("nan") if r["train_loss"] is None else r["train_loss"] for r in history]
+    epoch, last = history[-1]["epoch"], losses[-1]
+    if not math.isfinite(last):
+        if len(losses) > 1 and not math.isfinite(losses[-2]):
+            return None
+        return (
+            f"the training loss is {last} at epoch {epoch}: the learning rate ({lr:g}) is probably too high, or the "
+            f"data holds huge values (kinectdata verify, kinectdata inspect); try --lr {lr / 10:g} or --clip-norm 1"
+        )
+    n = RISING_EPOCHS
+    rising = [b > a for a, b in zip(losses[:-1], losses[1:])]
+    if len(rising) >= n and all(rising[-n:]) and (len(rising) == n or not rising[-n - 1]):
+        return (
+            f"the training loss rose {n} epochs in a row ({losses[-n - 1]:.4g} at epoch {epoch - n} -> {last:.4g} at "
+            f"epoch {epoch}): the learning rate ({lr:g}) may be too high; try --lr {lr / 10:g} or --clip-norm 1"
+        )
+    return None
+
+
 @contextmanager
 def _deterministic():
     previous = torch.are_deterministic_algorithms_enabled()
@@ -237,6 +264,7 @@ def train(
     stop_after: int | None = None,
     progress: Callable[[dict], None] | None = None,
     epoch_metrics: Callable[[torch.nn.Module], dict[str, Any]] | None = None,
+    checksums: bool = True,
 ) -> list[dict]:
     """Train a registered model (``config.model``) on a dataset folder into the run folder ``out``.
 
@@ -252,12 +280,14 @@ def train(
         epoch_metrics: called after each epoch's validation with the network (in evaluation mode,
             on the main process); the values it returns are added to the epoch's row (e.g. beat
             following measured on held-out songs, as ``benchmarks/bench_learning.py`` does).
+        checksums: verify the shards' SHA-256 before training (the folder's layout, sizes and
+            manifest are always verified): False saves about 1 s per GB.
 
     Returns:
         The log rows of all epochs so far.
     """
     dataset, run = Path(dataset), Path(out)
-    manifest = read_manifest(dataset)
+    manifest = read_manifest(dataset, checksums=checksums)
     state = None
     if resume:
         state = load_checkpoint(run / CHECKPOINT)
@@ -275,8 +305,8 @@ def train(
     check_fits(kind, manifest, dataset)
     model_config = kind.network_config(config.settings, manifest)
     stride = config.stride or config.sequence
-    train_windows = WindowDataset(dataset, "train", config.sequence, stride)
-    val_windows = WindowDataset(dataset, "val", config.sequence, config.sequence)
+    train_windows = WindowDataset(dataset, "train", config.sequence, stride, verify=False)  # verified above
+    val_windows = WindowDataset(dataset, "val", config.sequence, config.sequence, verify=False)
     if len(train_windows) == 0:
         raise KinectDataError(f"{dataset}: no training window of {config.sequence} frames (recordings too short?)")
     if config.max_minutes is None:
@@ -369,6 +399,11 @@ def train(
                     row.update(epoch_metrics(net))
                 net.train()
             history.append(row)
+            said = loss_warning(history, config.lr) if world.main else None
+            if said:
+                import warnings
+
+                warnings.warn(said, TrainingWarning, stacklevel=2)
             if world.main:  # the others keep no files
                 _write_log(run, history)
                 if writer is not None:

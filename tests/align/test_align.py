@@ -48,7 +48,10 @@ def test_real_fixture_on_an_exact_grid_against_independent_interpolation(fixture
     s = rec.summary
     dt = np.diff(src.times)
     assert s["dropped_frames"] == 2 and s["source_frames"] == 154
-    assert s["source_fps"] == pytest.approx(1 / np.median(dt))
+    # a Kinect v2 at 30 Hz stamping 32.9, 33.0 and 34.1 ms in turn: the median interval would say 30.30 fps
+    assert np.median(dt) == pytest.approx(0.033, abs=1e-4)
+    span_rate = (src.n_frames - 1 + 2) / (src.times[-1] - src.times[0])  # frame periods (2 dropped) over the span
+    assert s["source_fps"] == pytest.approx(span_rate, rel=1e-3) and s["source_fps"] == pytest.approx(30.0, abs=0.01)
     assert s["offset_source"] == "given" and s["audio_trimmed_start_s"] == pytest.approx(0.75)
 
 
@@ -207,3 +210,33 @@ def test_azure_skeleton_comes_out_upright(tmp_path):
     m = read_motion(tmp_path / "a.json")
     head, pelvis = m.joint_positions("HEAD")[0], m.joint_positions("PELVIS")[0]
     assert head[1] > pelvis[1] and head[0] == pytest.approx(-0.1)  # y up; x to the sensor's left
+
+
+def test_absurd_positions_are_masked_as_tracking_loss_and_counted():
+    """A recorder's overflow (1e300, inf) must not reach the aligned file as a valid position."""
+    motion = read_motion(REPO / "sample_data" / "synth_001.csv")
+    motion.positions[100, 3, 0] = 1e300
+    motion.positions[200, 5, 1] = np.inf
+    audio = load_audio(REPO / "sample_data" / "synth_001.flac")
+    rec = align(motion, audio, offset=0.0)
+    valid = rec.motion.position_mask
+    assert np.isfinite(rec.motion.positions[valid]).all() and np.abs(rec.motion.positions[valid]).max() < 10
+    assert rec.summary["implausible_positions"] == 2
+    from kinectdata.align.recipe import format_summary
+
+    assert "implausible     2 joint position(s)" in format_summary(rec)
+
+
+def test_auto_offset_on_a_too_short_recording_is_one_line_naming_both_files():
+    motion = read_motion(REPO / "sample_data" / "synth_001.csv").select(slice(0, 1))
+    audio = load_audio(REPO / "sample_data" / "synth_001.flac")
+    with pytest.raises(AlignmentError, match=r"synth_001.csv: 1 frame\(s\), 0.00 s: too short .*synth_001.flac"):
+        align(motion, audio, offset="auto")
+
+
+def test_an_ambiguous_offset_names_the_recording_and_the_audio(tmp_path):
+    motion = read_motion(REPO / "sample_data" / "synth_001.csv")
+    noise = np.random.default_rng(0).normal(0, 0.1, 16000 * 30).astype(np.float32)
+    sf.write(tmp_path / "noise.wav", noise, 16000)
+    with pytest.raises(AlignmentError, match=r"synth_001.csv with .*noise.wav: cannot determine the audio-to-motion"):
+        align(motion, load_audio(tmp_path / "noise.wav"), offset="auto")

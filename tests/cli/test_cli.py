@@ -159,3 +159,42 @@ def test_training_commands_say_how_to_get_torch(monkeypatch, tmp_path):
 def test_python_dash_m_runs_the_cli():
     out = subprocess.run([sys.executable, "-m", "kinectdata", "--version"], capture_output=True, text=True, check=True)
     assert "kinectdata" in out.stdout
+
+
+def test_speed_ratios_below_one_keep_their_digits():
+    from kinectdata.cli.train import _ratio
+
+    assert [_ratio(v) for v in (0.25, 0.0031, 12.34, 1234.4)] == ["0.25", "0.0031", "12.3", "1234"]
+
+
+def test_info_reports_a_declared_rate_the_timestamps_contradict_and_frozen_frames(tmp_path):
+    """An LSL-Kinect export that declares 15 Hz but is stamped at 30 Hz, with a stalled stretch."""
+    from kinectdata.formats import read_motion
+    from kinectdata.formats.csv_writer import write_csv
+
+    src = read_motion(REPO / "sample_data" / "synth_001.csv")
+    src.positions[101:111] = src.positions[100]  # 10 frames repeat frame 100
+    src.position_mask[100:111] = src.position_mask[100]
+    path = tmp_path / "lsl.csv"
+    write_csv(src, path, "lsl_kinect")
+    text = path.read_text().replace("Stream nominal rate : 30", "Stream nominal rate : 15", 1)
+    path.write_text(text)
+    out = CliRunner().invoke(main, ["info", str(path)]).output
+    assert "declared rate   15 fps in the file (Stream nominal rate), but the timestamps give 30.0" in out
+    assert "frozen frames   10 repeat the frame before exactly" in out
+
+
+def test_info_and_inspect_show_an_aligned_file(tmp_path):
+    import h5py
+
+    from kinectdata.align.recipe import align_files
+
+    align_files(REPO / "sample_data" / "synth_001.csv", REPO / "sample_data" / "synth_001.flac", tmp_path / "a.h5")
+    with h5py.File(tmp_path / "a.h5", "r") as f:  # independent: the file's own datasets
+        frames, samples = f["motion/positions"].shape[0], f["audio/samples"].shape[0]
+    for command in ("info", "inspect"):
+        result = CliRunner().invoke(main, [command, str(tmp_path / "a.h5")])
+        assert result.exit_code == 0, result.output
+        assert f"frames          {frames} at 30 fps" in result.output
+        assert f"audio           {samples} samples at 16000 Hz" in result.output
+        assert "offset          " in result.output and "(clap)" in result.output

@@ -118,3 +118,30 @@ def test_timing_counts_dropped_frames():
     assert timing["dropped_frames"] == 3
     assert timing["fps"] == pytest.approx(30.0)
     assert timing["jitter_ms"] == pytest.approx(0.0, abs=1e-6)
+
+
+def test_the_frame_rate_is_the_timestamps_mean_rate_not_the_median_interval():
+    """A recorder stamping 33.0, 33.0, 34.0 ms in turn runs at 1000 / 33.333 = 30.00 fps; the median
+    interval (33.0 ms) says 30.30."""
+    js = load_joint_set("nite")
+    dt = np.tile([0.033, 0.033, 0.034], 100)
+    t = np.concatenate([[0.0], np.cumsum(dt)])
+    t = np.delete(t, [100, 200, 201])  # drops, counted and bridged
+    m = Motion(t, np.random.default_rng(0).normal(size=(t.size, 15, 3)), js)
+    timing = m.timing()
+    expected = 1 / np.polyfit(np.delete(np.arange(301), [100, 200, 201]), t, 1)[0]  # the true frame numbers
+    assert timing["fps"] == pytest.approx(expected, rel=1e-9) and timing["fps"] == pytest.approx(30.0, abs=0.01)
+    assert timing["dropped_frames"] == 3 and timing["frozen_frames"] == 0
+
+
+def test_frozen_frames_are_counted_over_valid_joints():
+    js = load_joint_set("nite")
+    p = np.random.default_rng(1).normal(size=(10, 15, 3))
+    p[4] = p[3]
+    p[5] = p[4]  # two frames repeat the one before
+    p[8, :5] = p[7, :5]  # a partial repeat is motion, not a freeze
+    mask = np.ones((10, 15), bool)
+    mask[2, 0] = False
+    p[2, 1:] = p[1, 1:]  # repeats every joint valid in both frames: frozen
+    m = Motion(np.arange(10) / 30, p, js, position_mask=mask)
+    assert m.frozen_frames() == 3

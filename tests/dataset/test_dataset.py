@@ -613,3 +613,16 @@ def test_inspect_reports_the_training_statistics_behind_the_normalisation(datase
     text = inspect(out, components=2)
     raw = manifest["normalisation_stats"]
     assert "raw min" in text and f"{raw['min'][0]:10.4f}".strip() in text
+
+
+def test_inspect_shows_a_dash_for_a_component_masked_in_every_row():
+    from kinectdata.dataset.inspect import _Moments, _report, _SplitStats
+
+    st = _SplitStats(rows=3, recordings=1, padded=0, inputs=_Moments(1), targets=_Moments(2), beyond=np.zeros(2, int))
+    st.inputs.add(np.array([[0.5], [0.25], [0.0]]))
+    st.targets.add(np.array([[0.1, 9.0], [0.3, 9.0], [0.2, 9.0]]), np.array([[True, False]] * 3))
+    lines = _report("train", st, ["a.x", "b.qw"], None)
+    masked = next(line for line in lines if line.strip().startswith("b.qw"))
+    assert masked.split()[1:5] == ["-", "-", "-", "-"] and "inf" not in " ".join(lines)
+    seen = next(line for line in lines if line.strip().startswith("a.x"))
+    assert [float(v) for v in seen.split()[1:3]] == [0.1, 0.3]

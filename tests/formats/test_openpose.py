@@ -412,7 +412,7 @@ def test_invalid_json_names_file_and_line(run, tmp_path):
         (lambda kp: kp.__setitem__(7, float("nan")), ["keypoint 2 is not finite"]),
         (lambda kp: kp.__setitem__(9, float("inf")), ["keypoint 3 is not finite"]),
         (lambda kp: kp.pop(), ["has 74 values but earlier people have 75 \\(BODY_25\\)"]),
-        (lambda kp: kp.__setitem__(5, 1.5), ["keypoint 1 has confidence 1.5, outside 0..1"]),
+        (lambda kp: kp.__setitem__(5, 2.5), ["keypoint 1 has confidence 2.5, outside 0..2"]),
         (lambda kp: kp.__setitem__(2, -0.1), ["keypoint 0 has confidence -0.1"]),
         (lambda kp: kp.__setitem__(0, "12.5"), ["must hold numbers, found '12.5'"]),
         (lambda kp: kp.__setitem__(0, None), ["must hold numbers, found None"]),
@@ -430,13 +430,41 @@ def test_bad_keypoints_name_file_frame_and_person(run, change, words):
 def test_bad_values_in_a_single_file(tmp_path):
     rng = np.random.default_rng(11)
     docs = [frame_doc([random_person(rng, 15)]) for _ in range(3)]
-    docs[1]["people"][0]["pose_keypoints_2d"][2] = 2.0
+    docs[1]["people"][0]["pose_keypoints_2d"][2] = 2.5
     path = tmp_path / "frames.jsonl"
     path.write_text("\n".join(dumps(d) for d in docs))
-    check(path, r"people\[0\]\.pose_keypoints_2d keypoint 0 has confidence 2", frame=1, line=2)
+    check(path, r"people\[0\]\.pose_keypoints_2d keypoint 0 has confidence 2.5", frame=1, line=2)
     path = tmp_path / "frames.json"
     path.write_text(dumps([{"frame": 10 + i, **d} for i, d in enumerate(docs)]))
-    check(path, "confidence 2", frame=11)
+    check(path, "confidence 2.5", frame=11)
+
+
+def test_confidences_a_little_above_one_are_clipped_and_counted(tmp_path):
+    """Real OpenPose writes confidences up to about 1.4: the recording is read, c clipped to 1."""
+    rng = np.random.default_rng(12)
+    docs = [frame_doc([random_person(rng, 15)], ids=[0]) for _ in range(4)]  # one tracked person
+    for frame, j, c in ((0, 3, 1.00081), (2, 7, 1.4), (3, 3, 1.2)):
+        docs[frame]["people"][0]["pose_keypoints_2d"][3 * j + 2] = c
+    path = tmp_path / "frames.jsonl"
+    path.write_text("\n".join(dumps(d) for d in docs))
+    motion = read_openpose(path, video_fps=30)
+    assert motion.metadata["confidences_clipped"] == 3
+    assert motion.confidence.max() <= 1.0
+    from click.testing import CliRunner
+
+    from kinectdata.cli import main
+
+    shown = CliRunner().invoke(main, ["info", str(path), "--video-fps", "30"]).output
+    assert "confidences     3 above 1 (as OpenPose writes at times), clipped to 1" in shown
+
+
+def test_the_key_of_openpose_before_1_2_is_named(tmp_path):
+    rng = np.random.default_rng(13)
+    doc = frame_doc([random_person(rng, 15)])
+    doc["people"][0]["pose_keypoints"] = doc["people"][0].pop("pose_keypoints_2d")
+    path = tmp_path / "old.jsonl"
+    path.write_text(dumps(doc))
+    check(path, r"people\[0\] has 'pose_keypoints', the key of OpenPose before 1.2", line=1)
 
 
 def test_structure_errors(tmp_path, run):

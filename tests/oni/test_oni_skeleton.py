@@ -108,7 +108,7 @@ def test_align_with_an_oni_timeline(tmp_path):
     args = ["align", str(tmp_path / "s.csv"), str(tmp_path / "a.wav"), "-o", str(out), "--offset", "0"]
     result = CliRunner().invoke(main, [*args, "--timeline", str(ONI)])
     assert result.exit_code == 0, result.output
-    assert "30.30 fps (median)" in result.output  # the .oni's 33 ms steps, not the CSV's 40 ms
+    assert "30.30 fps (from the timestamps)" in result.output  # the .oni's 33 ms steps, not the CSV's 40 ms
     from kinectdata.align.aligned import AlignedRecording
 
     rec = AlignedRecording.load(out, audio=False)

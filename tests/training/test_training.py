@@ -133,6 +133,7 @@ def test_runs_written_before_still_load_and_resume(trained_run, sample_dataset, 
     config["train"] = OLD_FLAT
     (run / "config.json").write_text(json.dumps(config))
     state = torch.load(run / "checkpoint.pt", weights_only=True)
+    state.pop("sha256", None)  # checkpoints before digests had none
     torch.save({**state, "config": json.dumps(config)}, run / "checkpoint.pt")
     assert TrainConfig.from_dict(OLD_FLAT) == TrainConfig(**TINY_TRAINING)
     net, _ = load_model(run)
@@ -227,3 +228,17 @@ def test_a_run_with_too_few_optimiser_steps_is_warned_about(sample_dataset, tmp_
 
     with pytest.warns(TrainingWarning, match=r"optimiser steps? per epoch, \d+ in all .* too few to learn"):
         train(sample_dataset, tmp_path / "t", TrainConfig(**{**TINY_TRAINING, "epochs": 1, "batch_size": 50}))
+
+
+def test_a_rising_or_exploding_loss_is_said_once_with_what_to_change():
+    from kinectdata.training.train import loss_warning
+
+    def rows(losses):
+        return [{"epoch": i + 1, "train_loss": v} for i, v in enumerate(losses)]
+
+    said = [loss_warning(rows([0.5, 0.4, 0.45, 0.5, 0.6, 0.7][:n]), 1e-3) for n in range(1, 7)]
+    assert said[:4] == [None] * 4 and said[5] is None  # warned once, on the third rise in a row
+    assert "rose 3 epochs in a row (0.4 at epoch 2 -> 0.6 at epoch 5)" in said[4] and "--lr 0.0001" in said[4]
+    assert loss_warning(rows([0.5, 0.4, 0.5, 0.4, 0.5, 0.4]), 1e-3) is None  # noisy, not rising
+    assert "the training loss is inf at epoch 2" in loss_warning(rows([0.5, float("inf")]), 1e-3)
+    assert loss_warning(rows([0.5, float("inf"), None]), 1e-3) is None  # already said

@@ -1,0 +1,166 @@
+"""One writer per dataset folder: the build lock, a real race of two builds, and what a failed
+build leaves behind."""
+
+from __future__ import annotations
+
+import os
+import shutil
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+from click.testing import CliRunner
+from conftest import REPO
+
+from kinectdata.cli import main
+from kinectdata.dataset.build import EmptySplitWarning, build_dataset
+from kinectdata.dataset.layout import LOCK_OWNER
+from kinectdata.dataset.lock import FolderBusyError, build_lock
+from kinectdata.dataset.prepare import BuildConfig
+from kinectdata.dataset.verify import verify_dataset
+
+SAMPLES = REPO / "sample_data"
+
+
+def config(ratios: tuple[float, float, float]) -> BuildConfig:
+    from kinectdata.features.stft import PRESETS
+    from kinectdata.targets.specs import load_target_spec
+
+    return BuildConfig(PRESETS["yalta2016"].to_dict(), load_target_spec("yalta65").to_dict(), split_ratios=ratios)
+
+
+def test_a_build_into_a_folder_another_build_holds_fails_at_once_naming_it(tmp_path):
+    out = tmp_path / "dataset"
+    with build_lock(out):
+        result = CliRunner().invoke(main, ["build-dataset", str(SAMPLES), "-o", str(out)])
+        assert result.exit_code == 1
+        line = result.stderr.strip().splitlines()[-1]
+        assert "another build is writing this dataset folder" in line and f"process {os.getpid()}" in line
+        assert not (out / "manifest.json").exists() and not (out / ".work").exists()
+    assert not (out / LOCK_OWNER).exists()  # released: the next build goes ahead
+    build_dataset(SAMPLES, out, config((1 / 3, 1 / 3, 1 / 3)))
+    assert verify_dataset(out) == []
+
+
+def test_a_killed_holder_leaves_no_lock(tmp_path):
+    """The lock is the kernel's: it dies with the process that held it (as with kill -9)."""
+    out = tmp_path / "dataset"
+    holder = subprocess.Popen(
+        [
+            sys.executable,
+            "-c",
+            f"from kinectdata.dataset.lock import build_lock\nwith build_lock({str(out)!r}):\n    input()",
+        ],
+        stdin=subprocess.PIPE,
+    )
+    try:
+        for _ in range(200):
+            if (out / LOCK_OWNER).exists():
+                break
+            subprocess.run(["sleep", "0.05"])
+        with pytest.raises(FolderBusyError, match=f"process {holder.pid} on"):
+            with build_lock(out):
+                pass
+    finally:
+        holder.kill()
+        holder.wait()
+    assert (out / LOCK_OWNER).exists()  # a killed build cannot tidy up...
+    with build_lock(out):  # ...but its lock went with it
+        pass
+
+
+def test_two_builds_racing_for_one_folder_leave_one_intact_dataset(tmp_path):
+    out = tmp_path / "dataset"
+    command = [sys.executable, "-m", "kinectdata", "build-dataset", str(SAMPLES), "-o", str(out), "--jobs", "1"]
+    runs = [subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True) for _ in range(2)]
+    results = [(run.wait(timeout=300), *run.communicate()) for run in runs]
+    codes = sorted(code for code, _, _ in results)
+    assert codes[0] == 0, results
+    for code, _, stderr in results:
+        if code != 0:  # the loser: one line, naming the winner
+            errors = [line for line in stderr.splitlines() if not line.startswith("warning: ")]
+            assert len(errors) == 1 and "another build is writing this dataset folder" in errors[0], stderr
+            assert "Traceback" not in stderr
+    assert verify_dataset(out) == []
+
+
+def test_a_failed_build_leaves_no_folder_it_created(tmp_path, monkeypatch):
+    import kinectdata.dataset.build as build
+
+    def broken(*args, **kwargs):
+        raise RuntimeError("planted failure while preparing")
+
+    monkeypatch.setattr(build, "_prepare_all", broken)
+    out = tmp_path / "new" / "dataset"
+    with pytest.raises(RuntimeError, match="planted"):
+        build_dataset(SAMPLES, out, config((1 / 3, 1 / 3, 1 / 3)))
+    assert not out.exists()
+    kept = tmp_path / "kept"
+    kept.mkdir()
+    (kept / "notes.txt").write_text("the user's")
+    with pytest.raises(RuntimeError, match="planted"):
+        build_dataset(SAMPLES, kept, config((1 / 3, 1 / 3, 1 / 3)))
+    assert (kept / "notes.txt").read_text() == "the user's" and not (kept / ".work").exists()
+
+
+def test_an_empty_split_is_warned_about_at_build_time(tmp_path):
+    with pytest.warns(EmptySplitWarning, match=r"leave the val split empty .*training has no validation loss"):
+        build_dataset(SAMPLES, tmp_path / "d", config((0.8, 0.1, 0.1)))
+    shutil.rmtree(tmp_path / "d")
+
+
+def _children(pid: int) -> set[int]:
+    found = set()
+    for task in Path(f"/proc/{pid}/task").glob("*"):
+        try:
+            found |= {int(c) for c in (task / "children").read_text().split()}
+        except OSError:
+            pass
+    return found
+
+
+def _alive(pid: int) -> bool:
+    try:
+        state = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0]
+    except OSError:
+        return False
+    return state != "Z"
+
+
+@pytest.mark.skipif(not Path("/proc/self/task").is_dir(), reason="needs Linux's /proc")
+def test_workers_exit_when_their_build_is_killed(tmp_path):
+    subprocess.run(
+        [sys.executable, "-m", "kinectdata", "synth", str(tmp_path / "in"), "--count", "4", "--duration", "90"],
+        check=True,
+        stdout=subprocess.DEVNULL,
+    )
+    build = subprocess.Popen(
+        [
+            sys.executable,
+            "-m",
+            "kinectdata",
+            "build-dataset",
+            str(tmp_path / "in"),
+            "-o",
+            str(tmp_path / "d"),
+            "--jobs",
+            "2",
+        ],
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+    )
+    deadline = time.monotonic() + 60
+    workers: set[int] = set()
+    while len(workers) < 2 and time.monotonic() < deadline and build.poll() is None:
+        workers = _children(build.pid)
+        time.sleep(0.02)
+    assert len(workers) >= 2, "the build never had two workers"
+    os.kill(build.pid, signal.SIGKILL)  # the parent only, as a crash or the OOM killer would
+    build.wait()
+    deadline = time.monotonic() + 10
+    while any(_alive(w) for w in workers) and time.monotonic() < deadline:
+        time.sleep(0.1)
+    assert not any(_alive(w) for w in workers), "workers outlived their build"
