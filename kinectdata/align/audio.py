@@ -72,6 +72,10 @@ def to_mono(samples: np.ndarray) -> np.ndarray:
     return (total / samples.shape[1]).astype(np.float32)
 
 
+MIN_SOURCE_RATE = 4000
+"""Audio recorded below this rate (Hz) is refused: it holds no music the features can use."""
+
+
 class AudioReader:
     """An audio file streamed as mono float32 blocks at ``sample_rate`` Hz.
 
@@ -93,6 +97,12 @@ class AudioReader:
         if info.frames <= 0:
             raise AudioError(self.path, "the audio file holds no samples")
         self.source_rate = int(info.samplerate)
+        if self.source_rate < MIN_SOURCE_RATE:
+            raise AudioError(
+                self.path,
+                f"sample rate {self.source_rate} Hz: too low for music (at least {MIN_SOURCE_RATE} Hz; the features "
+                "need frequencies up to 8 kHz): is the rate in the file's header right?",
+            )
         self.channels = int(info.channels)
         self.source_frames = int(info.frames)
         self.format = f"{info.format}/{info.subtype}"

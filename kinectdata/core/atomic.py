@@ -1,10 +1,11 @@
 """Write files atomically and durably: readers never see a half-written output.
 
-Output goes to a temporary file in the destination folder (``.NAME.XXXX.partial``), is flushed to
-disk and then renamed over the destination in one step (``os.replace``); the folder is flushed
+Output goes to a temporary file in the destination folder (``.NAME.PID-XXXX.partial``), is flushed
+to disk and then renamed over the destination in one step (``os.replace``); the folder is flushed
 after the rename, so that a finished output survives a power cut and outputs become durable in the
 order they were renamed (a dataset's shards before its manifest). A process killed at any point
-(``kill -9`` included) leaves the old destination or the new one, and at worst a ``.partial`` file.
+(``kill -9`` included) leaves the old destination or the new one, and at worst a ``.partial`` file,
+which the next write of the same destination removes (its process is gone: :func:`remove_orphans`).
 
 On any error the temporary file is removed and the destination is left as it was; a write that
 fails because the disk is full (or the file outgrows what the process may write) is raised as a
@@ -14,6 +15,7 @@ fails because the disk is full (or the file outgrows what the process may write)
 from __future__ import annotations
 
 import errno
+import glob
 import os
 import re
 import tempfile
@@ -74,13 +76,36 @@ def remove(path: str | os.PathLike[str]) -> None:
     sync_folder(path.parent)
 
 
+def remove_orphans(path: Path) -> list[Path]:
+    """Remove the temporary files of ``path`` left by killed writers (``.NAME.PID-XXXX.partial``
+    whose process is gone); a live writer's file is kept. Returns what was removed."""
+    removed = []
+    for partial in path.parent.glob(f".{glob.escape(path.name)}.*.partial"):
+        pid = partial.name[len(path.name) + 2 :].split("-", 1)[0]
+        if pid.isdigit() and not _alive(int(pid)):
+            partial.unlink(missing_ok=True)
+            removed.append(partial)
+    return removed
+
+
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:  # someone else's process
+        return True
+    return True
+
+
 @contextmanager
 def atomic_output(path: str | os.PathLike[str]) -> Iterator[Path]:
     """Yield a temporary path to write; on success it replaces ``path``, on error it is removed."""
     path = Path(path)
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
-        fd, tmp_name = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".partial", dir=path.parent)
+        remove_orphans(path)
+        fd, tmp_name = tempfile.mkstemp(prefix=f".{path.name}.{os.getpid()}-", suffix=".partial", dir=path.parent)
     except OSError as exc:
         raise KinectDataError(f"{path}: cannot write here ({exc.strerror or exc})") from exc
     os.close(fd)

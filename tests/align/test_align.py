@@ -240,3 +240,16 @@ def test_an_ambiguous_offset_names_the_recording_and_the_audio(tmp_path):
     sf.write(tmp_path / "noise.wav", noise, 16000)
     with pytest.raises(AlignmentError, match=r"synth_001.csv with .*noise.wav: cannot determine the audio-to-motion"):
         align(motion, load_audio(tmp_path / "noise.wav"), offset="auto")
+
+
+def test_audio_at_a_rate_no_music_has_is_refused_by_align_and_generate_alike(tmp_path, trained_run):
+    sf.write(tmp_path / "one_hz.wav", np.zeros(30, np.float32), 1)
+    with pytest.raises(AudioError, match=r"one_hz.wav: sample rate 1 Hz: too low for music \(at least 4000 Hz"):
+        load_audio(tmp_path / "one_hz.wav")
+    from click.testing import CliRunner
+
+    from kinectdata.cli import main
+
+    for args in (["align", str(REPO / "sample_data" / "synth_001.csv")], ["generate", "--run", str(trained_run[0])]):
+        result = CliRunner().invoke(main, [*args, str(tmp_path / "one_hz.wav"), "-o", str(tmp_path / "out.csv")])
+        assert result.exit_code == 1 and "sample rate 1 Hz: too low for music" in result.stderr, result.stderr

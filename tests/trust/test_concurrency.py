@@ -164,3 +164,21 @@ def test_workers_exit_when_their_build_is_killed(tmp_path):
     while any(_alive(w) for w in workers) and time.monotonic() < deadline:
         time.sleep(0.1)
     assert not any(_alive(w) for w in workers), "workers outlived their build"
+
+
+def test_a_rerun_removes_what_a_killed_writer_of_the_same_file_left(tmp_path):
+    """``align`` killed mid-write leaves ``.out.h5.PID-XXXX.partial``; the next write of out.h5 removes
+    it, and leaves alone a live writer's and another file's."""
+    from kinectdata.core.atomic import atomic_output
+
+    dead = subprocess.Popen([sys.executable, "-c", "pass"])
+    dead.wait()
+    orphan = tmp_path / f".out.h5.{dead.pid}-abc123.partial"
+    live = tmp_path / f".out.h5.{os.getppid()}-def456.partial"
+    other = tmp_path / f".other.h5.{dead.pid}-ghi789.partial"
+    for f in (orphan, live, other):
+        f.write_bytes(b"half")
+    with atomic_output(tmp_path / "out.h5") as tmp:
+        tmp.write_bytes(b"whole")
+    assert (tmp_path / "out.h5").read_bytes() == b"whole"
+    assert not orphan.exists() and live.exists() and other.exists()
