@@ -57,7 +57,10 @@ class _Framer:
     def push(self, x: np.ndarray) -> np.ndarray:
         """[M, size] frames completed by ``x`` (in order)."""
         buf = np.concatenate([self.buffer, x]) if self.buffer.size else x
-        m = 0 if buf.size < self.size else (buf.size - self.size) // self.hop + 1
+        if buf.size < self.size:  # no frame complete yet (audio shorter than one frame so far)
+            self.buffer = buf
+            return np.zeros((0, self.size), buf.dtype)
+        m = (buf.size - self.size) // self.hop + 1
         frames = np.lib.stride_tricks.sliding_window_view(buf, self.size)[:: self.hop][:m]
         self.buffer = buf[m * self.hop :]
         return frames
@@ -87,6 +90,8 @@ def audio_envelopes(blocks: Iterable[np.ndarray], sample_rate: int) -> AudioEnve
     def consume(x: np.ndarray) -> None:
         nonlocal zi, total, square_sum
         x = np.asarray(x, dtype=np.float64)
+        if not x.size:  # an empty block (a resampler's flush may be one) adds nothing
+            return
         total += x.size
         square_sum += float(np.dot(x, x))
         high, zi = signal.sosfilt(sos, x, zi=zi)

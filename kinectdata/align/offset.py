@@ -279,8 +279,13 @@ def xcorr_estimate(motion: Motion, env: AudioEnvelopes, max_offset: float | None
     from scipy import ndimage, signal
 
     rate = ONSET_RATE
-    a = _zscore(env.onset)
     m = motion_energy_envelope(motion, rate)
+    if env.onset.size < 2 or m.size < 2:  # nothing to correlate (a one-frame recording, a few samples of audio)
+        raise AlignmentError(
+            f"the audio ({env.duration:.3f} s) or the motion ({motion.n_frames} frame(s), {motion.duration:.3f} s) "
+            "is too short to estimate their offset: give it"
+        )
+    a = _zscore(env.onset)
     m = _zscore(np.maximum(np.diff(ndimage.uniform_filter1d(m, 5), prepend=m[0]), 0.0))
     corr = signal.correlate(a, m, mode="full", method="fft")
     # corr[k] = sum_n a[n + k - (m.size - 1)] m[n]; m[n] is at motion time times[0] + n / rate

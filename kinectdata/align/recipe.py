@@ -26,10 +26,11 @@ from kinectdata.align.aligned import AlignedRecording, Provenance
 from kinectdata.align.audio import DEFAULT_SAMPLE_RATE, Audio, load_audio
 from kinectdata.align.envelopes import AudioEnvelopes
 from kinectdata.align.offset import DEFAULT_MIN_CONFIDENCE, OffsetChoice, estimate_offset
-from kinectdata.align.timeline import Resampled, resample_motion
+from kinectdata.align.timeline import Resampled, longer_than, resample_motion
 from kinectdata.core.errors import AlignmentError, ConfigError, KinectDataError
 from kinectdata.core.hashing import file_sha256
 from kinectdata.core.motion import Motion
+from kinectdata.core.quaternions import UNIT_TOLERANCE
 from kinectdata.formats import read_motion
 
 DEFAULT_FPS = 30.0
@@ -50,7 +51,12 @@ def resolve_offset(
     """The offset to use, with where it came from.
 
     ``offset`` is a number of seconds (source "given") or "auto"/None (estimated from the audio or
-    its envelopes by :func:`kinectdata.align.offset.estimate_offset`).
+    its envelopes by :func:`kinectdata.align.offset.estimate_offset`, on the motion with its
+    implausible values masked: :func:`mask_implausible`).
+
+    Raises:
+        AlignmentError: the recording or the audio is too short to estimate an offset (under
+            :data:`MIN_AUTO_OFFSET_S`), or no estimate is reliable; the message names both.
     """
     if offset is None or offset == "auto":
         recording = motion.metadata.get("source", "the recording")
@@ -60,8 +66,14 @@ def resolve_offset(
                 f"{recording}: {motion.n_frames} frame(s), {motion.duration:.2f} s: too short to find its offset to "
                 f"{heard} (a clap or the music's rhythm needs at least {MIN_AUTO_OFFSET_S:g} s); give --offset SECONDS"
             )
+        if audio.duration < MIN_AUTO_OFFSET_S:
+            raise AlignmentError(
+                f"{heard}: {audio.duration:.3f} s of audio: too short to find its offset to {recording} (a clap or the "
+                f"music's rhythm needs at least {MIN_AUTO_OFFSET_S:g} s); give --offset SECONDS"
+            )
         try:
-            est = estimate_offset(motion, audio, max_offset=max_offset, min_confidence=min_confidence)
+            clean = mask_implausible(motion)[0]  # one overflowing value must not pass for a clap
+            est = estimate_offset(clean, audio, max_offset=max_offset, min_confidence=min_confidence)
         except AlignmentError as exc:
             raise AlignmentError(f"{recording} with {heard}: {exc}") from None
         return OffsetChoice.from_estimate(est)
@@ -131,6 +143,7 @@ def plan_timeline(
             f"{motion.metadata.get('source', 'the recording')}: needs at least 2 frames, has {motion.n_frames}"
         )
     sr, o = sample_rate, offset
+    recording = motion.metadata.get("source", "the recording")
     duration = audio_samples / sr
     m0, m1 = float(motion.times[0]), float(motion.times[-1])
     start = max(0.0, m0 + o)
@@ -139,9 +152,9 @@ def plan_timeline(
     if coverage < min_coverage:
         raise AlignmentError(
             f"{audio_name}: the audio ({duration:.2f} s) covers only {covered:.2f} s ({100 * coverage:.0f}%) of the "
-            f"motion's {m1 - m0:.2f} s at offset {o:+.3f} s (audio_time = motion_time + offset); at least "
-            f"{100 * min_coverage:.0f}% is required. The audio is shorter than the motion, or the offset is wrong "
-            f"(--min-coverage lowers the requirement)."
+            f"motion's {m1 - m0:.2f} s ({recording}) at offset {o:+.3f} s (audio_time = motion_time + offset); at "
+            f"least {100 * min_coverage:.0f}% is required. The audio is shorter than the motion, or the offset is "
+            "wrong (--min-coverage lowers the requirement)."
         )
     first_sample = math.ceil(start * sr - 1e-6)
     t0 = first_sample / sr
@@ -152,15 +165,17 @@ def plan_timeline(
     n = min(n_motion, n_audio)
     if n < 2:
         raise AlignmentError(
-            f"{audio_name}: audio ({duration:.2f} s) and motion ({m1 - m0:.2f} s) overlap by less than two "
-            f"frames at offset {o:+.3f} s"
+            f"{audio_name}: audio ({duration:.2f} s) and motion ({m1 - m0:.2f} s, {recording}) overlap by less than "
+            f"two frames at offset {o:+.3f} s"
         )
     return Timeline(offset=o, fps=fps, sample_rate=sr, first_sample=first_sample, n_frames=n)
 
 
 def resample_onto(motion: Motion, timeline: Timeline, max_gap: float = DEFAULT_MAX_GAP) -> tuple[Resampled, list]:
     """The motion at the timeline's frames (times k / fps), and the gaps longer than ``max_gap``
-    on the output clock."""
+    on the output clock. Implausible values are masked first (:func:`mask_implausible`): they are
+    tracking loss, filled or masked like any other."""
+    motion = mask_implausible(motion)[0]
     m0, m1 = float(motion.times[0]), float(motion.times[-1])
     res = resample_motion(motion, np.clip(timeline.motion_times(), m0, m1), max_gap=max_gap)
     res.motion.times = np.arange(timeline.n_frames) / timeline.fps
@@ -177,7 +192,7 @@ def resample_onto(motion: Motion, timeline: Timeline, max_gap: float = DEFAULT_M
             "edge": g.edge,
         }
         for g in res.gaps
-        if g.length > max_gap + 1e-9 and g.end + shift > 0 and g.start + shift < end
+        if bool(longer_than(g.length, max_gap)) and g.end + shift > 0 and g.start + shift < end
     ]
     return res, long_gaps
 
@@ -185,9 +200,11 @@ def resample_onto(motion: Motion, timeline: Timeline, max_gap: float = DEFAULT_M
 def summarize(
     source: Motion, timeline: Timeline, res: Resampled, long_gaps: list, offset: dict, audio_samples: int, kept: int
 ) -> dict[str, Any]:
-    """The figures ``align`` prints and stores (see :func:`format_summary`)."""
+    """The figures ``align`` prints and stores (see :func:`format_summary`); ``source`` is the
+    recording as read (its implausible values are counted here)."""
     tl, sr = timeline, timeline.sample_rate
     timing = source.timing()
+    bad_positions, bad_orientations = implausible_values(source)
     valid_any = res.motion.position_mask | res.position_interpolated
     last_frame_motion_time = tl.start + (tl.n_frames - 1) / tl.fps - tl.offset
     summary = {
@@ -210,6 +227,8 @@ def summarize(
         "offset_s": tl.offset,
         "offset_source": offset.source,
         "offset_confidence": offset.confidence,
+        "implausible_positions": int(bad_positions.sum()),
+        "implausible_orientations": int(bad_orientations.sum()) if bad_orientations is not None else 0,
     }
     if res.orientation_interpolated is not None:
         can = source.joint_set.orientation_mask
@@ -245,8 +264,11 @@ def align(
 
     Raises:
         AlignmentError: no reliable offset, or too little overlap between audio and motion.
+
+    Positions that are not finite or absurdly far (a recorder's overflow: 1e300, inf) and
+    orientations that are not unit quaternions are masked as tracking loss and counted in the
+    summary (:func:`mask_implausible` says why masked, not refused).
     """
-    motion, implausible = mask_implausible(motion)
     off = resolve_offset(motion, audio, offset, max_offset=max_offset, min_confidence=min_confidence)
     tl = plan_timeline(
         motion,
@@ -268,30 +290,57 @@ def align(
         orientation_interpolated=res.orientation_interpolated,
         offset=off,
         provenance=Provenance(motion=dict(motion.metadata), audio=dict(audio.source)),
-        summary=summarize(motion, tl, res, long_gaps, off, audio.samples.size, samples.size)
-        | {"implausible_positions": implausible},
+        summary=summarize(motion, tl, res, long_gaps, off, audio.samples.size, samples.size),
         gaps=long_gaps,
     )
 
 
 MAX_ABS_POSITION = {3: 1e3, 2: 1e6}
-"""Largest believable coordinate by joint-set dimensions: 1 km in camera space, 10^6 pixels."""
+"""Largest believable coordinate by joint-set dimensions: 1 km in camera space (metres), 10^6
+pixels in an image (2-D)."""
+
+
+def implausible_values(motion: Motion) -> tuple[np.ndarray, np.ndarray | None]:
+    """Where a recording's valid values cannot be true.
+
+    Returns:
+        [T, J] bool: positions marked valid that are not finite or have a coordinate beyond
+        :data:`MAX_ABS_POSITION` (metres for 3-D joint sets, pixels for 2-D ones); and [T, J] bool
+        (None without orientations): orientations marked valid that are not finite or whose norm is
+        more than :data:`~kinectdata.core.quaternions.UNIT_TOLERANCE` from 1.
+    """
+    limit = MAX_ABS_POSITION.get(motion.joint_set.dimensions, 1e6)
+    with np.errstate(invalid="ignore", over="ignore"):
+        positions = motion.position_mask & ~(np.abs(motion.positions) <= limit).all(axis=-1)
+        if motion.orientations is None:
+            return positions, None
+        norm = np.linalg.norm(np.where(np.abs(motion.orientations) <= 2.0, motion.orientations, np.inf), axis=-1)
+        orientations = motion.orientation_mask & ~(np.abs(norm - 1.0) <= UNIT_TOLERANCE)
+    return positions, orientations
 
 
 def mask_implausible(motion: Motion) -> tuple[Motion, int]:
-    """The motion with positions that are not finite or beyond :data:`MAX_ABS_POSITION` (a
-    recorder's overflow, 1e300, inf) masked as tracking loss, and how many joint positions that was.
-    Masked, not refused: one bad value should not cost a take; the count is in ``align``'s summary."""
-    limit = MAX_ABS_POSITION.get(motion.joint_set.dimensions, 1e6)
-    with np.errstate(invalid="ignore"):
-        bad = motion.position_mask & ~(np.abs(motion.positions) <= limit).all(axis=-1)
-    count = int(bad.sum())
+    """The motion with its :func:`implausible_values` masked as tracking loss, and how many joint
+    values (positions and orientations) that was.
+
+    Masked, not refused: such values come from a recorder's overflow or a corrupt field in one
+    frame (1e300, inf), and the frames around them are sound; refusing would cost the whole take
+    for one value, while masking makes it a gap like any untracked joint, filled or left masked
+    by the same ``max_gap`` rule, and counted (``implausible_positions`` and
+    ``implausible_orientations`` in ``align``'s summary, printed by :func:`format_summary`).
+    The input is not changed.
+    """
+    positions, orientations = implausible_values(motion)
+    count = int(positions.sum()) + (int(orientations.sum()) if orientations is not None else 0)
     if not count:
         return motion, 0
     cleaned = replace(
         motion,
-        positions=np.where(bad[..., None], np.nan, motion.positions),
-        position_mask=motion.position_mask & ~bad,
+        positions=np.where(positions[..., None], np.nan, motion.positions),
+        position_mask=motion.position_mask & ~positions,
+        confidence=np.where(positions, np.float32(0.0), motion.confidence),
+        orientations=None if orientations is None else np.where(orientations[..., None], np.nan, motion.orientations),
+        orientation_mask=None if orientations is None else motion.orientation_mask & ~orientations,
         metadata=dict(motion.metadata),
     )
     return cleaned, count
@@ -357,10 +406,13 @@ def format_summary(rec: AlignedRecording) -> str:
         f"gaps            {100 * s['interpolated_share']:.2f}% of joint positions interpolated, "
         f"{100 * s['masked_share']:.2f}% masked, {s['long_gaps']} gap(s) longer than max-gap",
     ]
-    if s.get("implausible_positions"):
+    if s.get("implausible_positions") or s.get("implausible_orientations"):
+        unit = "m" if rec.motion.joint_set.dimensions == 3 else "px"
         lines.append(
-            f"implausible     {s['implausible_positions']} joint position(s) not finite or beyond "
-            f"{MAX_ABS_POSITION.get(rec.motion.joint_set.dimensions, 1e6):g} units: masked as tracking loss"
+            f"implausible     {s.get('implausible_positions', 0)} joint position(s) not finite or beyond "
+            f"{MAX_ABS_POSITION.get(rec.motion.joint_set.dimensions, 1e6):g} {unit}, "
+            f"{s.get('implausible_orientations', 0)} orientation(s) not finite or not unit quaternions: "
+            "masked as tracking loss"
         )
     if "orientation_interpolated_share" in s:
         lines.append(f"orientations    {100 * s['orientation_interpolated_share']:.2f}% interpolated")

@@ -8,7 +8,8 @@ checked against scipy's ``Slerp``) after the joint's quaternions have been made 
 A *gap* is a stretch where a joint has no valid sample: two consecutive valid samples further
 apart than 1.5 nominal frame intervals (the joint was untracked, or whole frames were dropped).
 Its length is the duration of the frames missing in it, ``(round((t_after - t_before) / dt) - 1)
-* dt`` with ``dt`` the nominal (median) interval, so that timestamp jitter cannot change it.
+* dt`` with ``dt`` the nominal interval (:func:`kinectdata.core.motion.frame_clock`, the same
+interval ``info`` and ``align`` report), so that timestamp jitter cannot change it.
 Grid times inside a gap no longer than ``max_gap`` seconds are interpolated and flagged, and
 their confidence is at most 0.5 (what Kinect reports for joints it infers); inside a longer gap
 they are masked. Grid times before a joint's first or after its last valid sample are masked
@@ -22,11 +23,14 @@ from dataclasses import dataclass
 import numpy as np
 
 from kinectdata.core.errors import ConfigError
-from kinectdata.core.motion import Motion
+from kinectdata.core.motion import Motion, frame_clock
 from kinectdata.core.quaternions import make_continuous, slerp
 
 GAP_FACTOR = 1.5
 """Consecutive valid samples further apart than this many nominal intervals bound a gap."""
+GAP_TOLERANCE = 1e-4
+"""Relative slack when a gap's length is compared with ``max_gap``: the nominal interval is fitted
+to the timestamps, so six frames of a 30 fps recording may last 0.2000002 s; that is still 0.2 s."""
 INFERRED_CONFIDENCE = 0.5
 """Highest confidence of a value filled across a gap (Kinect's level for inferred joints)."""
 
@@ -61,10 +65,16 @@ class Resampled:
 
 
 def nominal_interval(times: np.ndarray) -> float:
-    """Median frame interval in seconds."""
+    """The recording's frame interval in seconds: 1 / its frame rate, fitted to the [T]
+    timestamps (seconds) by :func:`kinectdata.core.motion.frame_clock`."""
     if times.size < 2:
         raise ConfigError("a recording needs at least two frames to be resampled")
-    return float(np.median(np.diff(times)))
+    return frame_clock(times)[0]
+
+
+def longer_than(length: np.ndarray | float, max_gap: float) -> np.ndarray | bool:
+    """Whether gaps of ``length`` seconds exceed ``max_gap`` seconds (within :data:`GAP_TOLERANCE`)."""
+    return np.asarray(length) > max_gap * (1 + GAP_TOLERANCE) + 1e-9
 
 
 def _missing_duration(span: np.ndarray | float, dt: float) -> np.ndarray | float:
@@ -84,7 +94,7 @@ def _brackets(tv: np.ndarray, grid: np.ndarray, dt: float, max_gap: float):
     with np.errstate(invalid="ignore", divide="ignore"):
         w = np.where(span > 0, (grid - tv[a]) / np.where(span > 0, span, 1.0), 0.0)
     in_gap = inside & (span > GAP_FACTOR * dt) & (w > 0)
-    too_long = in_gap & (_missing_duration(span, dt) > max_gap + 1e-9)
+    too_long = in_gap & longer_than(_missing_duration(span, dt), max_gap)
     return a, b, w, inside & ~too_long, in_gap & ~too_long
 
 
@@ -99,7 +109,7 @@ def _gaps(name: str, quantity: str, tv: np.ndarray, t0: float, t1: float, dt: fl
     spans = np.diff(tv)
     for i in np.flatnonzero(spans > GAP_FACTOR * dt):
         length = float(_missing_duration(spans[i], dt))
-        out.append(Gap(name, quantity, float(tv[i]), float(tv[i + 1]), length, length <= max_gap + 1e-9))
+        out.append(Gap(name, quantity, float(tv[i]), float(tv[i + 1]), length, not bool(longer_than(length, max_gap))))
     if t1 - tv[-1] > GAP_FACTOR * dt / 2:
         out.append(
             Gap(name, quantity, float(tv[-1]), t1, float(_missing_duration(t1 - tv[-1] + dt, dt)), False, edge=True)

@@ -52,11 +52,13 @@ def info(
             f"frames          {m.n_frames} over {m.duration:.3f} s; {t['fps']:.2f} fps (mean interval "
             f"{t['interval_ms']:.2f} ms), jitter {t['jitter_ms']:.2f} ms, {t['dropped_frames']} dropped"
         )
-    for line in _timing_doubts(md, t):
+    for line in _timing_doubts(md, t) + _frozen_lines(m):
         click.echo(line)
     click.echo(
         f"positions       {100 * m.position_mask.mean():.1f}% valid; mean confidence {np.mean(m.confidence):.3f}"
     )
+    for line in _implausible_lines(m):
+        click.echo(line)
     if md.get("confidences_clipped"):
         click.echo(f"confidences     {md['confidences_clipped']} above 1 (as OpenPose writes at times), clipped to 1")
     if m.has_orientations:
@@ -112,29 +114,67 @@ def _declared_fps(metadata: dict) -> tuple[str, float] | None:
 
 
 def _timing_doubts(metadata: dict, timing: dict) -> list[str]:
-    """Lines for a declared rate the timestamps contradict, and for frozen (repeated) frames."""
-    lines = []
+    """The line for a frame rate the file declares (:func:`_declared_fps`) and its timestamps
+    contradict by more than :data:`DECLARED_RATE_TOLERANCE`, or none."""
     declared = _declared_fps(metadata)
     fps = timing["fps"]
-    if declared is not None and np.isfinite(fps) and abs(declared[1] / fps - 1) > DECLARED_RATE_TOLERANCE:
-        lines.append(
-            f"declared rate   {declared[1]:g} fps in the file ({declared[0]}), but the timestamps give {fps:.2f} fps: "
-            "the timestamps are used"
-        )
-    frozen = timing.get("frozen_frames", 0)
-    if frozen:
-        lines.append(
-            f"frozen frames   {frozen} repeat the frame before exactly (a stalled tracker writing its last pose "
-            "again); they count as tracked"
-        )
-    return lines
+    if declared is None or not np.isfinite(fps) or abs(declared[1] / fps - 1) <= DECLARED_RATE_TOLERANCE:
+        return []
+    return [
+        f"declared rate   {declared[1]:g} fps in the file ({declared[0]}), but the timestamps give {fps:.2f} fps "
+        f"({100 * (fps / declared[1] - 1):+.0f}%): the timestamps are used"
+    ]
+
+
+def _frozen_lines(motion) -> list[str]:
+    """The line for runs of frozen frames (:meth:`~kinectdata.core.motion.Motion.frozen_runs`: a
+    stalled tracker writing its last pose again), with their count, share of the frames, number of
+    runs and the longest run (frames, seconds from the first frame), or none."""
+    runs = motion.frozen_runs()
+    if not runs:
+        return []
+    frozen = sum(n for _, n in runs)
+    start, longest = max(runs, key=lambda r: r[1])
+    t0 = float(motion.times[start - 1] - motion.times[0])  # the frame they repeat
+    return [
+        f"frozen frames   {frozen} repeat the frame before exactly ({100 * frozen / motion.n_frames:.1f}% of the "
+        f"frames), in {len(runs)} run(s); the longest holds the pose of {t0:.3f} s for {longest} frame(s) "
+        f"({motion.times[start + longest - 1] - motion.times[start - 1]:.3f} s): a stalled tracker; they count as "
+        "tracked"
+    ]
+
+
+def _implausible_lines(motion) -> list[str]:
+    """The line for valid values that cannot be true (positions not finite or beyond
+    :data:`~kinectdata.align.recipe.MAX_ABS_POSITION`, orientations that are not unit
+    quaternions), which ``align`` masks as tracking loss, with the first frame holding one; or none."""
+    from kinectdata.align.recipe import MAX_ABS_POSITION, implausible_values
+
+    positions, orientations = implausible_values(motion)
+    bad = positions | (orientations if orientations is not None else False)
+    if not bad.any():
+        return []
+    frame = int(np.flatnonzero(bad.any(axis=1))[0])
+    unit = "m" if motion.joint_set.dimensions == 3 else "px"
+    return [
+        f"implausible     {int(positions.sum())} position(s) not finite or beyond "
+        f"{MAX_ABS_POSITION.get(motion.joint_set.dimensions, 1e6):g} {unit}"
+        + (f", {int(orientations.sum())} orientation(s) not unit quaternions" if orientations is not None else "")
+        + f", first at frame {frame} ({motion.times[frame] - motion.times[0]:.3f} s): align masks them as tracking loss"
+    ]
 
 
 def aligned_lines(path: str, rec) -> str:
-    """What ``info`` shows of an aligned recording."""
+    """What ``info`` (and ``inspect``) show of an aligned recording (an
+    :class:`~kinectdata.align.aligned.AlignedRecording` read from ``path``): frames, frame rate
+    and duration, the audio's rate and length, the offset, and how valid the joints are."""
     m = rec.motion
     off = rec.offset
-    offset = f"{off.seconds:+.3f} s ({off.source})" if off is not None else "none recorded"
+    offset = "none recorded"
+    if off is not None:
+        estimated = off.confidence is not None and off.source != "given"
+        sure = f", confidence {off.confidence:.2f}" if estimated else ""
+        offset = f"{off.seconds:+.3f} s ({off.source}){sure}"
     lines = [
         f"file            {path}",
         "format          aligned recording (kinectdata align)",
@@ -144,8 +184,33 @@ def aligned_lines(path: str, rec) -> str:
         f"offset          {offset}: audio time = motion time + offset",
         f"positions       {100 * m.position_mask.mean():.1f}% valid, {100 * rec.position_interpolated.mean():.1f}% "
         f"filled across gaps; {len(rec.gaps)} gaps longer than the fill limit",
+        *_aligned_joint_lines(rec),
     ]
+    implausible = rec.summary.get("implausible_positions", 0) + rec.summary.get("implausible_orientations", 0)
+    if implausible:
+        lines.append(f"implausible     {implausible} value(s) of the source masked as tracking loss when aligned")
     sources = rec.provenance.motion.get("path"), rec.provenance.audio.get("path")
     if any(sources):
         lines.append(f"aligned from    {sources[0]} + {sources[1]}")
     return "\n".join(lines)
+
+
+SHOWN_JOINTS = 5
+"""The least valid joints ``info`` names for an aligned file."""
+
+
+def _aligned_joint_lines(rec) -> list[str]:
+    """How valid each joint's position is in an aligned recording: how many joints are valid in
+    every frame, and the least valid ones with their share of valid frames (filled ones included)."""
+    m = rec.motion
+    share = m.position_mask.mean(axis=0)
+    filled = rec.position_interpolated.mean(axis=0)
+    whole = int(np.sum(share == 1.0))
+    if whole == m.n_joints:
+        return [f"joints          all {m.n_joints} valid in every frame"]
+    worst = [j for j in np.argsort(share, kind="stable") if share[j] < 1.0][:SHOWN_JOINTS]
+    named = ", ".join(
+        f"{m.joint_set.names[j]} {100 * share[j]:.1f}%" + (f" ({100 * filled[j]:.1f}% filled)" if filled[j] else "")
+        for j in worst
+    )
+    return [f"joints          {whole} of {m.n_joints} valid in every frame; least valid: {named}"]

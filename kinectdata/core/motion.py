@@ -119,15 +119,17 @@ class Motion:
         )
 
     def timing(self) -> dict[str, float | int]:
-        """Frame timing of the recording.
+        """Frame timing of the recording (:func:`frame_clock` fits it).
 
-        Returns ``fps`` (the slope of a least-squares line through the timestamps against frame
-        numbers, dropped frames counted: a recorder whose intervals alternate 33.0 and 34.1 ms is
-        at the rate of their mean, not of their median), ``interval_ms`` (1000 / fps),
-        ``jitter_ms`` (standard deviation of the intervals that are not drops), ``dropped_frames``
-        (frames missing where an interval exceeds 1.5 median intervals, counted as
-        round(dt / median) - 1) and ``frozen_frames`` (frames whose positions repeat the previous
-        frame's exactly, valid joints only: a tracker that stalled and wrote its last pose again).
+        Returns ``fps`` (frames per second: the slope of a least-squares line through the
+        timestamps against frame numbers, dropped frames counted, so a recorder whose intervals
+        alternate 33.0 and 34.1 ms is at the rate of their mean, not of their median),
+        ``interval_ms`` (1000 / fps), ``jitter_ms`` (standard deviation of the intervals that are
+        not drops), ``dropped_frames`` (frames missing where an interval spans more than one
+        fitted interval, counted as round(dt / interval) - 1) and ``frozen_frames`` (frames whose
+        positions repeat the previous frame's exactly, valid joints only: a tracker that stalled
+        and wrote its last pose again; :meth:`frozen_runs` gives where). fps, interval and jitter
+        are NaN for fewer than two frames.
         """
         if self.n_frames < 2:
             return {
@@ -135,31 +137,76 @@ class Motion:
                 "interval_ms": float("nan"),
                 "jitter_ms": float("nan"),
                 "dropped_frames": 0,
-                "frozen_frames": 0,
+                "frozen_frames": self.frozen_frames(),
             }
-        dt = np.diff(self.times)
-        med = float(np.median(dt))
-        steps = np.maximum(1, np.round(dt / med)) if med > 0 else np.ones_like(dt)
-        number = np.concatenate([[0.0], np.cumsum(steps)])  # frame numbers, drops counted
-        slope = np.polyfit(number, self.times, 1)[0]
-        regular = dt[steps == 1]
+        interval, number = frame_clock(self.times)
+        steps = np.diff(number)
+        regular = np.diff(self.times)[steps == 1]
         return {
-            "fps": 1.0 / slope if slope > 0 else float("nan"),
-            "interval_ms": slope * 1e3,
+            "fps": 1.0 / interval,
+            "interval_ms": interval * 1e3,
             "jitter_ms": float(np.std(regular) * 1e3) if regular.size else 0.0,
             "dropped_frames": int(np.sum(steps - 1)),
             "frozen_frames": self.frozen_frames(),
         }
 
-    def frozen_frames(self) -> int:
-        """Frames (after the first) whose valid joint positions all equal the previous frame's
-        exactly, with at least one joint valid in both."""
+    def frozen_runs(self) -> list[tuple[int, int]]:
+        """Runs of frozen frames as (first frozen frame index, frames in the run), in order.
+
+        A frame is frozen when, with at least one joint valid in it and in the frame before, every
+        joint valid in both has exactly the previous frame's position (joints valid in only one of
+        the two are not compared): a stalled tracker writing its last pose again.
+        """
+        if self.n_frames < 2:
+            return []
         same = (self.positions[1:] == self.positions[:-1]).all(axis=-1)
         both = self.position_mask[1:] & self.position_mask[:-1]
-        return int(np.sum(both.any(axis=1) & (same | ~both).all(axis=1)))
+        frozen = np.concatenate([[False], both.any(axis=1) & (same | ~both).all(axis=1), [False]])
+        edges = np.flatnonzero(np.diff(frozen.astype(np.int8)))
+        return [(int(a) + 1, int(b - a)) for a, b in zip(edges[::2], edges[1::2])]  # edge i: frame i + 1
+
+    def frozen_frames(self) -> int:
+        """Frames (after the first) that repeat the previous frame: the total of :meth:`frozen_runs`."""
+        return sum(n for _, n in self.frozen_runs())
 
     def __repr__(self) -> str:
         return (
             f"Motion({self.n_frames} frames, {self.duration:.2f} s, joint_set={self.joint_set.name!r}, "
             f"orientations={'yes' if self.has_orientations else 'no'})"
         )
+
+
+def frame_clock(times: np.ndarray) -> tuple[float, np.ndarray]:
+    """The frame interval of timestamps, and the frame number of each timestamp.
+
+    The one place kinectdata derives a recording's frame rate from its timestamps. Each interval
+    between consecutive timestamps is counted as ``max(1, round(dt / interval))`` frames (more than
+    one where frames were dropped), and the interval is the slope of a least-squares line through
+    the timestamps against those frame numbers. The first count uses the median interval; the
+    counts are then taken again with the fitted interval until they no longer change (at most three
+    rounds), so a recorder whose median is off its mean (33.0, 33.0, 34.0 ms in turn: median 33.0,
+    mean 33.33) still counts a long pause as the frames it lasted.
+
+    Args:
+        times: [T] strictly increasing timestamps in seconds, T >= 2.
+
+    Returns:
+        (interval in seconds, [T] float64 frame numbers starting at 0).
+
+    Raises:
+        ConfigError: fewer than two timestamps.
+    """
+    times = np.asarray(times, dtype=np.float64)
+    if times.size < 2:
+        raise ConfigError(f"a frame rate needs at least two timestamps, got {times.size}")
+    dt = np.diff(times)
+    interval = float(np.median(dt))
+    steps = None
+    for _ in range(3):
+        new = np.maximum(1.0, np.round(dt / interval))
+        if steps is not None and np.array_equal(new, steps):
+            break
+        steps = new
+        number = np.concatenate([[0.0], np.cumsum(steps)])
+        interval = float(np.polyfit(number, times - times[0], 1)[0])  # shifted: slope unchanged, precision kept
+    return interval, np.concatenate([[0.0], np.cumsum(steps)])

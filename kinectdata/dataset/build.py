@@ -38,7 +38,7 @@ from kinectdata.core.errors import KinectDataError, KinectDataWarning
 from kinectdata.core.hashing import file_sha256
 from kinectdata.core.version import __version__
 from kinectdata.dataset.executors import Executor, LocalExecutor
-from kinectdata.dataset.inputs import RecordingEntry, assign_splits, read_recordings
+from kinectdata.dataset.inputs import RecordingEntry, assign_splits, read_recordings, split_counts
 from kinectdata.dataset.layout import LOCK, LOCK_OWNER, MANIFEST, SHARD_FORMAT, SHARD_NAME, SPLITS, WORK, shard_name
 from kinectdata.dataset.lock import FolderBusyError, build_lock
 from kinectdata.dataset.prepare import BuildConfig, Unit, prepare_recording, source_hashes
@@ -178,9 +178,10 @@ def build_dataset(
             paths, ``..``, symbolic links leading out); refused by default.
 
     One build writes a folder at a time (:mod:`.lock`): a second one fails at once with
-    :class:`~kinectdata.dataset.lock.FolderBusyError` naming the first. A failed build removes the
-    folder if it created it and left nothing in it; prepared recordings in ``.work`` stay for the
-    rerun. A split left empty by the ratios is warned about (:class:`EmptySplitWarning`).
+    :class:`~kinectdata.dataset.lock.FolderBusyError` naming the first. A failed build removes an
+    empty ``.work`` and the folders it created if it left nothing in them; prepared recordings in
+    ``.work`` stay for the rerun. An empty val or test split is warned about
+    (:class:`EmptySplitWarning`, :func:`empty_split_message`).
     """
     out = Path(out_dir)
     if executor is not None and jobs != 1:
@@ -199,26 +200,26 @@ def build_dataset(
             "sources": hashes,
         }
     )
-    empty_splits = [s for s in SPLITS if s not in splits.values()]
-    if empty_splits:
-        lost = {"val": "training has no validation loss", "test": "evaluate has no songs to score"}
-        warnings.warn(
-            f"{source}: {len(entries)} recordings leave the {' and '.join(empty_splits)} split"
-            f"{'s' * (len(empty_splits) > 1)} empty at split ratios {tuple(config.split_ratios)} "
-            f"({'; '.join(lost[s] for s in empty_splits)}): add recordings or change --split-ratios",
-            EmptySplitWarning,
-            stacklevel=2,
-        )
-    existed = out.exists()
+    said = empty_split_message(source, entries, splits, config.split_ratios)
+    if said:
+        warnings.warn(said, EmptySplitWarning, stacklevel=2)
+    created = _first_missing(out)
+    locked = False
     try:
         with build_lock(out):
-            return _build_locked(
-                out, entries, splits, hashes, build_key, config, executor, jobs, progress, keep_work, source
-            )
+            locked = True
+            try:
+                return _build_locked(
+                    out, entries, splits, hashes, build_key, config, executor, jobs, progress, keep_work, source
+                )
+            except BaseException:
+                _tidy_after_failure(out, created)  # still under the lock: no other build can be starting here
+                raise
     except FolderBusyError:
         raise  # the folder is the other build's: touch nothing
     except BaseException:
-        _tidy_after_failure(out, existed)
+        if not locked:  # the lock could not be taken (an unwritable folder...): what mkdir made goes
+            _tidy_after_failure(out, created)
         raise
 
 
@@ -226,14 +227,79 @@ class EmptySplitWarning(KinectDataWarning):
     """A build leaves a split with no recording."""
 
 
-def _tidy_after_failure(out: Path, existed: bool) -> None:
+LOST = {"val": "training has no validation loss", "test": "evaluate has no recordings to score"}
+"""What an empty split costs, for :func:`empty_split_message`."""
+
+
+def empty_split_message(
+    source: str | Path, entries: list[RecordingEntry], splits: dict[str, str], ratios: tuple[float, float, float]
+) -> str | None:
+    """What to say when the val or test split is left empty, or None. A split the user emptied on
+    purpose (ratio 0 while recordings are drawn) is not mentioned."""
+    drawn = sum(e.split is None for e in entries)
+    explicit = len(entries) - drawn
+    empty = [
+        s for i, s in enumerate(SPLITS) if s != "train" and s not in splits.values() and (ratios[i] > 0 or not drawn)
+    ]
+    if not empty:
+        return None
+    names = " and ".join(empty)
+    if drawn:
+        need = _recordings_filling(ratios, explicit_splits={splits[e.name] for e in entries if e.split is not None})
+        how = (
+            f"{drawn} recording{'s' * (drawn != 1)} drawn at split ratios {tuple(ratios)}"
+            + (f" (and {explicit} with a split of their own)" if explicit else "")
+            + f" leave{'s' * (drawn == 1 and not explicit)} the {names} split{'s' * (len(empty) > 1)} empty"
+        )
+        fix = "add recordings" + (f" ({need} or more drawn at these ratios fill every split)" if need else "")
+        fix += f", change --split-ratios or give recordings a split ({'/'.join(empty)}) in a recordings manifest"
+    else:
+        how = f"the recordings manifest puts no recording in the {names} split{'s' * (len(empty) > 1)}"
+        fix = f"give some recordings split: {empty[0]}"
+    return f"{source}: {how} ({'; '.join(LOST[s] for s in empty)}): {fix}"
+
+
+def _recordings_filling(ratios: tuple[float, float, float], explicit_splits: set[str], most: int = 1000) -> int | None:
+    """The number of drawn recordings from which on (up to ``most``) no split with a non-zero ratio is
+    left empty (the splits explicitly assigned recordings fill anyway), as
+    :func:`~.inputs.assign_splits` draws them; None when even ``most`` leave one empty."""
+    wanted = [s for i, s in enumerate(SPLITS) if ratios[i] > 0 and s not in explicit_splits]
+    fills = None
+    for n in range(most, 0, -1):
+        counts = dict(zip(SPLITS, split_counts(n, ratios)))
+        if not all(counts[s] > 0 for s in wanted):
+            break
+        fills = n
+    return fills
+
+
+def _first_missing(path: Path) -> Path | None:
+    """The outermost folder of ``path`` (itself included) that does not exist yet: what a build
+    creates there, and may remove again if it fails. None when ``path`` exists."""
+    path = path.absolute()
+    if path.exists():
+        return None
+    while not path.parent.exists():
+        path = path.parent
+    return path
+
+
+def _tidy_after_failure(out: Path, created: Path | None) -> None:
     """After a failed build: an empty ``.work`` goes (one with prepared recordings stays, for the
-    rerun to resume from), and so does the dataset folder if this build created it and left it empty."""
+    rerun to resume from), and so do the dataset folder and its parents up to ``created`` (the
+    outermost folder the build made) if it left them empty but for its lock. A folder that was there
+    before the build stays."""
     work = out / WORK
     if work.is_dir() and not any(work.iterdir()):
         work.rmdir()
-    if not existed and out.is_dir() and not any(p.name not in (LOCK, LOCK_OWNER) for p in out.iterdir()):
-        shutil.rmtree(out, ignore_errors=True)
+    if created is None or not out.is_dir() or any(p.name not in (LOCK, LOCK_OWNER) for p in out.iterdir()):
+        return
+    shutil.rmtree(out, ignore_errors=True)
+    folder = out.absolute().parent
+    stop = created.parent
+    while folder != stop and folder.is_dir() and not any(folder.iterdir()):
+        folder.rmdir()
+        folder = folder.parent
 
 
 def _build_locked(

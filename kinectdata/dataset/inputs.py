@@ -271,9 +271,16 @@ def assign_splits(entries: list[RecordingEntry], ratios: tuple[float, float, flo
     free = sorted(e.name for e in entries if e.split is None)
     if free:
         order = np.random.default_rng(seed).permutation(len(free))
-        shares = np.array(ratios, float) / sum(ratios)
-        n_train = max(1, int(round(shares[0] * len(free))))
-        n_val = min(len(free) - n_train, int(round(shares[1] * len(free))))
+        n_train, n_val, _ = split_counts(len(free), ratios)
         for rank, i in enumerate(order):
             splits[free[i]] = "train" if rank < n_train else "val" if rank < n_train + n_val else "test"
     return splits
+
+
+def split_counts(n: int, ratios: tuple[float, float, float]) -> tuple[int, int, int]:
+    """How many of ``n`` drawn recordings :func:`assign_splits` puts in train, val and test: the
+    proportions ``ratios`` rounded, at least one in train."""
+    shares = np.array(ratios, float) / sum(ratios)
+    n_train = max(1, int(round(shares[0] * n)))
+    n_val = min(n - n_train, int(round(shares[1] * n)))
+    return n_train, n_val, n - n_train - n_val

@@ -100,30 +100,72 @@ def _warn_if_too_few_steps(windows: int, config: TrainConfig, world: World) -> N
 
 
 RISING_EPOCHS = 3
-"""A training loss that rises this many epochs in a row draws a :class:`TrainingWarning`."""
+"""A training or validation loss that rises this many epochs in a row draws a :class:`TrainingWarning`."""
+
+
+def _losses(history: list[dict], key: str) -> list[float]:
+    """A loss of each epoch (log rows), NaN where the row has none (no validation split, non-finite)."""
+    return [float("nan") if r.get(key) is None else float(r[key]) for r in history]
+
+
+def _rose(losses: list[float], n: int) -> bool:
+    """Whether the last value ends the first run of ``n`` rises in a row (so a streak is said once)."""
+    rising = [b > a for a, b in zip(losses[:-1], losses[1:])]  # False where either is NaN
+    return len(rising) >= n and all(rising[-n:]) and (len(rising) == n or not rising[-n - 1])
 
 
 def loss_warning(history: list[dict], lr: float) -> str | None:
-    """What to say when the training loss of the epochs so far (log rows, newest last) has just
-    become non-finite, or has just risen :data:`RISING_EPOCHS` epochs in a row; else None. Said once
-    per streak: on the epoch the condition starts."""
-    losses = [float("nan") if r["train_loss"] is None else r["train_loss"] for r in history]
+    """What to say when, at the newest of the epochs so far (log rows), the training loss has just
+    become non-finite or has just risen :data:`RISING_EPOCHS` epochs in a row, or the validation loss
+    has just risen that many epochs in a row; else None. Said once per streak: on the epoch it starts."""
+    losses = _losses(history, "train_loss")
     epoch, last = history[-1]["epoch"], losses[-1]
+    lower = f"try --lr {lr / 10:g}"
     if not math.isfinite(last):
         if len(losses) > 1 and not math.isfinite(losses[-2]):
             return None
         return (
             f"the training loss is {last} at epoch {epoch}: the learning rate ({lr:g}) is probably too high, or the "
-            f"data holds huge values (kinectdata verify, kinectdata inspect); try --lr {lr / 10:g} or --clip-norm 1"
+            f"data holds huge values (kinectdata verify, kinectdata inspect); {lower} or --clip-norm 1"
         )
     n = RISING_EPOCHS
-    rising = [b > a for a, b in zip(losses[:-1], losses[1:])]
-    if len(rising) >= n and all(rising[-n:]) and (len(rising) == n or not rising[-n - 1]):
+    if _rose(losses, n):
         return (
             f"the training loss rose {n} epochs in a row ({losses[-n - 1]:.4g} at epoch {epoch - n} -> {last:.4g} at "
-            f"epoch {epoch}): the learning rate ({lr:g}) may be too high; try --lr {lr / 10:g} or --clip-norm 1"
+            f"epoch {epoch}): the learning rate ({lr:g}) may be too high; {lower} or --clip-norm 1"
+        )
+    val = _losses(history, "val_loss")
+    if _rose(val, n):
+        best = min(range(len(val)), key=lambda i: val[i] if math.isfinite(val[i]) else math.inf)
+        return (
+            f"the validation loss rose {n} epochs in a row ({val[-n - 1]:.4g} at epoch {epoch - n} -> {val[-1]:.4g} "
+            f"at epoch {epoch}; lowest {val[best]:.4g} at epoch {history[best]['epoch']}): the model is fitting the "
+            f"training recordings rather than the music; stop earlier (--epochs {history[best]['epoch']}), "
+            f"{lower}, or add recordings (--augment-snr at build-dataset adds noisy copies)"
         )
     return None
+
+
+def ending_warning(history: list[dict], lr: float) -> str | None:
+    """What to say when a finished run's training or validation loss ended above where it started
+    (its first epoch's); else None."""
+    if len(history) < 2:
+        return None
+    said = []
+    for key, name in (("train_loss", "training"), ("val_loss", "validation")):
+        losses = _losses(history, key)
+        first, last = losses[0], losses[-1]
+        if math.isfinite(first) and (last > first or math.isinf(last)):
+            said.append(
+                f"the {name} loss ended above where it started ({first:.4g} at epoch {history[0]['epoch']} -> "
+                f"{last:.4g} at epoch {history[-1]['epoch']})"
+            )
+    if not said:
+        return None
+    return (
+        f"{' and '.join(said)}: this run did not learn; the learning rate ({lr:g}) is probably too high: "
+        f"try --lr {lr / 10:g} or --clip-norm 1 (log.csv and loss.png show each epoch)"
+    )
 
 
 @contextmanager
@@ -433,6 +475,11 @@ def train(
             writer.close()
     if not world.main:
         return history
+    said = ending_warning(history, config.lr)
+    if said:
+        import warnings
+
+        warnings.warn(said, TrainingWarning, stacklevel=2)
     title = f"{run.name}: {kind.describe(config.settings)}"
     loss_curves(history, run / "loss.png", title=title, loss_name=kind.loss_name(config.settings))
     net = net.cpu().eval()

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import re
 
 import numpy as np
 import pytest
@@ -253,3 +254,56 @@ def test_audio_at_a_rate_no_music_has_is_refused_by_align_and_generate_alike(tmp
     for args in (["align", str(REPO / "sample_data" / "synth_001.csv")], ["generate", "--run", str(trained_run[0])]):
         result = CliRunner().invoke(main, [*args, str(tmp_path / "one_hz.wav"), "-o", str(tmp_path / "out.csv")])
         assert result.exit_code == 1 and "sample rate 1 Hz: too low for music" in result.stderr, result.stderr
+
+
+def test_auto_offset_with_audio_too_short_is_one_line_naming_both_files(tmp_path):
+    """A few samples of audio crashed the envelopes (a ValueError from numpy) before any check."""
+    motion = read_motion(REPO / "sample_data" / "synth_001.csv")
+    for samples in (100, 16000):
+        sf.write(tmp_path / "short.wav", np.full(samples, 0.01, np.float32), 16000)
+        with pytest.raises(AlignmentError, match=r"short\.wav: [\d.]+ s of audio: too short .* to .*synth_001\.csv"):
+            align(motion, load_audio(tmp_path / "short.wav"), offset="auto")
+
+
+def test_too_little_coverage_names_the_recording_too(fixture_csv, tmp_path):
+    sf.write(tmp_path / "short.wav", np.zeros(16000, np.float32), 16000)
+    motion = read_motion(fixture_csv)
+    with pytest.raises(
+        AlignmentError, match=rf"short\.wav: .* of the motion's [\d.]+ s \({re.escape(str(fixture_csv))}\)"
+    ):
+        align(motion, load_audio(tmp_path / "short.wav"), offset=0.0)
+
+
+def test_implausible_orientations_are_masked_and_counted():
+    """A quaternion with a 1e300 component, or all zeros, is no rotation: masked like lost tracking."""
+    motion = read_motion(REPO / "sample_data" / "synth_001.csv")
+    joint = int(np.flatnonzero(motion.joint_set.orientation_mask)[1])
+    motion.orientations[100, joint] = [1e300, 0.0, 0.0, 1.0]
+    motion.orientations[101, joint] = [0.0, 0.0, 0.0, 0.0]
+    assert motion.orientation_mask[100:102, joint].all()  # the container takes them as valid
+    rec = align(motion, load_audio(REPO / "sample_data" / "synth_001.flac"), offset=0.0)
+    q = rec.motion.orientations[rec.motion.orientation_mask]
+    np.testing.assert_allclose(np.linalg.norm(q, axis=-1), 1.0, atol=1e-6)
+    assert rec.summary["implausible_orientations"] == 2 and rec.summary["implausible_positions"] == 0
+    from kinectdata.align.recipe import format_summary
+
+    assert "0 joint position(s) not finite or beyond 1000 m, 2 orientation(s)" in format_summary(rec)
+
+
+def test_the_dataset_path_through_the_recipe_steps_masks_implausible_positions_too():
+    """build-dataset calls resolve_offset, plan_timeline, resample_onto and summarize itself, not align."""
+    from kinectdata.align.recipe import plan_timeline, resample_onto, resolve_offset, summarize
+
+    motion = read_motion(REPO / "sample_data" / "synth_001.csv")
+    motion.positions[300:303, 7] = 1e300  # three frames of one joint: filled across (0.1 s < max_gap)
+    motion.positions[400, 2, 1] = -np.inf
+    audio = load_audio(REPO / "sample_data" / "synth_001.flac")
+    offset = resolve_offset(motion, audio, "auto")
+    truth = json.loads((REPO / "sample_data" / "synth_001.truth.json").read_text())
+    assert offset.seconds == pytest.approx(truth["offset_s"], abs=1 / 30)  # the overflow is no clap
+    tl = plan_timeline(motion, audio.samples.size, audio.sample_rate, offset.seconds)
+    res, gaps = resample_onto(motion, tl)
+    valid = res.motion.position_mask
+    assert np.abs(res.motion.positions[valid]).max() < 10
+    summary = summarize(motion, tl, res, gaps, offset, audio.samples.size, tl.kept_samples(audio.samples.size))
+    assert summary["implausible_positions"] == 4

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import re
+
 import numpy as np
 import pytest
 import soundfile as sf
@@ -107,3 +109,51 @@ def test_envelopes_do_not_depend_on_the_block_size():
         assert np.array_equal(parts.onset, whole.onset)
         assert parts.mean_square == pytest.approx(whole.mean_square, rel=1e-12)
     assert whole.clap_energy.size == x.size // 80 and whole.onset.size == int(np.ceil(x.size / 160))
+
+
+def _music(sr: int, seconds: float) -> np.ndarray:
+    """A tone in noise: compresses to about the same number of bytes per second all through."""
+    rng = np.random.default_rng(5)
+    return (_tone(440, sr, seconds, 0.3) + rng.normal(0, 0.05, int(sr * seconds))).astype(np.float32)
+
+
+@pytest.mark.parametrize("damage", ["zeroed", "truncated"])
+def test_a_flac_damaged_5_s_in_names_the_sample_where_decoding_failed(tmp_path, damage):
+    """The default 10 s decoding blocks start at sample 0: the place must be found inside the block."""
+    sr, x = 16000, _music(16000, 12.0)
+    good = tmp_path / "good.flac"
+    sf.write(good, x, sr)
+    data = bytearray(good.read_bytes())
+    at = len(data) * 5 // 12  # about 5 s into the audio
+    data = data[:at] if damage == "truncated" else data[:at] + bytes(4000) + data[at + 4000 :]
+    bad = tmp_path / "bad.flac"
+    bad.write_bytes(bytes(data))
+    with pytest.raises(AudioError) as caught:
+        load_audio(bad)
+    message = str(caught.value)
+    found = re.search(r"bad\.flac: cannot decode audio from sample (\d+) \((\d+\.\d{3}) s\) on", message)
+    assert found, message
+    sample, seconds = int(found.group(1)), float(found.group(2))
+    assert 4.5 * sr < sample <= 5.0 * sr and seconds == pytest.approx(sample / sr, abs=5e-4)
+    with sf.SoundFile(bad) as f:  # everything before the named sample decodes as written
+        np.testing.assert_allclose(f.read(sample, dtype="float32"), x[:sample], atol=1e-4)
+
+
+@pytest.mark.parametrize("n", [0, 1, 79, 80, 100, 700])
+def test_envelopes_of_audio_shorter_than_a_frame_are_empty_or_its_few_frames(n):
+    """Audio shorter than one 40 ms STFT frame (640 samples at 16 kHz) crashed the framer."""
+    from scipy import signal
+
+    from kinectdata.align.envelopes import audio_envelopes
+
+    x = np.random.default_rng(2).normal(0, 0.1, n).astype(np.float32)
+    whole = audio_envelopes([x], 16000)
+    parts = audio_envelopes([x[s : s + 7] for s in range(0, n, 7)], 16000)
+    # independent: the high-passed signal's mean square over whole 5 ms (80-sample) frames
+    expected = np.zeros(0)
+    if n:
+        high = signal.sosfilt(signal.butter(4, 1000.0, btype="highpass", fs=16000, output="sos"), x.astype(float))
+        expected = np.square(high[: n // 80 * 80].reshape(-1, 80)).mean(axis=1)
+    for env in (whole, parts):
+        np.testing.assert_allclose(env.clap_energy, expected, rtol=1e-6)
+        assert env.onset.size == int(np.ceil(n / 160)) and env.duration == n / 16000

@@ -106,3 +106,13 @@ def test_low_sample_rate_audio_is_analysed_at_16k():
     audio = Audio(resample(to_mono(rec.audio), rec.sample_rate, 2000), 2000)
     est = estimate_offset(rec.motion, audio)
     assert est.method == "clap" and est.offset == pytest.approx(0.6, abs=FRAME)
+
+
+@pytest.mark.parametrize("frames,samples", [(None, 0), (None, 100), (1, 16000 * 4)])
+def test_inputs_too_short_to_correlate_are_refused_not_an_index_error(frames, samples):
+    """A one-frame recording, or a few samples of audio, leave nothing to cross-correlate."""
+    rec = synthesize_recording(seed=3, duration_s=8.0)
+    motion = rec.motion if frames is None else rec.motion.select(slice(0, frames))
+    audio = Audio(np.random.default_rng(0).normal(0, 0.1, samples).astype(np.float32), 16000)
+    with pytest.raises(AlignmentError, match=r"is too short to estimate their offset"):
+        estimate_offset(motion, audio)

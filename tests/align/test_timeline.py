@@ -177,3 +177,17 @@ def test_average_quaternion_matches_scipy_mean_whatever_the_signs():
         assert abs(float(got[k] @ expected)) == pytest.approx(1.0, abs=1e-9)
         assert got[k][np.argmax(np.abs(got[k]))] > 0  # the documented sign
     np.testing.assert_array_equal(average_quaternion(np.zeros((1, 4, 4))), [[0.0, 0.0, 0.0, 1.0]])
+
+
+def test_a_gap_lasts_its_missing_frames_at_the_fitted_rate_not_the_median_interval():
+    """A 30.00 fps recorder stamping 33.0, 33.0, 34.0 ms in turn (median 33.0 ms) with a joint lost
+    for 150 frames: the gap is 150 frames of 1/30 s = 5.000 s, not 151 or 152 of 33.0 ms."""
+    k = np.arange(600)
+    t = (k // 3) * 0.1 + np.array([0.0, 0.033, 0.066])[k % 3]
+    mask = np.ones((600, 15), bool)
+    mask[300:450, 4] = False
+    m = Motion(t, np.zeros((600, 15, 3)), NITE, position_mask=mask)
+    r = resample_motion(m, np.arange(0.0, 19.9, 1 / 30), max_gap=0.2)
+    (gap,) = [g for g in r.gaps if g.joint == NITE.names[4]]
+    assert gap.length == pytest.approx(5.0, abs=1e-3) and not gap.filled
+    assert gap.start == pytest.approx(t[299]) and gap.end == pytest.approx(t[450])

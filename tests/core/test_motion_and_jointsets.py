@@ -145,3 +145,48 @@ def test_frozen_frames_are_counted_over_valid_joints():
     p[2, 1:] = p[1, 1:]  # repeats every joint valid in both frames: frozen
     m = Motion(np.arange(10) / 30, p, js, position_mask=mask)
     assert m.frozen_frames() == 3
+
+
+def _thirds_clock(n: int) -> np.ndarray:
+    """Timestamps of a 30.00 fps recorder that stamps 33.0, 33.0 and 34.0 ms in turn: frame k at
+    (k // 3) * 0.1 s plus 0, 33 or 66 ms. Median interval 33.0 ms, mean 33.33 ms."""
+    k = np.arange(n)
+    return (k // 3) * 0.1 + np.array([0.0, 0.033, 0.066])[k % 3]
+
+
+def test_a_long_pause_counts_the_frames_it_lasted_even_when_the_median_is_off_the_mean():
+    """150 frames missing in a row last 5.000 s: 151.5 median intervals (33.0 ms), so counting them
+    by the median says 151 frames missing; the fitted interval (33.33 ms) says 150."""
+    from kinectdata.core.motion import frame_clock
+
+    t = _thirds_clock(600)
+    kept = np.delete(np.arange(600), np.arange(300, 450))
+    m = Motion(t[kept], np.random.default_rng(2).normal(size=(kept.size, 15, 3)), load_joint_set("nite"))
+    timing = m.timing()
+    assert timing["dropped_frames"] == 150
+    assert timing["fps"] == pytest.approx(30.0, abs=0.01)
+    interval, numbers = frame_clock(m.times)
+    assert numbers.tolist() == kept.tolist()  # every frame's true number, the pause included
+    assert interval == pytest.approx(0.1 / 3, rel=1e-3)
+
+
+def test_frame_clock_needs_two_timestamps_and_keeps_precision_far_from_zero():
+    from kinectdata.core.errors import ConfigError
+    from kinectdata.core.motion import frame_clock
+
+    with pytest.raises(ConfigError, match="at least two timestamps, got 1"):
+        frame_clock(np.array([3.0]))
+    unix = 1.7e9 + np.arange(100) / 30.0  # Unix seconds: a fit against raw values loses the slope's digits
+    assert frame_clock(unix)[0] == pytest.approx(1 / 30, rel=1e-6)
+
+
+def test_frozen_runs_give_where_each_stall_starts_and_how_long_it_holds():
+    js = load_joint_set("nite")
+    p = np.random.default_rng(3).normal(size=(20, 15, 3))
+    p[5:9] = p[4]  # frames 5..8 hold frame 4's pose: a run of 4 at frame 5
+    p[15] = p[14]  # a run of 1 at frame 15
+    p[19] = p[18]  # a run of 1 at the last frame
+    m = Motion(np.arange(20) / 30, p, js)
+    assert m.frozen_runs() == [(5, 4), (15, 1), (19, 1)]
+    assert m.frozen_frames() == 6 and m.timing()["frozen_frames"] == 6
+    assert Motion(np.zeros(1), p[:1], js).frozen_runs() == []

@@ -626,3 +626,69 @@ def test_inspect_shows_a_dash_for_a_component_masked_in_every_row():
     assert masked.split()[1:5] == ["-", "-", "-", "-"] and "inf" not in " ".join(lines)
     seen = next(line for line in lines if line.strip().startswith("a.x"))
     assert [float(v) for v in seen.split()[1:3]] == [0.1, 0.3]
+
+
+def _entries(n: int, split: str | None = None):
+    from types import SimpleNamespace
+
+    return [SimpleNamespace(name=f"r{i:02d}", split=split) for i in range(n)]
+
+
+def test_split_counts_are_what_assign_splits_draws():
+    from kinectdata.dataset.inputs import split_counts
+
+    for ratios in [(0.8, 0.1, 0.1), (0.6, 0.2, 0.2), (1, 1, 1), (1, 0, 0), (0.5, 0, 0.5)]:
+        for n in range(1, 25):
+            drawn = list(assign_splits(_entries(n), ratios, seed=3).values())
+            assert split_counts(n, ratios) == tuple(drawn.count(s) for s in ("train", "val", "test"))
+
+
+@pytest.mark.parametrize(
+    ("n", "empty", "lost"),
+    [(3, "val", "training has no validation loss"), (6, "test", "evaluate has no recordings to score")],
+)
+def test_the_empty_split_warning_names_the_split_and_what_to_change(n, empty, lost):
+    from kinectdata.dataset.build import empty_split_message
+
+    ratios = (0.8, 0.1, 0.1)
+    entries = _entries(n)
+    splits = assign_splits(entries, ratios, seed=0)
+    assert empty not in splits.values()
+    said = empty_split_message("recs.yaml", entries, splits, ratios)
+    assert said.startswith(f"recs.yaml: {n} recordings drawn at split ratios (0.8, 0.1, 0.1) leave the {empty} split")
+    assert f"({lost}): add recordings (8 or more drawn at these ratios fill every split), change --split-ratios" in said
+    # the 8 is right: from 8 recordings on every split gets one, and 7 leave one empty
+    for m in range(8, 60):
+        assert set(assign_splits(_entries(m), ratios, seed=1).values()) == {"train", "val", "test"}
+    assert set(assign_splits(_entries(7), ratios, seed=1).values()) != {"train", "val", "test"}
+    full = _entries(10)
+    assert empty_split_message("recs.yaml", full, assign_splits(full, ratios, seed=0), ratios) is None
+
+
+def test_no_empty_split_warning_for_a_split_emptied_on_purpose_and_one_for_a_manifest_that_names_none():
+    from kinectdata.dataset.build import empty_split_message
+
+    entries = _entries(4)
+    for ratios in [(1, 0, 0), (0.5, 0, 0.5)]:  # the user asked for no val (and no test) split
+        assert empty_split_message("s", entries, assign_splits(entries, ratios, seed=0), ratios) is None
+    said = empty_split_message("s", entries, assign_splits(entries, (0.5, 0.5, 0), 0), (0.5, 0.5, 0))
+    assert said is None
+    said = empty_split_message("s", entries[:1], assign_splits(entries[:1], (0.5, 0, 0.5), 0), (0.5, 0, 0.5))
+    assert said.startswith("s: 1 recording drawn at split ratios (0.5, 0, 0.5) leaves the test split empty")
+    assert "(2 or more drawn at these ratios fill every split)" in said and "val split" not in said
+    explicit = _entries(3, split="train")
+    said = empty_split_message("recs.csv", explicit, assign_splits(explicit, (0.8, 0.1, 0.1), 0), (0.8, 0.1, 0.1))
+    assert said.startswith("recs.csv: the recordings manifest puts no recording in the val and test splits")
+    assert "give some recordings split: val" in said
+
+
+def test_an_empty_split_is_warned_about_on_the_command_line(tmp_path):
+    from click.testing import CliRunner
+
+    from kinectdata.cli import main
+
+    result = CliRunner().invoke(main, ["build-dataset", str(SAMPLES), "-o", str(tmp_path / "d")])
+    assert result.exit_code == 0
+    warned = [line for line in result.stderr.splitlines() if line.startswith("warning: ")]
+    assert len(warned) == 1 and "leave the val split empty (training has no validation loss)" in warned[0]
+    assert "--split-ratios" in warned[0]

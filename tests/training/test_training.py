@@ -242,3 +242,56 @@ def test_a_rising_or_exploding_loss_is_said_once_with_what_to_change():
     assert loss_warning(rows([0.5, 0.4, 0.5, 0.4, 0.5, 0.4]), 1e-3) is None  # noisy, not rising
     assert "the training loss is inf at epoch 2" in loss_warning(rows([0.5, float("inf")]), 1e-3)
     assert loss_warning(rows([0.5, float("inf"), None]), 1e-3) is None  # already said
+
+
+def test_a_rising_validation_loss_is_said_once_with_the_best_epoch():
+    from kinectdata.training.train import loss_warning
+
+    train_losses = [0.9, 0.7, 0.5, 0.4, 0.3, 0.2, 0.15]
+    val_losses = [0.8, 0.6, 0.5, 0.55, 0.6, 0.7, 0.8]
+    rows = [{"epoch": i + 1, "train_loss": t, "val_loss": v} for i, (t, v) in enumerate(zip(train_losses, val_losses))]
+    said = [loss_warning(rows[:n], 1e-4) for n in range(1, 8)]
+    # val rises 0.5 -> 0.55 -> 0.6 -> 0.7: the third rise in a row is at epoch 6, said there only
+    assert said[:5] == [None] * 5 and said[6] is None
+    assert "validation loss rose 3 epochs in a row (0.5 at epoch 3 -> 0.7 at epoch 6" in said[5]
+    assert "lowest 0.5 at epoch 3" in said[5] and "--epochs 3" in said[5] and "--lr 1e-05" in said[5]
+    without_val = [{**r, "val_loss": None} for r in rows]  # no val split: nothing to say
+    assert all(loss_warning(without_val[:n], 1e-4) is None for n in range(1, 8))
+
+
+def test_a_loss_that_ends_above_where_it_started_is_said_at_the_end():
+    from kinectdata.training.train import ending_warning
+
+    def rows(train_losses, val_losses):
+        pairs = zip(train_losses, val_losses)
+        return [{"epoch": i + 1, "train_loss": t, "val_loss": v} for i, (t, v) in enumerate(pairs)]
+
+    assert ending_warning(rows([0.5, 0.4, 0.3], [0.6, 0.7, 0.55]), 1e-3) is None  # both below their start
+    said = ending_warning(rows([0.5, 0.3, 0.52], [0.6, 0.5, 0.4]), 1e-3)
+    assert said.startswith("the training loss ended above where it started (0.5 at epoch 1 -> 0.52 at epoch 3)")
+    assert "validation" not in said and "--lr 0.0001" in said
+    said = ending_warning(rows([0.5, 0.3, 0.2], [0.6, 0.9, 0.61]), 1e-3)
+    assert said.startswith("the validation loss ended above where it started (0.6 at epoch 1 -> 0.61 at epoch 3)")
+    said = ending_warning(rows([0.5, 0.7], [0.6, None]), 1e-3)  # a validation loss gone non-finite is not compared
+    assert "training loss ended above" in said and "validation" not in said
+    assert ending_warning(rows([0.5, 0.9], [None, None])[:1], 1e-3) is None  # one epoch: nothing to compare
+    assert "training loss ended above" in ending_warning(rows([0.5, math.inf], [0.6, 0.5]), 1e-3)
+
+
+def test_train_says_how_the_losses_ended(sample_dataset, tmp_path, monkeypatch):
+    """The end-of-run check sees the run's whole log and its word reaches the caller as a TrainingWarning."""
+    import kinectdata.training.train as train_module
+    from kinectdata.training.train import TrainingWarning
+
+    seen = []
+
+    def planted(history, lr):
+        seen.append((json.loads(json.dumps(history)), lr))
+        return "planted: the loss ended above where it started"
+
+    monkeypatch.setattr(train_module, "ending_warning", planted)
+    with pytest.warns(TrainingWarning, match="planted: the loss ended above"):
+        history = train(sample_dataset, tmp_path / "run", TrainConfig(**TINY_TRAINING))
+    assert seen == [(history, TINY_TRAINING["lr"])]
+    with open(tmp_path / "run" / "log.csv") as f:
+        assert [int(r["epoch"]) for r in csv.DictReader(f)] == [r["epoch"] for r in history]

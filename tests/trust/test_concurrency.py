@@ -3,9 +3,11 @@ build leaves behind."""
 
 from __future__ import annotations
 
+import json
 import os
 import shutil
 import signal
+import socket
 import subprocess
 import sys
 import time
@@ -16,6 +18,7 @@ from click.testing import CliRunner
 from conftest import REPO
 
 from kinectdata.cli import main
+from kinectdata.core.errors import KinectDataError
 from kinectdata.dataset.build import EmptySplitWarning, build_dataset
 from kinectdata.dataset.layout import LOCK_OWNER
 from kinectdata.dataset.lock import FolderBusyError, build_lock
@@ -72,6 +75,63 @@ def test_a_killed_holder_leaves_no_lock(tmp_path):
         pass
 
 
+GATED_BUILD = """
+import sys, time
+from pathlib import Path
+from kinectdata.dataset.build import build_dataset
+from kinectdata.dataset.prepare import BuildConfig
+from kinectdata.features.stft import PRESETS
+from kinectdata.targets.specs import load_target_spec
+
+source, out, gate = sys.argv[1:]
+config = BuildConfig(PRESETS["yalta2016"].to_dict(), load_target_spec("yalta65").to_dict(), split_ratios=(1, 1, 1))
+
+def wait_at_gate(done, total):  # called under the lock, after each recording is prepared
+    Path(gate + ".reached").touch()
+    while not Path(gate).exists():
+        time.sleep(0.02)
+
+build_dataset(source, out, config, progress=wait_at_gate)
+"""
+
+
+def test_a_build_racing_one_that_holds_the_folder_is_refused_and_the_folder_is_the_winners(tmp_path):
+    """Two processes, one folder, other options: the one that holds the lock (kept inside its build
+    by a gate) wins, the other (the command line) exits 1 at once with one line naming the first
+    (pid, host, start), and the folder verifies as the winner's dataset alone."""
+    out, gate = tmp_path / "dataset", tmp_path / "gate"
+    winner = subprocess.Popen([sys.executable, "-c", GATED_BUILD, str(SAMPLES), str(out), str(gate)])
+    try:
+        deadline = time.monotonic() + 120
+        reached = tmp_path / "gate.reached"
+        while not reached.exists() and winner.poll() is None and time.monotonic() < deadline:
+            time.sleep(0.02)
+        assert reached.exists() and (out / LOCK_OWNER).exists(), "the first build never took the lock"
+        before = sorted(p.name for p in out.rglob("*"))
+        started = time.monotonic()
+        loser = subprocess.run(
+            [sys.executable, "-m", "kinectdata", "build-dataset", str(SAMPLES), "-o", str(out)],
+            capture_output=True,
+            text=True,
+            timeout=120,
+        )
+        assert time.monotonic() - started < 60  # refused, not waiting for the first to finish
+        assert winner.poll() is None  # the first was still building all along
+        assert loser.returncode == 1 and "Traceback" not in loser.stderr
+        errors = [line for line in loser.stderr.splitlines() if not line.startswith("warning: ")]
+        assert len(errors) == 1, loser.stderr
+        assert f"{out}: another build is writing this dataset folder (process {winner.pid} on " in errors[0]
+        assert f"on {socket.gethostname()}, started {time.strftime('%Y-')}" in errors[0]
+        assert sorted(p.name for p in out.rglob("*")) == before  # the loser touched nothing
+    finally:
+        gate.touch()
+        assert winner.wait(timeout=300) == 0
+    assert verify_dataset(out) == []
+    manifest = json.loads((out / "manifest.json").read_text())
+    assert manifest["config"]["split_ratios"] == [1, 1, 1]  # the winner's build, not the loser's
+    assert not (out / LOCK_OWNER).exists()
+
+
 def test_two_builds_racing_for_one_folder_leave_one_intact_dataset(tmp_path):
     out = tmp_path / "dataset"
     command = [sys.executable, "-m", "kinectdata", "build-dataset", str(SAMPLES), "-o", str(out), "--jobs", "1"]
@@ -97,7 +157,12 @@ def test_a_failed_build_leaves_no_folder_it_created(tmp_path, monkeypatch):
     out = tmp_path / "new" / "dataset"
     with pytest.raises(RuntimeError, match="planted"):
         build_dataset(SAMPLES, out, config((1 / 3, 1 / 3, 1 / 3)))
-    assert not out.exists()
+    assert not out.exists() and not (tmp_path / "new").exists()  # nor the parent it made
+    existing = tmp_path / "existing"
+    existing.mkdir()
+    with pytest.raises(RuntimeError, match="planted"):
+        build_dataset(SAMPLES, existing / "a" / "b", config((1 / 3, 1 / 3, 1 / 3)))
+    assert existing.is_dir() and list(existing.iterdir()) == []  # the user's folder stays, emptied of ours
     kept = tmp_path / "kept"
     kept.mkdir()
     (kept / "notes.txt").write_text("the user's")
@@ -182,3 +247,103 @@ def test_a_rerun_removes_what_a_killed_writer_of_the_same_file_left(tmp_path):
         tmp.write_bytes(b"whole")
     assert (tmp_path / "out.h5").read_bytes() == b"whole"
     assert not orphan.exists() and live.exists() and other.exists()
+
+
+def test_the_lock_files_are_not_taken_for_dataset_files(tmp_path):
+    """``.build.lock`` stays after a build, and a killed build's ``.build.owner`` too: verify,
+    inspect and a rerun of the build ignore both."""
+    from kinectdata.dataset.inspect import inspect
+    from kinectdata.dataset.layout import LOCK
+
+    out = tmp_path / "dataset"
+    build_dataset(SAMPLES, out, config((1 / 3, 1 / 3, 1 / 3)))
+    assert (out / LOCK).is_file()
+    dead = subprocess.Popen([sys.executable, "-c", "pass"])
+    dead.wait()
+    record = {"pid": dead.pid, "host": socket.gethostname(), "started": "then", "command": "killed"}
+    (out / LOCK_OWNER).write_text(json.dumps(record))
+    assert verify_dataset(out) == []
+    assert "dataset    " in inspect(out)
+    result = CliRunner().invoke(main, ["verify", str(out)])
+    assert result.exit_code == 0, result.output
+    build_dataset(SAMPLES, out, config((1 / 3, 1 / 3, 1 / 3)))  # the rerun: nothing to do, not refused
+    assert verify_dataset(out) == [] and not (out / LOCK_OWNER).exists()
+
+
+def test_a_refusal_names_a_live_holder_at_once_and_skips_a_killed_ones_record(tmp_path):
+    from kinectdata.dataset.lock import describe_owner, wait_for_owner
+
+    folder = tmp_path
+    live = {"pid": os.getpid(), "host": socket.gethostname(), "started": "2026-01-01 10:00:00 UTC", "command": "x"}
+    (folder / LOCK_OWNER).write_text(json.dumps(live))
+    started = time.monotonic()
+    assert wait_for_owner(folder, wait=5) == live and time.monotonic() - started < 1
+    said = describe_owner(live)
+    assert said == f"process {os.getpid()} on {socket.gethostname()}, started 2026-01-01 10:00:00 UTC: x"
+    dead = subprocess.Popen([sys.executable, "-c", "pass"])
+    dead.wait()
+    (folder / LOCK_OWNER).write_text(json.dumps({**live, "pid": dead.pid}))
+    assert wait_for_owner(folder, wait=0.2) is None  # a killed build's record names no holder
+    elsewhere = {**live, "pid": dead.pid, "host": "another-host.example"}
+    (folder / LOCK_OWNER).write_text(json.dumps(elsewhere))
+    assert wait_for_owner(folder, wait=0.2) == elsewhere  # another host's processes cannot be checked
+    (folder / LOCK_OWNER).write_text('{"pid": 1')
+    assert wait_for_owner(folder, wait=0.2) is None
+
+
+def test_a_filesystem_without_os_locks_stops_the_build_instead_of_a_soft_lock(tmp_path, monkeypatch):
+    """A soft lock (a marker file) would outlive a killed build and block its rerun: filelock's
+    fallback to it is turned off, and the ENOSYS it then raises is one clear line."""
+    import errno
+
+    import kinectdata.dataset.lock as lock_module
+
+    asked = {}
+
+    class NoFlock:
+        def __init__(self, path, **options):
+            asked.update(options)
+
+        def acquire(self):
+            raise OSError(errno.ENOSYS, "Function not implemented")
+
+    monkeypatch.setattr(lock_module, "FileLock", NoFlock)
+    with pytest.raises(KinectDataError, match=r"\.build\.lock: the filesystem does not support file locks"):
+        with build_lock(tmp_path / "d"):
+            pass
+    assert asked.get("fallback_to_soft") is False and asked.get("timeout") == 0
+    with pytest.raises(KinectDataError, match="does not support file locks"):
+        build_dataset(SAMPLES, tmp_path / "new" / "d", config((1 / 3, 1 / 3, 1 / 3)))
+    assert not (tmp_path / "new").exists()  # the folders made for the lock went with the failure
+
+
+def test_an_older_filelock_that_falls_back_to_a_soft_lock_is_refused_too(tmp_path, monkeypatch):
+    """filelock releases from before fallback_to_soft either fall back to a marker file on their own
+    (those with the soft fallback) or raise NotImplementedError (older ones): either way the build
+    stops and leaves no marker."""
+    import filelock
+
+    import kinectdata.dataset.lock as lock_module
+
+    def silently_soft(path, timeout, **options):
+        if options:
+            raise TypeError(f"unexpected keyword argument {next(iter(options))!r}")
+        return filelock.SoftFileLock(path, timeout=timeout)
+
+    monkeypatch.setattr(lock_module, "FileLock", silently_soft)
+    with pytest.raises(KinectDataError, match="does not support file locks"):
+        with build_lock(tmp_path):
+            pass
+    assert list(tmp_path.iterdir()) == []  # the marker went with the refusal
+
+    class Unimplemented:
+        def __init__(self, path, **options):
+            pass
+
+        def acquire(self):
+            raise NotImplementedError("FileSystem does not appear to support flock; use SoftFileLock instead")
+
+    monkeypatch.setattr(lock_module, "FileLock", Unimplemented)
+    with pytest.raises(KinectDataError, match="does not support file locks"):
+        with build_lock(tmp_path):
+            pass
