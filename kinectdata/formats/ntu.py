@@ -96,6 +96,27 @@ class _Lines:
         return int(tokens[0])
 
 
+def _looks_like_body_line(lines: _Lines) -> bool:
+    """Whether the next line has a body line's shape (its count of values, an integer bodyID)."""
+    if not lines.remaining():
+        return False
+    tokens = lines.texts[lines.k].split()
+    return len(tokens) == BODY_FIELDS and tokens[0].isdecimal()
+
+
+def _holds_a_count(lines: _Lines) -> bool:
+    """Whether the next line holds a single integer (a frame's body count), not a body line. At the
+    end of the file, False: a truncated file is the likelier cause, and reading on says so."""
+    return bool(lines.remaining()) and lines.texts[lines.k].strip().isdecimal()
+
+
+def _miscounted(lines: _Lines, count_k: int, n_bodies: int, frame: int, why: str) -> FormatError:
+    """The error for a frame whose body count (at line index ``count_k``) disagrees with the bodies
+    written after it; ``why`` may name ``{line}``, the first line that does not fit."""
+    line = lines.numbers[lines.k]
+    return lines.error(f"body count {n_bodies} is {why.format(line=line)}", count_k, frame)
+
+
 def _body_line(lines: _Lines, frame: int) -> str:
     """Check a body line and return its bodyID."""
     lines.need(1, "a body line", frame)
@@ -187,12 +208,26 @@ def read_ntu(path: Path, *, body: str | None = None) -> Motion:
     starts: list[int] = []  # first joint line of each body occurrence
     block_frames: list[int] = []
     block_ids: list[str] = []
+    count_k, n_bodies = -1, 0  # the line index and value of the latest body count
     for f in range(n_frames):
+        if f and _looks_like_body_line(lines):
+            raise _miscounted(
+                lines,
+                count_k,
+                n_bodies,
+                f - 1,
+                "fewer than the bodies that follow: line {line} holds "
+                "a body line where the next frame's body count should be",
+            )
+        count_k = lines.k
         n_bodies = lines.count("body count", f)
         if n_bodies > MAX_BODIES:
             raise lines.error(f"body count {n_bodies} is more than Kinect v2's {MAX_BODIES}", lines.k - 1, f)
         seen: set[str] = set()
-        for _ in range(n_bodies):
+        for i in range(n_bodies):
+            if _holds_a_count(lines):  # where body line i should be, the next frame begins
+                got = "1 body that follows" if i == 1 else f"{i} bodies that follow"
+                raise _miscounted(lines, count_k, n_bodies, f, f"more than the {got}: line {{line}} holds no body line")
             body_k = lines.k
             body_id = _body_line(lines, f)
             if body_id in seen:
@@ -206,6 +241,10 @@ def read_ntu(path: Path, *, body: str | None = None) -> Motion:
             block_frames.append(f)
             block_ids.append(body_id)
             lines.k += N_JOINTS
+    if n_frames and _looks_like_body_line(lines):
+        raise _miscounted(
+            lines, count_k, n_bodies, n_frames - 1, "fewer than the bodies that follow: line {line} holds a body line"
+        )
     if lines.remaining():
         raise lines.error(f"unexpected content after the last of the {n_frames} frames the first line announces")
 

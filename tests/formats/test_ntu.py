@@ -231,6 +231,30 @@ def test_absurd_body_count(tmp_path, good):
     check(write(tmp_path, "\n".join(good)), 2, "body count")
 
 
+def test_a_wrong_body_count_is_named_on_its_own_line(tmp_path):
+    """A body count that disagrees with the bodies written after it is reported at the count's line
+    (where the mistake is), not at the next frame's line where reading first goes wrong."""
+    rng = np.random.default_rng(7)
+    frames = [[("7", make_body(rng)), ("9", make_body(rng))], [("7", make_body(rng))], [("7", make_body(rng))]]
+    lines = skeleton_text(frames).splitlines()
+    count_lines = [2, 2 + 1 + 2 * (J + 2), 2 + 2 + 3 * (J + 2)]  # 1-based line of each frame's body count
+    assert [lines[i - 1] for i in count_lines] == ["2", "1", "1"]
+    over = list(lines)
+    over[count_lines[1] - 1] = "2"  # frame 1 announces 2 bodies, holds 1: the next line is frame 2's count
+    err = check(
+        write(tmp_path, "\n".join(over)), count_lines[1], "body count 2 is more than the 1 body", str(count_lines[2])
+    )
+    assert err.frame == 1
+    under = list(lines)
+    under[count_lines[0] - 1] = "1"  # frame 0 announces 1 body, holds 2
+    err = check(write(tmp_path, "\n".join(under)), count_lines[0], "body count 1 is fewer than the bodies", "body line")
+    assert err.frame == 0
+    last = list(lines)
+    last[count_lines[2] - 1] = "0"  # the last frame announces none, one follows
+    err = check(write(tmp_path, "\n".join(last)), count_lines[2], "body count 0 is fewer")
+    assert err.frame == 2
+
+
 def test_zero_frames_and_no_bodies(tmp_path):
     check(write(tmp_path, "0\n"), 1, "no frames")
     check(write(tmp_path, "2\n0\n0\n"), None, "no body appears in any of the 2 frames")
