@@ -3,8 +3,11 @@
 Reading: the dialect is the ``schema`` given (a shipped name or a schema file) or, when none is
 given, the one shipped schema that recognises the file (by its signature line, header or field
 count). Every cell that must be a number is checked; a bad cell, a row with the wrong number of
-fields, time going backwards, a repeated timestamp or joint, an unknown joint name or a missing
-column raises :class:`~kinectdata.core.errors.FormatError` naming the file, line and column.
+fields, time going backwards, a repeated timestamp or joint, an unknown joint name, a missing
+column or a file that does not look like the dialect at all raises
+:class:`~kinectdata.core.errors.FormatError` naming the file, line and column (with a hint when
+numbers look written with decimal commas). A headered file may hold only some joints of its set:
+the absent ones are masked.
 
 Writing is :mod:`.csv_writer`, over the same schemas.
 """
@@ -54,7 +57,7 @@ class _Table:
     encoding: str
     header_line: int | None = None
     meta: dict[str, str] = field(default_factory=dict)
-    bad_row: tuple[int, int] | None = None  # (line, fields) of the first row with a wrong field count
+    bad_row: tuple[int, int, str] | None = None  # (line, fields, text) of the first row with a wrong field count
 
     def __post_init__(self) -> None:
         self._position = {n: i for i, n in enumerate(self.names)}
@@ -67,9 +70,10 @@ class _Table:
     def load(self, numeric: set[str], text: set[str]) -> None:
         """Parse the given columns (numbers checked cell by cell, text kept as strings)."""
         if self.bad_row is not None:
-            line, found = self.bad_row
+            line, found, text = self.bad_row
             what = "the header" if self.header_line is not None else f"the {self.schema.name} schema"
-            raise FormatError(self.path, f"expected {len(self.names)} fields as {what} says, found {found}", line=line)
+            reason = f"expected {len(self.names)} fields as {what} says, found {found}"
+            raise FormatError(self.path, reason + _decimal_comma_hint(text, self.schema), line=line)
         columns = sorted(numeric | text, key=self._position.__getitem__)
         if not columns:
             return
@@ -77,6 +81,7 @@ class _Table:
         reader = pd.read_csv(
             self.path,
             sep=self.schema.delimiter,
+            decimal=self.schema.decimal,
             header=None,
             names=list(range(len(self.names))),
             index_col=False,  # a trailing delimiter's empty field is dropped, whether or not the first row has one
@@ -142,22 +147,29 @@ class _Table:
             missing = np.isnan(values)
         else:
             # as text: pandas keeps integers beyond 64 bits as Python ints, which to_numeric cannot convert
-            values = pd.to_numeric(series.astype(str), errors="coerce").to_numpy(dtype=np.float64, copy=True)
+            values = self._to_float(series.astype(str))
             missing = np.zeros(values.shape, bool)
             failed = np.flatnonzero(np.isnan(values))
             if failed.size:  # look at the text only where conversion failed
                 text = _unquote(series.iloc[failed].fillna("").astype(str))
                 is_missing = text.isin(self.schema.missing_values).to_numpy()
                 missing[failed[is_missing]] = True
-                retry = pd.to_numeric(text.mask(is_missing, "0"), errors="coerce").to_numpy(dtype=np.float64)
-                values[failed] = retry
+                values[failed] = self._to_float(text.mask(is_missing, "0"))
         bad = ~missing & ~np.isfinite(values)
         if bad.any():
             r = int(np.argmax(bad))
             cell = "" if pd.isna(series.iloc[r]) else str(series.iloc[r]).strip()
-            raise FormatError(self.path, _describe_bad_cell(cell), line=int(lines[r]), column=column)
+            raise FormatError(self.path, _describe_bad_cell(cell, self.schema), line=int(lines[r]), column=column)
         values[missing] = np.nan
         return values, missing
+
+    def _to_float(self, cells: pd.Series) -> np.ndarray:
+        """[n] float64 of number texts (NaN where a cell is not one), in the dialect's decimal
+        separator: with a decimal comma a cell written with a point is not a number."""
+        if self.schema.decimal != ".":
+            point = cells.str.contains(".", regex=False)
+            cells = cells.str.replace(self.schema.decimal, ".", regex=False).mask(point, "")
+        return pd.to_numeric(cells, errors="coerce").to_numpy(dtype=np.float64, copy=True)
 
     def numbers(self, column: str, rows: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
         """([R] float64 values, [R] bool missing) of a loaded numeric column (or of ``rows``)."""
@@ -174,7 +186,7 @@ def _unquote(cells: pd.Series) -> pd.Series:
     return cells.str.strip().str.strip('"').str.strip()
 
 
-def _describe_bad_cell(cell: str) -> str:
+def _describe_bad_cell(cell: str, schema: CsvSchema) -> str:
     low = cell.lower()
     if low in ("nan", "-nan", "+nan", "na", "n/a", "null", "none"):
         return (
@@ -185,10 +197,35 @@ def _describe_bad_cell(cell: str) -> str:
         return f"infinite value {cell!r}"
     if cell == "":
         return "empty cell"
-    shown = repr(cell if len(cell) <= 40 else cell[:37] + "...")
-    if _is_number(cell) and math.isinf(float(cell)):
+    shown = repr(_clip(cell))
+    plain = cell if "." in cell else cell.replace(schema.decimal, ".")  # a number in Python's spelling
+    if _is_number(plain) and math.isinf(float(plain)):
         return f"{shown} is beyond the range of 64-bit floating point"
-    return f"non-numeric value {shown}"
+    if schema.decimal != "." and _is_number(cell):
+        return f"non-numeric value {shown} (the {schema.name} dialect's decimal separator is {schema.decimal!r})"
+    return f"non-numeric value {shown}" + _decimal_comma_hint(cell, schema)
+
+
+_DECIMAL_COMMA = re.compile(r'(?:^|[;\t"])\s*([+-]?\d+,\d+(?:[eE][+-]?\d+)?)\s*(?:$|[;\t"])')
+
+
+def _decimal_comma_hint(text: str, schema: CsvSchema) -> str:
+    """A hint to add to an error about ``text`` (a cell or a row) when it holds numbers written with
+    a decimal comma (``0,123;1,456`` or ``"1,5"``) that the dialect does not expect, else ''."""
+    m = _DECIMAL_COMMA.search(text) if schema.decimal == "." else None
+    if m is None:
+        return ""
+    what = "it" if m.group(1) == text.strip().strip('"') else repr(_clip(m.group(1)))
+    hint = f": {what} looks like a number with a decimal comma (a locale's number format); "
+    if schema.delimiter == "," and '"' in text:  # "1,5","2,5": commas inside quotes between commas
+        return hint + (
+            "quoted decimal commas in a comma-separated file are not read: export it again with decimal points, "
+            'or with \';\' between fields and read it with a dialect that has "delimiter": ";", "decimal": ","'
+        )
+    return hint + (
+        'read the file with a dialect that has "decimal": "," and a delimiter other than "," '
+        '(e.g. "delimiter": ";"; see docs/csv-schemas.md)'
+    )
 
 
 def _read_lines(path: Path) -> list[str]:
@@ -229,16 +266,10 @@ def _scan(path: Path, schema: CsvSchema, joint_set: JointSet | None, encoding: s
     meta: dict[str, str] = {}
     header: list[str] | None = None
     header_line = None
-    names: list[str] | None = (
-        None
-        if schema.has_header
-        else schema.headerless_columns(schema.file_joint_names(joint_set))
-        if joint_set is not None
-        else None
-    )
+    names = None if schema.has_header or joint_set is None else schema.headerless_columns_of(joint_set)
     skipped: list[int] = []
     data = array("q")
-    bad_row: tuple[int, int] | None = None
+    bad_row: tuple[int, int, str] | None = None
     try:
         # UTF-8 must decode (else the caller falls back to cp1252, which leaves 5 bytes undefined: replaced)
         f = open(path, encoding=encoding, errors="strict" if encoding.startswith("utf") else "replace", newline=None)
@@ -262,12 +293,15 @@ def _scan(path: Path, schema: CsvSchema, joint_set: JointSet | None, encoding: s
             if schema.has_header and header is None:
                 names = header = _split_fields(row, delim)
                 header_line = i + 1
+                _check_header_is_the_dialects(path, schema, joint_set, header, header_line, row)
                 skipped.append(i)
                 continue
             if names is None:
                 raise FormatError(path, f"the {schema.name} schema has no header and no fixed joint set")
+            if not data and header is None:
+                _check_row_is_the_dialects(path, schema, names, row, i + 1)
             if bad_row is None and row.count(delim) + 1 != len(names):
-                bad_row = (i + 1, row.count(delim) + 1)  # reported after the header is checked
+                bad_row = (i + 1, row.count(delim) + 1, row[:200])  # reported after the header is checked
             data.append(i + 1)
     if schema.has_header and header is None:
         raise FormatError(path, f"empty file: no header line (the {schema.name} dialect has one)")
@@ -282,6 +316,65 @@ def _scan(path: Path, schema: CsvSchema, joint_set: JointSet | None, encoding: s
     )
 
 
+def _shown(names: list[str], first: int = 4, count: bool = True) -> str:
+    """The first names quoted, and how many there are in all (``count``) when not all are shown."""
+    more = "" if len(names) <= first else f" ... ({len(names)} in all)" if count else ", ..."
+    return ", ".join(repr(_clip(n)) for n in names[:first]) + more
+
+
+def _clip(text: str, at: int = 40) -> str:
+    """``text``, cut to ``at`` characters with "..." when longer (a damaged line can be huge)."""
+    return text if len(text) <= at else text[: at - 3] + "..."
+
+
+def _check_header_is_the_dialects(
+    path: Path, schema: CsvSchema, joint_set: JointSet | None, header: list[str], line: int, row: str
+) -> None:
+    """FormatError saying that the file is not in the dialect when its header names no joint column
+    of it (a wrong ``--schema``), rather than a complaint about the columns it does have."""
+    templates = schema.per_joint_columns() if schema.layout == "wide" else schema.document["position"]["columns"]
+    if schema.layout == "wide":
+        matches = [m for t in templates for c in header if (m := _template_regex(t).match(c))]
+        if any(not re.search(r"[,;\t]", m.group("joint")) for m in matches):  # not a whole row split wrongly
+            return
+    elif any(t in header for t in templates):
+        return
+    joint = None if joint_set is None else schema.file_joint_names(joint_set)[schema.joints_in_file(joint_set)[0]]
+    expected = [schema.get(k, {}).get("column") for k in ("time", "body", "joint")]
+    expected = [c for c in expected if c] + [t.replace(JOINT, joint) if joint else t for t in templates]
+    raise FormatError(
+        path,
+        f"the file does not look like the {schema.name} dialect: its header names none of that dialect's joint "
+        f"columns (it expects columns like {_shown(expected, 5, False)}; the header has {_shown(header)})"
+        + _delimiter_hint(header, row, schema),
+        line=line,
+    )
+
+
+def _check_row_is_the_dialects(path: Path, schema: CsvSchema, names: list[str], row: str, line: int) -> None:
+    """FormatError saying that the file is not in the (headerless) dialect when its first data row
+    has another field count or is mostly not numbers (a wrong ``--schema``)."""
+    fields = _split_fields(row, schema.delimiter)
+    numbers = sum(_is_number(f.replace(schema.decimal, ".")) for f in fields)
+    if len(fields) == len(names) and numbers >= 0.5 * len(fields):
+        return
+    raise FormatError(
+        path,
+        f"the file does not look like the {schema.name} dialect: its rows hold {len(names)} fields "
+        f"({_shown(names)}), but its first row holds {len(fields)} ({_shown(fields)})"
+        + (_decimal_comma_hint(row, schema) or _delimiter_hint(fields, row, schema)),
+        line=line,
+    )
+
+
+def _delimiter_hint(fields: list[str], row: str, schema: CsvSchema) -> str:
+    """When a line split by the dialect's delimiter is one field holding another common delimiter: say so."""
+    other = next((d for d in (";", "\t", ",") if d != schema.delimiter and d in row), None)
+    if len(fields) != 1 or other is None:
+        return ""
+    return f"; its fields look separated by {other!r}, the dialect's by {schema.delimiter!r}"
+
+
 # ---------------------------------------------------------------------------------------------
 # Interpreting the table
 # ---------------------------------------------------------------------------------------------
@@ -290,9 +383,6 @@ def _template_regex(template: str) -> re.Pattern[str]:
 
 
 def _resolve_joint_set(schema: CsvSchema, table_names: list[str] | None, meta: dict[str, str], path: Path) -> JointSet:
-    spec = schema.joint_set
-    if spec != "auto":
-        return load_joint_set(spec)
     if "joint_set" in meta:
         # shipped names only (the writer writes no other): a file must not make the reader open other files
         name = meta["joint_set"]
@@ -314,8 +404,10 @@ def _resolve_joint_set(schema: CsvSchema, table_names: list[str] | None, meta: d
     return shipped if shipped is not None else JointSet.custom("custom", found, dimensions=dims)
 
 
-def _check_header(table: _Table, joint_set: JointSet, present: list[int]) -> None:
-    """Unknown joint names and missing columns in a headered wide file."""
+def _check_header(table: _Table, joint_set: JointSet, present: list[int] | None) -> list[int]:
+    """The joints a headered wide file holds: ``present`` (the schema's ``joints``) or else every
+    joint with a column in the header, the others to be masked. FormatError for an unknown joint
+    name, and for missing columns: a joint's columns must be all there or all absent."""
     schema, path = table.schema, table.path
     known = set(joint_set.names) | set(joint_set.aliases) | set(schema.joint_names_in_file)
     for tmpl in schema.per_joint_columns():
@@ -332,16 +424,32 @@ def _check_header(table: _Table, joint_set: JointSet, present: list[int]) -> Non
                 )
     fnames = schema.file_joint_names(joint_set)
     required = [t for t in schema.per_joint_columns() if t not in _optional_orientation_templates(schema, table)]
-    missing = [
-        t.replace(JOINT, fnames[j]) for j in present for t in required if not table.has(t.replace(JOINT, fnames[j]))
-    ]
+    columns = [[t.replace(JOINT, name) for t in required] for name in fnames]  # [J][required]
+    if present is None:
+        present = [j for j in range(len(joint_set)) if any(map(table.has, columns[j]))]
+        if not present:
+            raise FormatError(
+                path,
+                f"the header names no joint of {joint_set.name} as the {schema.name} dialect spells it "
+                f"(expected columns like {_shown(columns[0])})",
+                line=table.header_line,
+            )
+    missing = [c for j in present for c in columns[j] if not table.has(c)]
     for key in ("time", "body"):
         col = schema.get(key, {}).get("column")
         if col is not None and not table.has(col):
             missing.insert(0, col)
     if missing:
         shown = ", ".join(missing[:6]) + (f" and {len(missing) - 6} more" if len(missing) > 6 else "")
-        raise FormatError(path, f"missing column(s) {shown}", line=table.header_line)
+        partial = next((j for j in present if 0 < sum(map(table.has, columns[j])) < len(required)), None)
+        why = (
+            ""
+            if partial is None
+            else f" (joint {joint_set.names[partial]!r} has {_shown([c for c in columns[partial] if table.has(c)])} "
+            "but not all its columns: a joint's columns must be all present or all absent)"
+        )
+        raise FormatError(path, f"missing column(s) {shown}{why}", line=table.header_line)
+    return present
 
 
 def _optional_orientation_templates(schema: CsvSchema, table: _Table) -> list[str]:
@@ -488,9 +596,10 @@ def _numeric_states(tracking: dict) -> bool:
 
 def _read_wide(table: _Table, joint_set: JointSet, body: str | None) -> tuple:
     schema = table.schema
-    present = [joint_set.index(n) for n in schema.get("joints", joint_set.names)]  # checked in joint_set_of
+    declared = "joints" in schema.document or not schema.has_header
+    present = schema.joints_in_file(joint_set) if declared else None  # joints: checked in joint_set_of
     if schema.has_header:
-        _check_header(table, joint_set, present)
+        present = _check_header(table, joint_set, present)
     fnames = schema.file_joint_names(joint_set)
     _load_columns(table, [fnames[j] for j in present])
     key = np.arange(len(table.lines))
@@ -615,6 +724,8 @@ def _joint_indices(table: _Table, jspec: dict, joint_set: JointSet, rows, lines)
 
 def _build_motion(path: Path, schema: CsvSchema, joint_set: JointSet, parts: tuple, meta: dict) -> Motion:
     t_raw, scale, lines, pos, missing, conf, quats, body_meta = parts
+    if schema.zero_is_untracked:  # NiTE / OpenNI loggers write a lost joint as (0, 0, 0)
+        missing |= (pos == 0).all(axis=-1)
     pos *= schema.position_scale()
     position_mask = ~missing & (conf > 0)
     orientations = orientation_mask = None
@@ -701,11 +812,11 @@ def _schema_matches(schema: CsvSchema, lines: list[str]) -> bool:
         return any(rx.match(f) for f in fields) if rx else schema.document["position"]["columns"][0] in fields
     if schema.joint_set == "auto":
         return False
-    names = schema.headerless_columns(schema.file_joint_names(load_joint_set(schema.joint_set)))
+    names = schema.headerless_columns_of(joint_set_of(schema))
     if len(fields) != len(names):
         return False
     # mostly numbers: a corrupt cell should be reported by the reader, not mistaken for a dialect
-    return sum(_is_number(f) for f in fields) >= 0.9 * len(fields)
+    return sum(_is_number(f.replace(schema.decimal, ".")) for f in fields) >= 0.9 * len(fields)
 
 
 def _is_number(text: str) -> bool:

@@ -15,7 +15,7 @@ from pathlib import Path
 from typing import Any
 
 from kinectdata.core.errors import SchemaError
-from kinectdata.core.jointsets import JointSet, load_joint_set
+from kinectdata.core.jointsets import JointSet, load_joint_set, shipped_joint_sets
 from kinectdata.core.resources import load_json, resolve_resource, shipped_names, shipped_path, validate
 
 JOINT = "{joint}"
@@ -50,6 +50,16 @@ class CsvSchema:
         return self.document.get("delimiter", ",")
 
     @property
+    def decimal(self) -> str:
+        """The decimal separator of numbers: ``.`` (default) or ``,``."""
+        return self.document.get("decimal", ".")
+
+    @property
+    def zero_is_untracked(self) -> bool:
+        """A joint written as exactly all zeros is untracked (NiTE / OpenNI loggers, OpenPose)."""
+        return bool(self.document["position"].get("zero_is_untracked", False))
+
+    @property
     def has_header(self) -> bool:
         return _has_header(self.document)
 
@@ -72,6 +82,11 @@ class CsvSchema:
         to_file = {v: k for k, v in self.joint_names_in_file.items()}
         return [to_file.get(n, n) for n in joint_set.names]
 
+    def joints_in_file(self, joint_set: JointSet) -> list[int]:
+        """Joint-set indices of the joints the schema says a file holds (``joints``), in file order;
+        all of the set's joints when it does not say."""
+        return [joint_set.index(n) for n in self.get("joints", joint_set.names)]
+
     def time_scale(self) -> float | None:
         """Seconds per time unit, or None when times come from a fixed frame rate."""
         t = self.document.get("time", {})
@@ -83,6 +98,12 @@ class CsvSchema:
     def per_joint_columns(self) -> list[str]:
         """Every column template that names a joint field (position, orientation, tracking)."""
         return _joint_field_templates(self.document)
+
+    def headerless_columns_of(self, joint_set: JointSet) -> list[str]:
+        """Column names of a headerless file of ``joint_set``: ``per_joint`` entries expanded over
+        the joints the file holds (:meth:`joints_in_file`), in file order."""
+        spelled = self.file_joint_names(joint_set)
+        return self.headerless_columns([spelled[j] for j in self.joints_in_file(joint_set)])
 
     def headerless_columns(self, joint_file_names: list[str]) -> list[str]:
         """Column names of a headerless file, expanding ``per_joint`` entries over the joints."""
@@ -115,6 +136,8 @@ def _check_semantics(doc: dict[str, Any], path: Path) -> None:
             re.compile(doc["signature"])
         except re.error as exc:
             raise SchemaError(path, f"signature is not a valid regular expression: {exc}") from exc
+    if doc.get("decimal", ".") == doc.get("delimiter", ","):
+        raise SchemaError(path, f"decimal {doc['decimal']!r} is also the delimiter: set a different delimiter")
     if doc["joint_set"] == "auto" and not _has_header(doc):
         raise SchemaError(path, 'joint_set "auto" needs a header naming the joints')
     if "time" not in doc:
@@ -156,19 +179,46 @@ def _shipped(name: str) -> CsvSchema:
 
 def joint_set_of(schema: CsvSchema) -> JointSet:
     """The joint set a (non-``auto``) schema names, checked against the schema's ``joints`` and
-    ``joint_names``; a SchemaError names the schema file and the field."""
+    ``joint_names``; a SchemaError names the schema file and the field.
+
+    ``joint_set`` is a shipped name or a joint-set JSON file; a relative file path is resolved
+    from the folder of the schema file that names it, not from the working folder.
+    """
+    file = _joint_set_file(schema)
     try:
-        js = load_joint_set(schema.joint_set)
+        js = load_joint_set(file or schema.joint_set)
     except SchemaError as exc:
         raise SchemaError(schema.path, f"joint_set {schema.joint_set!r}: {exc.reason}") from exc
     known = set(js.names) | set(js.aliases)
+    seen: dict[int, str] = {}
     for name in schema.get("joints", []):
         if name not in known:
             raise SchemaError(schema.path, f"joints: {name!r} is not a joint of {js.name} ({', '.join(js.names)})")
+        if js.index(name) in seen:
+            raise SchemaError(schema.path, f"joints: {name!r} and {seen[js.index(name)]!r} are the same joint")
+        seen[js.index(name)] = name
     for spelling, name in schema.joint_names_in_file.items():
         if name not in known:
             raise SchemaError(schema.path, f"joint_names: {spelling!r} maps to {name!r}, not a joint of {js.name}")
     return js
+
+
+def _joint_set_file(schema: CsvSchema) -> Path | None:
+    """The joint-set file a schema's ``joint_set`` names, resolved from the schema file's folder;
+    None for a shipped joint-set name (or a bare name that is no file there: an unknown name)."""
+    text = schema.joint_set
+    if text in shipped_joint_sets():
+        return None
+    path = Path(schema.path).parent / Path(text).expanduser()  # an absolute path stays as it is
+    if path.is_file():
+        return path
+    if path.suffix.lower() == ".json" or "/" in text or "\\" in text:
+        raise SchemaError(
+            schema.path,
+            f"joint_set {text!r}: joint-set file not found: {path} (a relative path is resolved from the "
+            "folder of the schema file)",
+        )
+    return None
 
 
 def shipped_csv_schemas() -> list[str]:

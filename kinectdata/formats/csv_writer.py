@@ -71,8 +71,13 @@ def write_csv(
     fnames = sch.file_joint_names(js)
     missing_text = sorted(sch.missing_values)[0] if sch.missing_values else None
 
+    written = sch.joints_in_file(js) if "joints" in doc else list(range(J))  # the joints the dialect holds
+
     def fmt(a: np.ndarray, spec: str) -> np.ndarray:
-        cells = np.char.mod(spec, np.nan_to_num(a)).astype(object)
+        text = np.char.mod(spec, np.nan_to_num(a))
+        if sch.decimal != ".":
+            text = np.char.replace(text, ".", sch.decimal)
+        cells = text.astype(object)
         if missing_text is not None:
             cells[~np.isfinite(a)] = missing_text
         return cells
@@ -103,15 +108,15 @@ def write_csv(
     per_joint = set(sch.per_joint_columns())
     if sch.layout == "wide":
         names = (
-            sch.headerless_columns(fnames)
+            sch.headerless_columns_of(js)
             if not sch.has_header
             else (
                 [c for c in cols if c not in per_joint]
-                + [t.replace(JOINT, fnames[j]) for j in range(J) for t in cols if t in per_joint]
+                + [t.replace(JOINT, fnames[j]) for j in written for t in cols if t in per_joint]
             )
         )
         table = {}
-        for j in range(J):
+        for j in written:
             for t in per_joint & cols.keys():
                 table[t.replace(JOINT, fnames[j])] = cols[t][:, j]
         for c in cols:
@@ -124,7 +129,10 @@ def write_csv(
             np.arange(J).astype(str) if doc["joint"]["values"] == "index" else np.array(fnames), (T, 1)
         ).astype(object)
         names = sch.headerless_columns(fnames) if not sch.has_header else list(cols)
-        data = pd.DataFrame({n: (cols[n].reshape(-1) if cols[n].ndim == 2 else np.repeat(cols[n], J)) for n in names})
+        n = len(written)
+        data = pd.DataFrame(
+            {c: (cols[c][:, written].reshape(-1) if cols[c].ndim == 2 else np.repeat(cols[c], n)) for c in names}
+        )
     preamble = list(doc.get("preamble", []))
     if sch.joint_set == "auto" and js.name in shipped_joint_sets():
         preamble.append(f"# joint_set: {js.name}")

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import re
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -403,3 +404,256 @@ def test_kinectreader_nan_and_garbage(fixture_csv, tmp_path):
     path.write_text(fixture_csv.read_text())
     _edit(path, 100, lambda row: _cells(row, 30, "nan"))
     assert "line 100, column 'HandLeft.y': 'nan' is not a number" in _error(path)  # cell 30 = joint 7, y
+
+
+# ---------------------------------------------------------------------------------------------
+# Reported on real files
+# ---------------------------------------------------------------------------------------------
+def _write_schema(path, doc):
+    path.write_text(json.dumps(doc))
+    return path
+
+
+def test_nite_logger_zeros_are_untracked_with_zero_is_untracked(tmp_path):
+    """A SimpleOpenNI logger writes a lost joint, or a whole lost user, as 0,0,0 (in millimetres)."""
+    js = load_joint_set("nite")
+    rng = np.random.default_rng(7)
+    T, J = 200, len(js)
+    pos = rng.uniform(-800, 800, size=(T, J, 3)).round(3)
+    pos[pos == 0] = 1.0
+    lost = np.zeros((T, J), bool)
+    lost[30:170] = True  # 140 whole frames at the origin: the user was lost
+    lost[5:12, js.index("LEFT_HAND")] = True  # one joint lost
+    lost[180, [js.index("HEAD"), js.index("RIGHT_FOOT")]] = True
+    pos[lost] = 0.0
+    pos[3, js.index("TORSO")] = [0.0, 0.0, 512.5]  # zeros in some coordinates only: a position
+    header = ["millis"] + [f"{n}_{c}" for n in js.names for c in ("x", "y", "z", "conf")]
+    rows = [",".join([str(33 * k)] + [f"{v:g}" for j in range(J) for v in (*pos[k, j], 0.5)]) for k in range(T)]
+    data = tmp_path / "simpleopenni.csv"
+    data.write_text(",".join(header) + "\n" + "\n".join(rows) + "\n")
+    doc = {
+        "name": "simpleopenni_logger",
+        "joint_set": "nite",
+        "layout": "wide",
+        "header": True,
+        "time": {"column": "millis", "unit": "ms"},
+        "position": {"columns": ["{joint}_x", "{joint}_y", "{joint}_z"], "unit": "mm", "zero_is_untracked": True},
+        "tracking": {"column": "{joint}_conf", "scale": "confidence"},
+    }
+    m = read_motion(data, schema=_write_schema(tmp_path / "logger.json", doc))
+    np.testing.assert_array_equal(m.position_mask, ~lost)
+    np.testing.assert_array_equal(m.confidence, np.where(lost, 0.0, 0.5))
+    np.testing.assert_allclose(m.positions[~lost], pos[~lost] / 1000)
+    assert m.position_mask[3, js.index("TORSO")] and not m.position_mask[30:170].any()
+    doc["position"]["zero_is_untracked"] = False  # the default: zeros are a position
+    assert read_motion(data, schema=_write_schema(tmp_path / "plain.json", doc)).position_mask.all()
+
+
+def test_headerless_dialect_holding_some_joints_in_its_own_order(tmp_path):
+    js = load_joint_set("kinect_v2")
+    held = ["Head", "Neck", "SpineShoulder", "HandRight", "HandLeft"]  # file order, not joint-set order
+    doc = {
+        "name": "upper_body_logger",
+        "joint_set": "kinect_v2",
+        "joints": held,
+        "layout": "wide",
+        "header": False,
+        "delimiter": "\t",
+        "columns": ["t", {"per_joint": ["{joint}.x", "{joint}.y", "{joint}.z", "{joint}.state"]}],
+        "time": {"column": "t", "unit": "s"},
+        "position": {"columns": ["{joint}.x", "{joint}.y", "{joint}.z"], "unit": "m"},
+        "tracking": {"column": "{joint}.state", "values": {"0": 0.0, "1": 0.5, "2": 1.0}},
+    }
+    schema = _write_schema(tmp_path / "upper.json", doc)
+    rows = []
+    for k in range(6):
+        cells = [f"{k / 30:.6f}"] + [f"{k + i / 10:g}\t{-i:g}\t2.5\t{1 if (k, i) == (2, 3) else 2}" for i in range(5)]
+        rows.append("\t".join(cells))
+    data = tmp_path / "upper.csv"
+    data.write_text("\n".join(rows) + "\n")
+    m = read_motion(data, schema=schema)
+    assert m.joint_set.name == "kinect_v2" and m.n_frames == 6
+    for i, name in enumerate(held):
+        j = js.index(name)
+        np.testing.assert_allclose(m.positions[:, j], np.c_[np.arange(6) + i / 10, np.full(6, -i), np.full(6, 2.5)])
+    assert m.confidence[2, js.index("HandRight")] == 0.5 and m.confidence[3, js.index("HandRight")] == 1.0
+    absent = [j for j in range(len(js)) if js.names[j] not in held]
+    assert m.position_mask[:, [js.index(n) for n in held]].all() and not m.position_mask[:, absent].any()
+    (tmp_path / "more.csv").write_text("\t".join(["0"] * 101) + "\n")  # all 25 joints: not this dialect
+    msg = _error(tmp_path / "more.csv", schema=schema)
+    assert "line 1: the file does not look like the upper_body_logger dialect: its rows hold 21 fields" in msg
+
+
+def _canonical_with_columns_dropped(tmp_path, keep):
+    """A canonical CSV of a kinect_v2 motion whose header keeps only the columns ``keep`` accepts."""
+    m = random_motion(T=5, seed=11, untracked=0.0)
+    path = tmp_path / "sub.csv"
+    write_csv(m, path)
+    lines = path.read_text().splitlines()
+    header = lines[2].split(",")
+    kept = [i for i, c in enumerate(header) if c == "time" or keep(c)]
+    table = [",".join(line.split(",")[i] for i in kept) for line in lines[2:]]
+    path.write_text("\n".join(lines[:2] + table) + "\n")
+    return m, path
+
+
+def test_canonical_csv_holding_some_joints_reads_the_others_as_untracked(tmp_path):
+    held = {"Head", "HandLeft", "HandRight"}
+    m, path = _canonical_with_columns_dropped(tmp_path, lambda c: c.split(".")[0] in held)
+    r = read_motion(path)
+    assert r.joint_set.name == "kinect_v2" and r.n_joints == 25
+    idx = [m.joint_set.index(n) for n in sorted(held)]
+    expected_mask = np.zeros_like(m.position_mask)
+    expected_mask[:, idx] = m.position_mask[:, idx]
+    np.testing.assert_array_equal(r.position_mask, expected_mask)
+    np.testing.assert_allclose(r.positions[:, idx], m.positions[:, idx], atol=5e-7)
+    assert (r.confidence[:, [j for j in range(25) if j not in idx]] == 0).all()
+
+
+def test_canonical_csv_with_a_joint_partly_present_or_no_joint_is_refused(tmp_path):
+    _, path = _canonical_with_columns_dropped(tmp_path, lambda c: c.startswith(("Head.", "Neck.")) and c != "Neck.z")
+    msg = _error(path)
+    assert "\n" not in msg
+    assert re.search(r"line 3: missing column\(s\) Neck\.z \(joint 'Neck' has 'Neck\.x', 'Neck\.y', .*must be all", msg)
+    _, path = _canonical_with_columns_dropped(tmp_path, lambda c: False)
+    msg = _error(path)
+    assert "line 3: the file does not look like the canonical dialect: its header names none" in msg
+    assert "the header has 'time')" in msg
+
+
+def test_joint_set_file_is_found_from_the_schema_folder_not_the_working_folder(tmp_path, monkeypatch):
+    folder = tmp_path / "dialects"
+    (folder / "sets").mkdir(parents=True)
+    joint_set = {"name": "three", "joints": [{"name": n, "parent": None} for n in "ABC"], "aliases": {"Alpha": "A"}}
+    (folder / "sets" / "three.json").write_text(json.dumps(joint_set))
+    doc = {
+        "name": "markers",
+        "joint_set": "sets/three.json",
+        "layout": "wide",
+        "header": True,
+        "time": {"column": "t", "unit": "s"},
+        "position": {"columns": ["{joint}x", "{joint}y", "{joint}z"], "unit": "m"},
+    }
+    schema = _write_schema(folder / "markers.json", doc)
+    data = tmp_path / "take.csv"
+    data.write_text("t,Ax,Ay,Az,Bx,By,Bz,Cx,Cy,Cz\n0,1,2,3,4,5,6,7,8,9\n0.1,1,2,3,4,5,6,7,8,9\n")
+    elsewhere = tmp_path / "elsewhere"
+    elsewhere.mkdir()
+    monkeypatch.chdir(elsewhere)
+    m = read_motion(data, schema=schema)
+    assert list(m.joint_set.names) == ["A", "B", "C"] and m.positions[1, 2].tolist() == [7, 8, 9]
+    broken = _write_schema(folder / "broken.json", dict(doc, joint_set="sets/nope.json"))
+    with pytest.raises(SchemaError) as err:
+        read_motion(data, schema=broken)
+    expected = (
+        f"{broken}: joint_set 'sets/nope.json': joint-set file not found: {folder / 'sets' / 'nope.json'} "
+        "(a relative path is resolved from the folder of the schema file)"
+    )
+    assert str(err.value) == expected
+    twice = _write_schema(folder / "twice.json", dict(doc, joints=["A", "Alpha"]))
+    with pytest.raises(SchemaError, match=r"twice\.json: joints: 'Alpha' and 'A' are the same joint$"):
+        read_motion(data, schema=twice)
+
+
+def _semicolon_schema(tmp_path, **extra):
+    doc = {
+        "name": "excel_de",
+        "joint_set": "nite",
+        "joints": ["HEAD", "TORSO"],
+        "layout": "wide",
+        "header": True,
+        "delimiter": ";",
+        "time": {"column": "Zeit", "unit": "s"},
+        "position": {"columns": ["{joint}_X", "{joint}_Y", "{joint}_Z"], "unit": "m"},
+        **extra,
+    }
+    return _write_schema(tmp_path / f"excel{len(extra)}.json", doc)
+
+
+def test_decimal_commas_get_a_hint_and_read_with_the_decimal_option(tmp_path):
+    header = "Zeit;HEAD_X;HEAD_Y;HEAD_Z;TORSO_X;TORSO_Y;TORSO_Z"
+    rows = ['0,000;0,123;1,456;2;-0,5;"1,25";3', "0,033;0,223;1,556;2,1;-0,4;1,35;3,5"]
+    data = tmp_path / "excel.csv"
+    data.write_text("\n".join([header, *rows]) + "\n")
+    msg = _error(data, schema=_semicolon_schema(tmp_path))
+    assert "excel.csv, line 2, column 'Zeit': non-numeric value '0,000': it looks like a number with a decimal " in msg
+    assert '"decimal": ","' in msg and "\n" not in msg
+    m = read_motion(data, schema=_semicolon_schema(tmp_path, decimal=","))
+    js = m.joint_set
+    np.testing.assert_allclose(m.times, [0, 0.033])
+    np.testing.assert_allclose(m.positions[:, js.index("HEAD")], [[0.123, 1.456, 2], [0.223, 1.556, 2.1]])
+    np.testing.assert_allclose(m.positions[:, js.index("TORSO")], [[-0.5, 1.25, 3], [-0.4, 1.35, 3.5]])
+    data.write_text("\n".join([header, rows[0], rows[1].replace("1,556", "1.556")]) + "\n")
+    msg = _error(data, schema=_semicolon_schema(tmp_path, decimal=","))
+    assert "line 3, column 'HEAD_Y': non-numeric value '1.556' (the excel_de dialect's decimal separator is ',')" in msg
+    with pytest.raises(SchemaError, match=r"excel2\.json: decimal ',' is also the delimiter"):
+        load_csv_schema(_semicolon_schema(tmp_path, decimal=",", delimiter=","))
+
+
+def test_quoted_decimal_commas_in_a_comma_separated_file_get_a_hint(lsl_file):
+    _edit(lsl_file, 5, lambda row: _cells(row, 1, '"0,25"'))
+    msg = _error(lsl_file)
+    assert (
+        "line 5: expected 101 fields as the header says, found 102: '0,25' looks like a number with a decimal " in msg
+    )
+    assert "export it again with decimal points" in msg and "\n" not in msg
+
+
+def test_wrong_schema_says_the_file_is_not_in_that_dialect(lsl_file, fixture_csv):
+    msg = _error(fixture_csv, schema="lsl_kinect")
+    assert "repeats" not in msg and "\n" not in msg
+    assert re.search(
+        r"Ges01_wavehand\.csv, line 2: the file does not look like the lsl_kinect dialect: its header names none of "
+        r"that dialect's joint columns \(it expects columns like 'TimeSpan', 'SpineBase_X', 'SpineBase_Y', .*; "
+        r"the header has '89810634305', '0\.0115979', ",
+        msg,
+    ), msg
+    msg = _error(lsl_file, schema="kinectreader")
+    assert re.search(
+        r"take\.csv, line 1: the file does not look like the kinectreader dialect: its rows hold 101 fields "
+        r"\('time', 'SpineBase\.x', .*\), but its first row holds 4 \('Software : LSL_Kinect', ",
+        msg,
+    ), msg
+
+
+def test_the_docs_nite_example_dialect_reads_a_file_shaped_as_it_says(tmp_path):
+    text = (Path(__file__).parents[2] / "docs" / "csv-schemas.md").read_text(encoding="utf-8")
+    block = re.search(r"## Example: a NiTE logger.*?```json\n(.*?)```", text, re.S).group(1)
+    schema = tmp_path / "nite_upper_body.json"
+    schema.write_text(block)
+    lost_hand = "1,5;-2;1000,25;" + ";".join(["10;20;30"] * 2) + ";0;0;0;4;5;6"
+    (tmp_path / "take.csv").write_text(f"0;{lost_hand}\n33;{lost_hand.replace(';0;0;0;', ';7;0;0;')}\n")
+    m = read_motion(tmp_path / "take.csv", schema=schema)
+    js = m.joint_set
+    assert m.positions[0, js.index("HEAD")].tolist() == pytest.approx([0.0015, -0.002, 1.00025])
+    assert m.position_mask[:, js.index("LEFT_HAND")].tolist() == [False, True]
+    assert m.position_mask[:, js.index("RIGHT_HAND")].all() and not m.position_mask[:, js.index("LEFT_KNEE")].any()
+
+
+def test_the_writer_writes_what_the_new_options_describe(tmp_path):
+    """write_csv in a headerless dialect holding some joints, and in a decimal-comma dialect: the
+    file has the dialect's shape (checked on its text) and reads back to the joints written."""
+    m = random_motion(T=5, untracked=0.0)
+    js = m.joint_set
+    held = ["Head", "Neck", "HandRight"]
+    doc = {
+        "name": "upper_logger",
+        "joint_set": "kinect_v2",
+        "joints": held,
+        "layout": "wide",
+        "header": False,
+        "delimiter": ";",
+        "decimal": ",",
+        "columns": ["t", {"per_joint": ["{joint}.x", "{joint}.y", "{joint}.z"]}],
+        "time": {"column": "t", "unit": "s"},
+        "position": {"columns": ["{joint}.x", "{joint}.y", "{joint}.z"], "unit": "m"},
+    }
+    schema = _write_schema(tmp_path / "upper.json", doc)
+    write_csv(m, tmp_path / "upper.csv", schema)
+    first = (tmp_path / "upper.csv").read_text().splitlines()[0].split(";")
+    assert len(first) == 1 + 3 * len(held) and "." not in ";".join(first)
+    assert first[1] == f"{m.positions[0, js.index('Head'), 0]:.6f}".replace(".", ",")
+    back = read_motion(tmp_path / "upper.csv", schema=schema)
+    idx = [js.index(n) for n in held]
+    np.testing.assert_allclose(back.positions[:, idx], m.positions[:, idx], atol=5e-7)
+    assert back.position_mask[:, idx].all() and back.position_mask.sum() == 5 * len(held)
