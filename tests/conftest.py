@@ -9,6 +9,13 @@ from pathlib import Path
 import pytest
 from hypothesis import settings
 
+# pytest-xdist runs one worker per core (pyproject's addopts): each worker computes on one thread,
+# as do the commands it starts, since two workers of several threads each on two cores spend their
+# time waiting for each other (torch's OpenMP threads spin). Set before torch is imported.
+if os.environ.get("PYTEST_XDIST_WORKER"):
+    for variable in ("OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS"):
+        os.environ[variable] = "1"
+
 # CI runs the property tests on a fixed set of examples, so a landing does not depend on luck;
 # a local run explores new examples each time (and keeps failures in .hypothesis/).
 settings.register_profile("ci", derandomize=True, database=None)

@@ -10,9 +10,6 @@ chunks. :func:`validate_shard` checks a file against the layout.
 from __future__ import annotations
 
 import json
-import signal
-import subprocess
-import sys
 from dataclasses import dataclass
 from functools import cache
 from pathlib import Path
@@ -177,17 +174,6 @@ _ATTRIBUTE_TYPES = {
 ISOLATION_TIMEOUT_S = 120.0
 """Longest the child process of :func:`validate_shard` may take to read a shard's structure."""
 
-_CHILD = """
-import json, sys
-sys.path.insert(0, sys.argv[1])
-from kinectdata.dataset.shards import validate_shard
-from kinectdata.core.errors import FormatError
-try:
-    print(json.dumps({"sizes": validate_shard(sys.argv[2], isolated=False)}))
-except FormatError as exc:
-    print(json.dumps({"reason": exc.reason}))
-"""
-
 
 def validate_shard(path: str | Path, *, isolated: bool = True) -> dict[str, int]:
     """Check a shard against the layout; returns its sizes ``{"N", "D", "R", ...}``.
@@ -195,7 +181,8 @@ def validate_shard(path: str | Path, *, isolated: bool = True) -> dict[str, int]
     The HDF5 library itself can crash or loop forever on some damaged files (libhdf5 2.0 on a
     corrupted global heap collection or object header), which no exception handling contains:
     with ``isolated`` (the default) the check runs in a child process, so that such a file is a
-    FormatError too, at the cost of starting a Python interpreter (about 0.2 s).
+    FormatError too (:mod:`kinectdata.dataset.isolation`: one child process serves the checks of a
+    process in turn, so only the first pays for starting a Python interpreter, about 0.25 s).
 
     Raises:
         FormatError: naming the shard and the attribute or dataset that is wrong, or what HDF5
@@ -237,22 +224,9 @@ def _read_layout(f: h5py.File, path: Path, spec: dict[str, Any]) -> tuple[dict[s
 
 
 def _validate_in_child(path: Path) -> dict[str, int]:
-    package_root = str(Path(__file__).resolve().parents[2])  # the child imports this same kinectdata
-    command = [sys.executable, "-c", _CHILD, package_root, str(path)]
-    try:
-        child = subprocess.run(command, capture_output=True, text=True, timeout=ISOLATION_TIMEOUT_S)
-    except subprocess.TimeoutExpired:
-        message = f"the HDF5 library did not finish reading the file's structure in {ISOLATION_TIMEOUT_S:g} s"
-        raise FormatError(path, message + " (a damaged file?)") from None
-    if child.returncode == 0:
-        answer = json.loads(child.stdout.splitlines()[-1])
-        if "reason" in answer:
-            raise FormatError(path, answer["reason"])
-        return answer["sizes"]
-    if "Traceback" in child.stderr:  # a Python error in the check itself: a bug, not the file
-        raise RuntimeError(f"checking {path} failed in the child process:\n{child.stderr}")
-    how = f"signal {signal.Signals(-child.returncode).name}" if child.returncode < 0 else f"exit {child.returncode}"
-    raise FormatError(path, f"reading the file's structure crashed the HDF5 library ({how}): the file is damaged")
+    from kinectdata.dataset.isolation import check_isolated
+
+    return check_isolated(path, ISOLATION_TIMEOUT_S)
 
 
 def _validate(path: Path, spec: dict[str, Any], attrs: dict[str, Any], datasets: dict[str, Any]) -> dict[str, int]:

@@ -447,12 +447,12 @@ def write_gif(frames: Iterable[np.ndarray], path: str | Path, fps: float) -> int
         raise KinectDataError(
             f"{path}: a GIF plays at most {MAX_GIF_FPS:g} frames per second, not {fps:g}; lower --fps"
         )
-    images = [Image.fromarray(frame).quantize(colors=64) for frame in frames]
-    if not images:
-        raise KinectDataError(f"{path}: no frames to write")
-    starts_cs = np.round(np.arange(len(images) + 1) * 100.0 / fps)
-    durations_ms = (np.diff(starts_cs) * 10).astype(int).tolist()
-    with atomic_output(path) as tmp:
+    with atomic_output(path) as tmp:  # first: an output that cannot be written fails before the drawing
+        images = [Image.fromarray(frame).quantize(colors=64) for frame in frames]
+        if not images:
+            raise KinectDataError(f"{path}: no frames to write")
+        starts_cs = np.round(np.arange(len(images) + 1) * 100.0 / fps)
+        durations_ms = (np.diff(starts_cs) * 10).astype(int).tolist()
         images[0].save(tmp, format="GIF", save_all=True, append_images=images[1:], duration=durations_ms, loop=0)
     return len(images)
 

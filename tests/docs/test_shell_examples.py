@@ -51,7 +51,7 @@ NOT_RUN = {
 TRAIN_SHRINK = ["--epochs", "1", "--sequence", "30", "--max-minutes", "1"]
 SHRINK = {
     "kinectdata train-baseline": [*TRAIN_SHRINK, "--units", "16"],
-    "kinectdata train-baseline --data ltd_dataset": TRAIN_SHRINK,  # cdhc: no --units
+    "kinectdata train-baseline --data ltd_dataset": [*TRAIN_SHRINK, "--channels", "64", "--decoder-channels", "64"],
     "kinectdata render": ["--fps", "5", "--size", "160x120"],
 }
 """Options appended to commands that start so (the last value of an option wins), to keep the

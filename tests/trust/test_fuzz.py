@@ -658,6 +658,34 @@ def test_a_shard_that_crashes_or_hangs_libhdf5_is_a_format_error(shard, tmp_path
     assert validate_shard(path) == validate_shard(path, isolated=False)  # the child answers as in process
 
 
+def test_one_child_checks_shard_after_shard_and_a_crash_costs_only_that_child(shard, tmp_path, monkeypatch):
+    """The checking child is started once and reused; one that a file crashed is replaced, and the
+    checks after it answer as in process."""
+    from kinectdata.dataset.isolation import ShardChecker
+
+    good, bad = tmp_path / "train-00000.h5", tmp_path / "val-00000.h5"
+    good.write_bytes(shard.data)
+    data = bytearray(shard.data)
+    _vlen_type_bits_set_to_0xEA(data)
+    bad.write_bytes(bytes(data))
+    checker = ShardChecker()
+    try:
+        expected = validate_shard(good, isolated=False)
+        assert checker.check(good, 30.0) == expected
+        first = checker._process.pid
+        assert checker.check(good, 30.0) == expected and checker._process.pid == first  # the same child
+        with pytest.raises(FormatError, match="crashed the HDF5 library"):
+            checker.check(bad, 30.0)
+        assert checker._process is None  # the crashed one is gone
+        assert checker.check(good, 30.0) == expected and checker._process.pid != first
+        monkeypatch.chdir(tmp_path)  # a relative path is the caller's, wherever the child started
+        assert checker.check(Path(good.name), 30.0) == expected
+        child = checker._process
+    finally:
+        checker.close()
+    assert child.poll() is not None  # closing ends it
+
+
 # -- aligned recordings
 
 
