@@ -88,6 +88,7 @@ def test_synth_is_deterministic(tmp_path):
         assert a == (tmp_path / "b" / f"synth_005{suffix}").read_bytes()
 
 
+@pytest.mark.slow
 def test_quickstart_runs_on_the_bundled_samples(tmp_path, monkeypatch):
     pytest.importorskip("torch")
     monkeypatch.chdir(REPO)
@@ -108,6 +109,7 @@ def test_quickstart_runs_on_the_bundled_samples(tmp_path, monkeypatch):
         assert (tmp_path / "qs" / "run" / name).is_file(), name
 
 
+@pytest.mark.slow
 def test_listen_to_dance_quickstart(tmp_path):
     pytest.importorskip("torch")
     result = run(
@@ -122,6 +124,7 @@ def test_listen_to_dance_quickstart(tmp_path):
     assert run("quickstart", "--pipeline", "listen-to-dance", "--samples", tmp_path).exit_code == 2
 
 
+@pytest.mark.slow
 def test_training_commands_end_to_end(sample_dataset, tmp_path):
     pytest.importorskip("torch")
     runs = tmp_path / "run"

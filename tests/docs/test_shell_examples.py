@@ -298,6 +298,7 @@ def _examples_by_document() -> list:
     return [pytest.param(d, id=d.name) for d in DOCUMENTS if shell_examples(d)]
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("document", _examples_by_document())
 def test_every_shell_example_runs_as_written(document, tmp_path):
     work = tmp_path / "work"

@@ -294,6 +294,7 @@ def test_exported_files_describe_themselves(trained_run, tmp_path):
     assert json.loads(session.get_modelmeta().custom_metadata_map["kinectdata"]) == meta
 
 
+@pytest.mark.slow
 def test_sweep_writes_the_papers_table_and_reuses_finished_variants(sample_dataset, tmp_path):
     from kinectdata.models.registry import model_kind
     from kinectdata.training.sweep import sweep

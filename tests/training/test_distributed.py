@@ -136,6 +136,7 @@ def _options(settings: dict, **changes) -> list[str]:
     return [f"--{k.replace('_', '-')}={v}" for k, v in {**settings, **changes}.items()]
 
 
+@pytest.mark.slow
 def test_two_torchrun_processes_reach_the_losses_of_one(sample_dataset, tmp_path):
     """Global batch 8 (4 per rank) with gradient noise (the same on both ranks, or the replicas'
     check stops the run); the two-process run is trained one epoch, then resumed for the second.

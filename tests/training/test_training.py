@@ -72,6 +72,7 @@ def test_checkpoints_load_without_unpickling(trained_run, tmp_path):
         load_model(tmp_path)
 
 
+@pytest.mark.slow
 def test_a_resumed_run_equals_an_uninterrupted_one(sample_dataset, tmp_path):
     """With gradient noise on and predicted feedback, so every random generator must be restored;
     resumed once after an interruption (with the run's own settings) and once to train longer."""

@@ -196,6 +196,7 @@ def _alive(pid: int) -> bool:
 
 
 @pytest.mark.skipif(not Path("/proc/self/task").is_dir(), reason="needs Linux's /proc")
+@pytest.mark.slow
 def test_workers_exit_when_their_build_is_killed(tmp_path):
     subprocess.run(
         [sys.executable, "-m", "kinectdata", "synth", str(tmp_path / "in"), "--count", "4", "--duration", "30"],
