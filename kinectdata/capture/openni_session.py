@@ -1,6 +1,7 @@
 """The OpenNI2 side of a capture, run in its own process (``python -m kinectdata.capture.openni_session
 SETTINGS.json``): OpenNI2 drivers may crash while the library unloads at process exit, after
-the recording is complete, and that must not take the capture command down with it.
+the recording is complete, and that must not take the capture command down with it (nor keep
+it waiting: the process exits without unloading once the take and its status are written).
 
 It opens the device, records depth (and colour) to the ``.oni`` with OpenNI2's recorder, reads
 every depth frame to note when it arrived on the monotonic clock, runs NiTE2's user tracker
@@ -12,6 +13,7 @@ arrival times), the skeleton's tracked frames, and what went wrong. The parent
 from __future__ import annotations
 
 import json
+import os
 import sys
 import time
 from pathlib import Path
@@ -69,6 +71,7 @@ def run(settings: dict[str, Any]) -> dict[str, Any]:
             stamp, index = int(frame.timestamp), int(frame.frameIndex)
         status["frames"].append([stamp, index, arrived])
     recorder.stop()
+    recorder.close()  # completes the file (seek table, END record) now, not when the library unloads
     for stream in streams:
         stream.stop()
     if tracker is not None:
@@ -87,6 +90,9 @@ def main(argv: list[str]) -> None:
     tmp.write_text(json.dumps(status, default=lambda o: o.tolist() if isinstance(o, np.ndarray) else str(o)))
     tmp.replace(out)
     print("captured", flush=True)
+    # everything is written: exit without unloading OpenNI2, whose drivers can crash or hang there
+    # (a hang would keep the capture command waiting, then lose a complete take)
+    os._exit(0)
 
 
 if __name__ == "__main__":

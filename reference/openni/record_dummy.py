@@ -1,9 +1,11 @@
-"""Record OpenNI2's Dummy device to an .oni file (run as a child process: OpenNI2 may crash
-while unloading, after the file is complete and this has printed "recorded").
+"""Record OpenNI2's Dummy device to an .oni file (run as a child process: OpenNI2 may crash or hang
+while unloading; the recorder is destroyed first, which completes the file (seek table, END
+record), and the process then exits without unloading).
 
 usage: record_dummy.py OPENNI2_DIR OUT.oni SECONDS [--color] [--lossy]
 """
 
+import os
 import sys
 import time
 
@@ -25,9 +27,11 @@ def main(argv: list[str]) -> None:
     while time.monotonic() - started < seconds:
         streams[0].read_frame()
     recorder.stop()
+    recorder.close()  # destroys the recorder, which writes the seek table and END record; not left to unloading
     for stream in streams:
         stream.stop()
     print("recorded", flush=True)
+    os._exit(0)  # the file is complete: skip OpenNI2's unloading, which can hang on a loaded machine
 
 
 if __name__ == "__main__":
