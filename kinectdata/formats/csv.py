@@ -21,9 +21,9 @@ from array import array
 from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
-import pandas as pd
 
 from kinectdata.core.errors import FormatError, KinectDataError
 from kinectdata.core.jointsets import JointSet, find_joint_set, load_joint_set, shipped_joint_sets
@@ -32,6 +32,9 @@ from kinectdata.core.quaternions import reorder, split_missing_and_normalise
 from kinectdata.formats.common import choose_body, count_bodies, first_bad_time, read_text
 from kinectdata.formats.csv_schema import JOINT, CsvSchema, joint_set_of, load_csv_schema, shipped_csv_schemas
 from kinectdata.formats.registry import register_reader
+
+if TYPE_CHECKING:  # pandas is imported where a file is parsed: it costs 0.25 s at start-up
+    import pandas as pd
 
 _META_LINE = re.compile(r"^\s*([A-Za-z_][\w.-]*)\s*:\s*(.*?)\s*$")
 _DETECT_LINES = 64
@@ -69,6 +72,8 @@ class _Table:
 
     def load(self, numeric: set[str], text: set[str]) -> None:
         """Parse the given columns (numbers checked cell by cell, text kept as strings)."""
+        import pandas as pd
+
         if self.bad_row is not None:
             line, found, text = self.bad_row
             what = "the header" if self.header_line is not None else f"the {self.schema.name} schema"
@@ -118,6 +123,8 @@ class _Table:
     def _chunks(self, reader: Iterator[pd.DataFrame]) -> Iterator[tuple[pd.DataFrame, np.ndarray]]:
         """pandas' chunks with the line numbers of their rows, checking that pandas finds the rows the
         first pass found (the line numbers of every error depend on it)."""
+        import pandas as pd
+
         start = 0
         while True:
             at = int(self.lines[min(start, len(self.lines) - 1)])
@@ -141,6 +148,8 @@ class _Table:
         Cells listed in the schema's ``missing_values`` are missing (value NaN). Any other cell
         that is not a finite number raises FormatError with its line and column.
         """
+        import pandas as pd
+
         if pd.api.types.is_numeric_dtype(series.dtype):
             # NaN here can only be a missing_values cell: other text keeps the column as strings
             values = series.to_numpy(dtype=np.float64, copy=True)
@@ -166,6 +175,8 @@ class _Table:
     def _to_float(self, cells: pd.Series) -> np.ndarray:
         """[n] float64 of number texts (NaN where a cell is not one), in the dialect's decimal
         separator: with a decimal comma a cell written with a point is not a number."""
+        import pandas as pd
+
         if self.schema.decimal != ".":
             point = cells.str.contains(".", regex=False)
             cells = cells.str.replace(self.schema.decimal, ".", regex=False).mask(point, "")

@@ -38,7 +38,6 @@ import re
 from pathlib import Path
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 from kinectdata.core.errors import FormatError
 from kinectdata.core.jointsets import JointSet, find_cycle
@@ -298,6 +297,8 @@ def _forward_kinematics(
     ``base`` [J, 7] and ``values`` [T, J, 7] as in the file; ``bad`` [T, J] is extended in place
     to the descendants of each bad segment frame.
     """
+    from scipy.spatial.transform import Rotation  # here: scipy.spatial costs 0.2 s at start-up
+
     T, J = values.shape[:2]
     axes = ["XYZ".index(c) for c in order]  # the angle columns in the order's sequence
     positions = np.zeros((T, J, 3))

@@ -74,7 +74,6 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from scipy.optimize import linear_sum_assignment
 
 from kinectdata.core.errors import FormatError
 from kinectdata.core.jointsets import load_joint_set
@@ -204,6 +203,8 @@ def track_people(
     Returns:
         [n] int track index per detection.
     """
+    from scipy.optimize import linear_sum_assignment  # here: scipy.optimize is slow to import
+
     n = len(frame_numbers)
     track = np.full(n, -1)
     if n == 0:

@@ -24,7 +24,6 @@ from __future__ import annotations
 from typing import Any
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 from kinectdata.core.motion import Motion
 from kinectdata.targets.specs import TargetSpec
@@ -36,6 +35,8 @@ MAX_SPREAD = 0.25
 def bone_offsets(motion: Motion, spec: TargetSpec) -> dict[str, dict[str, Any]]:
     """Per joint of the motion's joint set that the spec's orientations can place: ``{"frame":
     "parent"|"self", "offset": [x, y, z] metres in that frame, "spread": metres, "count": frames}``."""
+    from scipy.spatial.transform import Rotation  # here: scipy.spatial costs 0.2 s at start-up
+
     if motion.orientations is None or not spec.orientations or spec.dimensions != 3:
         return {}
     js = motion.joint_set
@@ -92,6 +93,8 @@ def rebuild_positions(
     ``root_centred``: the targets were root-centred (:func:`kinectdata.targets.specs.extract_targets`):
     the other listed positions are offsets from the root at the same frame, so the root's position
     is added back to them (the root itself stays relative to its first second)."""
+    from scipy.spatial.transform import Rotation  # here: scipy.spatial costs 0.2 s at start-up
+
     from kinectdata.core.jointsets import load_joint_set
 
     js = load_joint_set(spec.joint_set)
