@@ -300,6 +300,16 @@ MAX_ABS_POSITION = {3: 1e3, 2: 1e6}
 pixels in an image (2-D)."""
 
 
+def position_limit(dimensions: int) -> float:
+    """The largest believable coordinate (:data:`MAX_ABS_POSITION`) of a joint set of ``dimensions``."""
+    return MAX_ABS_POSITION.get(dimensions, 1e6)
+
+
+def describe_position_limit(dimensions: int) -> str:
+    """:func:`position_limit` with its unit, for messages: ``1000 m``, ``1e+06 px``."""
+    return f"{position_limit(dimensions):g} {'m' if dimensions == 3 else 'px'}"
+
+
 def implausible_values(motion: Motion) -> tuple[np.ndarray, np.ndarray | None]:
     """Where a recording's valid values cannot be true.
 
@@ -309,7 +319,7 @@ def implausible_values(motion: Motion) -> tuple[np.ndarray, np.ndarray | None]:
         (None without orientations): orientations marked valid that are not finite or whose norm is
         more than :data:`~kinectdata.core.quaternions.UNIT_TOLERANCE` from 1.
     """
-    limit = MAX_ABS_POSITION.get(motion.joint_set.dimensions, 1e6)
+    limit = position_limit(motion.joint_set.dimensions)
     with np.errstate(invalid="ignore", over="ignore"):
         positions = motion.position_mask & ~(np.abs(motion.positions) <= limit).all(axis=-1)
         if motion.orientations is None:
@@ -407,10 +417,9 @@ def format_summary(rec: AlignedRecording) -> str:
         f"{100 * s['masked_share']:.2f}% masked, {s['long_gaps']} gap(s) longer than max-gap",
     ]
     if s.get("implausible_positions") or s.get("implausible_orientations"):
-        unit = "m" if rec.motion.joint_set.dimensions == 3 else "px"
         lines.append(
             f"implausible     {s.get('implausible_positions', 0)} joint position(s) not finite or beyond "
-            f"{MAX_ABS_POSITION.get(rec.motion.joint_set.dimensions, 1e6):g} {unit}, "
+            f"{describe_position_limit(rec.motion.joint_set.dimensions)}, "
             f"{s.get('implausible_orientations', 0)} orientation(s) not finite or not unit quaternions: "
             "masked as tracking loss"
         )

@@ -148,17 +148,16 @@ def _implausible_lines(motion) -> list[str]:
     """The line for valid values that cannot be true (positions not finite or beyond
     :data:`~kinectdata.align.recipe.MAX_ABS_POSITION`, orientations that are not unit
     quaternions), which ``align`` masks as tracking loss, with the first frame holding one; or none."""
-    from kinectdata.align.recipe import MAX_ABS_POSITION, implausible_values
+    from kinectdata.align.recipe import describe_position_limit, implausible_values
 
     positions, orientations = implausible_values(motion)
     bad = positions | (orientations if orientations is not None else False)
     if not bad.any():
         return []
     frame = int(np.flatnonzero(bad.any(axis=1))[0])
-    unit = "m" if motion.joint_set.dimensions == 3 else "px"
     return [
         f"implausible     {int(positions.sum())} position(s) not finite or beyond "
-        f"{MAX_ABS_POSITION.get(motion.joint_set.dimensions, 1e6):g} {unit}"
+        f"{describe_position_limit(motion.joint_set.dimensions)}"
         + (f", {int(orientations.sum())} orientation(s) not unit quaternions" if orientations is not None else "")
         + f", first at frame {frame} ({motion.times[frame] - motion.times[0]:.3f} s): align masks them as tracking loss"
     ]

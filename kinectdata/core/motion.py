@@ -201,7 +201,7 @@ def frame_clock(times: np.ndarray) -> tuple[float, np.ndarray]:
         raise ConfigError(f"a frame rate needs at least two timestamps, got {times.size}")
     dt = np.diff(times)
     interval = float(np.median(dt))
-    steps = None
+    steps = number = None
     for _ in range(3):
         new = np.maximum(1.0, np.round(dt / interval))
         if steps is not None and np.array_equal(new, steps):
@@ -209,4 +209,4 @@ def frame_clock(times: np.ndarray) -> tuple[float, np.ndarray]:
         steps = new
         number = np.concatenate([[0.0], np.cumsum(steps)])
         interval = float(np.polyfit(number, times - times[0], 1)[0])  # shifted: slope unchanged, precision kept
-    return interval, np.concatenate([[0.0], np.cumsum(steps)])
+    return interval, number

@@ -73,6 +73,7 @@ class ShardChecker:
         self._lock = threading.Lock()
         self._process: subprocess.Popen | None = None
         self._stderr = None
+        self._buffer = b""  # what the child wrote past its last answer line
         self._owner = 0  # the pid that started the child: a forked copy of this object starts its own
 
     def check(self, path: Path, timeout: float) -> dict[str, int]:

@@ -22,6 +22,7 @@ from kinectdata.core.atomic import atomic_hdf5
 from kinectdata.core.errors import FormatError, KinectDataError
 from kinectdata.core.resources import load_json, schemas_dir
 from kinectdata.core.version import __version__
+from kinectdata.dataset.isolation import check_isolated
 from kinectdata.features import feature_config
 from kinectdata.targets.specs import TargetSpec
 
@@ -190,7 +191,7 @@ def validate_shard(path: str | Path, *, isolated: bool = True) -> dict[str, int]
     """
     path = Path(path)
     if isolated:
-        return _validate_in_child(path)
+        return check_isolated(path, ISOLATION_TIMEOUT_S)
     spec = layout()
     try:
         f = h5py.File(path, "r")
@@ -221,12 +222,6 @@ def _read_layout(f: h5py.File, path: Path, spec: dict[str, Any]) -> tuple[dict[s
         return attrs, datasets
     except _DAMAGE as exc:
         raise FormatError(path, f"damaged HDF5 file ({type(exc).__name__}: {exc})") from exc
-
-
-def _validate_in_child(path: Path) -> dict[str, int]:
-    from kinectdata.dataset.isolation import check_isolated
-
-    return check_isolated(path, ISOLATION_TIMEOUT_S)
 
 
 def _validate(path: Path, spec: dict[str, Any], attrs: dict[str, Any], datasets: dict[str, Any]) -> dict[str, int]:

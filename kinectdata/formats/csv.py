@@ -366,8 +366,7 @@ def _check_row_is_the_dialects(path: Path, schema: CsvSchema, names: list[str], 
     """FormatError saying that the file is not in the (headerless) dialect when its first data row
     has another field count or is mostly not numbers (a wrong ``--schema``)."""
     fields = _split_fields(row, schema.delimiter)
-    numbers = sum(_is_number(f.replace(schema.decimal, ".")) for f in fields)
-    if len(fields) == len(names) and numbers >= 0.5 * len(fields):
+    if len(fields) == len(names) and _numeric_share(fields, schema) >= 0.5:
         return
     raise FormatError(
         path,
@@ -827,7 +826,12 @@ def _schema_matches(schema: CsvSchema, lines: list[str]) -> bool:
     if len(fields) != len(names):
         return False
     # mostly numbers: a corrupt cell should be reported by the reader, not mistaken for a dialect
-    return sum(_is_number(f.replace(schema.decimal, ".")) for f in fields) >= 0.9 * len(fields)
+    return _numeric_share(fields, schema) >= 0.9
+
+
+def _numeric_share(fields: list[str], schema: CsvSchema) -> float:
+    """The share of ``fields`` that are numbers in the dialect's decimal separator (0 for none)."""
+    return sum(_is_number(f.replace(schema.decimal, ".")) for f in fields) / max(len(fields), 1)
 
 
 def _is_number(text: str) -> bool:

@@ -71,7 +71,7 @@ def write_csv(
     fnames = sch.file_joint_names(js)
     missing_text = sorted(sch.missing_values)[0] if sch.missing_values else None
 
-    written = sch.joints_in_file(js) if "joints" in doc else list(range(J))  # the joints the dialect holds
+    written = sch.joints_in_file(js)  # the joints the dialect holds (all of the set unless it lists some)
 
     def fmt(a: np.ndarray, spec: str) -> np.ndarray:
         text = np.char.mod(spec, np.nan_to_num(a))

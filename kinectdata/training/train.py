@@ -26,6 +26,7 @@ import io
 import json
 import math
 import time
+import warnings
 from collections.abc import Callable
 from contextlib import contextmanager
 from pathlib import Path
@@ -83,8 +84,6 @@ class TrainingWarning(KinectDataWarning):
 
 
 def _warn_if_too_few_steps(windows: int, config: TrainConfig, world: World) -> None:
-    import warnings
-
     per_epoch = math.ceil(windows / config.batch_size)
     total = per_epoch * config.epochs
     if total < MIN_STEPS and world.main:
@@ -443,8 +442,6 @@ def train(
             history.append(row)
             said = loss_warning(history, config.lr) if world.main else None
             if said:
-                import warnings
-
                 warnings.warn(said, TrainingWarning, stacklevel=2)
             if world.main:  # the others keep no files
                 _write_log(run, history)
@@ -477,8 +474,6 @@ def train(
         return history
     said = ending_warning(history, config.lr)
     if said:
-        import warnings
-
         warnings.warn(said, TrainingWarning, stacklevel=2)
     title = f"{run.name}: {kind.describe(config.settings)}"
     loss_curves(history, run / "loss.png", title=title, loss_name=kind.loss_name(config.settings))

@@ -160,21 +160,27 @@ def _oni_take(work: Path) -> None:
     write_oni(work / "take.oni", [StreamSpec("Depth", "depth", "16zT", depth)])
 
 
-def _openpose_take(work: Path) -> None:
-    """An OpenPose --write_json folder of a dancer and a passer-by (person "1")."""
+def _synth_openpose(work: Path, dest: Path) -> None:
+    """An OpenPose --write_json folder of a dancer and a passer-by (person "1"), at ``dest``."""
     _kinectdata("synth", work / ".synth", "--format", "openpose", "--duration", 10, "--seed", 2, cwd=work)
-    shutil.move(work / ".synth" / "synth_002_openpose", work / "video_openpose")
+    shutil.move(work / ".synth" / "synth_002_openpose", dest)
     shutil.rmtree(work / ".synth")
 
 
+def _openpose_take(work: Path) -> None:
+    _synth_openpose(work, work / "video_openpose")
+
+
 def _openpose_jsonl(work: Path) -> None:
-    """What a cdhc run's generate writes: OpenPose JSON Lines."""
+    """What a cdhc run's generate writes: OpenPose JSON Lines (from a folder of its own: an earlier
+    example's video_openpose/ stays as it is)."""
     from kinectdata.formats import read_motion
     from kinectdata.formats.openpose_writer import write_openpose_jsonl
 
-    _openpose_take(work)
-    write_openpose_jsonl(read_motion(work / "video_openpose", video_fps=30), work / "dance.jsonl")
-    shutil.rmtree(work / "video_openpose")
+    folder = work / ".jsonl_source"
+    _synth_openpose(work, folder)
+    write_openpose_jsonl(read_motion(folder, video_fps=30), work / "dance.jsonl")
+    shutil.rmtree(folder)
 
 
 def _openpose_videos(work: Path) -> None:
