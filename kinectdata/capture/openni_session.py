@@ -15,11 +15,28 @@ from __future__ import annotations
 import json
 import os
 import sys
+import threading
 import time
 from pathlib import Path
 from typing import Any
 
 import numpy as np
+
+# OpenNI2 2.2's recorder can deadlock when destroyed right after being stopped (2 of 40 dummy
+# recordings on a loaded 2-core machine); a pause between the two avoided it in every later trial.
+STOP_TO_DESTROY_S = 0.3
+FINISH_TIMEOUT_S = 20.0  # a recorder still finishing after this has hung: the take is reported lost
+
+
+def _finish_recording(recorder: Any) -> bool:
+    """Stop and destroy OpenNI2's recorder, which writes the file's seek table and END record;
+    False when that hangs (the process then exits without waiting for it)."""
+    recorder.stop()
+    time.sleep(STOP_TO_DESTROY_S)
+    closing = threading.Thread(target=recorder.close, daemon=True)
+    closing.start()
+    closing.join(FINISH_TIMEOUT_S)
+    return not closing.is_alive()
 
 
 def run(settings: dict[str, Any]) -> dict[str, Any]:
@@ -70,8 +87,8 @@ def run(settings: dict[str, Any]) -> dict[str, Any]:
             arrived = time.monotonic()
             stamp, index = int(frame.timestamp), int(frame.frameIndex)
         status["frames"].append([stamp, index, arrived])
-    recorder.stop()
-    recorder.close()  # completes the file (seek table, END record) now, not when the library unloads
+    if not _finish_recording(recorder):  # now, not when the library unloads
+        return {"error": f"OpenNI2's recorder hung while finishing {settings['oni']} (no END record written)"}
     for stream in streams:
         stream.stop()
     if tracker is not None:

@@ -123,18 +123,24 @@ def openni2_missing() -> str | None:
     return None
 
 
-def record_dummy(out: str | os.PathLike, seconds: float = 1.0, *, color: bool = False, lossy: bool = False) -> None:
+def record_dummy(
+    out: str | os.PathLike, seconds: float = 1.0, *, color: bool = False, lossy: bool = False, attempts: int = 3
+) -> None:
     """Record OpenNI2's Dummy device (depth 320x240 16zT; with ``color`` also RGB, JPEG when
-    ``lossy``) for about ``seconds`` into ``out``, in a child process."""
+    ``lossy``) for about ``seconds`` into ``out``, in a child process. A child that hangs (OpenNI2's
+    recorder can deadlock while it finishes the file, see record_dummy.py) is killed and the
+    recording made again, up to ``attempts`` times."""
     from kinectdata.oni.skeleton import openni2_dir
 
-    done = subprocess.run(
-        [sys.executable, str(HERE / "record_dummy.py"), str(openni2_dir()), str(out), str(seconds)]
-        + (["--color"] if color else [])
-        + (["--lossy"] if lossy else []),
-        capture_output=True,
-        text=True,
-        timeout=120,
-    )
-    if "recorded" not in done.stdout:
-        raise RuntimeError(f"OpenNI2 recording failed (exit {done.returncode}): {done.stderr.strip()[-500:]}")
+    command = [sys.executable, str(HERE / "record_dummy.py"), str(openni2_dir()), str(out), str(seconds)]
+    command += (["--color"] if color else []) + (["--lossy"] if lossy else [])
+    for attempt in range(1, attempts + 1):
+        try:
+            done = subprocess.run(command, capture_output=True, text=True, timeout=30 + 2 * seconds)
+        except subprocess.TimeoutExpired:
+            if attempt == attempts:
+                raise RuntimeError(f"OpenNI2 recording hung {attempts} times (record_dummy.py)") from None
+            continue
+        if "recorded" not in done.stdout:
+            raise RuntimeError(f"OpenNI2 recording failed (exit {done.returncode}): {done.stderr.strip()[-500:]}")
+        return

@@ -223,3 +223,21 @@ def test_nobody_tracked_keeps_the_recording(openni2, tmp_path, monkeypatch):
     doc = capture_take(tmp_path / "take", device="Dummy", duration_s=0.4)
     assert doc["skeleton"] is None and any("tracked no skeleton" in p for p in doc["problems"])
     assert (tmp_path / "take" / "take.oni").is_file() and (tmp_path / "take" / "take.json").is_file()
+
+
+def test_a_recorder_that_hangs_while_finishing_is_reported_not_waited_for(monkeypatch):
+    """OpenNI2's recorder can deadlock in its destroy: the session gives up after its timeout and
+    reports it, instead of keeping the capture command waiting."""
+    from kinectdata.capture import openni_session
+
+    released = threading.Event()
+    calls = []
+    recorder = SimpleNamespace(stop=lambda: calls.append("stop"), close=lambda: released.wait(30))
+    monkeypatch.setattr(openni_session, "STOP_TO_DESTROY_S", 0.0)
+    monkeypatch.setattr(openni_session, "FINISH_TIMEOUT_S", 0.2)
+    started = time.monotonic()
+    assert openni_session._finish_recording(recorder) is False
+    assert calls == ["stop"] and time.monotonic() - started < 5
+    released.set()
+    finished = SimpleNamespace(stop=lambda: None, close=lambda: None)
+    assert openni_session._finish_recording(finished) is True
