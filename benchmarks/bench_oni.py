@@ -1,4 +1,4 @@
-"""Decoding speed of ``.oni`` depth recordings, against OpenNI's own player.
+"""Decoding speed of ``.oni`` recordings, against OpenNI's own player.
 
 A 640x480 depth recording in OpenNI's default codec (16zT), 150 frames (5 s at 30 fps) of a
 Kinect-like scene: a back wall, the floor, a person moving, 1 % holes and the sensor's blind
@@ -7,14 +7,21 @@ about as real Kinect depth does, to roughly a fifth). When OpenNI 1.x is install
 is written by OpenNI's recorder and also decoded by OpenNI's player (fastest playback, one
 thread); otherwise kinectdata's reference writer makes it and only kinectdata is timed.
 
-Printed: frames/s of kinectdata (open + decode every frame, one core, best of 3), of OpenNI,
-their ratio (target: at least 200 frames/s), the same for 16zP (no value table) and for a
-640x480 RGB stream in Im8z, and the time to open the file.
+Printed, for 16zT, 16zP (no value table) and a 640x480 RGB stream in Im8z: OpenNI's frames/s, and
+kinectdata's (open + decode every frame, one core, best of 3) with each decoder path in the same
+run, the compiled byte loops (numba, ``kinectdata[fast]``) and the numpy ones (``KINECTDATA_JIT=0``),
+each as a ratio to OpenNI next to the goal (at least 1.0x OpenNI); for the compiled path also the
+two parts of a frame's time, each timed alone: the reader's (record header, payload view) and the
+decoder's. Then the compiled decoders' costs: the first decode of each codec in a new process with
+an empty numba cache (compiling) and with the cache filled (loading), numba's import time, and the
+size of numba and llvmlite installed.
 """
 
 from __future__ import annotations
 
+import json
 import os
+import subprocess
 import sys
 import tempfile
 import time
@@ -23,7 +30,7 @@ from pathlib import Path
 
 import numpy as np
 
-from kinectdata.oni import OniFile
+from kinectdata.oni import OniFile, codecs
 
 from .summary import record
 
@@ -78,11 +85,106 @@ def time_kinectdata(path: Path, kind: str) -> tuple[float, float]:
     return best, opened
 
 
+def time_parts(path: Path, kind: str) -> tuple[float, float]:
+    """Seconds per frame of the two parts of reading a frame, each alone, best of 3: the reader's
+    (the frame's record header, then a view of its payload in the mapped file, as
+    ``OniFile.read_frame`` takes it) and the decoder's (from payloads copied out beforehand)."""
+    from kinectdata.oni import records
+
+    with OniFile(path) as oni:
+        s = oni.stream(kind)
+        count = int(np.prod(s.frame_layout[0]))
+        table = s.codec == "16zT"
+        reader = decoder = float("inf")
+        payloads = []
+        for position in s.positions:
+            rec = oni.layout.read(oni._data, int(position), oni.source)
+            payloads.append(oni._data[rec.payload_position : rec.end])
+        for _ in range(3):
+            start = time.perf_counter()
+            for position in s.positions:  # each payload dropped before the next, as in a reading loop
+                rec = oni.layout.read(oni._data, int(position), oni.source)
+                records.parse_new_data(rec, oni.source)
+                payload = memoryview(oni._data)[rec.payload_position : rec.end]
+                del payload
+            reader = min(reader, (time.perf_counter() - start) / len(payloads))
+            start = time.perf_counter()
+            for payload in payloads:
+                if s.codec == "Im8z":
+                    codecs.decode_8z(payload, count)
+                else:
+                    codecs.decode_16z(payload, count, table=table)
+            decoder = min(decoder, (time.perf_counter() - start) / len(payloads))
+    return reader, decoder
+
+
+def jit_setting(value: str | None) -> None:
+    """Set (or, None, unset) ``KINECTDATA_JIT``: the decoders read it at every call."""
+    if value is None:
+        os.environ.pop("KINECTDATA_JIT", None)
+    else:
+        os.environ["KINECTDATA_JIT"] = value
+
+
+FIRST_DECODES = """
+import json, sys, time
+start = time.perf_counter()
+import numba
+took = {"import numba": time.perf_counter() - start}
+import numpy as np
+from kinectdata.oni import codecs
+assert codecs.jit_available()
+frame = np.arange(640 * 480, dtype=np.uint16) % 1000
+depth = frame.astype("<u2").tobytes()[:2] + bytes([0x66]) * (frame.size // 2)  # a valid 16z stream
+table = (1000).to_bytes(2, "little") + np.arange(1000, dtype="<u2").tobytes()
+for name, decode in (
+    ("16zT", lambda: codecs.decode_16z(table + depth, frame.size, table=True)),
+    ("16zP", lambda: codecs.decode_16z(depth, frame.size, table=False)),
+    ("Im8z", lambda: codecs.decode_8z(bytes([7]) + bytes([0x66]) * (frame.size // 2), frame.size)),
+):
+    start = time.perf_counter()
+    decode()
+    took[name] = time.perf_counter() - start
+print(json.dumps(took))
+"""
+
+
+def first_decodes() -> tuple[dict[str, float], dict[str, float]]:
+    """Seconds of each codec's first decode in a new process: (with an empty numba cache, with
+    the cache that run filled), and numba's import time, in a NUMBA_CACHE_DIR of their own."""
+    runs = []
+    with tempfile.TemporaryDirectory() as cache:
+        env = dict(os.environ, NUMBA_CACHE_DIR=cache)
+        env.pop("KINECTDATA_JIT", None)
+        for _ in range(2):
+            done = subprocess.run(
+                [sys.executable, "-c", FIRST_DECODES], env=env, capture_output=True, text=True, check=True
+            )
+            runs.append(json.loads(done.stdout))
+    return runs[0], runs[1]
+
+
+def installed_mb(package: str) -> float:
+    """Disk use of an installed package's folder in MB, as ``du`` counts it (allocated blocks)."""
+    import importlib.util
+
+    folder = Path(importlib.util.find_spec(package).origin).parent
+    blocks = sum(os.lstat(os.path.join(root, name)).st_blocks for root, _, names in os.walk(folder) for name in names)
+    return blocks * 512 / 1e6
+
+
+def verdict(ratio: float) -> str:
+    return f"goal >= 1.0x OpenNI: {'met' if ratio >= 1.0 else 'not met'}"
+
+
 def main() -> None:
     os.environ.setdefault("OMP_NUM_THREADS", "1")
     depth = np.stack([depth_frame(k) for k in range(FRAMES)])
     image = np.stack([image_frame(k) for k in range(30)])
     missing = openni_ref.openni1_missing()
+    jit_missing = codecs.jit_missing()
+    saved = os.environ.get("KINECTDATA_JIT")
+    paths = [("compiled (numba)", None), ("numpy", "0")] if jit_missing is None else [("numpy", "0")]
     with tempfile.TemporaryDirectory() as tmp:
         files = {}
         for codec in ("16zT", "16zP"):
@@ -101,30 +203,65 @@ def main() -> None:
             f"{WIDTH}x{HEIGHT}, {FRAMES} depth frames; recordings written by "
             + ("OpenNI 1.x's recorder" if missing is None else f"kinectdata's reference writer ({missing})")
         )
+        if jit_missing is not None:
+            print(f"  compiled decoders not timed: {jit_missing}")
         raw = depth[0].nbytes
-        for label, path, kind in (
-            ("16zT depth", files["16zT"], "depth"),
-            ("16zP depth", files["16zP"], "depth"),
-            ("Im8z RGB", im8z, "image"),
-        ):
-            with OniFile(path) as oni:
-                s = oni.stream(kind)
-                size = oni.read_frame(s, 0).data.nbytes
-                compressed = (path.stat().st_size - 2000) / s.n_frames  # about 2 kB of header and tables
-                node = s.name
-            fps, opened = time_kinectdata(path, kind)
-            share = compressed / (raw if kind == "depth" else size)
-            line = f"  {label:<11} {share:5.1%} of raw; kinectdata {fps:7.1f} frames/s"
-            if missing is None:
-                frames, seconds = openni_ref.bench(path, node, 3)
-                theirs = frames / seconds
-                line += f", OpenNI {theirs:7.1f} frames/s, ratio {fps / theirs:.2f}"
-            line += f"; open {opened * 1000:.1f} ms"
-            ratio = f", {fps / theirs:.2f}x OpenNI" if missing is None else ""
-            record(".oni", f"decode {label} {WIDTH}x{HEIGHT}, one core", f"{fps:.1f} frames/s{ratio}")
-            if label == "16zT depth":
-                line += "  (target: >= 200 frames/s)"
-            print(line)
+        try:
+            for label, path, kind in (
+                ("16zT depth", files["16zT"], "depth"),
+                ("16zP depth", files["16zP"], "depth"),
+                ("Im8z RGB", im8z, "image"),
+            ):
+                with OniFile(path) as oni:
+                    s = oni.stream(kind)
+                    size = oni.read_frame(s, 0).data.nbytes
+                    compressed = (path.stat().st_size - 2000) / s.n_frames  # about 2 kB of header and tables
+                    node = s.name
+                share = compressed / (raw if kind == "depth" else size)
+                line = f"  {label:<11} {share:5.1%} of raw"
+                theirs = None
+                if missing is None:
+                    frames, seconds = openni_ref.bench(path, node, 3)
+                    theirs = frames / seconds
+                    line += f"; OpenNI {theirs:7.1f} frames/s"
+                print(line)
+                for name, setting in paths:
+                    jit_setting(setting)
+                    fps, opened = time_kinectdata(path, kind)
+                    line = f"    kinectdata, {name:<16} {fps:7.1f} frames/s"
+                    figure = f"{fps:.1f} frames/s"
+                    if theirs is not None:
+                        line += f", {fps / theirs:5.2f}x OpenNI ({verdict(fps / theirs)})"
+                        figure += f", {fps / theirs:.2f}x OpenNI"
+                    line += f"; open {opened * 1000:.1f} ms"
+                    if setting is None:
+                        reader, decoder = time_parts(path, kind)
+                        line += f"; alone: reader {reader * 1000:.2f} ms/frame, decoder {decoder * 1000:.2f} ms/frame"
+                    print(line)
+                    record(".oni", f"decode {label} {WIDTH}x{HEIGHT}, one core, {name}", figure)
+        finally:
+            jit_setting(saved)
+    if jit_missing is None:
+        cold, warm = first_decodes()
+        codec_names = ("16zT", "16zP", "Im8z")
+        print(
+            "  compiled decoders, first decode in a new process (s): "
+            + ", ".join(f"{c} {cold[c]:.2f}" for c in codec_names)
+            + " compiling (empty numba cache); "
+            + ", ".join(f"{c} {warm[c]:.3f}" for c in codec_names)
+            + f" from the cache; import numba {warm['import numba']:.2f} s"
+        )
+        sizes = {p: installed_mb(p) for p in ("numba", "llvmlite")}
+        print(
+            f"  numba installed: numba {sizes['numba']:.0f} MB + llvmlite {sizes['llvmlite']:.0f} MB "
+            f"= {sum(sizes.values()):.0f} MB"
+        )
+        record(
+            ".oni",
+            "numba: first decode of a codec, compiling / from cache",
+            f"{max(cold[c] for c in codec_names):.2f} s / {max(warm[c] for c in codec_names):.3f} s",
+        )
+        record(".oni", "numba + llvmlite installed", f"{sum(sizes.values()):.0f} MB")
 
 
 if __name__ == "__main__":
