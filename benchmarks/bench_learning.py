@@ -163,10 +163,8 @@ def beat_metrics(run: Path, dataset: Path):
     def measure(net: torch.nn.Module) -> dict[str, float]:
         config = json.loads((run / "config.json").read_text())
         found = split_songs(net, config, dataset, "test")
-        recs = [
-            RecordingBeats(s.name, found.generate(s.features, s.first_pose), None, s.fps, s.beats_s, first_frame=1)
-            for s in found.songs
-        ]
+        motions = found.generate_many([(s.features, s.first_pose) for s in found.songs])
+        recs = [RecordingBeats(s.name, m, None, s.fps, s.beats_s, first_frame=1) for s, m in zip(found.songs, motions)]
         result = beat_following(recs, draws=100)
         return {
             "test_in_metre": result.in_metre.value,

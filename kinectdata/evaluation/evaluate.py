@@ -245,8 +245,8 @@ def evaluate(
     modes = (("without_reset", None), ("with_reset", sequence)) if kind.resets else (("without_reset", None),)
     for mode, reset in modes:
         generated, real, masks = [], [], []
-        for rec in recordings:
-            g = kind.free_run(net, rec["input"], rec["first_pose"], reset)
+        runs = kind.free_runs(net, [r["input"] for r in recordings], [r["first_pose"] for r in recordings], reset)
+        for rec, g in zip(recordings, runs):
             if reset is None:
                 free[rec["name"]] = norm.invert(g, spec)
             generated.append(g)
@@ -331,6 +331,7 @@ class SongSet:
         songs: the recordings whose music's beats are known (ground truth or tracked).
         generate: ``generate(features [T, ...], first_pose [D]) -> positions [T-1, J, C]``, the
             network run free as its model runs it, denormalised into the target's units.
+        generate_many: ``generate`` over a list of (features, first_pose), run together.
         features_of: ``features_of(samples [S]) -> features [T, ...]`` of mono audio at
             ``features_of.sample_rate``, on the motion clock.
         unavailable: why no recording has beats ("" when some have).
@@ -338,6 +339,7 @@ class SongSet:
 
     songs: list[HeldOutSong]
     generate: Callable[[np.ndarray, np.ndarray], np.ndarray]
+    generate_many: Callable[[list[tuple[np.ndarray, np.ndarray]]], list[np.ndarray]]
     features_of: Callable[[np.ndarray], np.ndarray]
     unavailable: str = ""
 
@@ -385,9 +387,12 @@ def _song_set(
     def body(values: np.ndarray, mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         return body_positions(values, mask, spec, config["dataset"])
 
+    def generate_many(jobs: list[tuple[np.ndarray, np.ndarray]]) -> list[np.ndarray]:
+        runs = kind.free_runs(net, [f for f, _ in jobs], [p for _, p in jobs])
+        return [body(v, np.ones_like(v, bool))[0] for v in (norm.invert(g, spec) for g in runs)]
+
     def generate(features: np.ndarray, first_pose: np.ndarray) -> np.ndarray:
-        values = norm.invert(kind.free_run(net, features, first_pose), spec)
-        return body(values, np.ones_like(values, bool))[0]
+        return generate_many([(features, first_pose)])[0]
 
     songs = []
     for r in recordings:
@@ -405,7 +410,7 @@ def _song_set(
         positions, pmask = body(norm.invert(r["current"], spec, mask=r["mask"]), r["mask"])
         songs.append(HeldOutSong(r["name"], r["input"], first, positions, pmask, music, fps, rms))
     why = "" if songs else "no recording of the split has music beats (ground truth or tracked)"
-    return SongSet(songs, generate, features_of, why)
+    return SongSet(songs, generate, generate_many, features_of, why)
 
 
 def split_songs(net: torch.nn.Module, run_config: dict[str, Any], dataset: str | Path, split: str = "test") -> SongSet:
@@ -443,7 +448,9 @@ def listening_controls(
             name: body_positions(values, np.ones_like(values, bool), spec, config["dataset"])[0]
             for name, values in (free or {}).items()
         }
-        return listening_report(found.songs, found.generate, found.features_of, seed=seed, generated=done).to_dict()
+        return listening_report(
+            found.songs, found.generate, found.features_of, seed=seed, generated=done, generate_many=found.generate_many
+        ).to_dict()
     except KinectDataError as exc:  # too short for two bars of lags, too few beats
         return {"unavailable": str(exc)}
 

@@ -219,6 +219,7 @@ def listening_report(
     seed: int = 0,
     draws: int = 500,
     generated: dict[str, np.ndarray] | None = None,
+    generate_many: Callable[[list[tuple[np.ndarray, np.ndarray]]], list[np.ndarray]] | None = None,
 ) -> Listening:
     """Run the generated-motion figures and the listening controls (module docstring).
 
@@ -233,10 +234,15 @@ def listening_report(
         draws: chance draws per recording.
         generated: per song name, ``generate(features, first_pose)`` when the caller has run it
             already (the rest are generated here).
+        generate_many: ``generate`` over a list of (features, first_pose) at once, when the model
+            runs several songs faster together than one by one (default: ``generate`` in turn).
     """
     if not songs:
         raise KinectDataError("the listening controls need at least one test song")
     rng = np.random.default_rng(seed)
+
+    def run_all(jobs: list[tuple[np.ndarray, np.ndarray]]) -> list[np.ndarray]:
+        return generate_many(jobs) if generate_many is not None else [generate(f, p) for f, p in jobs]
 
     def following(motions: list[tuple[str, np.ndarray, np.ndarray | None, HeldOutSong]], first: int) -> BeatFollowing:
         recs = [RecordingBeats(n, p, m, s.fps, s.beats_s, first_frame=first) for n, p, m, s in motions]
@@ -244,19 +250,20 @@ def listening_report(
 
     real = following([(s.name, s.real_positions, s.real_mask, s) for s in songs], 0)
     given = generated or {}
-    generated_positions = {
-        s.name: given[s.name] if s.name in given else generate(s.features, s.first_pose) for s in songs
-    }
+    missing = [s for s in songs if s.name not in given]
+    made = dict(zip([s.name for s in missing], run_all([(s.features, s.first_pose) for s in missing])))
+    generated_positions = {s.name: given[s.name] if s.name in given else made[s.name] for s in songs}
     generated = following([(s.name, generated_positions[s.name], None, s) for s in songs], 1)
 
     swapped = follows_new = follows_old = None
     partners = _swap_partners(songs, real)
     if partners:
-        runs = []
-        for i, j in partners:
-            length = min(len(songs[i].features), len(songs[j].features))
-            motion = generate(songs[j].features[:length], songs[i].first_pose)
-            runs.append((f"{songs[i].name} with {songs[j].name}'s music", motion, None, songs[j], songs[i]))
+        lengths = [min(len(songs[i].features), len(songs[j].features)) for i, j in partners]
+        motions = run_all([(songs[j].features[:n], songs[i].first_pose) for (i, j), n in zip(partners, lengths)])
+        runs = [
+            (f"{songs[i].name} with {songs[j].name}'s music", motion, None, songs[j], songs[i])
+            for (i, j), motion in zip(partners, motions)
+        ]
         swapped = following([(n, p, m, s) for n, p, m, s, _ in runs], 1)
         follows_new = float(np.mean([r.in_metre for r in swapped.recordings]))
         follows_old = float(
@@ -270,25 +277,24 @@ def listening_report(
 
     noise = None
     if all(s.rms is not None for s in songs):
-        motions = []
+        noisy = []
         for s in songs:
             audio = rng.normal(0.0, s.rms, _samples_for(s, features_of)).astype(np.float32)
-            features = features_of(audio)[: len(s.features)]
-            motions.append((s.name, generate(features, s.first_pose), None, s))
-        noise = following(motions, 1)
+            noisy.append((features_of(audio)[: len(s.features)], s.first_pose))
+        noise = following([(s.name, m, None, s) for s, m in zip(songs, run_all(noisy))], 1)
 
-    shifted_motions = []
+    rolled = []
     for s, rhythm in zip(songs, real.recordings):
         frames = len(s.features)
         shift = int(round((MIN_SHIFT_S + rng.uniform(0.25, 0.75) * rhythm.beat_period_s) * s.fps))
         shift = shift % frames if frames > 2 * shift else max(1, frames // 3)
-        shifted_motions.append((s.name, generate(np.roll(s.features, shift, axis=0), s.first_pose), None, s))
-    shifted = following(shifted_motions, 1)
+        rolled.append((np.roll(s.features, shift, axis=0), s.first_pose))
+    shifted = following([(s.name, m, None, s) for s, m in zip(songs, run_all(rolled))], 1)
 
+    silent = [features_of(np.zeros(_samples_for(s, features_of), np.float32))[: len(s.features)] for s in songs]
+    quiet = [(f, s.first_pose) for f, s in zip(silent, songs)]
     silence = []
-    for s in songs:
-        quiet = features_of(np.zeros(_samples_for(s, features_of), np.float32))[: len(s.features)]
-        still = generate(quiet, s.first_pose)
+    for s, still in zip(songs, run_all(quiet)):
         moving = generated_positions[s.name]
         silence.append(motion_energy_per_s(still[_settle(s) :], None, s.fps) / motion_energy_per_s(moving, None, s.fps))
     energy = float(

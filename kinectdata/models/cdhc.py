@@ -377,29 +377,55 @@ def generate(net: CdhcNet, audio: torch.Tensor | np.ndarray, first_pose: torch.T
     Returns:
         [T, D] float32 poses in 0..1.
     """
+    return generate_many(net, [audio], [first_pose])[0]
+
+
+def generate_many(
+    net: CdhcNet, audios: list[torch.Tensor | np.ndarray], first_poses: list[torch.Tensor | np.ndarray]
+) -> list[np.ndarray]:
+    """:func:`generate` for several songs at once, stepped as one batch: the per-frame cost is
+    mostly fixed, so N songs cost little more than the longest one. Shorter songs are padded
+    with zero features at their end, which (the network being causal) leaves their frames as
+    :func:`generate` makes them, up to float rounding.
+
+    Args:
+        audios: N feature sequences [T_i, F].
+        first_poses: N poses [D].
+
+    Returns:
+        N arrays [T_i, D] float32 in 0..1.
+    """
     config = net.config
     like = net.decoder.output.weight
-    audio = torch.as_tensor(audio).to(like)
-    pose = torch.as_tensor(first_pose).to(like)
-    if audio.dim() != 2 or audio.shape[1] != config.input_dim or len(audio) < 1:
-        raise KinectDataError(f"CDHC generate: audio must be [T >= 1, {config.input_dim}], not {list(audio.shape)}")
-    if pose.shape != (config.output_dim,):
-        raise KinectDataError(f"CDHC generate: first_pose must be [{config.output_dim}], not {list(pose.shape)}")
+    if len(audios) != len(first_poses) or not audios:
+        raise KinectDataError(f"CDHC generate: {len(audios)} songs but {len(first_poses)} first poses")
+    audios = [torch.as_tensor(a).to(like) for a in audios]
+    poses = [torch.as_tensor(p).to(like) for p in first_poses]
+    for a, p in zip(audios, poses):
+        if a.dim() != 2 or a.shape[1] != config.input_dim or len(a) < 1:
+            raise KinectDataError(f"CDHC generate: audio must be [T >= 1, {config.input_dim}], not {list(a.shape)}")
+        if p.shape != (config.output_dim,):
+            raise KinectDataError(f"CDHC generate: first_pose must be [{config.output_dim}], not {list(p.shape)}")
+    lengths = [len(a) for a in audios]
+    audio = torch.zeros(len(audios), max(lengths), config.input_dim, dtype=like.dtype, device=like.device)
+    for i, a in enumerate(audios):
+        audio[i, : len(a)] = a
     stream = StreamingCdhc(net)
     was_training = net.training
     net.eval()
     try:
         with torch.inference_mode():
-            codes, _ = net.audio_encoder(audio[None])
-            _, caches = stream.initial_state()
-            poses = torch.empty(len(audio), config.output_dim, dtype=like.dtype, device=like.device)
-            pose = pose[None]
-            for t in range(len(audio)):
+            codes, _ = net.audio_encoder(audio)
+            _, caches = stream.initial_state(len(audios))
+            out = torch.empty(len(audios), max(lengths), config.output_dim, dtype=like.dtype, device=like.device)
+            pose = torch.stack(poses)
+            for t in range(max(lengths)):
                 pose, caches = stream.decode(codes[:, t], pose, caches)
-                poses[t] = pose[0]
+                out[:, t] = pose
     finally:
         net.train(was_training)
-    return poses.float().cpu().numpy()
+    out = out.float().cpu().numpy()
+    return [out[i, :n] for i, n in enumerate(lengths)]
 
 
 def init_output_bias(net: CdhcNet, mean_pose: torch.Tensor | np.ndarray) -> None:

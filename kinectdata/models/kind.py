@@ -22,7 +22,8 @@ It says:
   training batch through the network: its feedback), :meth:`loss`, :meth:`free_batch` (a
   validation batch free-running), :meth:`describe` and :meth:`loss_name` (the loss figure's
   title and axis);
-- **running free**: :meth:`free_run` over a whole recording, given its first true pose;
+- **running free**: :meth:`free_run` over a whole recording, given its first true pose (:meth:`free_runs`
+  over several at once);
   ``resets`` says whether it can zero a state every training sequence (evaluation's "with reset");
 - **streaming**: ``streams`` says whether it has a network stepping one frame at a time with
   its state passed in and out (:meth:`stream`, the :class:`Stream` contract); ``engines`` maps the
@@ -81,6 +82,20 @@ class Stream(Protocol):
     def __call__(self, features: Any, previous: Any, *state: Any) -> tuple[Any, ...]: ...
 
 
+def run_batches(lengths: list[int], max_frames: int = 20_000, max_batch: int = 32) -> list[list[int]]:
+    """Indices of recordings grouped to run free together: similar lengths together (little
+    padding), at most ``max_batch`` per group and, past the first, at most ``max_frames`` padded
+    frames (batch x longest), so that memory stays bounded whatever the split holds."""
+    groups: list[list[int]] = []
+    for i in sorted(range(len(lengths)), key=lambda k: lengths[k]):
+        group = groups[-1] if groups else None
+        if group is not None and len(group) < max_batch and (len(group) + 1) * lengths[i] <= max_frames:
+            group.append(i)
+        else:
+            groups.append([i])
+    return groups
+
+
 @runtime_checkable
 class ModelKind(Protocol):
     """A model as training, evaluation, generation and export see it (see the module docstring)."""
@@ -129,11 +144,9 @@ class ModelKind(Protocol):
     def free_batch(self, net: Any, audio: Any, previous: Any, pred: Any, settings: Any) -> np.ndarray:
         """Poses ``[B, L, D]`` free-running over each window of a validation batch from its first
         previous pose (``pred``: :meth:`predict`'s, for models whose training already runs free).
-        Default: :meth:`free_run` window by window."""
-        runs = []
-        for a, p in zip(audio.cpu().numpy(), previous.cpu().numpy()):
-            runs.append(self.free_run(net, np.concatenate([a[:1], a]), p[0]))
-        return np.stack(runs)
+        Default: :meth:`free_runs` over the windows."""
+        windows, previous = audio.cpu().numpy(), previous.cpu().numpy()
+        return np.stack(self.free_runs(net, [np.concatenate([a[:1], a]) for a in windows], [p[0] for p in previous]))
 
     def init_output(self, net: Any, start_pose: list[float]) -> None:
         """Start the output layer at the mean training pose ``[D]`` (default: leave it)."""
@@ -143,6 +156,14 @@ class ModelKind(Protocol):
         pose ``[D]`` of frame 0 and then fed the model's own outputs; with ``reset_every`` = L (only
         for models that reset) the state is zeroed every L frames."""
         raise NotImplementedError(f"the {self.name} model does not define free_run")
+
+    def free_runs(
+        self, net: Any, audios: list[np.ndarray], first_poses: list[np.ndarray], reset_every: int | None = None
+    ) -> list[np.ndarray]:
+        """:meth:`free_run` for several recordings (``audios[i]`` [T_i, *F], ``first_poses[i]``
+        [D]) -> per recording [T_i - 1, D]. Default: one after the other; a model whose network
+        steps a batch about as fast as one recording runs them together (see :func:`run_batches`)."""
+        return [self.free_run(net, a, p, reset_every) for a, p in zip(audios, first_poses)]
 
     def stream(self, net: Any, precision: str = "float32") -> Stream:
         """The network one frame at a time (:class:`Stream`) with weights of ``precision``."""

@@ -30,8 +30,8 @@ MODELS: dict[str, ModelKind] = {}
 MEMBERS = (
     *("name", "description", "settings_type", "training_defaults", "network_type", "resets", "streams"),
     *("engines", "exports", "run_exports", "state_names", "sweep", "check_dataset", "network_config", "build"),
-    *("fill_previous", "predict", "loss", "free_batch", "init_output", "free_run", "stream", "example_frame"),
-    *("export_metadata", "describe", "loss_name"),
+    *("fill_previous", "predict", "loss", "free_batch", "init_output", "free_run", "free_runs", "stream"),
+    *("example_frame", "export_metadata", "describe", "loss_name"),
 )
 """What a kind declares (:class:`ModelKind`; a subclass of it inherits defaults for all but
 ``name``, ``settings_type``, ``network_type``, ``network_config``, ``build``, ``predict``,

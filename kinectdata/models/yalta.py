@@ -239,15 +239,39 @@ class StreamingYalta(nn.Module):
 
 def free_run(net: YaltaNet, audio: np.ndarray, first_pose: np.ndarray, reset_every: int | None = None) -> np.ndarray:
     """Poses [T-1, D] for frames 1..T-1 of features [T, 1, 129, 5], starting from the true pose
-    [D] of frame 0 and then fed the model's own outputs. With ``reset_every`` = L every LSTM
-    state is zeroed every L frames (the paper's "with reset"); the fed-back pose carries on."""
-    x = torch.from_numpy(np.ascontiguousarray(audio[1:]))[None]
-    previous = torch.from_numpy(np.asarray(first_pose, np.float32)[None])
-    pieces = []
-    with torch.no_grad():
-        for s in range(0, x.shape[1], reset_every or x.shape[1]):
-            codes, _ = net.encode(x[:, s : s + (reset_every or x.shape[1])])
-            poses, _ = net.decode(codes, previous, "predicted")
-            pieces.append(poses[0].numpy())
-            previous = poses[:, -1]
-    return np.concatenate(pieces)
+    [D] of frame 0 and then fed the model's own outputs, in evaluation mode (the net's mode is
+    restored after). With ``reset_every`` = L every LSTM state is zeroed every L frames (the
+    paper's "with reset"); the fed-back pose carries on."""
+    return free_runs(net, [audio], [first_pose], reset_every)[0]
+
+
+def free_runs(
+    net: YaltaNet, audios: list[np.ndarray], first_poses: list[np.ndarray], reset_every: int | None = None
+) -> list[np.ndarray]:
+    """:func:`free_run` for several recordings as one batch (the per-frame cost is mostly fixed).
+    Shorter feature sequences are padded with zeros at their end, which (the network being
+    causal) leaves their frames as :func:`free_run` makes them, up to float rounding.
+
+    Returns:
+        per recording, poses [T_i - 1, D].
+    """
+    lengths = [len(a) - 1 for a in audios]
+    longest = max(lengths)
+    x = torch.zeros(len(audios), longest, *np.shape(audios[0])[1:])
+    for i, a in enumerate(audios):
+        x[i, : lengths[i]] = torch.from_numpy(np.ascontiguousarray(a[1:], np.float32))
+    previous = torch.from_numpy(np.stack([np.asarray(p, np.float32) for p in first_poses]))
+    pieces, step = [], reset_every or max(longest, 1)
+    was_training = net.training
+    net.eval()  # batch normalisation from its running statistics: the padding must not enter them
+    try:
+        with torch.no_grad():
+            for s in range(0, longest, step):
+                codes, _ = net.encode(x[:, s : s + step])
+                poses, _ = net.decode(codes, previous, "predicted")
+                pieces.append(poses.numpy())
+                previous = poses[:, -1]
+    finally:
+        net.train(was_training)
+    out = np.concatenate(pieces, axis=1) if pieces else np.zeros((len(audios), 0, net.config.output_dim), np.float32)
+    return [out[i, :n] for i, n in enumerate(lengths)]

@@ -86,6 +86,30 @@ def test_predicted_feedback_feeds_back_the_previous_output():
     torch.testing.assert_close(teacher, free, rtol=0, atol=1e-6)
 
 
+@pytest.mark.parametrize("reset_every", [None, 7])
+def test_recordings_run_free_together_equal_each_run_alone(reset_every):
+    """free_runs pads the shorter recordings: each one's poses are still those the sequence
+    network gives it alone (with its own first pose and the resets at the same frames)."""
+    from kinectdata.models.yalta import free_run, free_runs
+
+    net = make_net()
+    audios = [features(n, seed=n).numpy() for n in (16, 9, 2)]
+    firsts = [np.random.default_rng(n).uniform(-0.9, 0.9, D).astype(np.float32) for n in range(3)]
+    together = free_runs(net, audios, firsts, reset_every)
+    assert [g.shape for g in together] == [(15, D), (8, D), (1, D)]
+    for audio, first, poses in zip(audios, firsts, together):
+        pieces, previous = [], torch.from_numpy(first)[None]
+        x = torch.from_numpy(audio[1:])[None]
+        step = reset_every or x.shape[1]
+        with torch.no_grad():  # the network's own predicted-feedback forward, piece by piece
+            for s in range(0, x.shape[1], step):
+                out = net(x[:, s : s + step], previous, "predicted")
+                pieces.append(out[0].numpy())
+                previous = out[:, -1]
+        np.testing.assert_allclose(poses, np.concatenate(pieces), rtol=0, atol=1e-5)
+        np.testing.assert_allclose(poses, free_run(net, audio, first, reset_every), rtol=0, atol=1e-6)
+
+
 def test_outputs_are_causal_in_the_audio():
     net = make_net()
     audio = features(10, batch=1)

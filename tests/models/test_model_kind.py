@@ -266,3 +266,12 @@ def test_nothing_outside_the_models_branches_on_a_model():
             elif isinstance(node, ast.ImportFrom) and node.module in NETWORK_MODULES:
                 found.append(f"{where}:{node.lineno}: from {node.module}")
     assert not found, "\n".join(found)
+
+
+def test_recordings_are_run_free_in_bounded_batches_of_similar_length():
+    from kinectdata.models.kind import run_batches
+
+    assert run_batches([5, 100, 7, 90], max_frames=300, max_batch=32) == [[0, 2, 3], [1]]
+    assert run_batches([10] * 5, max_batch=2) == [[0, 1], [2, 3], [4]]
+    assert run_batches([50_000, 10]) == [[1], [0]]  # one recording longer than the cap runs alone
+    assert run_batches([]) == []
