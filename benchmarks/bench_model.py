@@ -36,6 +36,9 @@ from .summary import record
 
 D = 65
 WARMUP, FRAMES = 100, 1500
+PLAIN = "YaltaNet one frame per call (torch LSTM)"
+DEFAULT_ENGINE = "StreamingYalta eager float32"  # what `generate` runs by default (engine torch, float32)
+GENERATION_GOAL = 8.0  # issue 16: the default engine's per-frame latency at least 8x better than PLAIN's
 
 
 def _net(units: int) -> YaltaNet:
@@ -118,8 +121,8 @@ def latency() -> None:
             net = _net(units)
             rows = {}
             if units == 500:
-                rows["YaltaNet one frame per call (torch LSTM)"] = time_sequence_net(net, features)
-                rows["StreamingYalta eager float32"] = time_stream(StreamingYalta(net), features)
+                rows[PLAIN] = time_sequence_net(net, features)
+                rows[DEFAULT_ENGINE] = time_stream(StreamingYalta(net), features)
             rows["StreamingYalta TorchScript float32"] = time_stream(script(net, "float32"), features)
             rows["StreamingYalta TorchScript float16 weights"] = time_stream(script(net, "float16"), features)
             onnx = time_onnx(net, features)
@@ -127,9 +130,17 @@ def latency() -> None:
                 rows["ONNX Runtime float32"] = onnx
             for name, (median, p95) in rows.items():
                 mark = "  <= 2 ms" if units == 500 and median <= 2.0 else ""
-                if units == 500 and name != "YaltaNet one frame per call (torch LSTM)":
+                if units == 500 and name != PLAIN:
                     record("generation", f"yalta 500 units, {name}, per frame", f"{median:.2f} ms (p95 {p95:.2f})")
                 print(f"  {units:>4} units  {name:<44} {median:6.3f} / {p95:6.3f}{mark}")
+            if units == 500:
+                ratio = rows[PLAIN][0] / rows[DEFAULT_ENGINE][0]
+                verdict = "met" if ratio >= GENERATION_GOAL else "not met"
+                print(
+                    f"  default engine (torch float32: {DEFAULT_ENGINE}) against the plain model per frame: "
+                    f"{ratio:.1f}x (goal >= {GENERATION_GOAL:g}x: {verdict})"
+                )
+                record("generation", "yalta 500 units, default engine against plain PyTorch", f"{ratio:.1f}x")
         error = half_precision_error(_net(500))
         print(f"  float16 weights: max deviation from float32 over 300 fed-back frames {error:.1e}")
     finally:
