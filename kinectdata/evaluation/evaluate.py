@@ -329,19 +329,22 @@ class SongSet:
 
     Attributes:
         songs: the recordings whose music's beats are known (ground truth or tracked).
-        generate: ``generate(features [T, ...], first_pose [D]) -> positions [T-1, J, C]``, the
-            network run free as its model runs it, denormalised into the target's units.
-        generate_many: ``generate`` over a list of (features, first_pose), run together.
+        generate_many: ``generate_many([(features [T, ...], first_pose [D]), ...]) -> [positions
+            [T-1, J, C], ...]``, the network run free as its model runs it (the songs together),
+            denormalised into the target's units; :meth:`generate` for one song.
         features_of: ``features_of(samples [S]) -> features [T, ...]`` of mono audio at
             ``features_of.sample_rate``, on the motion clock.
         unavailable: why no recording has beats ("" when some have).
     """
 
     songs: list[HeldOutSong]
-    generate: Callable[[np.ndarray, np.ndarray], np.ndarray]
     generate_many: Callable[[list[tuple[np.ndarray, np.ndarray]]], list[np.ndarray]]
     features_of: Callable[[np.ndarray], np.ndarray]
     unavailable: str = ""
+
+    def generate(self, features: np.ndarray, first_pose: np.ndarray) -> np.ndarray:
+        """One song's positions [T-1, J, C] (see ``generate_many``)."""
+        return self.generate_many([(features, first_pose)])[0]
 
 
 def body_positions(
@@ -391,9 +394,6 @@ def _song_set(
         runs = kind.free_runs(net, [f for f, _ in jobs], [p for _, p in jobs])
         return [body(v, np.ones_like(v, bool))[0] for v in (norm.invert(g, spec) for g in runs)]
 
-    def generate(features: np.ndarray, first_pose: np.ndarray) -> np.ndarray:
-        return generate_many([(features, first_pose)])[0]
-
     songs = []
     for r in recordings:
         music = beats[r["name"]][0]
@@ -410,7 +410,7 @@ def _song_set(
         positions, pmask = body(norm.invert(r["current"], spec, mask=r["mask"]), r["mask"])
         songs.append(HeldOutSong(r["name"], r["input"], first, positions, pmask, music, fps, rms))
     why = "" if songs else "no recording of the split has music beats (ground truth or tracked)"
-    return SongSet(songs, generate, generate_many, features_of, why)
+    return SongSet(songs, generate_many, features_of, why)
 
 
 def split_songs(net: torch.nn.Module, run_config: dict[str, Any], dataset: str | Path, split: str = "test") -> SongSet:
