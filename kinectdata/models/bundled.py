@@ -21,20 +21,11 @@ from typing import Any
 import numpy as np
 
 from kinectdata.core.errors import ConfigError
-from kinectdata.models.kind import ModelKind, Sweep, run_batches
+from kinectdata.models.kind import ModelKind, Sweep, in_run_batches
 from kinectdata.models.losses import masked_mse, masked_velocity_l1, masked_velocity_mse
 
 YALTA_ACTIVATIONS = ("tanh", "relu", "elu")
 FEEDBACKS = ("predicted", "teacher")
-
-
-def _in_batches(run, audios: list, first_poses: list) -> list[np.ndarray]:
-    """``run(audios, first_poses) -> outputs`` over :func:`run_batches` groups, in the given order."""
-    out: list[Any] = [None] * len(audios)
-    for group in run_batches([len(a) for a in audios]):
-        for i, result in zip(group, run([audios[i] for i in group], [first_poses[i] for i in group])):
-            out[i] = result
-    return out
 
 
 @dataclass(frozen=True)
@@ -169,7 +160,7 @@ class YaltaKind(ModelKind):
     def free_runs(self, net, audios, first_poses, reset_every: int | None = None):
         from kinectdata.models.yalta import free_runs
 
-        return _in_batches(lambda a, p: free_runs(net, a, p, reset_every), audios, first_poses)
+        return in_run_batches(lambda a, p: free_runs(net, a, p, reset_every), audios, first_poses)
 
     def stream(self, net, precision: str = "float32"):
         from kinectdata.models.yalta import StreamingYalta
@@ -335,7 +326,7 @@ class CdhcKind(ModelKind):
     def free_runs(self, net, audios, first_poses, reset_every: int | None = None):
         from kinectdata.models.cdhc import generate_many
 
-        return _in_batches(lambda a, p: generate_many(net, [x[1:] for x in a], p), audios, first_poses)
+        return in_run_batches(lambda a, p: generate_many(net, [x[1:] for x in a], p), audios, first_poses)
 
     def stream(self, net, precision: str = "float32"):
         from kinectdata.models.cdhc import FrameCdhc

@@ -42,7 +42,7 @@ recordings ``[T, *F]`` and ``[T, D]``. Subclassing :class:`ModelKind` inherits t
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from typing import Any, Protocol, runtime_checkable
 
@@ -94,6 +94,16 @@ def run_batches(lengths: list[int], max_frames: int = 20_000, max_batch: int = 3
         else:
             groups.append([i])
     return groups
+
+
+def in_run_batches(run: Callable[[list, list], list], audios: list, first_poses: list) -> list:
+    """``run(audios, first_poses) -> outputs`` (a network stepping recordings as one batch) over
+    :func:`run_batches` groups; the outputs in the order given."""
+    out: list[Any] = [None] * len(audios)
+    for group in run_batches([len(a) for a in audios]):
+        for i, result in zip(group, run([audios[i] for i in group], [first_poses[i] for i in group])):
+            out[i] = result
+    return out
 
 
 @runtime_checkable
@@ -162,7 +172,7 @@ class ModelKind(Protocol):
     ) -> list[np.ndarray]:
         """:meth:`free_run` for several recordings (``audios[i]`` [T_i, *F], ``first_poses[i]``
         [D]) -> per recording [T_i - 1, D]. Default: one after the other; a model whose network
-        steps a batch about as fast as one recording runs them together (see :func:`run_batches`)."""
+        steps a batch about as fast as one recording runs them together (:func:`in_run_batches`)."""
         return [self.free_run(net, a, p, reset_every) for a, p in zip(audios, first_poses)]
 
     def stream(self, net: Any, precision: str = "float32") -> Stream:
