@@ -320,13 +320,21 @@ def implausible_values(motion: Motion) -> tuple[np.ndarray, np.ndarray | None]:
         more than :data:`~kinectdata.core.quaternions.UNIT_TOLERANCE` from 1.
     """
     limit = position_limit(motion.joint_set.dimensions)
-    with np.errstate(invalid="ignore", over="ignore"):
-        positions = motion.position_mask & ~(np.abs(motion.positions) <= limit).all(axis=-1)
-        if motion.orientations is None:
-            return positions, None
-        norm = np.linalg.norm(np.where(np.abs(motion.orientations) <= 2.0, motion.orientations, np.inf), axis=-1)
-        orientations = motion.orientation_mask & ~(np.abs(norm - 1.0) <= UNIT_TOLERANCE)
+    positions = np.zeros(motion.position_mask.shape, bool)
+    orientations = None if motion.orientations is None else np.zeros(positions.shape, bool)
+    # a block of frames at a time: the temporaries of a whole hour-long recording would be hundreds of MB
+    for a in range(0, motion.n_frames, _CHECK_FRAMES):
+        b = a + _CHECK_FRAMES
+        with np.errstate(invalid="ignore", over="ignore"):
+            positions[a:b] = motion.position_mask[a:b] & ~(np.abs(motion.positions[a:b]) <= limit).all(axis=-1)
+            if orientations is not None:
+                q = motion.orientations[a:b]
+                norm = np.linalg.norm(np.where(np.abs(q) <= 2.0, q, np.inf), axis=-1)
+                orientations[a:b] = motion.orientation_mask[a:b] & ~(np.abs(norm - 1.0) <= UNIT_TOLERANCE)
     return positions, orientations
+
+
+_CHECK_FRAMES = 4096
 
 
 def mask_implausible(motion: Motion) -> tuple[Motion, int]:

@@ -157,7 +157,6 @@ def resample_motion(motion: Motion, grid: np.ndarray, max_gap: float = 0.2) -> R
         quats = np.full((N, J, 4), np.nan)
         qmask = np.zeros((N, J), bool)
         qint = np.zeros((N, J), bool)
-        continuous = make_continuous(np.nan_to_num(motion.orientations), motion.orientation_mask)
         for j in range(J):
             if not motion.joint_set.has_orientation[j]:
                 continue
@@ -166,7 +165,7 @@ def resample_motion(motion: Motion, grid: np.ndarray, max_gap: float = 0.2) -> R
             if idx.size == 0:
                 continue
             a, b, w, ok, filled = _brackets(times[idx], grid, dt, max_gap)
-            q = continuous[idx, j]
+            q = make_continuous(motion.orientations[idx, j])  # one joint at a time: memory of [T, 4], not [T, J, 4]
             out = slerp(q[a], q[b], w)
             quats[ok, j] = out[ok]
             qmask[:, j], qint[:, j] = ok, filled

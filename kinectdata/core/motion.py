@@ -15,6 +15,10 @@ Conventions, used everywhere in kinectdata:
   always 0 where the position is masked.
 - ``position_mask`` / ``orientation_mask`` [T, J] bool: True where the value is valid. Invalid
   values are NaN, so that using one by mistake cannot go unnoticed.
+
+Arrays given in their convention's dtype are kept as they are, not copied (a recording of an hour
+holds hundreds of megabytes): the motion is a view of them, so change them only through a copy.
+They are copied when making the invalid values NaN would write into them.
 """
 
 from __future__ import annotations
@@ -26,6 +30,17 @@ import numpy as np
 
 from kinectdata.core.errors import ConfigError
 from kinectdata.core.jointsets import JointSet
+
+
+def _nan_where_invalid(values: np.ndarray, mask: np.ndarray) -> np.ndarray:
+    """``values`` [T, J, K] with NaN wherever ``mask`` [T, J] is False: the same array when it is so
+    already, else a copy (the caller's array is never written)."""
+    invalid = ~mask
+    if not invalid.any() or np.isnan(values[invalid]).all():
+        return values
+    values = values.copy()
+    values[invalid] = np.nan
+    return values
 
 
 @dataclass(eq=False)
@@ -43,7 +58,7 @@ class Motion:
 
     def __post_init__(self) -> None:
         self.times = np.asarray(self.times, dtype=np.float64)
-        self.positions = np.array(self.positions, dtype=np.float64)
+        self.positions = np.asarray(self.positions, dtype=np.float64)
         T, J = self.times.shape[0], len(self.joint_set)
         D = self.joint_set.dimensions
         if self.times.ndim != 1:
@@ -57,7 +72,7 @@ class Motion:
         self.position_mask = np.array(self.position_mask, dtype=bool)
         if self.position_mask.shape != (T, J):
             raise ConfigError(f"position_mask must be [T, J] = {(T, J)}, got {self.position_mask.shape}")
-        self.positions[~self.position_mask] = np.nan
+        self.positions = _nan_where_invalid(self.positions, self.position_mask)
         if self.confidence is None:
             self.confidence = self.position_mask.astype(np.float32)
         self.confidence = np.asarray(self.confidence, dtype=np.float32)
@@ -65,7 +80,7 @@ class Motion:
             raise ConfigError(f"confidence must be [T, J] = {(T, J)}, got {self.confidence.shape}")
         self.confidence = np.where(self.position_mask, self.confidence, np.float32(0.0))
         if self.orientations is not None:
-            self.orientations = np.array(self.orientations, dtype=np.float64)
+            self.orientations = np.asarray(self.orientations, dtype=np.float64)
             if self.orientations.shape != (T, J, 4):
                 raise ConfigError(f"orientations must be [T, J, 4], got {self.orientations.shape}")
             if self.orientation_mask is None:
@@ -74,7 +89,7 @@ class Motion:
             if self.orientation_mask.shape != (T, J):
                 raise ConfigError(f"orientation_mask must be [T, J], got {self.orientation_mask.shape}")
             self.orientation_mask &= self.joint_set.orientation_mask[None, :]
-            self.orientations[~self.orientation_mask] = np.nan
+            self.orientations = _nan_where_invalid(self.orientations, self.orientation_mask)
         elif self.orientation_mask is not None:
             raise ConfigError("orientation_mask given without orientations")
 

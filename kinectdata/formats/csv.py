@@ -15,6 +15,7 @@ Writing is :mod:`.csv_writer`, over the same schemas.
 from __future__ import annotations
 
 import csv
+import itertools
 import math
 import re
 from array import array
@@ -29,7 +30,7 @@ from kinectdata.core.errors import FormatError, KinectDataError
 from kinectdata.core.jointsets import JointSet, find_joint_set, load_joint_set, shipped_joint_sets
 from kinectdata.core.motion import Motion
 from kinectdata.core.quaternions import reorder, split_missing_and_normalise
-from kinectdata.formats.common import choose_body, count_bodies, first_bad_time, read_text
+from kinectdata.formats.common import choose_body, count_bodies, first_bad_time
 from kinectdata.formats.csv_schema import JOINT, CsvSchema, joint_set_of, load_csv_schema, shipped_csv_schemas
 from kinectdata.formats.registry import register_reader
 
@@ -43,7 +44,7 @@ _DETECT_LINES = 64
 # ---------------------------------------------------------------------------------------------
 # Reading the text into a table with line numbers
 # ---------------------------------------------------------------------------------------------
-_CHUNK_ROWS = 16384  # rows parsed at a time: memory grows with the columns kept, not the text
+_CHUNK_ROWS = 4096  # rows parsed at a time: memory grows with the columns kept, not the text
 
 
 @dataclass
@@ -104,21 +105,26 @@ class _Table:
             quoting=csv.QUOTE_NONE,  # rows and fields as the first pass split them: a stray quote spans no lines
             encoding_errors="replace",  # cp1252 leaves 5 bytes undefined; the first pass replaced them too
         )
-        parts: dict[str, list] = {c: [] for c in columns}
+        # numbers go straight into arrays of the first pass's row count: no per-chunk pieces to join,
+        # which would hold every column twice at the end
+        rows = len(self.lines)
+        numbers = {c: (np.empty(rows), np.empty(rows, bool)) for c in columns if c not in text}
+        texts: dict[str, list] = {c: [] for c in columns if c in text}
+        done = 0
         for chunk, lines in self._chunks(reader):
             for c in columns:
                 series = chunk[self._position[c]]
                 if c in text:
-                    parts[c].append(_unquote(series.fillna("").astype(str)).to_numpy(dtype=object))
+                    texts[c].append(_unquote(series.fillna("").astype(str)).to_numpy(dtype=object))
                 else:
-                    parts[c].append(self._convert(series, c, lines))
-        for c in columns:
-            if c in text:
-                self._texts[c] = np.concatenate(parts[c]) if parts[c] else np.zeros(0, object)
-            else:
-                values = [v for v, _ in parts[c]]
-                masks = [m for _, m in parts[c]]
-                self._numbers[c] = (np.concatenate(values), np.concatenate(masks))
+                    rows_here = slice(done, done + len(chunk))
+                    values, missing = numbers[c]
+                    values[rows_here], missing[rows_here] = self._convert(series, c, lines)
+            done += len(chunk)
+        for c, (values, missing) in numbers.items():
+            self._numbers[c] = (values[:done], missing[:done])
+        for c, pieces in texts.items():
+            self._texts[c] = np.concatenate(pieces) if pieces else np.zeros(0, object)
 
     def _chunks(self, reader: Iterator[pd.DataFrame]) -> Iterator[tuple[pd.DataFrame, np.ndarray]]:
         """pandas' chunks with the line numbers of their rows, checking that pandas finds the rows the
@@ -182,9 +188,12 @@ class _Table:
             cells = cells.str.replace(self.schema.decimal, ".", regex=False).mask(point, "")
         return pd.to_numeric(cells, errors="coerce").to_numpy(dtype=np.float64, copy=True)
 
-    def numbers(self, column: str, rows: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
-        """([R] float64 values, [R] bool missing) of a loaded numeric column (or of ``rows``)."""
-        values, missing = self._numbers[column]
+    def numbers(
+        self, column: str, rows: np.ndarray | None = None, *, release: bool = False
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """([R] float64 values, [R] bool missing) of a loaded numeric column (or of ``rows``);
+        ``release``: the table forgets the column (its last use), so its memory can go."""
+        values, missing = self._numbers.pop(column) if release else self._numbers[column]
         return (values, missing) if rows is None else (values[rows], missing[rows])
 
     def text(self, column: str) -> np.ndarray:
@@ -239,8 +248,19 @@ def _decimal_comma_hint(text: str, schema: CsvSchema) -> str:
     )
 
 
-def _read_lines(path: Path) -> list[str]:
-    return read_text(path).splitlines()
+def _head_lines(path: Path, count: int) -> list[str]:
+    """The first ``count`` lines of a text file, decoded as :func:`read_text` decodes (only they are
+    read: a recording's CSV can be hundreds of megabytes)."""
+    try:
+        with open(path, "rb") as f:
+            raw = b"".join(itertools.islice(f, count))
+    except OSError as exc:
+        raise FormatError(path, f"cannot read file: {exc.strerror or exc}") from exc
+    try:
+        text = raw.decode("utf-8-sig")
+    except UnicodeDecodeError:
+        text = raw.decode("cp1252", errors="replace")
+    return text.splitlines()
 
 
 def _split_fields(line: str, delimiter: str) -> list[str]:
@@ -629,7 +649,7 @@ def _read_wide(table: _Table, joint_set: JointSet, body: str | None) -> tuple:
     for j in present:
         missing[:, j] = False
         for d, tmpl in enumerate(schema.document["position"]["columns"]):
-            pos[:, j, d], m = table.numbers(tmpl.replace(JOINT, fnames[j]), rows)
+            pos[:, j, d], m = table.numbers(tmpl.replace(JOINT, fnames[j]), rows, release=True)
             missing[:, j] |= m
         if "tracking" in schema.document:
             conf[:, j] = _tracking_confidence(
@@ -639,7 +659,7 @@ def _read_wide(table: _Table, joint_set: JointSet, body: str | None) -> tuple:
             conf[:, j] = 1.0
         if with_q:
             for c, tmpl in enumerate(o["columns"]):
-                quats[:, j, c], _ = table.numbers(tmpl.replace(JOINT, fnames[j]), rows)
+                quats[:, j, c], _ = table.numbers(tmpl.replace(JOINT, fnames[j]), rows, release=True)
     return t_raw, scale, lines, pos, missing, conf, quats, body_meta
 
 
@@ -744,7 +764,8 @@ def _build_motion(path: Path, schema: CsvSchema, joint_set: JointSet, parts: tup
         q_missing = ~np.isfinite(quats).all(axis=-1)
         gated = schema.document["orientation"].get("gated_by_tracking", True)
         with np.errstate(over="ignore"):  # the norm of huge values overflows to inf: not a unit quaternion
-            unit, present, bad = split_missing_and_normalise(reorder(np.nan_to_num(quats), order))
+            # in place: quats is this reader's own array, and a copy of it is [T, J, 4] float64 more at the peak
+            unit, present, bad = split_missing_and_normalise(reorder(np.nan_to_num(quats, copy=False), order))
         bad &= ~q_missing & joint_set.orientation_mask[None, :]
         if gated:
             bad &= position_mask  # junk written for untracked joints is expected, and masked
@@ -783,6 +804,11 @@ def _build_motion(path: Path, schema: CsvSchema, joint_set: JointSet, parts: tup
             line=int(lines[bad_time] if lines.ndim == 1 else lines[bad_time].min()),
             column=schema.document["time"].get("column"),
         )
+    # NaN where masked, written here into this reader's own arrays, so that Motion need not copy them
+    pos[~position_mask] = np.nan
+    if orientations is not None:
+        orientation_mask &= joint_set.orientation_mask[None, :]
+        orientations[~orientation_mask] = np.nan
     return Motion(
         times=times,
         positions=pos,
@@ -845,7 +871,7 @@ def _is_number(text: str) -> bool:
 def detect_csv_schema(path: str | Path) -> CsvSchema:
     """The shipped CSV schema that recognises a file; FormatError if none or several do."""
     path = Path(path)
-    head = _read_lines(path)[:_DETECT_LINES]
+    head = _head_lines(path, _DETECT_LINES)
     if not any(ln.strip() for ln in head):
         raise FormatError(path, "empty file")
     matches = [s for s in (load_csv_schema(n) for n in shipped_csv_schemas()) if _schema_matches(s, head)]

@@ -17,6 +17,7 @@ from kinectdata.align.audio import load_audio
 from kinectdata.align.recipe import align, align_files
 from kinectdata.core.errors import AlignmentError, AudioError, FormatError
 from kinectdata.core.jointsets import load_joint_set
+from kinectdata.core.motion import Motion
 from kinectdata.dataset.collection import find_sessions
 from kinectdata.formats import read_motion
 
@@ -288,6 +289,27 @@ def test_implausible_orientations_are_masked_and_counted():
     from kinectdata.align.recipe import format_summary
 
     assert "0 joint position(s) not finite or beyond 1000 m, 2 orientation(s)" in format_summary(rec)
+
+
+def test_implausible_values_are_found_in_every_block_of_a_long_recording():
+    """implausible_values checks a block of frames at a time: values at the first frame, on both sides
+    of a block boundary and at the last frame are all found, and nothing else is."""
+    from kinectdata.align.recipe import _CHECK_FRAMES, implausible_values
+
+    js = load_joint_set("kinect_v2")
+    n = 2 * _CHECK_FRAMES + 3
+    pos = np.random.default_rng(0).normal(0, 1, (n, len(js), 3))
+    quats = np.tile([0.0, 0.0, 0.0, 1.0], (n, len(js), 1))
+    bad_positions = {(0, 1), (_CHECK_FRAMES - 1, 2), (_CHECK_FRAMES, 2), (n - 1, 24)}
+    bad_orientations = {(5, 1), (2 * _CHECK_FRAMES, 4)}  # SpineMid, ShoulderLeft: joints with orientations
+    for f, j in bad_positions:
+        pos[f, j, 1] = 1e300
+    for f, j in bad_orientations:
+        quats[f, j] = [0.0, 0.0, 2.0, 2.0]
+    motion = Motion(np.arange(n) / 30.0, pos, js, position_mask=np.isfinite(pos).all(-1), orientations=quats)
+    positions, orientations = implausible_values(motion)
+    assert {tuple(int(v) for v in i) for i in np.argwhere(positions)} == bad_positions
+    assert {tuple(int(v) for v in i) for i in np.argwhere(orientations)} == bad_orientations
 
 
 def test_the_dataset_path_through_the_recipe_steps_masks_implausible_positions_too():

@@ -101,6 +101,26 @@ def test_motion_masks_invalid_values_with_nan():
     assert m.duration == pytest.approx(0.2)
 
 
+def test_motion_keeps_arrays_it_need_not_change_and_never_writes_into_the_callers():
+    js = load_joint_set("nite")
+    mask = np.ones((3, 15), bool)
+    mask[1, 2] = False
+    clean = np.ones((3, 15, 3))
+    clean[1, 2] = np.nan
+    kept = Motion(np.array([0.0, 0.1, 0.2]), clean, js, position_mask=mask)
+    assert kept.positions is clean  # an hour-long recording is not copied for nothing
+    dirty = np.ones((3, 15, 3))
+    masked = Motion(np.array([0.0, 0.1, 0.2]), dirty, js, position_mask=mask)
+    assert (dirty == 1).all()  # the caller's array is untouched
+    assert np.isnan(masked.positions[1, 2]).all() and np.isnan(masked.positions).sum() == 3
+    quats = np.tile([0, 0, 0, 1.0], (3, 15, 1))
+    qmask = np.ones((3, 15), bool)
+    qmask[0, 0] = False
+    times = np.array([0.0, 0.1, 0.2])
+    with_q = Motion(times, clean, js, position_mask=mask, orientations=quats, orientation_mask=qmask)
+    assert (quats == np.tile([0, 0, 0, 1.0], (3, 15, 1))).all() and np.isnan(with_q.orientations[0, 0]).all()
+
+
 def test_motion_rejects_bad_shapes_and_times():
     js = load_joint_set("nite")
     with pytest.raises(ValueError, match="positions"):

@@ -69,6 +69,29 @@ def test_round_trip_through_every_dialect(tmp_path, dialect):
         np.testing.assert_allclose(r.orientations[expect], m.orientations[expect], atol=2e-6)
 
 
+def test_a_file_longer_than_the_parsers_chunks_reads_every_row_in_place(tmp_path):
+    """Rows are parsed in chunks of _CHUNK_ROWS straight into their columns: the rows at every chunk
+    boundary land where they belong (checked against values computed from the row number)."""
+    from kinectdata.formats.csv import _CHUNK_ROWS
+
+    js = load_joint_set("nite")
+    n = 2 * _CHUNK_ROWS + 17
+    lines = ["# kinectdata motion csv v1", "# joint_set: nite"]
+    lines.append(",".join(["time"] + [f"{j}.{c}" for j in js.names for c in ("x", "y", "z", "confidence")]))
+    for r in range(n):
+        cells = [f"{r / 30:.6f}"]
+        for j in range(len(js)):
+            cells += [f"{r * 1e-4:.4f}", f"{j:d}", "" if (r, j) == (_CHUNK_ROWS, 3) else "1.5", "1"]
+        lines.append(",".join(cells))
+    path = tmp_path / "long.csv"
+    path.write_text("\n".join(lines) + "\n")
+    m = read_motion(path)
+    assert m.n_frames == n
+    np.testing.assert_allclose(m.positions[:, 0, 0], np.arange(n) * 1e-4, atol=1e-12)
+    assert not m.position_mask[_CHUNK_ROWS, 3] and m.position_mask.sum() == n * len(js) - 1
+    assert (m.positions[:, :, 1] == np.arange(len(js)))[m.position_mask].all()
+
+
 def test_canonical_keeps_any_joint_set_and_missing_orientations(tmp_path):
     js = load_joint_set("nite")
     rng = np.random.default_rng(1)
