@@ -4,6 +4,7 @@
 from kinectdata.formats.registry import Reader, detect_format, read_motion, readers, register_reader
 
 from . import azure_json as _azure_json  # noqa: F401
+from . import bvh as _bvh  # noqa: F401
 from . import csv as _csv  # noqa: F401
 from . import htr as _htr  # noqa: F401
 from . import ntu as _ntu  # noqa: F401
