@@ -249,8 +249,8 @@ def evaluate_command(run_dir, data, split, out, silence, protocol, bootstrap, no
     "--out",
     required=True,
     type=click.Path(dir_okay=False),
-    help="File to write: canonical CSV (3-D targets, e.g. yalta), OpenPose JSON Lines (2-D targets, e.g. cdhc: "
-    "dance.jsonl).",
+    help="File to write: canonical CSV or BVH (3-D targets, e.g. yalta: dance.csv, dance.bvh), OpenPose JSON "
+    "Lines (2-D targets, e.g. cdhc: dance.jsonl).",
 )
 @click.option(
     "--engine",
@@ -270,8 +270,8 @@ def evaluate_command(run_dir, data, split, out, silence, protocol, bootstrap, no
 def generate_command(run_dir, audio, out, engine, precision) -> None:
     """Generate dance motion for AUDIO (any file libsndfile reads), streaming frame by frame, and
     write it: 3-D targets (a yalta run's: metres, unit quaternions) as the canonical CSV that align
-    reads, 2-D ones (a cdhc run's: x, y in 0..1, y down) as OpenPose JSON Lines that the openpose
-    reader reads."""
+    reads or, named .bvh, as BVH for animation tools; 2-D ones (a cdhc run's: x, y in 0..1, y down)
+    as OpenPose JSON Lines that the openpose reader reads."""
     _torch_or_fail()
     from kinectdata.inference.generate import generate
 

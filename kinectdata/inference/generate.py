@@ -13,7 +13,9 @@ and written in the form the target's joint set is read back from:
   ``align`` reads: the target spec's joints get their orientations, and every joint the
   orientations reach gets a position by forward kinematics over the dataset's rest skeleton
   (:mod:`kinectdata.targets.skeleton`; runs on datasets built before it have the listed positions only);
-  other joints are left empty (masked);
+  other joints are left empty (masked). An ``out`` named ``.bvh`` is written as BVH instead
+  (:func:`~kinectdata.formats.bvh_writer.write_bvh`, centimetres: Blender, MotionBuilder, Unity),
+  without the joints no position reaches;
 - ``openpose_mpi`` (e.g. the cdhc model's): OpenPose JSON Lines (:mod:`~kinectdata.formats.openpose_writer`)
   with x, y in the target's units: 0..1 of the per-recording min-max scaling for
   ``listen_to_dance``, image axes (y down). The limb lengths are not written (they are the
@@ -34,6 +36,7 @@ from kinectdata.core.jointsets import load_joint_set
 from kinectdata.core.motion import Motion
 from kinectdata.features import feature_config
 from kinectdata.features.streaming import StreamingFeatures
+from kinectdata.formats.bvh_writer import write_bvh
 from kinectdata.formats.csv_writer import write_csv
 from kinectdata.formats.openpose_writer import write_openpose_jsonl
 from kinectdata.inference.engines import make_engine
@@ -92,9 +95,9 @@ def generate(
     data = config["dataset"]
     fps, sr = data["fps"], data["sample_rate"]
     spec = TargetSpec.from_dict(data["target"])
-    wanted = (".jsonl", ".json") if spec.dimensions == 2 else (".csv",)
+    wanted = (".jsonl", ".json") if spec.dimensions == 2 else (".csv", ".bvh")
     if out is not None and Path(out).suffix.lower() not in wanted:
-        written = "OpenPose JSON Lines" if spec.dimensions == 2 else "canonical CSV"
+        written = "OpenPose JSON Lines" if spec.dimensions == 2 else "canonical CSV or BVH"
         raise KinectDataError(f"{out}: this run's motion is written as {written}; name the file {wanted[0]}")
     norm = Normalizer.from_dict(data["normalisation"])
     reader = AudioReader(audio, sr)
@@ -140,6 +143,8 @@ def generate(
     motion = _motion(values, spec, fps, metadata, data.get("skeleton"), data["root_centre"])
     if out is not None and spec.dimensions == 2:
         write_openpose_jsonl(motion, out)
+    elif out is not None and Path(out).suffix.lower() == ".bvh":
+        write_bvh(motion, out)
     elif out is not None:
         write_csv(
             motion,

@@ -315,3 +315,24 @@ def test_sweep_writes_the_papers_table_and_reuses_finished_variants(sample_datas
         sweep(sample_dataset, tmp_path / "sweep", base, ["Sigmoid"])
     with pytest.raises(KinectDataError, match="tanh: holds a finished run whose units differ"):
         sweep(sample_dataset, tmp_path / "sweep", TrainConfig(**{**TINY_TRAINING, "units": 9, "epochs": 1}), ["TanH"])
+
+
+def test_generate_writes_bvh_that_reads_back_to_the_same_positions(trained_run, tmp_path):
+    run, _ = trained_run
+    motion, _ = generate(run, SONG, tmp_path / "dance.bvh")
+    back = read_motion(tmp_path / "dance.bvh")
+    assert back.metadata["nominal_fps"] == pytest.approx(1 / float(motion.times[1] - motion.times[0]))
+    names = list(back.joint_set.names)
+    spec = TargetSpec.from_dict(load_model(run)[1]["dataset"]["target"])
+    # the hands are the network's own outputs, apart from the chain of rotations: BVH can only put
+    # them where the wrist's rotation carries their bone (written to 1e-6 cm)
+    chain = [j for j in range(motion.n_joints) if motion.position_mask[:, j].any()]
+    chain = [j for j in chain if motion.joint_set.names[j] not in spec.positions[1:]]
+    assert len(chain) > 10  # the rest skeleton carried positions beyond the target's own three
+    for j in chain:
+        got = back.positions[:, names.index(motion.joint_set.names[j])]
+        np.testing.assert_allclose(got, motion.positions[:, j], atol=1e-7)
+    for joint in spec.positions[1:]:
+        assert np.isfinite(back.positions[:, names.index(joint)]).all()
+    with pytest.raises(KinectDataError, match="name the file .csv"):
+        generate(run, SONG, tmp_path / "dance.txt")

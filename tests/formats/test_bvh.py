@@ -164,3 +164,106 @@ def test_info_reads_a_bvh_file_and_a_damaged_one_is_one_line(tmp_path):
     result = CliRunner().invoke(main, ["info", str(path)])
     assert result.exit_code != 0 and "Traceback" not in result.output
     assert f"{path}, line 20: Frames: 3, but the values stop after 2 whole frame(s)" in result.output
+
+
+# -- writing ------------------------------------------------------------------------------------
+
+
+def _rotation_error(a: np.ndarray, b: np.ndarray) -> float:
+    """Largest angle (radians) between quaternions a and b [..., 4]."""
+    return float((Rotation.from_quat(a.reshape(-1, 4)).inv() * Rotation.from_quat(b.reshape(-1, 4))).magnitude().max())
+
+
+@pytest.mark.parametrize("unit", ["cm", "m"])
+def test_a_written_bvh_reads_back_as_the_same_motion(tmp_path, unit):
+    from kinectdata.formats.bvh_writer import write_bvh
+
+    path = tmp_path / "random.bvh"
+    _random_bvh(path, seed=2)
+    motion = read_motion(path)
+    write_bvh(motion, tmp_path / "again.bvh", unit=unit)
+    back = read_motion(tmp_path / "again.bvh", unit=unit)
+    assert back.joint_set.names == motion.joint_set.names and back.joint_set.parents == motion.joint_set.parents
+    np.testing.assert_allclose(back.positions, motion.positions, atol=1e-6)  # 6 decimals: a micrometre in m
+    ok = motion.joint_set.orientation_mask
+    assert _rotation_error(back.orientations[:, ok], motion.orientations[:, ok]) < 1e-7
+    np.testing.assert_allclose(back.times, motion.times, atol=1e-6)
+
+
+def test_positions_alone_are_solved_on_the_rest_skeleton_and_read_alike_by_bvhio(tmp_path):
+    """Without orientations the rotations are solved from the positions: a rigid motion (read from a
+    BVH, its orientations dropped) comes back at the same positions, in kinectdata and in bvhio."""
+    import dataclasses
+
+    bvhio = pytest.importorskip("bvhio")
+    from kinectdata.formats.bvh_writer import write_bvh
+
+    path = tmp_path / "random.bvh"
+    _random_bvh(path, seed=4)
+    rigid = dataclasses.replace(read_motion(path), orientations=None, orientation_mask=None)
+    write_bvh(rigid, tmp_path / "solved.bvh")
+    back = read_motion(tmp_path / "solved.bvh")
+    np.testing.assert_allclose(back.positions, rigid.positions, atol=1e-7)
+    root = bvhio.readAsHierarchy(str(tmp_path / "solved.bvh"))
+    names = list(back.joint_set.names)
+    for frame in (0, 13):
+        root.loadPose(frame, recursive=True)
+        for j, *_ in root.layout():
+            np.testing.assert_allclose(
+                np.array(j.PositionWorld) / 100, rigid.positions[frame, names.index(j.Name)], atol=2e-6
+            )
+
+
+def test_a_kinect_recording_with_gaps_is_written_with_its_chain(tmp_path):
+    """The bundled Kinect v2 recording: masked frames are held, leaves without orientation get an End
+    Site, and the positions come back where the orientations carry the bones (the sensor's noise
+    moves the joints off that rigid chain by about a centimetre)."""
+    from conftest import REPO
+
+    from kinectdata.formats.bvh_writer import write_bvh
+
+    motion = read_motion(REPO / "sample_data" / "synth_001.csv")
+    assert not motion.position_mask.all()  # the recording has tracking gaps
+    write_bvh(motion, tmp_path / "take.bvh")
+    back = read_motion(tmp_path / "take.bvh")
+    names = list(back.joint_set.names)
+    assert {f"{n}_End" for n in ("Head", "HandTipLeft", "FootRight")} <= set(names)
+    index = [names.index(n) for n in motion.joint_set.names]
+    root = motion.joint_set.names.index("SpineBase")
+    ok = motion.position_mask[:, root]
+    np.testing.assert_allclose(back.positions[ok, index[root]], motion.positions[ok, root], atol=1e-8)
+    error = np.linalg.norm(back.positions[:, index] - motion.positions, axis=-1)[motion.position_mask]
+    assert np.median(error) < 0.02 and error.max() < 0.1  # metres: centimetres off, not a wrong axis or unit
+    np.testing.assert_allclose(back.times[1], np.median(np.diff(motion.times)), rtol=0.02)
+
+
+def test_what_bvh_cannot_hold_is_refused_with_one_line(tmp_path):
+    from kinectdata.core.errors import KinectDataError
+    from kinectdata.formats.bvh_writer import write_bvh
+
+    flat = read_motion(_two_frames(tmp_path))
+    with pytest.raises(KinectDataError, match="unit 'ft' is not one of m, cm, mm, in"):
+        write_bvh(flat, tmp_path / "a.bvh", unit="ft")
+    import dataclasses
+
+    from kinectdata.core.jointsets import load_joint_set
+
+    js = load_joint_set("openpose_mpi")
+    image = dataclasses.replace(
+        flat,
+        joint_set=js,
+        positions=np.zeros((2, len(js), 2)),
+        orientations=None,
+        orientation_mask=None,
+        position_mask=np.ones((2, len(js)), bool),
+        confidence=np.ones((2, len(js)), np.float32),
+    )
+    with pytest.raises(KinectDataError, match="BVH holds 3-D skeletons; joint set 'openpose_mpi' is 2-D"):
+        write_bvh(image, tmp_path / "b.bvh")
+    assert not (tmp_path / "a.bvh").exists() and not (tmp_path / "b.bvh").exists()
+
+
+def _two_frames(tmp_path: Path) -> Path:
+    path = tmp_path / "two.bvh"
+    path.write_text(TWO_FRAMES)
+    return path
