@@ -90,6 +90,25 @@ class JointSet:
         """(parent, child) index pairs, one per non-root joint."""
         return [(p, c) for c, p in enumerate(self.parents) if p >= 0]
 
+    def to_dict(self) -> dict:
+        """The joint set as a joint-set document (``schemas/jointset.schema.json``), which
+        :func:`joint_set_from_dict` reads back to an equal JointSet."""
+        doc: dict = {"name": self.name}
+        if self.description:
+            doc["description"] = self.description
+        doc["dimensions"] = self.dimensions
+        doc["joints"] = [
+            {"name": n, "parent": None if p < 0 else self.names[p]} for n, p in zip(self.names, self.parents)
+        ]
+        no_orientation = [n for n, has in zip(self.names, self.has_orientation) if not has]
+        if no_orientation:
+            doc["no_orientation"] = no_orientation
+        if self.roles:
+            doc["roles"] = dict(self.roles)
+        if self.aliases:
+            doc["aliases"] = dict(self.aliases)
+        return doc
+
 
 def _from_document(doc: dict, path: Path) -> JointSet:
     validate(doc, "jointset.schema.json", path)
@@ -125,6 +144,12 @@ def _from_document(doc: dict, path: Path) -> JointSet:
         aliases=dict(doc.get("aliases", {})),
         description=doc.get("description", ""),
     )
+
+
+def joint_set_from_dict(doc: Mapping, source: str | Path = "<joint set>") -> JointSet:
+    """A joint set from a joint-set document (as a file holds it, or :meth:`JointSet.to_dict`
+    gives it), validated like a file; SchemaError names ``source``."""
+    return _from_document(dict(doc), Path(source))
 
 
 def find_cycle(parents: Sequence[int]) -> int | None:

@@ -26,7 +26,6 @@ from typing import Any
 import numpy as np
 
 from kinectdata.core.errors import KinectDataError
-from kinectdata.core.jointsets import load_joint_set
 from kinectdata.core.motion import Motion
 from kinectdata.evaluation.field_scores import FieldScores, score_sets
 from kinectdata.evaluation.motion_sets import motion_as_dance
@@ -68,7 +67,7 @@ def run_field_scores(
             f"the target {spec.name} is {spec.dimensions}-D (pixels); the field's metrics need 3-D joints"
         )
     fps = float(dataset_config["fps"])
-    joint_set = load_joint_set(spec.joint_set)
+    joint_set = spec.joints
     gen_set, real_set, stand_ins = [], [], {}
     for name, values in generated.items():
         real_values, real_mask = real[name]
@@ -105,7 +104,7 @@ def _body(
         dataset_config.get("skeleton") or {},
         root_centred=bool(dataset_config.get("root_centre")),
     )
-    joint_set = load_joint_set(spec.joint_set)
+    joint_set = spec.joints
     placed = np.isfinite(positions).all(axis=2).any(axis=0)
     substituted = {}
     for j in np.flatnonzero(~placed):

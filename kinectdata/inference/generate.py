@@ -32,7 +32,6 @@ import numpy as np
 
 from kinectdata.align.audio import AudioReader
 from kinectdata.core.errors import ConfigError, KinectDataError
-from kinectdata.core.jointsets import load_joint_set
 from kinectdata.core.motion import Motion
 from kinectdata.features import feature_config
 from kinectdata.features.streaming import StreamingFeatures
@@ -58,7 +57,7 @@ def _motion(
     """A Motion of the spec's joint set from denormalised target vectors [T, D]; with the dataset's
     ``skeleton`` (bone offsets) every joint its orientations reach gets a position
     (:func:`kinectdata.targets.skeleton.rebuild_positions`), else only the spec's listed joints."""
-    js = load_joint_set(spec.joint_set)
+    js = spec.joints
     T, J = values.shape[0], len(js)
     positions = np.full((T, J, spec.dimensions), np.nan)
     for joint in spec.positions:

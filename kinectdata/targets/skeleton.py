@@ -95,9 +95,7 @@ def rebuild_positions(
     is added back to them (the root itself stays relative to its first second)."""
     from scipy.spatial.transform import Rotation  # here: scipy.spatial costs 0.2 s at start-up
 
-    from kinectdata.core.jointsets import load_joint_set
-
-    js = load_joint_set(spec.joint_set)
+    js = spec.joints
     T, J = values.shape[0], len(js)
     positions = np.full((T, J, 3), np.nan)
     for name in spec.positions:

@@ -23,6 +23,7 @@ Shipped specs: ``yalta65`` (Yalta et al. 2016, 3 positions + 14 quaternions), ``
 
 from __future__ import annotations
 
+import json
 from collections.abc import Mapping
 from dataclasses import dataclass
 from functools import cache
@@ -32,7 +33,7 @@ from typing import Any
 import numpy as np
 
 from kinectdata.core.errors import ConfigError, KinectDataError, SchemaError
-from kinectdata.core.jointsets import JointSet, load_joint_set, shipped_joint_sets
+from kinectdata.core.jointsets import JointSet, joint_set_from_dict, load_joint_set, shipped_joint_sets
 from kinectdata.core.motion import Motion
 from kinectdata.core.quaternions import make_continuous
 from kinectdata.core.resources import load_json, resolve_resource, shipped_names, shipped_path, validate
@@ -49,6 +50,9 @@ class TargetSpec:
     Attributes:
         name: identifier, e.g. ``"yalta65"``.
         joint_set: name of the joint set a motion must use (``kinect_v2``...).
+        joint_set_document: for a joint set kinectdata does not ship, its joint-set document as
+            JSON text (so that the spec carries it into manifests and runs, and stays hashable);
+            None for a shipped one. :attr:`joints` gives the JointSet either way.
         positions: joints whose positions are components, in vector order.
         orientations: joints whose orientations are components, after all positions.
         limbs: joints whose distance to their parent joint is a component, after all orientations.
@@ -68,6 +72,14 @@ class TargetSpec:
     limbs: tuple[str, ...] = ()
     dimensions: int = 3
     position_scale: str = "none"
+    joint_set_document: str | None = None
+
+    @property
+    def joints(self) -> JointSet:
+        """The joint set a motion must use: the shipped one of that name, or the spec's own."""
+        if self.joint_set_document is None:
+            return load_joint_set(self.joint_set)
+        return _document_joint_set(self.joint_set_document)
 
     @property
     def dim(self) -> int:
@@ -116,7 +128,7 @@ class TargetSpec:
 
     def limb_pairs(self) -> list[tuple[str, str]]:
         """(joint, parent) of each limb, in the order of :attr:`limbs`."""
-        js = load_joint_set(self.joint_set)
+        js = self.joints
         return [(j, js.names[js.parents[js.index(j)]]) for j in self.limbs]
 
     def component_names(self) -> list[str]:
@@ -132,7 +144,7 @@ class TargetSpec:
         d = {
             "name": self.name,
             "description": self.description,
-            "joint_set": self.joint_set,
+            "joint_set": self.joint_set if self.joint_set_document is None else json.loads(self.joint_set_document),
             "positions": list(self.positions),
             "orientations": list(self.orientations),
             "root": self.root,
@@ -149,7 +161,7 @@ class TargetSpec:
 
 def _from_document(doc: dict[str, Any], path: str | Path) -> TargetSpec:
     validate(doc, "target.schema.json", path)
-    js = _joint_set(doc["joint_set"], path)
+    js, document = _joint_set(doc["joint_set"], path)
     positions = _joint_list(doc, "positions", js, path)
     orientations = _joint_list(doc, "orientations", js, path)
     for j in orientations:
@@ -182,15 +194,39 @@ def _from_document(doc: dict[str, Any], path: str | Path) -> TargetSpec:
         limbs=limbs,
         dimensions=js.dimensions,
         position_scale=scale,
+        joint_set_document=document,
     )
 
 
-def _joint_set(name: str, path: str | Path) -> JointSet:
-    if name not in shipped_joint_sets():
-        raise SchemaError(
-            path, f"joint_set: {name!r} is not a shipped joint set (shipped: {', '.join(shipped_joint_sets())})"
-        )
-    return load_joint_set(name)
+def _joint_set(value: str | dict, path: str | Path) -> tuple[JointSet, str | None]:
+    """The joint set a spec's ``joint_set`` names, and its document as JSON text unless shipped:
+    a shipped name, a joint-set file (a relative path from the spec file's folder) or the document."""
+    if isinstance(value, dict):
+        js = joint_set_from_dict(value, f"{path}: joint_set")
+    elif value in shipped_joint_sets():
+        return load_joint_set(value), None
+    else:
+        file = Path(path).parent / Path(value).expanduser()  # an absolute path stays as it is
+        if not file.is_file():
+            raise SchemaError(
+                path,
+                f"joint_set: {value!r} is neither a shipped joint set ({', '.join(shipped_joint_sets())}) nor a "
+                f"joint-set file (looked for {file})",
+            )
+        js = load_joint_set(file)
+    if js.name in shipped_joint_sets():
+        shipped = load_joint_set(js.name)
+        if (shipped.names, shipped.parents) != (js.names, js.parents):
+            raise SchemaError(
+                path, f"joint_set: {js.name!r} is a shipped joint set's name, with other joints: rename it"
+            )
+        return shipped, None
+    return js, json.dumps(js.to_dict(), sort_keys=True)
+
+
+@cache
+def _document_joint_set(text: str) -> JointSet:
+    return joint_set_from_dict(json.loads(text), "the target spec's joint_set")
 
 
 def _canonical(js: JointSet, joint: str, field: str, path: str | Path) -> str:
@@ -267,7 +303,7 @@ def extract_targets(motion: Motion, spec: TargetSpec, *, root_centre: bool = Fal
             motion does not have, or root-centring is asked of a spec without a root.
     """
     js = motion.joint_set
-    if js.name != spec.joint_set:
+    if js.name != spec.joint_set or js.names != spec.joints.names or js.parents != spec.joints.parents:
         raise KinectDataError(
             f"{_source(motion)}: target spec {spec.name!r} is for joint set {spec.joint_set!r}, "
             f"but the recording's joint set is {js.name!r}; choose a spec for {js.name!r}"
