@@ -40,7 +40,8 @@ from kinectdata.targets.specs import shipped_target_specs
     default=None,
     metavar="NAME|FILE",
     help=f"Target spec: which joints' positions, quaternions and limb lengths form the target vector. "
-    f"Shipped: {', '.join(shipped_target_specs())}. Default: the pipeline's.",
+    f"Shipped: {', '.join(shipped_target_specs())}; a spec file; or 'positions' (every joint's position) or "
+    "'full' (and every orientation) of whatever joint set the recordings use. Default: the pipeline's.",
 )
 @click.option(
     "--features",

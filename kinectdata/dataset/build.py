@@ -21,6 +21,7 @@ Everything is deterministic: the same inputs and configuration give byte-identic
 
 from __future__ import annotations
 
+import dataclasses
 import hashlib
 import json
 import shutil
@@ -46,6 +47,7 @@ from kinectdata.dataset.shards import ShardRecording, row_bytes, write_shard
 from kinectdata.targets.hemispheres import apply_flips, flipped_columns, reference_orientations, track_flips
 from kinectdata.targets.normalization import Normalizer, NormStats, count_out_of_range
 from kinectdata.targets.skeleton import merge_bone_offsets
+from kinectdata.targets.specs import GenericTarget, TargetSpec
 
 DATASET_FORMAT = "kinectdata.dataset"
 DATASET_FORMAT_VERSION = 2  # 2: one quaternion hemisphere per joint across recordings
@@ -327,6 +329,8 @@ def _build_locked(
     snrs = {e.name: config.augment_snr if splits[e.name] == "train" else () for e in entries}
     tasks = [(e, config, str(work.resolve()), snrs[e.name], hashes[e.name], str(source)) for e in entries]
     units = _prepare_all(tasks, work, executor or LocalExecutor(jobs), progress)
+    if isinstance(config.target, GenericTarget):
+        config = dataclasses.replace(config, target=_one_target(units, config.target, source))
 
     spec = config.target
     train_units = [u for u in units if splits[u.recording] == "train" and u.snr_db is None]
@@ -368,6 +372,23 @@ def _build_locked(
         tmp.write_text(text)
     _clean(out, {x["file"] for x in shards}, keep_work)
     return json.loads(text)
+
+
+def _one_target(units: list[Unit], generic: GenericTarget, source: str | Path) -> TargetSpec:
+    """The spec a generic target became for the recordings: one joint set for all of them."""
+    specs: dict[str, list[str]] = {}
+    for u in units:
+        specs.setdefault(json.dumps(u.target, sort_keys=True), []).append(u.recording)
+    if len(specs) > 1:
+        sets = "; ".join(
+            f"{TargetSpec.from_dict(json.loads(t)).joint_set} ({', '.join(sorted(set(r))[:3])})"
+            for t, r in specs.items()
+        )
+        raise KinectDataError(
+            f"{source}: the recordings use different joint sets, so the generic {generic.kind!r} target is not one "
+            f"vector for all of them: {sets}; build them apart, or map them onto one set"
+        )
+    return TargetSpec.from_dict(json.loads(next(iter(specs))))
 
 
 def _key_entry(entry: RecordingEntry, splits: dict[str, str]) -> dict[str, Any]:

@@ -11,7 +11,7 @@ from kinectdata.core.errors import ConfigError
 from kinectdata.dataset.pipelines import PIPELINES
 from kinectdata.features import PRESETS, FeatureConfig, feature_config
 from kinectdata.targets.normalization import METHODS
-from kinectdata.targets.specs import TargetSpec, load_target_spec
+from kinectdata.targets.specs import GENERIC_TARGETS, GenericTarget, TargetSpec, load_target_spec
 
 DEFAULT_PIPELINE = "yalta2016"
 
@@ -23,7 +23,9 @@ class BuildConfig:
     Attributes:
         features: the feature configuration (:class:`~kinectdata.features.StftConfig` or
             :class:`~kinectdata.features.MelConfig`; its ``to_dict()`` is accepted too).
-        target: the target spec (:class:`~kinectdata.targets.specs.TargetSpec`, or its ``to_dict()``).
+        target: the target spec (:class:`~kinectdata.targets.specs.TargetSpec`, or its ``to_dict()``),
+            or a :class:`~kinectdata.targets.specs.GenericTarget` (``positions``, ``full``), made
+            into a spec for the recordings' joint set when the build reads them.
         fps: motion frames per second.
         sample_rate: Hz of the audio the features are computed from.
         normalisation: ``maxabs`` (Yalta et al.), ``minmax`` or ``none`` (targets already in
@@ -38,7 +40,7 @@ class BuildConfig:
     """
 
     features: FeatureConfig
-    target: TargetSpec
+    target: TargetSpec | GenericTarget
     fps: float = 30.0
     sample_rate: int = 16000
     normalisation: str = "maxabs"
@@ -58,7 +60,9 @@ class BuildConfig:
             except ValueError as exc:
                 raise ConfigError(f"invalid feature configuration: {exc}") from None
         if isinstance(self.target, dict):
-            object.__setattr__(self, "target", TargetSpec.from_dict(self.target))
+            generic = self.target.get("generic")
+            target = GenericTarget(generic) if generic is not None else TargetSpec.from_dict(self.target)
+            object.__setattr__(self, "target", target)
         object.__setattr__(self, "split_ratios", tuple(self.split_ratios))
         object.__setattr__(self, "augment_snr", tuple(self.augment_snr))
         if self.normalisation not in METHODS:
@@ -103,7 +107,7 @@ class BuildConfig:
             features = PRESETS[features]
         target = given.pop("target", chosen["target"])
         if isinstance(target, str):
-            target = load_target_spec(target)
+            target = GenericTarget(target) if target in GENERIC_TARGETS else load_target_spec(target)
         given.setdefault("normalisation", chosen["normalisation"])
         return cls(features=features, target=target, **given)
 
@@ -133,5 +137,6 @@ class BuildConfig:
         snr = f", augment_snr={list(self.augment_snr)}" if self.augment_snr else ""
         return (
             f"BuildConfig({self.features.extractor} features {list(self.feature_shape)}, target {self.target.name} "
-            f"[{self.target.dim}], {self.normalisation}, {self.fps:g} fps, {self.sample_rate} Hz{snr})"
+            f"[{getattr(self.target, 'dim', 'for the recordings joint set')}], {self.normalisation}, {self.fps:g} fps, "
+            f"{self.sample_rate} Hz{snr})"
         )

@@ -38,9 +38,9 @@ from kinectdata.features.streaming import StreamingFeatures
 from kinectdata.targets.hemispheres import orientation_stats
 from kinectdata.targets.normalization import NormStats
 from kinectdata.targets.skeleton import bone_offsets
-from kinectdata.targets.specs import extract_targets
+from kinectdata.targets.specs import GenericTarget, extract_targets
 
-WORK_FORMAT = "kinectdata.work.3"  # 2: units carry orientation statistics; 3: and bone offsets
+WORK_FORMAT = "kinectdata.work.4"  # 2: units carry orientation statistics; 3: and bone offsets; 4: and the target
 _BLOCK = 160_000  # samples per block when streaming in-memory audio (10 s at 16 kHz)
 
 
@@ -58,6 +58,7 @@ class Unit:
     orientations: dict[str, Any]  # hemispheres.orientation_stats of the targets
     info: dict[str, Any] = field(default_factory=dict)
     skeleton: dict[str, Any] = field(default_factory=dict)  # kinectdata.targets.skeleton.bone_offsets of the motion
+    target: dict[str, Any] = field(default_factory=dict)  # the TargetSpec.to_dict() its targets follow
 
     def to_dict(self) -> dict[str, Any]:
         return asdict(self)
@@ -223,6 +224,8 @@ def _prepare_variants(
         def blocks() -> Iterator[np.ndarray]:
             return reader.blocks() if cache is None else _raw_blocks(cache)
 
+    if isinstance(spec, GenericTarget):
+        spec = spec.resolve(motion.joint_set)
     values, mask = extract_targets(motion, spec, root_centre=config.root_centre)
     stats = NormStats.from_arrays(values, mask, spec.component_names()).to_dict()
     orientations = orientation_stats(values, mask, spec)
@@ -240,6 +243,7 @@ def _prepare_variants(
             orientations=orientations,
             info={**info, "augmentation": None if v is None else {"white_noise_snr_db": v}},
             skeleton=skeleton,
+            target=spec.to_dict(),
         )
         for v in variants
     }

@@ -246,6 +246,52 @@ def _joint_list(doc: dict[str, Any], field: str, js: JointSet, path: str | Path)
     return names
 
 
+GENERIC_TARGETS = {
+    "positions": "every joint's position, of whatever joint set the recordings use",
+    "full": "every joint's position and the orientation of every joint that carries one",
+}
+"""Targets asked for by kind rather than by a spec file: the spec is made for the recordings' joint
+set when a build reads them (:func:`generic_target`), so a new joint set needs no spec file."""
+
+
+@dataclass(frozen=True)
+class GenericTarget:
+    """A target of one of the :data:`GENERIC_TARGETS` kinds, its joint set not known yet."""
+
+    kind: str
+
+    def __post_init__(self) -> None:
+        if self.kind not in GENERIC_TARGETS:
+            raise ConfigError(f"a generic target is one of {', '.join(GENERIC_TARGETS)}, not {self.kind!r}")
+
+    @property
+    def name(self) -> str:
+        return self.kind
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"generic": self.kind}
+
+    def resolve(self, joint_set: JointSet) -> TargetSpec:
+        """The spec of this kind for ``joint_set``."""
+        return generic_target(self.kind, joint_set)
+
+
+def generic_target(kind: str, joint_set: JointSet) -> TargetSpec:
+    """The target of a :data:`GENERIC_TARGETS` kind for ``joint_set``, named ``<joint set>_<kind>``:
+    ``positions``, all its joints' positions in joint-set order; ``full``, those and then the
+    orientations of every joint that can carry one (3-D sets; a 2-D set has positions only)."""
+    GenericTarget(kind)  # checks the kind
+    orientations = [n for n, has in zip(joint_set.names, joint_set.has_orientation) if has]
+    doc = {
+        "name": f"{joint_set.name}_{kind}",
+        "description": f"{GENERIC_TARGETS[kind]} ({joint_set.name})",
+        "joint_set": joint_set.to_dict(),
+        "positions": list(joint_set.names),
+        "orientations": orientations if kind == "full" and joint_set.dimensions == 3 else [],
+    }
+    return _from_document(doc, f"the generic {kind!r} target for joint set {joint_set.name!r}")
+
+
 @cache
 def _shipped(name: str) -> TargetSpec:
     path = shipped_path("targets", name)

@@ -139,3 +139,35 @@ def test_what_does_not_fit_is_refused_with_one_line(corpus):
     motion = Motion(np.arange(3) / 30, np.zeros((3, 1, 3)), other)
     with pytest.raises(KinectDataError, match="target spec 'dancer19_positions' is for joint set 'dancer19'"):
         extract_targets(motion, spec)
+
+
+def test_a_generic_target_needs_no_spec_file(corpus, tmp_path):
+    """--target positions: the spec is made for the recordings' joint set when they are read."""
+    from click.testing import CliRunner
+
+    from kinectdata.cli import main
+
+    out = tmp_path / "ds"
+    result = CliRunner().invoke(
+        main, ["build-dataset", str(corpus / "recordings.json"), "-o", str(out), "--target", "positions"]
+    )
+    assert result.exit_code == 0, result.output
+    manifest = json.loads((out / "manifest.json").read_text())
+    spec = TargetSpec.from_dict(manifest["config"]["target"])
+    assert spec.name == "dancer19_positions" and spec.positions == tuple(DANCER19) and spec.orientations == ()
+    assert manifest["target_dim"] == 57
+    written = load_target_spec(corpus / "schemas" / "dancer19_positions.json")  # the same vector, by hand
+    assert (spec.positions, spec.joints, spec.dim) == (written.positions, written.joints, written.dim)
+
+
+def test_a_generic_target_refuses_recordings_of_two_joint_sets(corpus, tmp_path):
+    entries = json.loads((corpus / "recordings.json").read_text())
+    shutil.copy(REPO / "sample_data" / "synth_003.csv", corpus / "takes" / "kinect.csv")
+    shutil.copy(REPO / "sample_data" / "synth_003.flac", corpus / "takes" / "kinect.flac")
+    entries.append({"recording": "takes/kinect.csv", "audio": "takes/kinect.flac", "split": "train"})
+    (corpus / "mixed.json").write_text(json.dumps(entries))
+    config = BuildConfig(features=PRESETS["yalta2016"], target={"generic": "positions"})
+    with pytest.raises(
+        KinectDataError, match=r"use different joint sets, so the generic 'positions' target .*dancer19 .*kinect_v2"
+    ):
+        build_dataset(corpus / "mixed.json", tmp_path / "ds", config)
