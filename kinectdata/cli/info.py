@@ -67,6 +67,33 @@ def info(
         click.echo(f"orientations    {100 * share:.1f}% valid (of joints that carry one)")
     else:
         click.echo("orientations    none in this format")
+    for line in _body_lines(m):
+        click.echo(line)
+
+
+def _body_lines(motion) -> list[str]:
+    """The bone lengths and the unit, up-axis and speed doubts of a 3-D recording
+    (:mod:`kinectdata.core.body_checks`)."""
+    from kinectdata.core import body_checks
+
+    if motion.joint_set.dimensions != 3:
+        return []
+    lines = []
+    bones = body_checks.bone_lengths(motion)
+    if bones:
+        shortest, longest = min(bones, key=bones.get), max(bones, key=bones.get)
+        lines.append(
+            f"bones           {len(bones)}, median length {np.median(list(bones.values())):.3g} m (shortest "
+            f"{shortest} {bones[shortest]:.3g} m, longest {longest} {bones[longest]:.3g} m)"
+        )
+    for label, doubt in (
+        ("unit", body_checks.unit_doubt(motion)),
+        ("up axis", body_checks.up_axis_doubt(motion)),
+        ("speed", body_checks.speed_doubt(motion)),
+    ):
+        if doubt is not None:
+            lines.append(f"{label:<15} {doubt}")
+    return lines
 
 
 @click.command()

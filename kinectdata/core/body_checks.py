@@ -1,0 +1,150 @@
+"""Does a 3-D recording look like a human body in metres, upright, at its frame rate?
+
+Formats that do not say their unit (BVH, a new CSV dialect, declared arrays) or their up axis are
+easy to read wrongly, and nothing fails: a dancer in centimetres read as metres is a 170 m giant,
+one with z up lies on their back, one at 120 fps read as 30 dances four times too slowly. These
+checks look at the body itself (`kinectdata info` prints them):
+
+- :func:`bone_lengths`: each bone's median length (metres, over the frames where both its joints
+  are valid);
+- :func:`unit_doubt`: the body's extent, the median over frames of its bounding box's diagonal,
+  should be 0.3-3.5 m (a person spans 1-2.5 m); 100 or 1000 times that says centimetres or
+  millimetres read as metres, and 1/100 or 1/1000 the reverse;
+- :func:`up_axis_doubt`: the head should be above the feet along the recording's up axis (y, or the
+  file's ``gravity_axis``): with the joint set's ``head`` and foot roles, the median head-to-feet
+  vector must point most along +up; without them, the body's longest principal axis (a dancer is
+  taller than wide) must be the up axis;
+- :func:`speed_doubt`: the 99th percentile of the joints' speeds should stay under 20 m/s (a
+  dancer's hands reach 5-8 m/s): beyond, the frame rate is too low or the unit too large.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from kinectdata.core.motion import Motion
+
+BODY_EXTENT_M = (0.3, 3.5)
+"""Plausible range of a body's extent in metres (its bounding box diagonal, median over frames)."""
+MAX_SPEED_M_S = 20.0
+"""Joint speeds (99th percentile) above this are no dancer's."""
+_AXES = "xyz"
+_SAMPLE_FRAMES = 2000  # the checks look at this many frames, evenly spread, of a long recording
+
+
+def _sampled(motion: Motion) -> np.ndarray:
+    """Frame indices the checks use: all, or :data:`_SAMPLE_FRAMES` evenly spread."""
+    n = motion.n_frames
+    return np.arange(n) if n <= _SAMPLE_FRAMES else np.linspace(0, n - 1, _SAMPLE_FRAMES).round().astype(int)
+
+
+def bone_lengths(motion: Motion) -> dict[str, float]:
+    """``{"Parent-Child": metres}``: each bone's median length over the frames where both its joints
+    are valid (bones never seen whole are left out)."""
+    js = motion.joint_set
+    out = {}
+    for parent, child in js.bones():
+        both = motion.position_mask[:, parent] & motion.position_mask[:, child]
+        if both.any():
+            lengths = np.linalg.norm(motion.positions[both, child] - motion.positions[both, parent], axis=-1)
+            out[f"{js.names[parent]}-{js.names[child]}"] = float(np.median(lengths))
+    return out
+
+
+def body_extent(motion: Motion) -> float | None:
+    """Metres: the median over frames of the diagonal of the valid joints' bounding box; None when
+    no frame has two valid joints."""
+    extents = []
+    for t in _sampled(motion):
+        valid = motion.positions[t, motion.position_mask[t]]
+        if len(valid) >= 2:
+            extents.append(float(np.linalg.norm(valid.max(axis=0) - valid.min(axis=0))))
+    return float(np.median(extents)) if extents else None
+
+
+def unit_doubt(motion: Motion) -> str | None:
+    """A sentence when the body's extent (:func:`body_extent`) is not a person's in metres, else None."""
+    if motion.joint_set.dimensions != 3:
+        return None
+    extent = body_extent(motion)
+    lo, hi = BODY_EXTENT_M
+    if extent is None or lo <= extent <= hi:
+        return None
+    for factor, unit, reverse in (
+        (100, "centimetres", False),
+        (1000, "millimetres", False),
+        (1 / 100, "centimetres", True),
+        (1 / 1000, "millimetres", True),
+    ):
+        if lo * factor <= extent <= hi * factor:
+            if reverse:
+                return (
+                    f"the body spans {extent:.4g} m, a person 1-2.5 m: metres read as {unit}? (the values look "
+                    f"{round(1 / factor)} times too small)"
+                )
+            return (
+                f"the body spans {extent:.4g} m, a person 1-2.5 m: {unit} read as metres? (read the file with its "
+                f"unit, e.g. unit='{'cm' if factor == 100 else 'mm'}' for BVH, or the dialect's position unit)"
+            )
+    return f"the body spans {extent:.4g} m, a person 1-2.5 m: is the unit right?"
+
+
+def up_axis(motion: Motion) -> int:
+    """Index (0, 1, 2) of the recording's up axis: its ``gravity_axis`` metadata (HTR), else y."""
+    declared = str(motion.metadata.get("gravity_axis", "y")).strip().lower()
+    return _AXES.index(declared[-1]) if declared and declared[-1] in _AXES else 1
+
+
+def up_axis_doubt(motion: Motion) -> str | None:
+    """A sentence when the head is not above the feet along the up axis (see the module), else None."""
+    if motion.joint_set.dimensions != 3:
+        return None
+    up = up_axis(motion)
+    js = motion.joint_set
+    head, feet = js.role("head"), [j for j in (js.role("left_foot"), js.role("right_foot")) if j is not None]
+    frames = _sampled(motion)
+    if head is not None and feet:
+        ok = motion.position_mask[frames, head] & motion.position_mask[frames][:, feet].all(axis=1)
+        if not ok.any():
+            return None
+        rows = frames[ok]
+        rise = np.median(motion.positions[rows, head] - motion.positions[rows][:, feet].mean(axis=1), axis=0)
+        axis = int(np.argmax(np.abs(rise)))
+        if axis == up and rise[axis] > 0:
+            return None
+        where = f"{'above' if rise[axis] > 0 else 'below'} the feet along {_AXES[axis]}"
+        return (
+            f"the head is {where} ({rise[axis]:+.2f}), but the up axis is {_AXES[up]}: the floor is not below the "
+            "feet (are the file's axes or the up axis right?)"
+        )
+    centred = [motion.positions[t, motion.position_mask[t]] for t in frames]
+    centred = [p - p.mean(axis=0) for p in centred if len(p) >= 3]
+    if not centred:
+        return None
+    points = np.concatenate(centred)
+    _, _, vt = np.linalg.svd(points, full_matrices=False)
+    axis = int(np.argmax(np.abs(vt[0])))
+    if axis == up:
+        return None
+    return (
+        f"the body is longest along {_AXES[axis]}, but the up axis is {_AXES[up]}: a dancer lying down, or the "
+        "file's axes are not the expected ones"
+    )
+
+
+def speed_doubt(motion: Motion) -> str | None:
+    """A sentence when the joints move faster than a dancer can (see the module), else None."""
+    if motion.joint_set.dimensions != 3 or motion.n_frames < 2:
+        return None
+    both = motion.position_mask[1:] & motion.position_mask[:-1]
+    if not both.any():
+        return None
+    dt = np.diff(motion.times)[:, None]
+    speeds = (np.linalg.norm(np.diff(motion.positions, axis=0), axis=-1) / dt)[both]
+    fast = float(np.percentile(speeds, 99))
+    if fast <= MAX_SPEED_M_S:
+        return None
+    return (
+        f"joints move at {fast:.3g} m/s (99th percentile), no dancer's speed (hands reach 5-8 m/s): is the frame "
+        "rate too low, or the unit too large?"
+    )
