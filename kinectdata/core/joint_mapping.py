@@ -5,7 +5,8 @@ A mapping is data (``schemas/jointsets/to_smpl24/<joint set>.json``, following
 marked ``exact`` (the same anatomical joint) or approximated (interpolated or substituted, with a
 note saying how). Shipped: ``kinect_v2`` (also NTU), ``nite`` (Kinect v1), ``azure_kinect``,
 ``openpose_mpi``, ``htr`` (HTR files with MotionBuilder segment names, as Brekel's tools write
-them); a user's file works the same way (HTR files with other segment names need one).
+them); a user's file works the same way (HTR files with other segment names need one), and a
+joint-set file of the user's own may carry its mapping as ``to_smpl24``.
 """
 
 from __future__ import annotations
@@ -100,6 +101,9 @@ def load_smpl24_mapping(joint_set: JointSet | str | Path, skeleton: JointSet | N
     if isinstance(joint_set, JointSet):
         if joint_set.name == SMPL24 and len(joint_set) == 24:
             return identity_mapping(joint_set)
+        if joint_set.to_smpl24 is not None:  # the set's own file says how
+            doc = {"joint_set": joint_set.name, "target": SMPL24, "joints": dict(joint_set.to_smpl24)}
+            return _from_document(doc, Path(f"joint set {joint_set.name}, to_smpl24"), joint_set)
         path = _shipped(joint_set.name)
         return _from_document(load_json(path), path, joint_set)
     text = str(joint_set)

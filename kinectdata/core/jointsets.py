@@ -33,6 +33,9 @@ class JointSet:
         roles: semantic names (``left_hand``, ``right_hand``, ``root``...) to joint names, so that
             format-independent code (clap detection, root centring) can find them.
         aliases: other spellings of joint names found in files, mapped to the names used here.
+        to_smpl24: for a set kinectdata ships no mapping for, how its joints make the 24 SMPL joints
+            (a joint mapping's ``joints``; :func:`kinectdata.core.joint_mapping.load_smpl24_mapping`
+            uses it), or None.
     """
 
     name: str
@@ -43,6 +46,7 @@ class JointSet:
     roles: Mapping[str, str] = field(default_factory=dict)
     aliases: Mapping[str, str] = field(default_factory=dict)
     description: str = ""
+    to_smpl24: Mapping[str, dict] | None = None
 
     def __post_init__(self) -> None:
         if not self.has_orientation:
@@ -107,6 +111,8 @@ class JointSet:
             doc["roles"] = dict(self.roles)
         if self.aliases:
             doc["aliases"] = dict(self.aliases)
+        if self.to_smpl24 is not None:
+            doc["to_smpl24"] = dict(self.to_smpl24)
         return doc
 
 
@@ -143,6 +149,7 @@ def _from_document(doc: dict, path: Path) -> JointSet:
         roles=dict(roles),
         aliases=dict(doc.get("aliases", {})),
         description=doc.get("description", ""),
+        to_smpl24=doc.get("to_smpl24"),
     )
 
 

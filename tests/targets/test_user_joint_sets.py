@@ -42,6 +42,43 @@ DANCER19 = {
 }
 
 
+def _same(joint: str) -> dict:
+    return {"from": {joint: 1}, "exact": True}
+
+
+def _between(a: str, b: str) -> dict:
+    return {"from": {a: 0.5, b: 0.5}, "exact": False}
+
+
+TO_SMPL24 = {
+    "pelvis": _same("pelvis"),
+    "left_hip": _same("l_hip"),
+    "right_hip": _same("r_hip"),
+    "spine1": _same("spine1"),
+    "left_knee": _same("l_knee"),
+    "right_knee": _same("r_knee"),
+    "spine2": _same("spine2"),
+    "left_ankle": _same("l_ankle"),
+    "right_ankle": _same("r_ankle"),
+    "spine3": _between("spine2", "neck"),
+    "left_foot": _same("l_toe"),
+    "right_foot": _same("r_toe"),
+    "neck": _same("neck"),
+    "left_collar": _between("spine2", "l_shoulder"),
+    "right_collar": _between("spine2", "r_shoulder"),
+    "head": _same("head"),
+    "left_shoulder": _same("l_shoulder"),
+    "right_shoulder": _same("r_shoulder"),
+    "left_elbow": _same("l_elbow"),
+    "right_elbow": _same("r_elbow"),
+    "left_wrist": _same("l_wrist"),
+    "right_wrist": _same("r_wrist"),
+    "left_hand": {"from": {"l_wrist": 1}, "exact": False, "note": "no hand joint: the wrist stands in"},
+    "right_hand": {"from": {"r_wrist": 1}, "exact": False, "note": "no hand joint: the wrist stands in"},
+}
+"""How the made-up dancer's joints make SMPL-24's, in its joint-set file."""
+
+
 @pytest.fixture
 def corpus(tmp_path):
     """The joint-set file, a dialect for its CSV and a positions spec, all in ``schemas/``; two
@@ -50,7 +87,7 @@ def corpus(tmp_path):
     schemas.mkdir()
     joints = [{"name": n, "parent": p} for n, p in DANCER19.items()]
     (schemas / "dancer19.json").write_text(
-        json.dumps({"name": "dancer19", "joints": joints, "roles": {"root": "pelvis"}})
+        json.dumps({"name": "dancer19", "joints": joints, "roles": {"root": "pelvis"}, "to_smpl24": TO_SMPL24})
     )
     (schemas / "dancer19_csv.json").write_text(
         json.dumps(
@@ -78,7 +115,7 @@ def corpus(tmp_path):
     takes.mkdir()
     rng = np.random.default_rng(0)
     entries = []
-    for k in (1, 2):
+    for k, split in ((1, "train"), (2, "val"), (3, "test")):
         n = 30 * 20
         rest = rng.normal(0, 0.3, (len(DANCER19), 3)) + [0, 1, 2.5]
         sway = 0.05 * np.sin(np.arange(n)[:, None, None] * 0.2 + rng.uniform(0, 6, (1, len(DANCER19), 3)))
@@ -93,7 +130,7 @@ def corpus(tmp_path):
                 "audio": f"takes/take{k}.flac",
                 "offset": 0.0,
                 "schema": "schemas/dancer19_csv.json",
-                "split": "train" if k == 1 else "test",
+                "split": split,
             }
         )
     (tmp_path / "recordings.json").write_text(json.dumps(entries))
@@ -118,7 +155,7 @@ def test_a_dataset_of_an_unshipped_joint_set_from_schema_files_only(corpus, tmp_
     manifest = build_dataset(corpus / "recordings.json", tmp_path / "ds", config)
     target = TargetSpec.from_dict(manifest["config"]["target"])
     assert target == spec and target.joints.names == tuple(DANCER19)
-    assert manifest["target_dim"] == 57 and manifest["totals"]["recordings"] == 2
+    assert manifest["target_dim"] == 57 and manifest["totals"]["recordings"] == 3
     assert manifest["splits"]["train"]["rows"] > 500
 
 
@@ -162,8 +199,8 @@ def test_a_generic_target_needs_no_spec_file(corpus, tmp_path):
 
 def test_a_generic_target_refuses_recordings_of_two_joint_sets(corpus, tmp_path):
     entries = json.loads((corpus / "recordings.json").read_text())
-    shutil.copy(REPO / "sample_data" / "synth_003.csv", corpus / "takes" / "kinect.csv")
-    shutil.copy(REPO / "sample_data" / "synth_003.flac", corpus / "takes" / "kinect.flac")
+    shutil.copy(REPO / "sample_data" / "synth_001.csv", corpus / "takes" / "kinect.csv")
+    shutil.copy(REPO / "sample_data" / "synth_001.flac", corpus / "takes" / "kinect.flac")
     entries.append({"recording": "takes/kinect.csv", "audio": "takes/kinect.flac", "split": "train"})
     (corpus / "mixed.json").write_text(json.dumps(entries))
     config = BuildConfig(features=PRESETS["yalta2016"], target={"generic": "positions"})
@@ -171,3 +208,32 @@ def test_a_generic_target_refuses_recordings_of_two_joint_sets(corpus, tmp_path)
         KinectDataError, match=r"use different joint sets, so the generic 'positions' target .*dancer19 .*kinect_v2"
     ):
         build_dataset(corpus / "mixed.json", tmp_path / "ds", config)
+
+
+def test_an_unshipped_joint_set_goes_to_a_trained_model_and_the_fields_metrics(corpus, tmp_path):
+    """Issue 17's end to end: schema files only, to a dataset, a trained model and the field's
+    metrics through the joint-set file's own SMPL-24 mapping."""
+    pytest.importorskip("torch")
+    from conftest import TINY_TRAINING
+
+    from kinectdata.core.joint_mapping import load_smpl24_mapping
+    from kinectdata.evaluation.evaluate import evaluate
+    from kinectdata.training.config import TrainConfig
+    from kinectdata.training.train import train
+
+    js = load_joint_set(corpus / "schemas" / "dancer19.json")
+    mapping = load_smpl24_mapping(js)
+    positions = np.random.default_rng(1).normal(size=(2, len(js), 3))
+    smpl, _ = mapping.apply(positions)
+    names = list(js.names)
+    np.testing.assert_allclose(
+        smpl[:, 9], (positions[:, names.index("spine2")] + positions[:, names.index("neck")]) / 2
+    )
+    assert mapping.describe()["approximated"]["left_hand"] == "no hand joint: the wrist stands in"
+
+    config = BuildConfig(features=PRESETS["yalta2016"], target={"generic": "positions"})
+    build_dataset(corpus / "recordings.json", tmp_path / "ds", config)
+    train(tmp_path / "ds", tmp_path / "run", TrainConfig(**TINY_TRAINING))
+    results = evaluate(tmp_path / "run", tmp_path / "ds", "test", engines=[("torch", "float32")], bootstrap=20)
+    assert "unavailable" not in results["field"], results["field"]
+    assert {"fid_k", "bas"} <= {k.lower() for k in results["field"]["metrics"]}
