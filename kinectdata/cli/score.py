@@ -1,13 +1,16 @@
-"""``kinectdata score``: the field's metrics (FID, diversity, Beat Align Score, PFC) of two sets of dance."""
+"""``kinectdata score``: the field's metrics (FID, diversity, Beat Align Score, PFC) of two sets of dance;
+``kinectdata smpl24``: a recording as the field's SMPL-24 joint array."""
 
 from __future__ import annotations
 
 import click
 
+from kinectdata.cli.options import reader_options
 from kinectdata.cli.progress import progress_bar
 from kinectdata.evaluation.field_scores import score_sets, write_metrics_json
 from kinectdata.evaluation.motion_sets import DanceReading, load_dance_set
 from kinectdata.evaluation.protocols import PROTOCOLS, get_protocol
+from kinectdata.formats import read_motion
 
 
 @click.command("score")
@@ -48,4 +51,34 @@ def score(
     click.echo(f"wrote {path}")
 
 
-COMMANDS = [score]
+@click.command("smpl24")
+@click.argument("recording", type=click.Path(path_type=str))
+@click.option("-o", "--out", required=True, type=click.Path(dir_okay=False), help="the .npy file to write")
+@click.option("--fps", type=float, default=60.0, show_default=True, help="frame rate of the array (AIST++: 60)")
+@click.option("--mapping", default=None, help="joint-mapping file to SMPL-24 for a joint set without a mapping")
+@reader_options
+def smpl24(recording, out, fps, mapping, format_, schema, body, person, video_fps) -> None:
+    """Write RECORDING (any 3-D recording kinectdata reads, or an aligned .h5) as the field's joint
+    array: [T, 24, 3] float32 SMPL-24 joints in metres, y up, at --fps, for the peers' tools and for
+    `score` (which reads it back with --fps and --up y)."""
+    import numpy as np
+
+    from kinectdata.core.atomic import atomic_output
+    from kinectdata.evaluation.motion_sets import smpl24_joints
+
+    if recording.lower().endswith((".h5", ".hdf5")):
+        from kinectdata.align.aligned import AlignedRecording
+
+        motion = AlignedRecording.load(recording, audio=False).motion
+    else:
+        motion = read_motion(recording, format=format_, schema=schema, body=body, person=person, video_fps=video_fps)
+    joints = smpl24_joints(motion, fps, source=recording, mapping=mapping)
+    with atomic_output(out) as tmp:
+        with open(tmp, "wb") as f:
+            np.save(f, joints)
+    click.echo(
+        f"wrote {out}: {joints.shape[0]} frames of SMPL-24 joints at {fps:g} fps ({joints.shape[0] / fps:.2f} s)"
+    )
+
+
+COMMANDS = [score, smpl24]

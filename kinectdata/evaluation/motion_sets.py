@@ -27,6 +27,7 @@ motion's frame 0, as ``kinectdata generate`` writes them.
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import pickle
 import warnings
@@ -44,7 +45,7 @@ from kinectdata.core.joint_mapping import load_smpl24_mapping
 from kinectdata.core.jointsets import load_joint_set
 from kinectdata.core.motion import Motion
 from kinectdata.evaluation.field_scores import DanceSequence
-from kinectdata.evaluation.protocols import Protocol
+from kinectdata.evaluation.protocols import Protocol, get_protocol
 from kinectdata.evaluation.rhythm import music_beats
 from kinectdata.formats.registry import read_motion, readers
 
@@ -224,6 +225,21 @@ def motion_as_dance(
         filled_fraction=filled,
         native_fps=native,
     )
+
+
+def smpl24_joints(
+    motion: Motion, fps: float = 60.0, *, source: str | Path = "the recording", mapping: str | Path | None = None
+) -> np.ndarray:
+    """The recording as the field's joint array: [T, 24, 3] float32 SMPL-24 joints in metres, y up,
+    at ``fps`` (AIST++ and Bailando keep 60), exactly as :func:`motion_as_dance` gives them to the
+    metrics (mapped by the joint set's mapping or ``mapping``, resampled from frame 0, short gaps
+    filled), so that ``score`` reading the array back with ``--fps`` and ``--up y`` scores what it
+    would score reading the recording. FormatError names ``source`` when it cannot be mapped."""
+    if not (np.isfinite(fps) and fps > 0):
+        raise KinectDataError(f"{source}: the frame rate must be a positive number of frames per second, not {fps!r}")
+    rate = dataclasses.replace(get_protocol("aist"), fps=float(fps))  # of a protocol, only its rate is used here
+    sequence = motion_as_dance(motion, rate, name=Path(str(source)).stem, source=source, mapping=mapping)
+    return sequence.positions.astype(np.float32)
 
 
 def read_beats_file(path: Path) -> dict[str, np.ndarray]:

@@ -382,3 +382,27 @@ def test_a_mapping_file_follows_the_joint_order_of_the_file_it_maps(tmp_path):
     raw = read_motion(htr)
     np.testing.assert_allclose(seq.positions[0, smpl.index("pelvis")], raw.positions[0, raw.joint_set.index("Hips")])
     np.testing.assert_allclose(seq.positions[0, smpl.index("head")], raw.positions[0, raw.joint_set.index("Spine")])
+
+
+def test_smpl24_writes_the_joint_array_score_reads_back_alike(tmp_path):
+    """kinectdata smpl24: a Kinect take as the field's [T, 24, 3] array at 60 fps, y up; scoring reads
+    the array (--fps 60, --up y) as the same sequence it makes of the take itself."""
+    from click.testing import CliRunner
+    from conftest import REPO
+
+    from kinectdata.cli import main
+    from kinectdata.evaluation.motion_sets import DanceReading, load_dance_sequence
+    from kinectdata.evaluation.protocols import get_protocol
+
+    take = REPO / "sample_data" / "synth_001.csv"
+    out = tmp_path / "take.npy"
+    result = CliRunner().invoke(main, ["smpl24", str(take), "-o", str(out)])
+    assert result.exit_code == 0, result.output
+    joints = np.load(out)
+    assert joints.dtype == np.float32 and joints.shape[1:] == (24, 3)
+    protocol = get_protocol("bailando")  # 60 fps
+    direct = load_dance_sequence(take, protocol)
+    back = load_dance_sequence(out, protocol, DanceReading(60.0, "y"))
+    np.testing.assert_allclose(back.positions, direct.positions, atol=1e-6)
+    result = CliRunner().invoke(main, ["smpl24", str(REPO / "sample_data"), "-o", str(tmp_path / "x.npy")])
+    assert result.exit_code != 0 and "Traceback" not in result.output
