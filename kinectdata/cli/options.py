@@ -63,7 +63,8 @@ def reader_options(f):
         default=None,
         metavar="NAME|FILE",
         help="CSV dialect: a shipped schema (kinectreader, lsl_kinect, dumpkinectskeleton, canonical) or "
-        "a schema JSON file for another dialect. Default: detected from the file.",
+        "a schema JSON file for another dialect (default: detected from the file); for joint arrays "
+        "(.npy, .npz, JSON), the array schema file that declares them.",
     )(f)
     f = click.option(
         "--format",

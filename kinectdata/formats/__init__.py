@@ -3,6 +3,7 @@
 # Importing the format modules registers their readers.
 from kinectdata.formats.registry import Reader, detect_format, read_motion, readers, register_reader
 
+from . import arrays as _arrays  # noqa: F401
 from . import azure_json as _azure_json  # noqa: F401
 from . import bvh as _bvh  # noqa: F401
 from . import csv as _csv  # noqa: F401

@@ -83,6 +83,11 @@ def cases(paths: dict) -> dict[str, dict[str, list]]:
             "missing": [missing / "gen", RECORDING, "-o", out / "m.json"],
             "foreign": [junk_file.with_suffix(".npy"), RECORDING, "-o", out / "m.json"],
         },
+        "smpl24": {
+            "unwritable": [RECORDING, "-o", block / "j.npy"],
+            "missing": [missing / "take.csv", "-o", out / "j.npy"],
+            "foreign": [junk_file, "-o", out / "j.npy"],
+        },
         "sweep": {
             "unwritable": ["--data", ds, "--out", block / "sw"],
             "missing": ["--data", missing, "--out", out / "sw"],

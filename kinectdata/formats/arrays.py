@@ -1,0 +1,176 @@
+"""Joint positions saved as arrays (``.npy``, ``.npz``, JSON), read as an array schema declares them.
+
+Corpora and models save joints as arrays of shape [T, J, 3] (or [T, J * 3]) with no word of their
+joint set, clock, unit or axes. An array schema (``schemas/array-schema.schema.json``, a small JSON
+file like a CSV dialect's) says it, so that such files read with no code:
+
+```json
+{"name": "my_corpus", "joint_set": "my_joints.json", "positions": "keypoints3d",
+ "time": {"fps": 60}, "unit": "cm", "up": "y", "add": "root_translation"}
+```
+
+- ``positions``: the array's key in an ``.npz`` or a JSON object (an ``.npy``, or a JSON list, is
+  the array itself);
+- ``joint_set``: a shipped joint set or a joint-set file, a relative path read from the schema's
+  folder; J must be its size;
+- ``time``: ``{"fps": 60}`` (frames evenly spaced) or ``{"key": "timestamps", "unit": "s"}`` (a [T]
+  array in the file, ``s``, ``ms``, ``us`` or ``ns``);
+- ``unit``: ``m`` (default), ``cm``, ``mm`` or ``in``, converted to metres;
+- ``up``: the file's up axis, ``y`` (default), ``z``, ``-y`` or ``-z``, turned into y up by a
+  rotation about x (z up: (x, y, z) -> (x, z, -y)); ``handedness: "left"`` (Unity, Unreal) negates x
+  first, which makes the axes right-handed as kinectdata's are;
+- ``add``: the key of a [T, 3] track (a root translation) added to every joint, for files whose
+  joints are relative to it.
+
+Values that are not finite mark that joint's frame invalid. Pickles are not read here (they can run
+code): corpus recipes read theirs with a restricted unpickler.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from kinectdata.core.errors import FormatError, SchemaError
+from kinectdata.core.jointsets import JointSet, load_joint_set, shipped_joint_sets
+from kinectdata.core.motion import Motion
+from kinectdata.core.resources import load_json, validate
+from kinectdata.formats.registry import register_reader
+
+UNITS_TO_M = {"m": 1.0, "cm": 0.01, "mm": 0.001, "in": 0.0254}
+TIME_UNITS_TO_S = {"s": 1.0, "ms": 1e-3, "us": 1e-6, "ns": 1e-9}
+_UP_TO_Y = {  # rows: the new (x, y, z) from the file's (x, y, z), a rotation about x
+    "y": np.eye(3),
+    "z": np.array([[1.0, 0, 0], [0, 0, 1], [0, -1, 0]]),
+    "-y": np.array([[1.0, 0, 0], [0, -1, 0], [0, 0, -1]]),
+    "-z": np.array([[1.0, 0, 0], [0, 0, -1], [0, 1, 0]]),
+}
+
+
+def load_array_schema(path: str | Path) -> dict[str, Any]:
+    """The array schema at ``path``, validated, with ``joint_set`` loaded (``"_joint_set"``)."""
+    path = Path(path)
+    doc = load_json(path)
+    validate(doc, "array-schema.schema.json", path)
+    name = doc["joint_set"]
+    if name in shipped_joint_sets():
+        joint_set = load_joint_set(name)
+    else:
+        file = path.parent / Path(name).expanduser()
+        if not file.is_file():
+            raise SchemaError(
+                path, f"joint_set: {name!r} is neither a shipped joint set nor a file (looked for {file})"
+            )
+        joint_set = load_joint_set(file)
+    if joint_set.dimensions != 3:
+        raise SchemaError(
+            path, f"joint_set: {joint_set.name} is {joint_set.dimensions}-D; joint arrays hold 3-D joints"
+        )
+    return {**doc, "_joint_set": joint_set, "_path": path}
+
+
+def _contents(path: Path) -> tuple[Any, str]:
+    """The file's arrays: an array, a dict of arrays (``.npz``, a JSON object) or a list; and its kind."""
+    suffix = path.suffix.lower()
+    try:
+        if suffix == ".npy":
+            return np.load(path, allow_pickle=False), "npy"
+        if suffix == ".npz":
+            with np.load(path, allow_pickle=False) as archive:
+                return {k: archive[k] for k in archive.files}, "npz"
+        return json.loads(path.read_text(encoding="utf-8")), "json"
+    except (OSError, ValueError, EOFError) as exc:  # a pickle inside, a damaged zip, not JSON
+        raise FormatError(path, f"cannot read it as {suffix or 'JSON'} arrays ({exc})") from None
+
+
+def _array(path: Path, contents: Any, kind: str, key: str | None, what: str) -> np.ndarray:
+    if kind == "npy" or (kind == "json" and isinstance(contents, list) and key is None):
+        value = contents
+    elif key is None:
+        keys = ", ".join(sorted(contents)) if isinstance(contents, dict) else "none"
+        raise FormatError(path, f"the schema names no key for the {what}, and the file holds several (keys: {keys})")
+    elif not isinstance(contents, dict) or key not in contents:
+        keys = ", ".join(sorted(contents)) if isinstance(contents, dict) else "none: it is one array"
+        raise FormatError(path, f"no {key!r} for the {what} (keys: {keys})")
+    else:
+        value = contents[key]
+    try:
+        array = np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise FormatError(path, f"the {what} ({key or 'the array'}) are not numbers in a regular array") from None
+    return array
+
+
+@register_reader(
+    "arrays",
+    extensions=(".npy", ".npz"),
+    description="Joint arrays (.npy, .npz, JSON) read as an array schema declares them (--schema FILE)",
+)
+def read_arrays(path: Path, *, schema: str | Path | None = None) -> Motion:
+    """Read joint positions saved as arrays (see the module docstring).
+
+    Args:
+        path: the ``.npy``, ``.npz`` or ``.json`` file.
+        schema: the array schema file (required: arrays say nothing of their joints, clock or unit).
+
+    Returns:
+        A Motion: ``times`` [T] seconds from the first frame, ``positions`` [T, J, 3] metres, y up,
+        right-handed; no orientations.
+
+    Raises:
+        FormatError / SchemaError: one line naming the file and what does not fit.
+    """
+    path = Path(path)
+    if schema is None:
+        raise FormatError(
+            path,
+            "joint arrays say nothing of their joints, clock or unit: give an array schema (--schema FILE; "
+            "schemas/array-schema.schema.json)",
+        )
+    spec = load_array_schema(schema)
+    js: JointSet = spec["_joint_set"]
+    contents, kind = _contents(path)
+    positions = _array(path, contents, kind, spec.get("positions"), "positions")
+    J = len(js)
+    if positions.ndim == 2 and positions.shape[1] == 3 * J:
+        positions = positions.reshape(len(positions), J, 3)
+    if positions.ndim != 3 or positions.shape[1:] != (J, 3):
+        raise FormatError(
+            path,
+            f"positions of shape {list(positions.shape)}; the {js.name} joint set needs [T, {J}, 3] or [T, {3 * J}]",
+        )
+    T = len(positions)
+    if T < 1:
+        raise FormatError(path, "no frames")
+    if "add" in spec:
+        track = _array(path, contents, kind, spec["add"], "track to add")
+        if track.shape != (T, 3):
+            raise FormatError(path, f"{spec['add']!r} has shape {list(track.shape)}, not [{T}, 3] like the positions")
+        positions = positions + track[:, None, :]
+    times = _times(path, contents, kind, spec["time"], T)
+    positions = positions * UNITS_TO_M[spec.get("unit", "m")]
+    if spec.get("handedness", "right") == "left":
+        positions = positions * [-1.0, 1.0, 1.0]
+    positions = positions @ _UP_TO_Y[spec.get("up", "y")].T
+    return Motion(
+        times=times,
+        positions=positions,
+        joint_set=js,
+        metadata={"format": "arrays", "schema": spec["name"], "schema_path": str(spec["_path"])},
+    )
+
+
+def _times(path: Path, contents: Any, kind: str, time: dict, T: int) -> np.ndarray:
+    if "fps" in time:
+        return np.arange(T) / float(time["fps"])
+    raw = _array(path, contents, kind, time["key"], "timestamps")
+    if raw.shape != (T,):
+        raise FormatError(path, f"{time['key']!r} has shape {list(raw.shape)}, not [{T}] like the positions")
+    times = (raw - raw[0]) * TIME_UNITS_TO_S[time["unit"]]
+    if not (np.isfinite(times).all() and (np.diff(times) > 0).all()):
+        bad = int(np.argmax(~np.isfinite(times) | np.concatenate([[False], np.diff(times) <= 0])))
+        raise FormatError(path, f"{time['key']!r}: time {raw[bad]:g} at frame {bad} does not come after the one before")
+    return times

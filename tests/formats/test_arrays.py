@@ -1,0 +1,86 @@
+"""Joint arrays declared by an array schema: keys, joint set, clock, unit, axes and a track to add,
+each checked on arrays made from a recording with known values."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+from conftest import REPO
+
+from kinectdata.core.errors import FormatError, SchemaError
+from kinectdata.formats import read_motion
+
+
+@pytest.fixture(scope="module")
+def take():
+    return read_motion(REPO / "sample_data" / "synth_001.csv")
+
+
+def _schema(folder, **fields):
+    doc = {"name": "test_arrays", "joint_set": "kinect_v2", "time": {"fps": 30}} | fields
+    path = folder / "arrays.json"
+    path.write_text(json.dumps(doc))
+    return path
+
+
+def test_an_npy_in_metres_reads_as_it_is(tmp_path, take):
+    np.save(tmp_path / "take.npy", take.positions)
+    motion = read_motion(tmp_path / "take.npy", schema=_schema(tmp_path))
+    np.testing.assert_array_equal(motion.positions[take.position_mask], take.positions[take.position_mask])
+    np.testing.assert_array_equal(motion.position_mask, take.position_mask)  # NaN: that joint's frame invalid
+    np.testing.assert_allclose(motion.times, np.arange(take.n_frames) / 30)
+    assert motion.joint_set.name == "kinect_v2" and motion.metadata["schema"] == "test_arrays"
+
+
+def test_an_npz_in_centimetres_z_up_left_handed_with_a_root_track(tmp_path, take):
+    """The known answer: the take moved into such a file, then read back into kinectdata's axes."""
+    ok = take.position_mask.all(axis=1)
+    metres = take.positions[ok]
+    root = metres[:, :1].copy()
+    relative = (metres - root) * 100  # centimetres, relative to a root track
+    track = root[:, 0] * 100
+    # kinectdata's (x, y, z), y up, right-handed -> a file's z up, left-handed: (x, y, z) -> (-x, -z, y)
+    to_file = lambda p: np.stack([-p[..., 0], -p[..., 2], p[..., 1]], axis=-1)  # noqa: E731
+    stamps = np.cumsum(np.full(len(metres), 33.0)) + 1000.0
+    np.savez(tmp_path / "take.npz", joints=to_file(relative), trans=to_file(track), stamps_ms=stamps)
+    schema = _schema(
+        tmp_path, positions="joints", add="trans", unit="cm", up="z", handedness="left",
+        time={"key": "stamps_ms", "unit": "ms"},
+    )  # fmt: skip
+    motion = read_motion(tmp_path / "take.npz", schema=schema)
+    np.testing.assert_allclose(motion.positions, metres, atol=1e-12)
+    np.testing.assert_allclose(motion.times[:3], [0.0, 0.033, 0.066])
+
+
+def test_a_json_object_and_a_user_joint_set_beside_the_schema(tmp_path, take):
+    (tmp_path / "three.json").write_text(
+        json.dumps({"name": "three", "joints": [{"name": "a", "parent": None}, {"name": "b", "parent": "a"},
+                                                {"name": "c", "parent": "b"}]})
+    )  # fmt: skip
+    frames = take.positions[:5, :3].round(4)
+    (tmp_path / "take.json").write_text(json.dumps({"xyz": frames.reshape(5, 9).tolist()}))
+    motion = read_motion(
+        tmp_path / "take.json", format="arrays", schema=_schema(tmp_path, joint_set="three.json", positions="xyz")
+    )
+    assert motion.joint_set.names == ("a", "b", "c") and motion.joint_set.parents == (-1, 0, 1)
+    np.testing.assert_allclose(motion.positions, frames)
+
+
+def test_what_does_not_fit_is_one_line(tmp_path, take):
+    np.save(tmp_path / "take.npy", take.positions)
+    with pytest.raises(FormatError, match="give an array schema"):
+        read_motion(tmp_path / "take.npy")
+    with pytest.raises(FormatError, match=r"positions of shape \[672, 25, 3\]; the nite joint set needs \[T, 15, 3\]"):
+        read_motion(tmp_path / "take.npy", schema=_schema(tmp_path, joint_set="nite"))
+    np.savez(tmp_path / "take.npz", joints=take.positions)
+    with pytest.raises(FormatError, match=r"no 'positions' for the positions \(keys: joints\)"):
+        read_motion(tmp_path / "take.npz", schema=_schema(tmp_path, positions="positions"))
+    with pytest.raises(SchemaError, match="at unit"):
+        read_motion(tmp_path / "take.npy", schema=_schema(tmp_path, unit="furlong"))
+    with pytest.raises(SchemaError, match="'missing.json' is neither a shipped joint set nor a file"):
+        read_motion(tmp_path / "take.npy", schema=_schema(tmp_path, joint_set="missing.json"))
+    np.save(tmp_path / "objects.npy", np.array([{"a": 1}], dtype=object), allow_pickle=True)
+    with pytest.raises(FormatError, match="cannot read it as .npy arrays"):
+        read_motion(tmp_path / "objects.npy", schema=_schema(tmp_path))
