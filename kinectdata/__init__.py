@@ -10,8 +10,9 @@ module on first use, so the import itself stays cheap (no torch, h5py or pandas)
 - features: :class:`StftConfig`, :class:`MelConfig`, :data:`FEATURE_PRESETS`,
   :func:`recording_features` (per motion frame, rates checked), :func:`compute_features`;
 - targets: :class:`TargetSpec`, :func:`load_target_spec`, :func:`extract_targets`, :class:`Normalizer`;
-- dataset: :class:`BuildConfig` (``.from_pipeline(name, **overrides)``), :func:`build_dataset`,
-  :func:`verify_dataset`, :class:`WindowDataset`;
+- dataset: :func:`prepare_corpus` (a corpus recipe), :class:`BuildConfig`
+  (``.from_pipeline(name, **overrides)``), :func:`build_dataset`, :func:`verify_dataset`,
+  :class:`WindowDataset`;
 - models, training, evaluation, generation: :func:`register_model`, :class:`TrainConfig`,
   :func:`train`, :func:`evaluate`, :func:`generate`, :func:`export_run`, :func:`load_model`;
 - errors: :class:`KinectDataError`, :class:`InputError`, :class:`ConfigError`,
@@ -47,6 +48,7 @@ _API = {
     "extract_targets": ("kinectdata.targets.specs", "extract_targets"),
     "Normalizer": ("kinectdata.targets.normalization", "Normalizer"),
     # dataset
+    "prepare_corpus": ("kinectdata.dataset.recipes", "prepare_corpus"),
     "BuildConfig": ("kinectdata.dataset.config", "BuildConfig"),
     "PIPELINES": ("kinectdata.dataset.pipelines", "PIPELINES"),
     "build_dataset": ("kinectdata.dataset.build", "build_dataset"),

@@ -374,18 +374,29 @@ def align_files(
     body: str | None = None,
     person: str | None = None,
     video_fps: float | None = None,
+    unit: str | None = None,
+    rest_joints: str | Path | None = None,
     sample_rate: int = DEFAULT_SAMPLE_RATE,
     timeline: str | Path | None = None,
     **options: Any,
 ) -> AlignedRecording:
     """Read a recording and an audio file, align them (:func:`align`) and write ``out`` (HDF5).
 
-    ``format``, ``schema``, ``body``, ``person`` and ``video_fps`` go to the reader; ``timeline``, an ``.oni`` recorded
-    with the skeleton, gives its frames that recording's depth timestamps
+    ``format``, ``schema``, ``body``, ``person``, ``video_fps``, ``unit`` and ``rest_joints`` go to the reader;
+    ``timeline``, an ``.oni`` recorded with the skeleton, gives its frames that recording's depth timestamps
     (:func:`kinectdata.oni.skeleton.retime`); other options go to :func:`align`. Nothing is
     written when anything fails.
     """
-    motion = read_motion(recording, format=format, schema=schema, body=body, person=person, video_fps=video_fps)
+    motion = read_motion(
+        recording,
+        format=format,
+        schema=schema,
+        body=body,
+        person=person,
+        video_fps=video_fps,
+        unit=unit,
+        rest_joints=rest_joints,
+    )
     if timeline is not None:
         from kinectdata.oni.skeleton import retime
 

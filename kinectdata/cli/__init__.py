@@ -96,9 +96,23 @@ def main() -> None:
 
 
 def _register() -> None:
-    from . import align, capture, dataset, info, oni, quickstart, render, report, score, synth, train, verify
+    from . import align, capture, dataset, info, oni, prepare, quickstart, render, report, score, synth, train, verify
 
-    for module in (info, oni, capture, align, dataset, verify, train, score, synth, quickstart, report, render):
+    for module in (
+        info,
+        oni,
+        capture,
+        align,
+        prepare,
+        dataset,
+        verify,
+        train,
+        score,
+        synth,
+        quickstart,
+        report,
+        render,
+    ):
         for command in module.COMMANDS:
             main.add_command(command)
 

@@ -99,11 +99,7 @@ def align(
     recording,
     audio,
     out,
-    format_,
-    schema,
-    body,
-    person,
-    video_fps,
+    reading,
     fps,
     sample_rate,
     offset,
@@ -127,11 +123,7 @@ def align(
     from kinectdata.capture.take import is_take
 
     common = {
-        "format": format_,
-        "schema": schema,
-        "body": body,
-        "person": person,
-        "video_fps": video_fps,
+        **reading,
         "sample_rate": sample_rate,
         "timeline": timeline,
         "fps": fps,

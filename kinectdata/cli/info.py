@@ -16,11 +16,7 @@ from kinectdata.formats.csv_schema import load_csv_schema, shipped_csv_schemas
 @reader_options
 def info(
     recording: str,
-    format_: str | None,
-    schema: str | None,
-    body: str | None,
-    person: str | None,
-    video_fps: float | None,
+    reading: dict,
 ) -> None:
     """Show what a skeleton RECORDING holds: format, joints, frames, timing, tracking. An aligned
     .h5 written by `kinectdata align` shows its motion, audio and offset."""
@@ -29,7 +25,7 @@ def info(
 
         click.echo(aligned_lines(recording, AlignedRecording.load(recording)))
         return
-    m = read_motion(recording, format=format_, schema=schema, body=body, person=person, video_fps=video_fps)
+    m = read_motion(recording, **reading)
     t = m.timing()
     md = m.metadata
     click.echo(f"file            {recording}")

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import functools
 
 import click
 
@@ -36,8 +37,31 @@ def default_of(cls: type, name: str):
     return {f.name: f.default for f in dataclasses.fields(cls)}[name]
 
 
-def reader_options(f):
-    """--format, --schema, --body, --person and --video-fps, for commands that read a skeleton recording."""
+READING_OPTIONS = ("format_", "schema", "body", "person", "video_fps", "unit", "rest_joints")
+
+
+def reader_options(command):
+    """--format, --schema, --body, --person, --video-fps, --unit and --rest-joints, for commands that read a
+    skeleton recording. The command receives them as one ``reading`` dict of :func:`read_motion`'s
+    keyword arguments (``format``, ``schema``, ...; None where not given)."""
+
+    @functools.wraps(command)
+    def f(*args, **kwargs):
+        reading = {k.rstrip("_"): kwargs.pop(k) for k in READING_OPTIONS}
+        return command(*args, reading=reading, **kwargs)
+
+    f = click.option(
+        "--rest-joints",
+        default=None,
+        metavar="FILE",
+        help="FineDance: the SMPL-X rest joints its rotations are posed on (smplx_neu_J_1.npy in FineDance's code).",
+    )(f)
+    f = click.option(
+        "--unit",
+        default=None,
+        type=click.Choice(["cm", "m", "mm", "in"]),
+        help="BVH: the unit of its offsets and positions, which the file does not state (default cm).",
+    )(f)
     f = click.option(
         "--video-fps",
         default=None,
@@ -64,7 +88,7 @@ def reader_options(f):
         metavar="NAME|FILE",
         help="CSV dialect: a shipped schema (kinectreader, lsl_kinect, dumpkinectskeleton, canonical) or "
         "a schema JSON file for another dialect (default: detected from the file); for joint arrays "
-        "(.npy, .npz, JSON), the array schema file that declares them.",
+        "(.npy, .npz, .pkl, JSON), the array schema (shipped: aistpp_keypoints3d...; or a file) that declares them.",
     )(f)
     f = click.option(
         "--format",

@@ -72,7 +72,7 @@ class SizeType(click.ParamType):
     help="Pixels of each panel (a comparison is twice as wide); even numbers for MP4.",
 )
 @reader_options
-def render(motion, out, audio, compare, start, end, fps, size, format_, schema, body, person, video_fps) -> None:
+def render(motion, out, audio, compare, start, end, fps, size, reading) -> None:
     """Draw MOTION as a skeleton animation: any readable recording, an aligned .h5 or generated motion
     (CSV, OpenPose JSON Lines). 3-D skeletons (metres) are seen by a fixed raised camera looking the way
     the sensor looks, over a floor grid; 2-D ones (pixels) on image axes, y down. --format applies to
@@ -82,8 +82,7 @@ def render(motion, out, audio, compare, start, end, fps, size, format_, schema, 
 
     paths = [motion] if compare is None else [motion, compare]
     with_audio = out.lower().endswith(".mp4") and audio is None
-    options = {"schema": schema, "body": body, "person": person, "video_fps": video_fps}
-    inputs = load_inputs(paths, with_audio=with_audio, format=format_, **options)
+    inputs = load_inputs(paths, with_audio=with_audio, **reading)
     with progress_bar("rendering", "frame") as progress:
         result = render_animation(inputs, out, start=start, end=end, fps=fps, audio=audio, size=size, progress=progress)
     width, height = result["size"]

@@ -57,7 +57,7 @@ def score(
 @click.option("--fps", type=float, default=60.0, show_default=True, help="frame rate of the array (AIST++: 60)")
 @click.option("--mapping", default=None, help="joint-mapping file to SMPL-24 for a joint set without a mapping")
 @reader_options
-def smpl24(recording, out, fps, mapping, format_, schema, body, person, video_fps) -> None:
+def smpl24(recording, out, fps, mapping, reading) -> None:
     """Write RECORDING (any 3-D recording kinectdata reads, or an aligned .h5) as the field's joint
     array: [T, 24, 3] float32 SMPL-24 joints in metres, y up, at --fps, for the peers' tools and for
     `score` (which reads it back with --fps and --up y)."""
@@ -71,7 +71,7 @@ def smpl24(recording, out, fps, mapping, format_, schema, body, person, video_fp
 
         motion = AlignedRecording.load(recording, audio=False).motion
     else:
-        motion = read_motion(recording, format=format_, schema=schema, body=body, person=person, video_fps=video_fps)
+        motion = read_motion(recording, **reading)
     joints = smpl24_joints(motion, fps, source=recording, mapping=mapping)
     with atomic_output(out) as tmp:
         with open(tmp, "wb") as f:

@@ -84,7 +84,8 @@ def unit_doubt(motion: Motion) -> str | None:
                 )
             return (
                 f"the body spans {extent:.4g} m, a person 1-2.5 m: {unit} read as metres? (read the file with its "
-                f"unit, e.g. unit='{'cm' if factor == 100 else 'mm'}' for BVH, or the dialect's position unit)"
+                f"unit: BVH --unit {'cm' if factor == 100 else 'mm'}, an array schema's unit, a CSV dialect's "
+                "position unit)"
             )
     return f"the body spans {extent:.4g} m, a person 1-2.5 m: is the unit right?"
 

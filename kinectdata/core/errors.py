@@ -72,6 +72,10 @@ class SchemaError(InputError):
     """A schema, joint-set or other declarative file is invalid."""
 
 
+class CorpusError(InputError):
+    """A local copy of a corpus is not laid out as its recipe expects (a folder or list missing)."""
+
+
 class AudioError(InputError):
     """An audio file cannot be read or is unusable."""
 

@@ -40,6 +40,8 @@ class RecordingEntry:
     body: str | None = None
     person: str | None = None
     video_fps: float | None = None
+    unit: str | None = None
+    rest_joints: str | None = None
 
     @property
     def aligned(self) -> bool:
@@ -56,6 +58,8 @@ class RecordingEntry:
             body=self.body,
             person=self.person,
             video_fps=self.video_fps,
+            unit=self.unit,
+            rest_joints=self.rest_joints,
         )
 
     def to_dict(self) -> dict[str, Any]:
@@ -65,8 +69,9 @@ class RecordingEntry:
         """What identifies the recording besides its files' contents: name and reading options
         (a schema file by its name; its contents are hashed with the sources)."""
         opts = {k: v for k, v in self.to_dict().items() if k not in ("recording", "audio", "split")}
-        if self.schema is not None and Path(self.schema).is_file():
-            opts["schema"] = Path(self.schema).name
+        for key in ("schema", "rest_joints"):
+            if opts.get(key) is not None and Path(opts[key]).is_file():
+                opts[key] = Path(opts[key]).name
         return opts
 
 
@@ -80,8 +85,13 @@ def _is_aligned_file(path: Path) -> bool:
         return False
 
 
-def _read_manifest(path: Path) -> tuple[list[dict[str, Any]], list[int] | None]:
-    """The entries of a manifest file, and for CSV the line of each (None for JSON and YAML)."""
+MANIFEST_KEYS = ("recordings", "root", "corpus", "description")
+"""What a JSON or YAML manifest written as an object may hold (its recordings under ``recordings``)."""
+
+
+def _read_manifest(path: Path) -> tuple[list[dict[str, Any]], list[int] | None, str | None]:
+    """The entries of a manifest file, for CSV the line of each (None for JSON and YAML), and the
+    folder its paths are relative to (``root``, itself relative to the manifest's folder) if it names one."""
     suffix = path.suffix.lower()
     try:
         text = path.read_text(encoding="utf-8-sig")
@@ -109,7 +119,7 @@ def _read_manifest(path: Path) -> tuple[list[dict[str, Any]], list[int] | None]:
                     ) from None
             docs.append(doc)
             lines.append(line)
-        return docs, lines
+        return docs, lines, None
     try:
         if suffix in (".yaml", ".yml"):
             import yaml
@@ -122,9 +132,17 @@ def _read_manifest(path: Path) -> tuple[list[dict[str, Any]], list[int] | None]:
     except Exception as exc:  # yaml.YAMLError and its subclasses
         mark = getattr(exc, "problem_mark", None)
         raise SchemaError(path, f"invalid YAML: {exc}", line=None if mark is None else mark.line + 1) from exc
+    root = None
     if isinstance(doc, dict) and "recordings" in doc:
+        unknown = sorted(set(map(str, doc)) - set(MANIFEST_KEYS))
+        if unknown:
+            keys = ", ".join(MANIFEST_KEYS)
+            raise SchemaError(path, f"unknown key(s) {', '.join(unknown)} (a manifest holds {keys})")
+        root = doc.get("root")
+        if root is not None and not (isinstance(root, str) and root):
+            raise SchemaError(path, f"root: {root!r} is not a folder path")
         doc = doc["recordings"]
-    return doc, None
+    return doc, None, root
 
 
 _NAME = re.compile(r"[A-Za-z0-9_.+-]+")
@@ -141,24 +159,39 @@ def _checked_name(name: str, where: str, source: Path) -> str:
 def _existing(source: Path, base: Path, doc: dict, key: str, where: str, line: int | None, allow_outside: bool) -> Path:
     """The resolved path of a manifest field naming a file (or, for a recording, an OpenPose
     folder), which must exist and, unless ``allow_outside``, be relative and stay inside ``base``
-    once ``..`` and symbolic links are resolved."""
+    (the manifest's folder, or the ``root`` it names) once ``..`` and symbolic links are resolved."""
     path = (base / doc[key]).resolve()
     if not allow_outside:
         why = None
         if Path(doc[key]).is_absolute():
             why = "is an absolute path"
         elif not path.is_relative_to(base.resolve()):
-            why = f"leads outside the manifest's folder {base} (to {path})"
+            why = f"leads outside the manifest's folder or root {base} (to {path})"
         if why is not None:
             raise SchemaError(
                 source,
-                f"{where}: {key} {doc[key]} {why}: paths in a manifest are relative to its folder and stay inside "
-                "it (--allow-outside-paths, or allow_outside_paths=True, allows others)",
+                f"{where}: {key} {doc[key]} {why}: paths in a manifest are relative to its folder (or its root) "
+                "and stay inside it (--allow-outside-paths, or allow_outside_paths=True, allows others)",
                 line=line,
             )
     if not (path.is_file() or (key == "recording" and path.is_dir())):
         raise SchemaError(source, f"{where}: {key} {doc[key]} does not exist (looked for {path})", line=line)
     return path
+
+
+def _manifest_root(source: Path, root: str, allow_outside: bool) -> Path:
+    """The folder a manifest's ``root`` names, which must exist and, unless ``allow_outside``, lie
+    inside the manifest's folder: a root elsewhere reads files from there, as an outside path would."""
+    base = (source.parent / Path(root).expanduser()).resolve()
+    if not allow_outside and not base.is_relative_to(source.parent.resolve()):
+        raise SchemaError(
+            source,
+            f"root {root} leads outside the manifest's folder (to {base}): build with --allow-outside-paths "
+            "(allow_outside_paths=True) if you trust this manifest",
+        )
+    if not base.is_dir():
+        raise SchemaError(source, f"root: {root} is not a folder (looked for {base})")
+    return base
 
 
 def read_recordings(
@@ -212,7 +245,7 @@ def _read_recordings(source: Path, allow_outside: bool) -> list[RecordingEntry]:
         ]
     if not source.is_file():
         raise KinectDataError(f"{source}: no such manifest file or folder")
-    docs, lines = _read_manifest(source)
+    docs, lines, root = _read_manifest(source)
     if lines is None:
         validate(docs, "recordings.schema.json", source)
     else:
@@ -226,6 +259,8 @@ def _read_recordings(source: Path, allow_outside: bool) -> list[RecordingEntry]:
         if not docs:
             raise SchemaError(source, "no recordings listed")
     base = source.parent
+    if root is not None:
+        base = _manifest_root(source, root, allow_outside)
     entries, seen = [], {}
     for i, d in enumerate(docs):
         where = f"recordings[{i}]" if lines is None else f"line {lines[i]}"
@@ -254,6 +289,12 @@ def _read_recordings(source: Path, allow_outside: bool) -> list[RecordingEntry]:
                 body=d.get("body"),
                 person=None if d.get("person") is None else str(d["person"]),
                 video_fps=None if d.get("video_fps") is None else float(d["video_fps"]),
+                unit=d.get("unit"),
+                rest_joints=(
+                    str(_existing(source, base, d, "rest_joints", where, line, allow_outside))
+                    if "rest_joints" in d
+                    else None
+                ),
             )
         )
     return entries

@@ -134,9 +134,9 @@ def _mean_square(blocks: Iterable[np.ndarray]) -> float:
 
 def source_hashes(entry: RecordingEntry) -> dict[str, str]:
     """SHA-256 of a recording's files by file name: the recording (a file or an OpenPose folder), its
-    audio and its CSV schema file if it has one (an edited schema changes what is read)."""
+    audio, and the schema or rest-joints file it is read with (an edited one changes what is read)."""
     hashes = {Path(entry.recording).name: file_sha256(entry.recording)}
-    for p in (entry.audio, entry.schema):
+    for p in (entry.audio, entry.schema, entry.rest_joints):
         if p is not None and Path(p).is_file():
             hashes[Path(p).name] = file_sha256(p)
     return hashes

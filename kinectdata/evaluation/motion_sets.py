@@ -44,6 +44,7 @@ from kinectdata.core.errors import FormatError, KinectDataError, KinectDataWarni
 from kinectdata.core.joint_mapping import load_smpl24_mapping
 from kinectdata.core.jointsets import load_joint_set
 from kinectdata.core.motion import Motion
+from kinectdata.core.safe_pickle import load_arrays_pickle
 from kinectdata.evaluation.field_scores import DanceSequence
 from kinectdata.evaluation.protocols import Protocol, get_protocol
 from kinectdata.evaluation.rhythm import music_beats
@@ -272,7 +273,7 @@ def _joint_array(path: Path, allow_pickle: bool) -> np.ndarray:
     try:
         if suffix in PICKLE_SUFFIXES:
             with open(path, "rb") as f:
-                data = _ArraysOnlyUnpickler(f).load()
+                data = load_arrays_pickle(f)
         elif suffix == ".npy":
             data = _read_npy(path, allow_pickle)
         else:
@@ -305,31 +306,9 @@ def _joint_array(path: Path, allow_pickle: bool) -> np.ndarray:
     return joints.astype(np.float64)
 
 
-_PICKLE_GLOBALS = {
-    ("numpy.core.multiarray", "_reconstruct"),
-    ("numpy._core.multiarray", "_reconstruct"),
-    ("numpy.core.multiarray", "scalar"),
-    ("numpy._core.multiarray", "scalar"),
-    ("numpy", "ndarray"),
-    ("numpy", "dtype"),
-    ("collections", "OrderedDict"),
-}
-"""What a pickle of numpy arrays in plain containers needs; any other class or function is refused."""
-
-
-class _ArraysOnlyUnpickler(pickle.Unpickler):
-    """Unpickles numpy arrays, numbers, strings and plain containers only: a pickle naming any other
-    class or function (the way a pickle runs code) is refused, even with ``--allow-pickle``."""
-
-    def find_class(self, module: str, name: str):
-        if (module, name) in _PICKLE_GLOBALS:
-            return super().find_class(module, name)
-        raise pickle.UnpicklingError(f"refused: the pickle asks for {module}.{name}, not a numpy array")
-
-
 def _read_npy(path: Path, allow_pickle: bool):
     """A .npy file's array; one holding Python objects (Bailando's dicts) only with ``allow_pickle``,
-    through :class:`_ArraysOnlyUnpickler`."""
+    through :func:`~kinectdata.core.safe_pickle.load_arrays_pickle`."""
     with open(path, "rb") as f:
         version = np.lib.format.read_magic(f)
         if version == (1, 0):
@@ -341,7 +320,7 @@ def _read_npy(path: Path, allow_pickle: bool):
                 raise FormatError(
                     path, "holds Python objects (a pickled dict?): pass --allow-pickle to read them (numpy arrays only)"
                 )
-            return _ArraysOnlyUnpickler(f).load()
+            return load_arrays_pickle(f)
     return np.load(path)
 
 

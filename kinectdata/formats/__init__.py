@@ -7,6 +7,7 @@ from . import arrays as _arrays  # noqa: F401
 from . import azure_json as _azure_json  # noqa: F401
 from . import bvh as _bvh  # noqa: F401
 from . import csv as _csv  # noqa: F401
+from . import finedance as _finedance  # noqa: F401
 from . import htr as _htr  # noqa: F401
 from . import ntu as _ntu  # noqa: F401
 from . import openpose as _openpose  # noqa: F401

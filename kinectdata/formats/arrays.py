@@ -1,4 +1,4 @@
-"""Joint positions saved as arrays (``.npy``, ``.npz``, JSON), read as an array schema declares them.
+"""Joint positions saved as arrays (``.npy``, ``.npz``, JSON, pickles), read as an array schema declares them.
 
 Corpora and models save joints as arrays of shape [T, J, 3] (or [T, J * 3]) with no word of their
 joint set, clock, unit or axes. An array schema (``schemas/array-schema.schema.json``, a small JSON
@@ -20,15 +20,21 @@ file like a CSV dialect's) says it, so that such files read with no code:
   rotation about x (z up: (x, y, z) -> (x, z, -y)); ``handedness: "left"`` (Unity, Unreal) negates x
   first, which makes the axes right-handed as kinectdata's are;
 - ``add``: the key of a [T, 3] track (a root translation) added to every joint, for files whose
-  joints are relative to it.
+  joints are relative to it;
+- ``derived``: joints the file lacks, each a weighted sum of the file's joints (``{"pelvis":
+  {"left_hip": 0.5, "right_hip": 0.5}}``), the joint set's last joints in this order: so that
+  keypoint layouts with no root (COCO-17) make one tree.
 
-Values that are not finite mark that joint's frame invalid. Pickles are not read here (they can run
-code): corpus recipes read theirs with a restricted unpickler.
+A schema is a file, or the name of one shipped in ``schemas/arrays/`` (``aistpp_keypoints3d``).
+Values that are not finite mark that joint's frame invalid. Pickles (``.pkl``) are read with
+:func:`~kinectdata.core.safe_pickle.load_arrays_pickle`, which accepts numpy arrays in plain
+containers and refuses anything else (the way a pickle runs code).
 """
 
 from __future__ import annotations
 
 import json
+import pickle
 from pathlib import Path
 from typing import Any
 
@@ -37,10 +43,12 @@ import numpy as np
 from kinectdata.core.errors import FormatError, SchemaError
 from kinectdata.core.jointsets import JointSet, load_joint_set, shipped_joint_sets
 from kinectdata.core.motion import Motion
-from kinectdata.core.resources import load_json, validate
+from kinectdata.core.resources import load_json, resolve_resource, validate
+from kinectdata.core.safe_pickle import load_arrays_pickle
+from kinectdata.formats.common import UNITS_TO_M, brief, load_numpy
 from kinectdata.formats.registry import register_reader
 
-UNITS_TO_M = {"m": 1.0, "cm": 0.01, "mm": 0.001, "in": 0.0254}
+PICKLE_SUFFIXES = (".pkl", ".pickle")
 TIME_UNITS_TO_S = {"s": 1.0, "ms": 1e-3, "us": 1e-6, "ns": 1e-9}
 _UP_TO_Y = {  # rows: the new (x, y, z) from the file's (x, y, z), a rotation about x
     "y": np.eye(3),
@@ -50,9 +58,10 @@ _UP_TO_Y = {  # rows: the new (x, y, z) from the file's (x, y, z), a rotation ab
 }
 
 
-def load_array_schema(path: str | Path) -> dict[str, Any]:
-    """The array schema at ``path``, validated, with ``joint_set`` loaded (``"_joint_set"``)."""
-    path = Path(path)
+def load_array_schema(name_or_path: str | Path) -> dict[str, Any]:
+    """The array schema shipped under that name or at that path, validated, with ``joint_set``
+    loaded (``"_joint_set"``) and ``derived`` checked against it."""
+    _, path = resolve_resource("arrays", name_or_path, "array schema")
     doc = load_json(path)
     validate(doc, "array-schema.schema.json", path)
     name = doc["joint_set"]
@@ -69,25 +78,52 @@ def load_array_schema(path: str | Path) -> dict[str, Any]:
         raise SchemaError(
             path, f"joint_set: {joint_set.name} is {joint_set.dimensions}-D; joint arrays hold 3-D joints"
         )
-    return {**doc, "_joint_set": joint_set, "_path": path}
+    derived = list(doc.get("derived", {}))
+    n_file = len(joint_set) - len(derived)
+    if derived and list(joint_set.names[n_file:]) != derived:
+        raise SchemaError(
+            path,
+            f"derived: {', '.join(derived)} must be the last joints of {joint_set.name}, in that order "
+            f"(its last {len(derived)}: {', '.join(joint_set.names[n_file:])})",
+        )
+    for name, weights in doc.get("derived", {}).items():
+        unknown = [j for j in weights if j not in joint_set.names[:n_file]]
+        if unknown:
+            raise SchemaError(path, f"derived: {name} is made of {', '.join(unknown)}, not joints the file holds")
+    return {**doc, "_joint_set": joint_set, "_path": path, "_file_joints": n_file}
 
 
 def _contents(path: Path) -> tuple[Any, str]:
     """The file's arrays: an array, a dict of arrays (``.npz``, a JSON object) or a list; and its kind."""
     suffix = path.suffix.lower()
+    if suffix in (".npy", ".npz"):
+        contents = load_numpy(path, "joint arrays")
+        return contents, "npy" if isinstance(contents, np.ndarray) else "npz"
+    if suffix in PICKLE_SUFFIXES:
+        return _pickled(path)
     try:
-        if suffix == ".npy":
-            return np.load(path, allow_pickle=False), "npy"
-        if suffix == ".npz":
-            with np.load(path, allow_pickle=False) as archive:
-                return {k: archive[k] for k in archive.files}, "npz"
         return json.loads(path.read_text(encoding="utf-8")), "json"
-    except (OSError, ValueError, EOFError) as exc:  # a pickle inside, a damaged zip, not JSON
-        raise FormatError(path, f"cannot read it as {suffix or 'JSON'} arrays ({exc})") from None
+    except (ValueError, RecursionError) as exc:  # not UTF-8, not JSON, nested beyond Python's limit
+        raise FormatError(path, f"cannot read it as JSON arrays ({brief(exc)})") from None
+
+
+def _pickled(path: Path) -> tuple[Any, str]:
+    with open(path, "rb") as f:
+        try:
+            contents = load_arrays_pickle(f)
+        except MemoryError:
+            raise FormatError(path, "the pickle declares more data than memory can hold (a damaged file?)") from None
+        except pickle.UnpicklingError as exc:
+            raise FormatError(path, f"cannot read it as a pickle of arrays ({brief(exc)})") from None
+        except Exception as exc:  # a damaged pickle can call an allowed class with any arguments
+            raise FormatError(path, f"not a readable pickle of arrays ({brief(exc)})") from None
+    if isinstance(contents, np.ndarray) and contents.dtype == object and contents.shape == ():
+        contents = contents.item()
+    return contents, "npy" if isinstance(contents, np.ndarray) else "pickle"
 
 
 def _array(path: Path, contents: Any, kind: str, key: str | None, what: str) -> np.ndarray:
-    if kind == "npy" or (kind == "json" and isinstance(contents, list) and key is None):
+    if kind == "npy" or (kind in ("json", "pickle") and isinstance(contents, list) and key is None):
         value = contents
     elif key is None:
         keys = ", ".join(sorted(contents)) if isinstance(contents, dict) else "none"
@@ -106,15 +142,16 @@ def _array(path: Path, contents: Any, kind: str, key: str | None, what: str) -> 
 
 @register_reader(
     "arrays",
-    extensions=(".npy", ".npz"),
-    description="Joint arrays (.npy, .npz, JSON) read as an array schema declares them (--schema FILE)",
+    extensions=(".npy", ".npz", *PICKLE_SUFFIXES),
+    description="Joint arrays (.npy, .npz, .pkl, JSON) read as an array schema declares them (--schema NAME|FILE)",
 )
 def read_arrays(path: Path, *, schema: str | Path | None = None) -> Motion:
     """Read joint positions saved as arrays (see the module docstring).
 
     Args:
-        path: the ``.npy``, ``.npz`` or ``.json`` file.
-        schema: the array schema file (required: arrays say nothing of their joints, clock or unit).
+        path: the ``.npy``, ``.npz``, ``.pkl`` or ``.json`` file.
+        schema: the array schema, shipped name or file (required: arrays say nothing of their
+            joints, clock or unit).
 
     Returns:
         A Motion: ``times`` [T] seconds from the first frame, ``positions`` [T, J, 3] metres, y up,
@@ -134,7 +171,7 @@ def read_arrays(path: Path, *, schema: str | Path | None = None) -> Motion:
     js: JointSet = spec["_joint_set"]
     contents, kind = _contents(path)
     positions = _array(path, contents, kind, spec.get("positions"), "positions")
-    J = len(js)
+    J = spec["_file_joints"]
     if positions.ndim == 2 and positions.shape[1] == 3 * J:
         positions = positions.reshape(len(positions), J, 3)
     if positions.ndim != 3 or positions.shape[1:] != (J, 3):
@@ -142,6 +179,12 @@ def read_arrays(path: Path, *, schema: str | Path | None = None) -> Motion:
             path,
             f"positions of shape {list(positions.shape)}; the {js.name} joint set needs [T, {J}, 3] or [T, {3 * J}]",
         )
+    if J < len(js):
+        made = [
+            np.einsum("tkc,k->tc", positions[:, [js.index(j) for j in w]], np.array(list(w.values()), dtype=float))
+            for w in spec["derived"].values()
+        ]
+        positions = np.concatenate([positions, np.stack(made, axis=1)], axis=1)
     T = len(positions)
     if T < 1:
         raise FormatError(path, "no frames")

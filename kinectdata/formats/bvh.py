@@ -41,11 +41,12 @@ from kinectdata.core.errors import FormatError
 from kinectdata.core.jointsets import JointSet
 from kinectdata.core.motion import Motion
 from kinectdata.core.quaternions import make_continuous
-from kinectdata.formats.common import read_text
+from kinectdata.formats.common import UNITS_TO_M, read_text
 from kinectdata.formats.registry import register_reader
 
-UNITS_TO_M = {"m": 1.0, "cm": 0.01, "mm": 0.001, "in": 0.0254}
-"""The units a BVH file's offsets and positions may be in, to metres."""
+MAX_FRAME_TIME_S = 3600.0
+"""A frame time above an hour is damage, not a frame rate (and would overflow the clock)."""
+
 CHANNELS = ("xposition", "yposition", "zposition", "xrotation", "yrotation", "zrotation")
 
 
@@ -191,8 +192,8 @@ def _motion(tokens: _Tokens, columns: int, frames_text: str, first_line: int) ->
     tokens.expect("Time:")
     time_line = tokens.line
     frame_time = tokens.number("the frame time")
-    if frame_time <= 0:
-        message = f"Frame Time: {frame_time:g} s (a positive number of seconds expected)"
+    if not 0 < frame_time < MAX_FRAME_TIME_S:
+        message = f"Frame Time: {frame_time:g} s (a positive number of seconds, below {MAX_FRAME_TIME_S:g}, expected)"
         raise FormatError(tokens.path, message, line=time_line)
     n = int(count)
     values = _fast_frames(frames_text, columns)

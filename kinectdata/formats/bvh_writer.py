@@ -39,7 +39,7 @@ import numpy as np
 from kinectdata.core.atomic import atomic_output
 from kinectdata.core.errors import KinectDataError
 from kinectdata.core.motion import Motion, frame_clock
-from kinectdata.formats.bvh import UNITS_TO_M
+from kinectdata.formats.common import UNITS_TO_M
 
 ROTATION_ORDER = "ZXY"
 

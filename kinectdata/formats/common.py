@@ -10,6 +10,9 @@ import numpy as np
 
 from kinectdata.core.errors import FormatError
 
+UNITS_TO_M = {"m": 1.0, "cm": 0.01, "mm": 0.001, "in": 0.0254}
+"""Length units a file may state or be declared in (BVH, joint arrays), to metres."""
+
 
 def read_text(path: Path, *, fallback_encoding: str | None = "cp1252") -> str:
     """The text of a file: UTF-8 (a byte-order mark is dropped), else ``fallback_encoding``.
@@ -64,3 +67,35 @@ def first_bad_time(times: np.ndarray) -> int | None:
         bad = ~np.isfinite(times)
         bad[1:] |= ~(np.diff(times) > 0)
     return int(np.argmax(bad)) if bad.any() else None
+
+
+def brief(exc: BaseException, limit: int = 200) -> str:
+    """``Type: message`` of a library's exception, cut to ``limit`` characters (a damaged file's
+    bytes can fill a message)."""
+    text = f"{type(exc).__name__}: {exc}"
+    return text if len(text) <= limit else text[: limit - 3] + "..."
+
+
+def load_numpy(path: Path, what: str = "numpy arrays") -> np.ndarray | dict[str, np.ndarray]:
+    """The array of an ``.npy`` file or the arrays of an ``.npz`` (by name), never unpickling.
+
+    A damaged file is a FormatError naming it, whichever way numpy fails on it: a header that does
+    not parse (numpy evaluates it as a Python literal), a zip that is not one, data shorter than the
+    header declares, or a declared size larger than memory.
+    """
+    import tokenize
+    import zipfile
+
+    try:
+        if path.suffix.lower() == ".npz":
+            with np.load(path) as archive:
+                return {name: archive[name] for name in archive.files}
+        return np.load(path)
+    except MemoryError:
+        raise FormatError(path, f"declares {what} larger than memory can hold (a damaged header?)") from None
+    except OSError as exc:  # also a zip member whose offset lies past the file's end
+        raise FormatError(path, f"cannot read it as {what} ({exc.strerror or exc})") from None
+    except (ValueError, EOFError, SyntaxError, tokenize.TokenError, zipfile.BadZipFile, KeyError) as exc:
+        # ValueError: an object array (a pickle), a bad header or too little data; KeyError: a zip
+        # member named in the directory but missing
+        raise FormatError(path, f"cannot read it as {what} ({brief(exc)})") from None

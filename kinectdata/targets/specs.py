@@ -352,7 +352,8 @@ def extract_targets(motion: Motion, spec: TargetSpec, *, root_centre: bool = Fal
     if js.name != spec.joint_set or js.names != spec.joints.names or js.parents != spec.joints.parents:
         raise KinectDataError(
             f"{_source(motion)}: target spec {spec.name!r} is for joint set {spec.joint_set!r}, "
-            f"but the recording's joint set is {js.name!r}; choose a spec for {js.name!r}"
+            f"but the recording's joint set is {js.name!r}; choose a spec for {js.name!r}, or a generic target "
+            "(--target positions: every joint's position; full: and every orientation)"
         )
     T = motion.n_frames
     pidx = [js.index(j) for j in spec.positions]
@@ -410,7 +411,8 @@ def _source(motion: Motion) -> str:
     meta = motion.metadata
     fmt = meta.get("format", "unknown format")
     dialect = meta.get("schema")
-    described = f"format {fmt!r}" + (f", CSV dialect {dialect!r}" if dialect else "")
+    kind = "CSV dialect" if fmt == "csv" else "schema"
+    described = f"format {fmt!r}" + (f", {kind} {dialect!r}" if dialect else "")
     return f"{meta.get('source', 'the recording')} ({described})"
 
 

@@ -15,6 +15,7 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 from conftest import DATA, REPO
+from corpus_copies import make_bvh_folder
 
 from kinectdata.cli import main
 
@@ -83,6 +84,11 @@ def cases(paths: dict) -> dict[str, dict[str, list]]:
             "missing": [missing / "gen", RECORDING, "-o", out / "m.json"],
             "foreign": [junk_file.with_suffix(".npy"), RECORDING, "-o", out / "m.json"],
         },
+        "prepare": {
+            "unwritable": ["bvh-folder", paths["bvh_corpus"], "-o", block / "r.yaml"],
+            "missing": ["aistpp", missing, "-o", out / "r.yaml"],
+            "foreign": ["aistpp", junk_dir, "-o", out / "r.yaml"],
+        },
         "smpl24": {
             "unwritable": [RECORDING, "-o", block / "j.npy"],
             "missing": [missing / "take.csv", "-o", out / "j.npy"],
@@ -124,6 +130,7 @@ def paths(tmp_path_factory, sample_dataset, trained_run):
         "junk_dir": junk_dir,
         "dataset": sample_dataset,
         "run": trained_run[0],
+        "bvh_corpus": make_bvh_folder(root, seconds=1.0),
     }
 
 
@@ -131,7 +138,7 @@ def test_every_command_has_its_cases():
     assert set(main.commands) == set(cases(PLACEHOLDERS)) | set(NOT_APPLICABLE)
 
 
-PLACEHOLDERS = dict.fromkeys(["out", "block", "missing", "junk_file", "junk_dir", "dataset", "run"], REPO)
+PLACEHOLDERS = dict.fromkeys(["out", "block", "missing", "junk_file", "junk_dir", "dataset", "run", "bvh_corpus"], REPO)
 ALL = [(command, fault) for command, faults in cases(PLACEHOLDERS).items() for fault in faults]
 
 

@@ -29,6 +29,7 @@ import numpy as np
 import pytest
 import soundfile
 from conftest import REPO
+from corpus_copies import make_aistpp_copy, make_bvh_folder, make_finedance_copy
 
 DOCUMENTS = [REPO / "README.md", *sorted((REPO / "docs").glob("*.md"))]
 SHELL = {"sh", "bash", "shell", "console"}
@@ -233,6 +234,9 @@ STAGE: dict[str, Callable[[Path], None]] = {
     "take.h5": _aligned_take,
     "generated.csv": _copy(SAMPLES / "synth_002.csv", "generated.csv"),
     "recordings.yaml": _recordings_manifest,
+    "aist_plusplus_final/": lambda work: make_aistpp_copy(work),
+    "FineDance/data/finedance/": lambda work: make_finedance_copy(work),
+    "bvh_corpus/": lambda work: make_bvh_folder(work),
     "dataset": _dataset,
 }
 """How to make each input an example names but no earlier example of its document makes."""

@@ -82,5 +82,21 @@ def test_what_does_not_fit_is_one_line(tmp_path, take):
     with pytest.raises(SchemaError, match="'missing.json' is neither a shipped joint set nor a file"):
         read_motion(tmp_path / "take.npy", schema=_schema(tmp_path, joint_set="missing.json"))
     np.save(tmp_path / "objects.npy", np.array([{"a": 1}], dtype=object), allow_pickle=True)
-    with pytest.raises(FormatError, match="cannot read it as .npy arrays"):
+    with pytest.raises(FormatError, match="cannot read it as joint arrays .*Object arrays cannot be loaded"):
         read_motion(tmp_path / "objects.npy", schema=_schema(tmp_path))
+
+
+def test_derived_joints_are_weighted_sums_and_must_be_the_sets_last_joints(tmp_path):
+    joints = [{"name": "a", "parent": "mid"}, {"name": "b", "parent": "mid"}, {"name": "mid", "parent": None}]
+    (tmp_path / "ab.json").write_text(json.dumps({"name": "ab_mid", "joints": joints}))
+    values = np.arange(2 * 2 * 3, dtype=float).reshape(2, 2, 3)
+    values[1, 0] = np.nan  # a untracked in frame 1: the midpoint is too
+    np.save(tmp_path / "take.npy", values)
+    schema = _schema(tmp_path, joint_set="ab.json", derived={"mid": {"a": 0.25, "b": 0.75}})
+    motion = read_motion(tmp_path / "take.npy", schema=schema)
+    np.testing.assert_allclose(motion.positions[0, 2], 0.25 * values[0, 0] + 0.75 * values[0, 1])
+    assert motion.position_mask.tolist() == [[True, True, True], [False, True, False]]
+    with pytest.raises(SchemaError, match="derived: b must be the last joints of ab_mid"):
+        read_motion(tmp_path / "take.npy", schema=_schema(tmp_path, joint_set="ab.json", derived={"b": {"a": 1}}))
+    with pytest.raises(SchemaError, match="derived: mid is made of z, not joints the file holds"):
+        read_motion(tmp_path / "take.npy", schema=_schema(tmp_path, joint_set="ab.json", derived={"mid": {"z": 1}}))

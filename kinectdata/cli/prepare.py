@@ -1,0 +1,65 @@
+"""``kinectdata prepare``: a local copy of a dance corpus -> a recordings manifest (a recipe)."""
+
+from __future__ import annotations
+
+import click
+
+from kinectdata.dataset.recipes import RECIPES, prepare_corpus
+
+_SHOWN_SKIPPED = 5
+
+
+@click.command("prepare")
+@click.argument("corpus", type=click.Choice(sorted(RECIPES)))
+@click.argument("path", type=click.Path(file_okay=False, path_type=str))
+@click.option(
+    "-o",
+    "--out",
+    required=True,
+    type=click.Path(dir_okay=False),
+    help="the recordings manifest to write (.yaml, .json)",
+)
+@click.option("--music", default=None, help="aistpp: the AIST Dance DB music folder (default: found beside PATH)")
+@click.option(
+    "--keypoints",
+    type=click.Choice(["keypoints3d", "keypoints3d_optim"]),
+    default=None,
+    help="aistpp: which keypoints to read (default keypoints3d)",
+)
+@click.option("--split-set", default=None, help="aistpp: the published split (default crossmodal)")
+@click.option("--include-unsplit", is_flag=True, default=None, help="aistpp: keep sequences in no split list")
+@click.option(
+    "--rest-joints", default=None, help="finedance: its smplx_neu_J_1.npy (default: found in PATH or its parent)"
+)
+@click.option("--split", default=None, type=click.Choice(["cross_genre", "cross_dancer"]), help="finedance: the split")
+@click.option(
+    "--unit", type=click.Choice(["cm", "m", "mm", "in"]), default=None, help="bvh-folder: the files' unit (cm)"
+)
+@click.option("--offset", default=None, help="bvh-folder: seconds (audio = motion + offset) or auto (default 0)")
+def prepare(corpus, path, out, **options) -> None:
+    """Write a recordings manifest for CORPUS (its recipe) read from the local copy at PATH: every
+    recording with its music, published split and reading options. Nothing is downloaded or copied;
+    build a dataset from the manifest with build-dataset."""
+    given = {k: v for k, v in options.items() if v is not None}
+    if "offset" in given and given["offset"] != "auto":
+        try:
+            given["offset"] = float(given["offset"])
+        except ValueError:
+            raise click.BadParameter(
+                f"{given['offset']!r} is neither seconds nor auto", param_hint="--offset"
+            ) from None
+    manifest = prepare_corpus(corpus, path, **given)
+    manifest.write(out)
+    counts = ", ".join(f"{n} {split}" for split, n in manifest.split_counts().items())
+    click.echo(f"wrote {out}: {len(manifest.recordings)} recordings of {corpus} ({counts}) under {manifest.root}")
+    if manifest.skipped:
+        click.echo(f"left out {len(manifest.skipped)}:")
+        for name, why in manifest.skipped[:_SHOWN_SKIPPED]:
+            click.echo(f"  {name}: {why}")
+        if len(manifest.skipped) > _SHOWN_SKIPPED:
+            click.echo(f"  ... and {len(manifest.skipped) - _SHOWN_SKIPPED} more")
+    flag = " --allow-outside-paths" if manifest.root_outside(out) else ""
+    click.echo(f"next: kinectdata build-dataset {out} -o DATASET --target {manifest.target}{flag}")
+
+
+COMMANDS = [prepare]

@@ -1,0 +1,266 @@
+"""Corpus recipes on small copies made in the shape of the real corpora (tests/corpus_copies.py):
+what each lists, with which split, and that every entry reads back as the corpus's own numbers."""
+
+from __future__ import annotations
+
+import pickle
+import re
+
+import numpy as np
+import pytest
+import yaml
+from click.testing import CliRunner
+from corpus_copies import (
+    AISTPP_SEQUENCES,
+    coco_keypoints_m,
+    finedance_motion,
+    made_up_rest_joints,
+    make_aistpp_copy,
+    make_bvh_folder,
+    make_finedance_copy,
+)
+
+from kinectdata.cli import main
+from kinectdata.core.errors import ConfigError, CorpusError, SchemaError
+from kinectdata.dataset.inputs import read_recordings
+from kinectdata.dataset.recipes import prepare_aistpp, prepare_bvh_folder, prepare_corpus, prepare_finedance
+from kinectdata.formats import read_motion
+
+
+def _one_line_error(result) -> str:
+    assert result.exit_code == 1, result.output
+    assert "Traceback" not in result.output
+    lines = result.output.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("Error: "), result.output
+    return lines[0]
+
+
+# -- AIST++ -------------------------------------------------------------------------------------------
+
+
+@pytest.fixture(scope="module")
+def aistpp(tmp_path_factory):
+    return make_aistpp_copy(tmp_path_factory.mktemp("aistpp"))
+
+
+def test_aistpp_lists_the_published_splits_and_leaves_out_what_the_corpus_does(aistpp):
+    manifest = prepare_aistpp(aistpp)
+    listed = {e.name: e.split for e in manifest.recordings}
+    expected = {n: s for n, (_, _, s) in AISTPP_SEQUENCES.items() if s in ("train", "val", "test")}
+    assert listed == expected
+    skipped = dict(manifest.skipped)
+    assert "ignore_list" in skipped["gLH_sBM_cAll_d16_mLH0_ch01"]
+    assert "crossmodal" in skipped["gMH_sBM_cAll_d22_mMH3_ch04"]
+    entry = next(e for e in manifest.recordings if e.name == "gPO_sBM_cAll_d10_mPO1_ch02")
+    assert (entry.recording, entry.audio) == ("keypoints3d/gPO_sBM_cAll_d10_mPO1_ch02.pkl", "music/mPO1.flac")
+    assert (entry.offset, entry.format, entry.schema) == (0.0, "arrays", "aistpp_keypoints3d")
+    assert manifest.split_counts() == {"train": 2, "val": 1, "test": 1}
+
+    with_unsplit = prepare_aistpp(aistpp, include_unsplit=True, keypoints="keypoints3d_optim")
+    assert {e.name: e.split for e in with_unsplit.recordings}["gMH_sBM_cAll_d22_mMH3_ch04"] is None
+    assert {e.schema for e in with_unsplit.recordings} == {"aistpp_keypoints3d_optim"}
+
+
+def test_an_aistpp_entry_reads_as_the_keypoints_in_metres_at_60_fps_with_the_midpoints(aistpp, tmp_path):
+    manifest = prepare_aistpp(aistpp)
+    out = manifest.write(tmp_path / "recordings.yaml")
+    doc = yaml.safe_load(out.read_text())
+    assert doc["corpus"] == "aistpp" and doc["root"] == str(aistpp.resolve())
+    with pytest.raises(SchemaError, match="root .* leads outside the manifest's folder"):
+        read_recordings(out)
+    entries = {e.name: e for e in read_recordings(out, allow_outside_paths=True)}
+    motion = entries["gJB_sFM_cAll_d09_mJB2_ch03"].read_motion()
+    expected = coco_keypoints_m("synth_001", 8.0, 6.0)  # what the copy was made from, in metres
+    assert motion.joint_set.name == "coco17_tree"
+    np.testing.assert_allclose(motion.times, np.arange(len(expected)) / 60.0)
+    np.testing.assert_allclose(motion.positions[:, :17], expected, atol=1e-9, equal_nan=True)
+    np.testing.assert_allclose(
+        motion.positions[:, 17], (expected[:, 11] + expected[:, 12]) / 2, atol=1e-9, equal_nan=True
+    )
+    np.testing.assert_allclose(
+        motion.positions[:, 18], (expected[:, 5] + expected[:, 6]) / 2, atol=1e-9, equal_nan=True
+    )
+
+
+def test_a_manifest_written_inside_the_corpus_needs_no_outside_paths(aistpp):
+    manifest = prepare_aistpp(aistpp)
+    out = manifest.write(aistpp / "recordings.json")
+    assert not manifest.root_outside(out)
+    assert len(read_recordings(out)) == 4
+
+
+@pytest.mark.parametrize(
+    ("damage", "message"),
+    [
+        (lambda a: [p.unlink() for p in (a / "keypoints3d").glob("*.pkl")], r"no keypoints3d/\*\.pkl"),
+        (lambda a: [p.unlink() for p in (a / "music").iterdir()] and (a / "music").rmdir(), "no music folder"),
+        (lambda a: (a / "splits" / "crossmodal_val.txt").unlink(), r"crossmodal_val\.txt: no such split list"),
+        (lambda a: [p.unlink() for p in (a / "music").iterdir()], "no recording could be listed"),
+    ],
+    ids=["no keypoints", "no music folder", "a split list missing", "no music"],
+)
+def test_a_copy_that_is_not_aistpp_is_one_line(tmp_path, damage, message):
+    annotations = make_aistpp_copy(tmp_path, seconds=1.0)
+    damage(annotations)
+    result = CliRunner().invoke(main, ["prepare", "aistpp", str(annotations), "-o", str(tmp_path / "r.yaml")])
+    assert re.search(message, _one_line_error(result))
+    assert not (tmp_path / "r.yaml").exists()
+
+
+class _RunsCode:
+    def __reduce__(self):
+        import os
+
+        return (os.system, ("touch pwned",))
+
+
+def test_a_pickle_that_would_run_code_is_refused_with_one_line_and_runs_nothing(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    evil = tmp_path / "gBR_sBM_cAll_d04_mBR0_ch01.pkl"
+    evil.write_bytes(pickle.dumps({"keypoints3d": _RunsCode()}))
+    result = CliRunner().invoke(main, ["info", str(evil), "--schema", "aistpp_keypoints3d"])
+    line = _one_line_error(result)
+    assert str(evil) in line and re.search(r"refused: the pickle asks for (posix|os|nt)\.system", line)
+    assert not (tmp_path / "pwned").exists()
+
+
+@pytest.mark.parametrize("protocol", [2, 4, 5])
+def test_pickles_of_arrays_read_whatever_protocol_numpy_wrote_them_with(tmp_path, protocol):
+    keypoints = coco_keypoints_m("synth_002", 0.0, 0.5) * 100.0
+    path = tmp_path / "gBR_sBM_cAll_d04_mBR0_ch01.pkl"
+    path.write_bytes(pickle.dumps({"keypoints3d": keypoints, "keypoints3d_optim": keypoints}, protocol=protocol))
+    motion = read_motion(path, schema="aistpp_keypoints3d")
+    np.testing.assert_allclose(motion.positions[:, :17], keypoints / 100.0, equal_nan=True)
+
+
+# -- FineDance ----------------------------------------------------------------------------------------
+
+
+@pytest.fixture(scope="module")
+def finedance(tmp_path_factory):
+    return make_finedance_copy(tmp_path_factory.mktemp("finedance"), seconds=2.0)
+
+
+def _homogeneous_chain(rest: np.ndarray, parents, translation: np.ndarray, local: np.ndarray) -> np.ndarray:
+    """Joint positions [T, 52, 3] the way SMPL-X's linear blend skinning chains them: one 4x4
+    transform per joint, [R | rest offset from the parent], multiplied down the tree, frame by frame."""
+    T, J = local.shape[:2]
+    out = np.empty((T, J, 3))
+    for t in range(T):
+        world = []
+        for j in range(J):
+            m = np.eye(4)
+            m[:3, :3] = local[t, j]
+            m[:3, 3] = rest[j] - (rest[parents[j]] if parents[j] >= 0 else 0.0)
+            world.append(m if parents[j] < 0 else world[parents[j]] @ m)
+            out[t, j] = world[j][:3, 3] + translation[t]
+    return out
+
+
+def test_finedance_positions_equal_an_independent_forward_kinematics(tmp_path):
+    from scipy.spatial.transform import Rotation
+
+    from kinectdata.core.jointsets import load_joint_set
+
+    data, translation, local = finedance_motion(1.0, seed=3)
+    np.save(tmp_path / "001.npy", data)
+    rest55 = made_up_rest_joints()
+    np.save(tmp_path / "rest.npy", rest55[None])  # FineDance's file may carry a leading batch axis
+    motion = read_motion(tmp_path / "001.npy", format="finedance", rest_joints=tmp_path / "rest.npy")
+    rest = rest55[[*range(22), *range(25, 55)]].astype(np.float64)
+    parents = load_joint_set("smplh52").parents
+    expected = _homogeneous_chain(rest, parents, translation.astype(np.float32).astype(np.float64), local)
+    np.testing.assert_allclose(motion.positions, expected, atol=2e-6)  # the file holds float32
+    np.testing.assert_allclose(motion.times, np.arange(30) / 30.0)
+    # the left wrist's global orientation: the local rotations multiplied down its chain from the root
+    wrist = np.broadcast_to(np.eye(3), local.shape[:1] + (3, 3))
+    for j in (0, 3, 6, 9, 13, 16, 18, 20):
+        wrist = wrist @ local[:, j]
+    got = Rotation.from_quat(motion.orientations[:, 20])
+    assert (got.inv() * Rotation.from_matrix(wrist)).magnitude().max() < 1e-5
+
+
+def test_finedance_at_rest_is_the_rest_skeleton_moved_by_the_translation(tmp_path):
+    identity = np.tile([1.0, 0, 0, 0, 1.0, 0], 52)
+    translation = np.array([[0.0, 0.0, 0.0], [1.0, 2.0, 3.0]])
+    np.save(tmp_path / "002.npy", np.concatenate([translation, np.tile(identity, (2, 1))], axis=1))
+    rest = made_up_rest_joints()[[*range(22), *range(25, 55)]]
+    np.save(tmp_path / "rest52.npy", rest)
+    motion = read_motion(tmp_path / "002.npy", format="finedance", rest_joints=tmp_path / "rest52.npy")
+    np.testing.assert_allclose(motion.positions, rest[None] + translation[:, None], atol=1e-6)
+    np.testing.assert_allclose(np.abs(motion.orientations[..., 3]), 1.0, atol=1e-12)
+
+
+def test_finedance_lists_the_published_split_and_finds_the_rest_joints_in_the_code_repository(finedance):
+    manifest = prepare_finedance(finedance)
+    assert {e.name: e.split for e in manifest.recordings} == {"001": "train", "002": "train", "063": "test"}
+    assert dict(manifest.skipped).keys() == {"005", "116"}
+    assert manifest.root == (finedance.parent.parent).resolve()  # FineDance/, which holds the rest joints
+    entry = manifest.recordings[0]
+    assert (entry.format, entry.rest_joints, entry.offset) == ("finedance", "smplx_neu_J_1.npy", 0.0)
+    assert entry.recording == "data/finedance/motion/001.npy"
+    dancer = prepare_corpus("finedance", finedance, split="cross_dancer")
+    assert {e.name: e.split for e in dancer.recordings} == {"001": "test", "002": "test", "063": "train"}
+
+
+def test_finedance_without_its_rest_joints_says_where_to_find_them(tmp_path):
+    data = make_finedance_copy(tmp_path, seconds=0.5)
+    (data.parent.parent / "smplx_neu_J_1.npy").unlink()
+    result = CliRunner().invoke(main, ["prepare", "finedance", str(data), "-o", str(tmp_path / "r.yaml")])
+    assert "--rest-joints FILE" in _one_line_error(result)
+    result = CliRunner().invoke(main, ["info", str(data / "motion" / "001.npy"), "--format", "finedance"])
+    assert "--rest-joints FILE" in _one_line_error(result)
+
+
+# -- a BVH folder -------------------------------------------------------------------------------------
+
+
+def test_a_bvh_folder_pairs_each_file_with_its_music_and_takes_splits_from_folder_names(tmp_path):
+    folder = make_bvh_folder(tmp_path, seconds=1.0)
+    manifest = prepare_bvh_folder(folder, unit="cm")
+    assert {e.name: e.split for e in manifest.recordings} == {
+        "test+salsa_03": "test",
+        "train+salsa_01": "train",
+        "train+salsa_02": "train",
+    }
+    assert dict(manifest.skipped).keys() == {"warmup"}
+    out = manifest.write(folder / "recordings.yaml")
+    entries = {e.name: e for e in read_recordings(out)}
+    expected = read_motion(folder / "train" / "salsa_01.bvh", unit="cm")
+    got = entries["train+salsa_01"].read_motion()
+    np.testing.assert_allclose(got.positions, expected.positions, equal_nan=True)
+    in_metres = prepare_bvh_folder(folder, unit="m").write(folder / "as_metres.yaml")
+    scaled = {e.name: e for e in read_recordings(in_metres)}["train+salsa_01"].read_motion()
+    np.testing.assert_allclose(scaled.positions, got.positions * 100.0, rtol=1e-9, equal_nan=True)
+
+
+def test_options_a_recipe_does_not_take_are_refused():
+    with pytest.raises(ConfigError, match="unit do not apply to aistpp"):
+        prepare_corpus("aistpp", ".", unit="cm")
+    with pytest.raises(ConfigError, match="unknown corpus"):
+        prepare_corpus("cmu", ".")
+    with pytest.raises(CorpusError, match="not a folder"):
+        prepare_bvh_folder("no_such_folder")
+
+
+# -- from the command line to a dataset -----------------------------------------------------------------
+
+
+def test_prepare_then_build_dataset_keeps_the_published_splits(aistpp, tmp_path):
+    runner = CliRunner()
+    manifest = tmp_path / "recordings.yaml"
+    result = runner.invoke(main, ["prepare", "aistpp", str(aistpp), "-o", str(manifest)])
+    assert result.exit_code == 0, result.output
+    assert "4 recordings of aistpp (2 train, 1 val, 1 test)" in result.output
+    assert "gLH_sBM_cAll_d16_mLH0_ch01: in ignore_list.txt" in result.output
+    next_line = result.output.strip().splitlines()[-1]
+    assert next_line == f"next: kinectdata build-dataset {manifest} -o DATASET --target positions --allow-outside-paths"
+    args = ["build-dataset", str(manifest), "-o", str(tmp_path / "ds"), "--target", "positions"]
+    result = runner.invoke(main, [*args, "--allow-outside-paths"])
+    assert result.exit_code == 0, result.output
+    import json
+
+    doc = json.loads((tmp_path / "ds" / "manifest.json").read_text())
+    splits = {r["name"]: r["split"] for r in doc["recordings"]}
+    assert splits == {n: s for n, (_, _, s) in AISTPP_SEQUENCES.items() if s in ("train", "val", "test")}
+    assert doc["config"]["target"]["joint_set"] == "coco17_tree"
