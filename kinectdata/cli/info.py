@@ -7,6 +7,7 @@ import numpy as np
 
 from kinectdata.cli.options import reader_options
 from kinectdata.core.jointsets import load_joint_set, shipped_joint_sets
+from kinectdata.core.resources import load_json, shipped_names, shipped_path
 from kinectdata.formats import read_motion, readers
 from kinectdata.formats.csv_schema import load_csv_schema, shipped_csv_schemas
 
@@ -94,14 +95,17 @@ def _body_lines(motion) -> list[str]:
 
 @click.command()
 def formats() -> None:
-    """List the readers, shipped CSV dialects and joint sets."""
+    """List the readers, shipped CSV dialects, array schemas and joint sets."""
     click.echo("readers (--format):")
     for name, r in sorted(readers().items()):
-        exts = ", ".join(r.extensions) or "by content"
-        click.echo(f"  {name:<14} {exts:<12} {r.description}")
+        exts = ", ".join(r.extensions) or ("by content" if r.sniff else "--format only")
+        click.echo(f"  {name:<14} {exts:<13} {r.description}")
     click.echo("CSV dialects (--schema):")
     for name in shipped_csv_schemas():
         click.echo(f"  {name:<20} {_headline(load_csv_schema(name).get('description', ''))}")
+    click.echo("array schemas (--schema, for --format arrays):")
+    for name in shipped_names("arrays"):
+        click.echo(f"  {name:<26} {_headline(load_json(shipped_path('arrays', name)).get('description', ''))}")
     click.echo("joint sets:")
     for name in shipped_joint_sets():
         js = load_joint_set(name)

@@ -264,3 +264,14 @@ def test_prepare_then_build_dataset_keeps_the_published_splits(aistpp, tmp_path)
     splits = {r["name"]: r["split"] for r in doc["recordings"]}
     assert splits == {n: s for n, (_, _, s) in AISTPP_SEQUENCES.items() if s in ("train", "val", "test")}
     assert doc["config"]["target"]["joint_set"] == "coco17_tree"
+
+
+def test_formats_lists_the_corpus_readers_array_schemas_and_joint_sets():
+    result = CliRunner().invoke(main, ["formats"])
+    assert result.exit_code == 0, result.output
+    lines = result.output.splitlines()
+    finedance = next(line for line in lines if line.split()[:1] == ["finedance"])
+    assert "--format only" in finedance  # its .npy is not told apart from joint arrays by detection
+    assert any(line.split()[:1] == ["aistpp_keypoints3d_optim"] for line in lines)
+    for joint_set, size in (("coco17_tree", 19), ("smplh52", 52)):
+        assert any(line.split()[:3] == [joint_set, str(size), "joints,"] for line in lines)
