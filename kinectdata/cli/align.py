@@ -7,21 +7,7 @@ import click
 from kinectdata.align.audio import DEFAULT_SAMPLE_RATE
 from kinectdata.align.offset import DEFAULT_MIN_CONFIDENCE
 from kinectdata.align.recipe import DEFAULT_FPS, DEFAULT_MAX_GAP, DEFAULT_MIN_COVERAGE, align_files, format_summary
-from kinectdata.cli.options import reader_options
-
-
-class OffsetType(click.ParamType):
-    """'auto' or a number of seconds."""
-
-    name = "auto|SECONDS"
-
-    def convert(self, value, param, ctx):
-        if isinstance(value, float) or value == "auto":
-            return value
-        try:
-            return float(value)
-        except ValueError:
-            self.fail(f"{value!r} is neither 'auto' nor a number of seconds", param, ctx)
+from kinectdata.cli.options import OffsetType, reader_options
 
 
 @click.command()

@@ -10,6 +10,20 @@ import click
 from kinectdata.formats import readers
 
 
+class OffsetType(click.ParamType):
+    """'auto' or a number of seconds."""
+
+    name = "auto|SECONDS"
+
+    def convert(self, value, param, ctx):
+        if isinstance(value, float) or value == "auto":
+            return value
+        try:
+            return float(value)
+        except ValueError:
+            self.fail(f"{value!r} is neither 'auto' nor a number of seconds", param, ctx)
+
+
 class FloatList(click.ParamType):
     """Comma-separated numbers, e.g. ``0.8,0.1,0.1``, as a tuple of floats (empty text: no numbers);
     ``count`` numbers exactly when given. Bad text is click's usage error naming the option."""

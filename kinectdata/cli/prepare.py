@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import click
 
+from kinectdata.cli.options import OffsetType
 from kinectdata.dataset.recipes import RECIPES, prepare_corpus
 
 _SHOWN_SKIPPED = 5
@@ -35,19 +36,17 @@ _SHOWN_SKIPPED = 5
 @click.option(
     "--unit", type=click.Choice(["cm", "m", "mm", "in"]), default=None, help="bvh-folder: the files' unit (cm)"
 )
-@click.option("--offset", default=None, help="bvh-folder: seconds (audio = motion + offset) or auto (default 0)")
+@click.option(
+    "--offset",
+    default=None,
+    type=OffsetType(),
+    help="bvh-folder: seconds (audio = motion + offset) or auto (default 0)",
+)
 def prepare(corpus, path, out, **options) -> None:
     """Write a recordings manifest for CORPUS (its recipe) read from the local copy at PATH: every
     recording with its music, published split and reading options. Nothing is downloaded or copied;
     build a dataset from the manifest with build-dataset."""
     given = {k: v for k, v in options.items() if v is not None}
-    if "offset" in given and given["offset"] != "auto":
-        try:
-            given["offset"] = float(given["offset"])
-        except ValueError:
-            raise click.BadParameter(
-                f"{given['offset']!r} is neither seconds nor auto", param_hint="--offset"
-            ) from None
     manifest = prepare_corpus(corpus, path, **given)
     manifest.write(out)
     counts = ", ".join(f"{n} {split}" for split, n in manifest.split_counts().items())

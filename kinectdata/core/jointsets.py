@@ -183,6 +183,22 @@ def load_joint_set(name_or_path: str | Path) -> JointSet:
     return _load_shipped(name) if name else _from_document(load_json(path), path)
 
 
+def load_joint_set_named_in(value: str, declared_in: str | Path) -> JointSet:
+    """The joint set a declarative file's ``joint_set`` names: a shipped name, or a joint-set file,
+    a relative path resolved from the folder of ``declared_in`` (the file naming it); SchemaError
+    naming ``declared_in`` when it is neither."""
+    if value in shipped_joint_sets():
+        return load_joint_set(value)
+    file = Path(declared_in).parent / Path(value).expanduser()  # an absolute path stays as it is
+    if not file.is_file():
+        raise SchemaError(
+            declared_in,
+            f"joint_set: {value!r} is neither a shipped joint set ({', '.join(shipped_joint_sets())}) nor a "
+            f"joint-set file (looked for {file})",
+        )
+    return load_joint_set(file)
+
+
 def shipped_joint_sets() -> list[str]:
     """Names of the joint sets shipped with kinectdata."""
     return shipped_names("jointsets")

@@ -13,6 +13,9 @@ import pickle
 import pickletools
 from typing import IO, Any
 
+PICKLE_SUFFIXES = (".pkl", ".pickle")
+"""File name endings of pickles."""
+
 _ARRAY_GLOBALS = frozenset(
     {
         ("numpy.core.multiarray", "_reconstruct"),

@@ -44,14 +44,13 @@ from kinectdata.core.errors import FormatError, KinectDataError, KinectDataWarni
 from kinectdata.core.joint_mapping import load_smpl24_mapping
 from kinectdata.core.jointsets import load_joint_set
 from kinectdata.core.motion import Motion
-from kinectdata.core.safe_pickle import load_arrays_pickle
+from kinectdata.core.safe_pickle import PICKLE_SUFFIXES, load_arrays_pickle
 from kinectdata.evaluation.field_scores import DanceSequence
 from kinectdata.evaluation.protocols import Protocol, get_protocol
 from kinectdata.evaluation.rhythm import music_beats
 from kinectdata.formats.registry import read_motion, readers
 
 ARRAY_SUFFIXES = (".npy", ".npz")
-PICKLE_SUFFIXES = (".pkl", ".pickle")
 ALIGNED_SUFFIXES = (".h5", ".hdf5")
 AUDIO_SUFFIXES = (".wav", ".flac", ".ogg", ".mp3")
 ARRAY_KEYS = ("joints", "positions", "pred_position", "full_pose", "smpl_joints", "joints3d")

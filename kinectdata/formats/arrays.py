@@ -41,14 +41,13 @@ from typing import Any
 import numpy as np
 
 from kinectdata.core.errors import FormatError, SchemaError
-from kinectdata.core.jointsets import JointSet, load_joint_set, shipped_joint_sets
+from kinectdata.core.jointsets import JointSet, load_joint_set_named_in
 from kinectdata.core.motion import Motion
 from kinectdata.core.resources import load_json, resolve_resource, validate
-from kinectdata.core.safe_pickle import load_arrays_pickle
-from kinectdata.formats.common import UNITS_TO_M, brief, load_numpy
+from kinectdata.core.safe_pickle import PICKLE_SUFFIXES, load_arrays_pickle
+from kinectdata.formats.common import UNITS_TO_M, brief, first_bad_time, load_numpy
 from kinectdata.formats.registry import register_reader
 
-PICKLE_SUFFIXES = (".pkl", ".pickle")
 TIME_UNITS_TO_S = {"s": 1.0, "ms": 1e-3, "us": 1e-6, "ns": 1e-9}
 _UP_TO_Y = {  # rows: the new (x, y, z) from the file's (x, y, z), a rotation about x
     "y": np.eye(3),
@@ -64,16 +63,7 @@ def load_array_schema(name_or_path: str | Path) -> dict[str, Any]:
     _, path = resolve_resource("arrays", name_or_path, "array schema")
     doc = load_json(path)
     validate(doc, "array-schema.schema.json", path)
-    name = doc["joint_set"]
-    if name in shipped_joint_sets():
-        joint_set = load_joint_set(name)
-    else:
-        file = path.parent / Path(name).expanduser()
-        if not file.is_file():
-            raise SchemaError(
-                path, f"joint_set: {name!r} is neither a shipped joint set nor a file (looked for {file})"
-            )
-        joint_set = load_joint_set(file)
+    joint_set = load_joint_set_named_in(doc["joint_set"], path)
     if joint_set.dimensions != 3:
         raise SchemaError(
             path, f"joint_set: {joint_set.name} is {joint_set.dimensions}-D; joint arrays hold 3-D joints"
@@ -213,7 +203,7 @@ def _times(path: Path, contents: Any, kind: str, time: dict, T: int) -> np.ndarr
     if raw.shape != (T,):
         raise FormatError(path, f"{time['key']!r} has shape {list(raw.shape)}, not [{T}] like the positions")
     times = (raw - raw[0]) * TIME_UNITS_TO_S[time["unit"]]
-    if not (np.isfinite(times).all() and (np.diff(times) > 0).all()):
-        bad = int(np.argmax(~np.isfinite(times) | np.concatenate([[False], np.diff(times) <= 0])))
+    bad = first_bad_time(times)
+    if bad is not None:
         raise FormatError(path, f"{time['key']!r}: time {raw[bad]:g} at frame {bad} does not come after the one before")
     return times

@@ -108,7 +108,8 @@ def read_finedance(path: Path, *, rest_joints: str | Path | None = None) -> Moti
     local = rotations_from_6d(values[:, start + 3 :].reshape(len(data), JOINTS, 6))
     rotation_ok = np.abs(np.linalg.det(np.nan_to_num(local)) - 1.0) < DET_TOLERANCE  # [T, 52]
     local[~rotation_ok] = np.nan
-    positions, global_r = _forward_kinematics(rest, translation, local)
+    joint_set = load_joint_set("smplh52")
+    positions, global_r = _forward_kinematics(rest, joint_set.parents, translation, local)
     valid = np.isfinite(positions).all(axis=2) & np.isfinite(global_r).all(axis=(2, 3))
     from scipy.spatial.transform import Rotation  # here: scipy.spatial costs 0.2 s at start-up
 
@@ -117,7 +118,7 @@ def read_finedance(path: Path, *, rest_joints: str | Path | None = None) -> Moti
     return Motion(
         times=np.arange(len(data)) / FPS,
         positions=np.where(valid[..., None], positions, np.nan),
-        joint_set=load_joint_set("smplh52"),
+        joint_set=joint_set,
         position_mask=valid,
         orientations=make_continuous(quats, valid),
         orientation_mask=valid,
@@ -125,10 +126,12 @@ def read_finedance(path: Path, *, rest_joints: str | Path | None = None) -> Moti
     )
 
 
-def _forward_kinematics(rest: np.ndarray, translation: np.ndarray, local: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def _forward_kinematics(
+    rest: np.ndarray, parents: tuple[int, ...], translation: np.ndarray, local: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
     """Global positions [T, 52, 3] and rotation matrices [T, 52, 3, 3] from the rest joints [52, 3],
-    the root translation [T, 3] and local rotations [T, 52, 3, 3] (parents come before children)."""
-    parents = load_joint_set("smplh52").parents
+    each joint's parent index (parents come before children), the root translation [T, 3] and local
+    rotations [T, 52, 3, 3]."""
     T = len(translation)
     positions = np.empty((T, JOINTS, 3))
     global_r = np.empty((T, JOINTS, 3, 3))

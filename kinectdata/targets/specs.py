@@ -33,7 +33,13 @@ from typing import Any
 import numpy as np
 
 from kinectdata.core.errors import ConfigError, KinectDataError, SchemaError
-from kinectdata.core.jointsets import JointSet, joint_set_from_dict, load_joint_set, shipped_joint_sets
+from kinectdata.core.jointsets import (
+    JointSet,
+    joint_set_from_dict,
+    load_joint_set,
+    load_joint_set_named_in,
+    shipped_joint_sets,
+)
 from kinectdata.core.motion import Motion
 from kinectdata.core.quaternions import make_continuous
 from kinectdata.core.resources import load_json, resolve_resource, shipped_names, shipped_path, validate
@@ -201,19 +207,11 @@ def _from_document(doc: dict[str, Any], path: str | Path) -> TargetSpec:
 def _joint_set(value: str | dict, path: str | Path) -> tuple[JointSet, str | None]:
     """The joint set a spec's ``joint_set`` names, and its document as JSON text unless shipped:
     a shipped name, a joint-set file (a relative path from the spec file's folder) or the document."""
-    if isinstance(value, dict):
-        js = joint_set_from_dict(value, f"{path}: joint_set")
-    elif value in shipped_joint_sets():
-        return load_joint_set(value), None
-    else:
-        file = Path(path).parent / Path(value).expanduser()  # an absolute path stays as it is
-        if not file.is_file():
-            raise SchemaError(
-                path,
-                f"joint_set: {value!r} is neither a shipped joint set ({', '.join(shipped_joint_sets())}) nor a "
-                f"joint-set file (looked for {file})",
-            )
-        js = load_joint_set(file)
+    js = (
+        joint_set_from_dict(value, f"{path}: joint_set")
+        if isinstance(value, dict)
+        else load_joint_set_named_in(value, path)
+    )
     if js.name in shipped_joint_sets():
         shipped = load_joint_set(js.name)
         if (shipped.names, shipped.parents) != (js.names, js.parents):

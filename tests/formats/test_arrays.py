@@ -79,7 +79,7 @@ def test_what_does_not_fit_is_one_line(tmp_path, take):
         read_motion(tmp_path / "take.npz", schema=_schema(tmp_path, positions="positions"))
     with pytest.raises(SchemaError, match="at unit"):
         read_motion(tmp_path / "take.npy", schema=_schema(tmp_path, unit="furlong"))
-    with pytest.raises(SchemaError, match="'missing.json' is neither a shipped joint set nor a file"):
+    with pytest.raises(SchemaError, match=r"'missing.json' is neither a shipped joint set .* nor a joint-set file"):
         read_motion(tmp_path / "take.npy", schema=_schema(tmp_path, joint_set="missing.json"))
     np.save(tmp_path / "objects.npy", np.array([{"a": 1}], dtype=object), allow_pickle=True)
     with pytest.raises(FormatError, match="cannot read it as joint arrays .*Object arrays cannot be loaded"):
