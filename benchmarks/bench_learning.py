@@ -262,12 +262,27 @@ def main(argv: list[str] | None = None) -> None:
         "--only-ablations", default=None, help="comma-separated ablation numbers (1-based): run those, not the recipe"
     )
     parser.add_argument("--out", type=Path, default=None, help="keep the corpus, runs and figures here")
+    parser.add_argument(
+        "--corpus",
+        nargs=2,
+        metavar=("NAME", "PATH"),
+        default=None,
+        help="a real corpus instead of the synthetic one: a recipe's name (tang2018) and your local copy",
+    )
     args = parser.parse_args(argv or [])
     models = [m.strip() for m in args.models.split(",") if m.strip()]
     torch.set_num_threads(2)
+    if args.corpus is None:
+        print("  real corpus: not run (--corpus tang2018 PATH: a local copy of Dance with Melody, docs/corpora.md)")
     with tempfile.TemporaryDirectory() as tmp:
         out = args.out or Path(tmp)
         out.mkdir(parents=True, exist_ok=True)
+        if args.corpus is not None:
+            from .learning_real import run
+
+            name, path = args.corpus
+            run(name, Path(path), out, args.minutes, models, args.seed)
+            return
         datasets = make_corpus(out, args.seed, args.corpus_minutes, models)
         summary = {}
         for model in models:

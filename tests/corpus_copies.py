@@ -1,14 +1,16 @@
 """Small local copies made in the shape of real dance corpora, for the recipe tests and the docs.
 
-No corpus data: the motion is the bundled synthetic dancer (``sample_data``), rearranged the way
-each corpus lays out its files (facts from the corpora's own documentation, named in
-``kinectdata/dataset/recipes``), with the bundled synthetic music.
+No corpus data: the motion is the bundled synthetic dancer (``sample_data``) or a made-up body,
+rearranged the way each corpus lays out its files (facts from the corpora's own documentation, named
+in ``kinectdata/dataset/recipes``), with the bundled synthetic music.
 """
 
 from __future__ import annotations
 
+import json
 import pickle
 import shutil
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -194,3 +196,145 @@ def make_finedance_copy(where: Path, seconds: float = 6.0) -> Path:
             audio, rate = soundfile.read(SAMPLES / f"{sample}.flac")
             soundfile.write(data / "music_wav" / f"{piece}.wav", audio, rate)
     return data
+
+
+# -- Dance with Melody (tang2018) ---------------------------------------------------------------------
+
+TANG2018_BODY_CM = np.array(
+    [
+        (0.0, 62.0, -8.0),  # 0 the back of the head
+        (0.0, 61.0, 10.0),  # 1 its front
+        (0.0, 15.0, -1.0),  # 2 spine
+        (-18.0, 45.0, 0.0),  # 3-6 right shoulder, elbow, wrist, hand
+        (-42.0, 38.0, 6.0),
+        (-47.0, 44.0, 29.0),
+        (-47.0, 45.0, 37.0),
+        (-10.0, 0.0, 0.0),  # 7-11 right hip, knee, ankle, heel, toe
+        (-11.0, -47.0, 4.0),
+        (-11.0, -83.0, -2.0),
+        (-11.0, -89.0, -9.0),
+        (-11.0, -91.0, 14.0),
+        (18.0, 45.0, 0.0),  # 12-15 left shoulder, elbow, wrist, hand
+        (41.0, 50.0, -1.0),
+        (43.0, 68.0, 9.0),
+        (43.0, 76.0, 12.0),
+        (10.0, 0.0, 0.0),  # 16-20 left hip, knee, ankle, heel, toe
+        (11.0, -47.0, 4.0),
+        (11.0, -83.0, -2.0),
+        (11.0, -89.0, -9.0),
+        (11.0, -91.0, 14.0),
+        (46.0, 66.0, 13.0),  # 21 beside the left wrist
+        (-49.0, 43.0, 33.0),  # 22 beside the right hand
+    ]
+)
+"""A made-up ballroom dancer's 23 points about the pelvis, in centimetres, y up, facing +z (its left
+at +x), in the corpus's order (tang2018 joint set): a person's proportions, no corpus values."""
+
+
+def tang2018_dance(frames: int, seed: int = 0) -> dict:
+    """A ``skeletons.json`` document of ``frames`` frames of the made-up dancer: turning about y, the
+    legs stepping in turn, the pelvis (``center``, cm) bobbing and drifting round the room; each point
+    given relative to ``center`` as the corpus gives it."""
+    rng = np.random.default_rng(seed)
+    t = np.arange(frames) / 25.0
+    beat = rng.uniform(1.6, 2.2)  # steps per second
+    step = 12.0 * np.sin(2 * np.pi * beat / 2 * t + rng.uniform(0, 2 * np.pi))
+    body = np.broadcast_to(TANG2018_BODY_CM, (frames, 23, 3)).copy()
+    for leg, sign in (((8, 9, 10, 11), 1.0), ((17, 18, 19, 20), -1.0)):
+        body[:, leg, 2] += sign * step[:, None] * np.array([0.5, 1.0, 1.0, 1.0])
+    body[:, (5, 6, 14, 15, 21, 22), 1] += 3.0 * np.sin(2 * np.pi * 0.5 * t)[:, None]
+    body += rng.normal(0.0, 0.3, body.shape)
+    turn = rng.uniform(-0.8, 0.8) * t + rng.uniform(0, 2 * np.pi)  # radians about y
+    c, s = np.cos(turn)[:, None], np.sin(turn)[:, None]
+    points = np.stack([c * body[..., 0] + s * body[..., 2], body[..., 1], -s * body[..., 0] + c * body[..., 2]], -1)
+    radius = rng.uniform(50.0, 150.0)
+    center = np.stack(
+        [
+            radius * np.sin(0.3 * t) + rng.uniform(-100, 100),
+            95.0 + 3.0 * np.sin(2 * np.pi * beat * t) + 10.0 * t / max(t[-1], 1.0),  # the height drifts
+            radius * np.cos(0.3 * t) + rng.uniform(-100, 100),
+        ],
+        axis=1,
+    )
+    return {"length": frames, "center": center.tolist(), "skeletons": points.tolist()}
+
+
+@dataclass(frozen=True)
+class MadeDance:
+    """A dance folder of the made copy: where the dance starts in its song (song frames at 25 per
+    second), how many song frames more than motion frames it spans (its rate is 25 T / (T + extra)),
+    the music it is cut from, and the files the mirror lacks (absent) or holds empty."""
+
+    start: int
+    extra: int
+    music: str = "synth_001"
+    absent: tuple[str, ...] = ()
+    empty: tuple[str, ...] = ()
+
+    @property
+    def complete(self) -> bool:
+        return not self.absent and not self.empty
+
+
+TANG2018_DANCES = {
+    "C_1": MadeDance(30, 2, absent=("skeletons.json",)),
+    "C_2": MadeDance(40, 3, "synth_001"),
+    "C_4": MadeDance(12, 1, "synth_002"),
+    "C_6": MadeDance(5, 2, "synth_003"),
+    "C_7": MadeDance(60, 4, "synth_001"),
+    "C_9": MadeDance(7, 2, absent=("audio.mp3",)),
+    "R_2": MadeDance(8, 1, "synth_002"),
+    "R_3": MadeDance(20, 3, "synth_003"),
+    "R_4": MadeDance(50, 4, "synth_001"),
+    "R_5": MadeDance(17, 2, "synth_002"),
+    "R_6": MadeDance(0, 1, absent=("skeletons.json",)),
+    "T_1": MadeDance(0, 2, absent=("skeletons.json", "audio.mp3")),
+    "T_5": MadeDance(0, 5, "synth_003"),
+    "W_1": MadeDance(0, 1, "synth_001"),
+    "W_2": MadeDance(25, 2, absent=("audio.mp3",)),
+    "W_3": MadeDance(52, 2, "synth_002"),
+    "W_4": MadeDance(33, 3, "synth_003"),
+    "W_5": MadeDance(0, 1, "synth_001"),
+    "W_6": MadeDance(3, 2, "synth_002"),
+    "W_9": MadeDance(10, 1, empty=("audio.mp3",)),
+    "W_13": MadeDance(4, 2, empty=("skeletons.json",)),
+}
+"""The made copy's dances (``DANCE_<name>``): 14 complete, of each style letter, in the acceptance
+split's test (C_2, C_4, R_2, R_3, T_5, W_1, W_3), validation (C_6, R_4, W_4) and training sets; the
+others lack a file, as the public mirror lacks some blobs, or hold one empty."""
+
+
+def write_tang2018_dance(folder: Path, dance: MadeDance, frames: int, seed: int) -> None:
+    """One ``DANCE_<style>_<n>/`` folder: config.json, skeletons.json, audio.mp3 (the sample's music
+    from its start, long enough to hold the dance's span and a second more), less what is absent."""
+    folder.mkdir(parents=True, exist_ok=True)
+    end = dance.start + frames + dance.extra
+    files = {
+        "config.json": lambda p: p.write_text(json.dumps({"start_position": dance.start, "end_position": end})),
+        "skeletons.json": lambda p: p.write_text(json.dumps(tang2018_dance(frames, seed))),
+        "audio.mp3": lambda p: _write_mp3(p, dance.music, end / 25.0 + 1.0),
+    }
+    for name, write in files.items():
+        if name in dance.empty:
+            (folder / name).write_bytes(b"")
+        elif name not in dance.absent:
+            write(folder / name)
+
+
+def _write_mp3(path: Path, sample: str, seconds: float) -> None:
+    audio, rate = soundfile.read(SAMPLES / f"{sample}.flac")
+    soundfile.write(path, audio[: int(seconds * rate)], rate, format="MP3", subtype="MPEG_LAYER_III")
+
+
+def make_tang2018_copy(where: Path, seconds: float = 4.0, dances: dict[str, MadeDance] | None = None) -> Path:
+    """A Dance with Melody-shaped copy: ``Music-to-Dance-Motion-Synthesis/`` (its repository's root)
+    with a Readme.md, utils/ and ``DANCE_<style>_<n>/`` folders (:data:`TANG2018_DANCES`), each
+    dance ``seconds`` long at 25 frames a second of motion. Returns the root."""
+    root = where / "Music-to-Dance-Motion-Synthesis"
+    (root / "utils").mkdir(parents=True)
+    (root / "Readme.md").write_text("# Dataset\n\nA small copy made in the corpus's shape for kinectdata's tests.\n")
+    (root / "utils" / "draw.py").write_text("# the corpus draws its skeletons here\n")
+    frames = int(round(seconds * 25))
+    for k, (name, dance) in enumerate((dances or TANG2018_DANCES).items()):
+        write_tang2018_dance(root / f"DANCE_{name}", dance, frames, seed=k)
+    return root

@@ -32,7 +32,12 @@ _SHOWN_SKIPPED = 5
 @click.option(
     "--rest-joints", default=None, help="finedance: its smplx_neu_J_1.npy (default: found in PATH or its parent)"
 )
-@click.option("--split", default=None, type=click.Choice(["cross_genre", "cross_dancer"]), help="finedance: the split")
+@click.option(
+    "--split",
+    default=None,
+    type=click.Choice(["cross_genre", "cross_dancer", "kinectdata", "none"]),
+    help="finedance: cross_genre or cross_dancer; tang2018: kinectdata's acceptance split (default) or none (drawn)",
+)
 @click.option(
     "--unit", type=click.Choice(["cm", "m", "mm", "in"]), default=None, help="bvh-folder: the files' unit (cm)"
 )
@@ -58,7 +63,8 @@ def prepare(corpus, path, out, **options) -> None:
         if len(manifest.skipped) > _SHOWN_SKIPPED:
             click.echo(f"  ... and {len(manifest.skipped) - _SHOWN_SKIPPED} more")
     flag = " --allow-outside-paths" if manifest.root_outside(out) else ""
-    click.echo(f"next: kinectdata build-dataset {out} -o DATASET --target {manifest.target}{flag}")
+    extra = "".join(f" {o}" for o in manifest.build_options)
+    click.echo(f"next: kinectdata build-dataset {out} -o DATASET --target {manifest.target}{extra}{flag}")
 
 
 COMMANDS = [prepare]

@@ -219,8 +219,15 @@ def train_baseline(data, out, resume, no_checksums, **options) -> None:
 )
 @click.option("--bootstrap", default=1000, show_default=True, type=click.IntRange(min=0),
               help="Resamples for the field's metrics' 95 %% intervals (0: none).")  # fmt: skip
+@click.option(
+    "--beats-per-bar",
+    default=None,
+    type=click.IntRange(2, 12),
+    help="The songs' metre (a waltz 3), for those whose recordings-manifest entry gives none; "
+    "default: estimated from each song.",
+)
 @no_checksums_option
-def evaluate_command(run_dir, data, split, out, silence, protocol, bootstrap, no_checksums) -> None:
+def evaluate_command(run_dir, data, split, out, silence, protocol, bootstrap, beats_per_bar, no_checksums) -> None:
     """Score a run as the paper does: SMAPE (%) free-running without and with reset, on normalised
     and denormalised values; per-frame forward time; generated-against-real plots; the silence test;
     beat following with its chance levels and the listening controls; and the field's table (FID,
@@ -237,6 +244,7 @@ def evaluate_command(run_dir, data, split, out, silence, protocol, bootstrap, no
         protocol=protocol,
         bootstrap=bootstrap,
         checksums=not no_checksums,
+        beats_per_bar=beats_per_bar,
     )
     click.echo(format_results(results))
 

@@ -25,6 +25,9 @@ from kinectdata.core.errors import KinectDataError, SchemaError
 from kinectdata.core.resources import validate
 from kinectdata.dataset.collection import find_sessions
 
+MUSIC_FACTS = ("style", "beats_per_bar")
+"""Entry fields that describe the music, for evaluation: they change no built array."""
+
 
 @dataclass(frozen=True)
 class RecordingEntry:
@@ -42,6 +45,8 @@ class RecordingEntry:
     video_fps: float | None = None
     unit: str | None = None
     rest_joints: str | None = None
+    style: str | None = None
+    beats_per_bar: int | None = None
 
     @property
     def aligned(self) -> bool:
@@ -67,8 +72,9 @@ class RecordingEntry:
 
     def options(self) -> dict[str, Any]:
         """What identifies the recording besides its files' contents: name and reading options
-        (a schema file by its name; its contents are hashed with the sources)."""
-        opts = {k: v for k, v in self.to_dict().items() if k not in ("recording", "audio", "split")}
+        (a schema file by its name; its contents are hashed with the sources). What is said about
+        the music (style, metre) changes no array and is left out."""
+        opts = {k: v for k, v in self.to_dict().items() if k not in ("recording", "audio", "split", *MUSIC_FACTS)}
         for key in ("schema", "rest_joints"):
             if opts.get(key) is not None and Path(opts[key]).is_file():
                 opts[key] = Path(opts[key]).name
@@ -85,6 +91,12 @@ def _is_aligned_file(path: Path) -> bool:
         return False
 
 
+CSV_NUMBERS = (
+    ("video_fps", float, "not a number"),
+    ("beats_per_bar", int, "not a whole number"),
+    ("offset", float, "neither a number nor auto"),
+)
+"""The CSV manifest columns read as numbers: (column, conversion, what a value that fails is not)."""
 MANIFEST_KEYS = ("recordings", "root", "corpus", "description")
 """What a JSON or YAML manifest written as an object may hold (its recordings under ``recordings``)."""
 
@@ -105,18 +117,12 @@ def _read_manifest(path: Path) -> tuple[list[dict[str, Any]], list[int] | None, 
             if None in row:
                 raise SchemaError(path, f"more fields than the header's {len(reader.fieldnames)}", line=line)
             doc = {k.strip(): v.strip() for k, v in row.items() if k and v is not None and v.strip()}
-            if "video_fps" in doc:
-                try:
-                    doc["video_fps"] = float(doc["video_fps"])
-                except ValueError:
-                    raise SchemaError(path, f"video_fps {doc['video_fps']!r} is not a number", line=line) from None
-            if "offset" in doc and doc["offset"] != "auto":
-                try:
-                    doc["offset"] = float(doc["offset"])
-                except ValueError:
-                    raise SchemaError(
-                        path, f"offset {doc['offset']!r} is neither a number nor auto", line=line
-                    ) from None
+            for key, convert, what in CSV_NUMBERS:
+                if key in doc and not (key == "offset" and doc[key] == "auto"):
+                    try:
+                        doc[key] = convert(doc[key])
+                    except ValueError:
+                        raise SchemaError(path, f"{key} {doc[key]!r} is {what}", line=line) from None
             docs.append(doc)
             lines.append(line)
         return docs, lines, None
@@ -295,6 +301,8 @@ def _read_recordings(source: Path, allow_outside: bool) -> list[RecordingEntry]:
                     if "rest_joints" in d
                     else None
                 ),
+                style=d.get("style"),
+                beats_per_bar=None if d.get("beats_per_bar") is None else int(d["beats_per_bar"]),
             )
         )
     return entries

@@ -10,7 +10,10 @@ figure beside its chance level (definitions: docs/rhythm.md, "Beat following and
   across songs, both Beat Align Scores and the beat F-measure, each with a chance level computed
   from the same motion (the music's beats shifted by random phases; for the period, other songs'
   tempi) and a one-sided p-value, and plain verdicts that say "yes" only when a figure is
-  significantly above its chance level.
+  significantly above its chance level;
+- :func:`bar_periodicity`: how much a motion repeats after one and two bars of its song (its
+  autocorrelation there), which :func:`beat_following` compares with every other pairing of the
+  motions with the songs: a listening figure that does not rest on the dominant period alone.
 
 Why chance levels: the Beat Align Score grows with the number of motion beats (speed minima), so a
 motion that merely jitters scores high against any beat grid; and any motion's autocorrelation has
@@ -58,6 +61,11 @@ SIGNIFICANCE = 0.05
 """A verdict says "yes" only when the figure's one-sided p-value against chance is below this."""
 TEMPO_PRIOR_BPM = (60.0, 200.0)
 """With fewer than two songs, the period's chance level is that of a tempo drawn log-uniformly here."""
+BAR_TOLERANCE = 0.05
+"""The bar periodicity looks at lags within 5 % of one bar and of two bars (beat trackers give the
+beat period to about 1 %; dancers' figures drift a little against it)."""
+EXACT_PAIRINGS = 8
+"""Up to this many songs every pairing of motions with songs is scored (8! = 40 320); above, random ones."""
 
 
 @dataclass(frozen=True)
@@ -233,6 +241,7 @@ class RecordingRhythm:
             over the motion's beats (sigma 0.05 s).
         f_measure: motion beats against music beats within :data:`FMEASURE_WINDOW_S`.
         motion_beats: how many motion beats (speed minima) the motion has.
+        beats_per_bar: the music's metre the levels were built from.
     """
 
     name: str
@@ -246,6 +255,7 @@ class RecordingRhythm:
     f_measure: float
     motion_beats: int
     beat_times_s: np.ndarray = field(repr=False, default_factory=lambda: np.zeros(0))
+    beats_per_bar: int = BEATS_PER_BAR
 
 
 def recording_rhythm(rec: RecordingBeats) -> RecordingRhythm:
@@ -270,6 +280,7 @@ def recording_rhythm(rec: RecordingBeats) -> RecordingRhythm:
         f_measure=motion_beat_fmeasure(music, beats, FMEASURE_WINDOW_S) if music.size else 0.0,
         motion_beats=int(beats.size),
         beat_times_s=beats,
+        beats_per_bar=rec.beats_per_bar,
     )
 
 
@@ -299,6 +310,11 @@ class BeatFollowing:
             levels from the same motion against the music's beats shifted by random phases.
         beat_align_other_songs: the music-direction Beat Align Score of each motion against the
             other songs' beats (None with one song): a second chance level.
+        bar_periodicity: how much each motion repeats after one and after two of its song's bars
+            (:func:`bar_periodicity`), with its chance level from every other pairing of the motions
+            with the songs (None with one song).
+        bar_periodicity_other_songs: the same motions' figure against the other songs' bars (None
+            with one song).
     """
 
     recordings: list[RecordingRhythm]
@@ -311,6 +327,14 @@ class BeatFollowing:
     beat_align_motion: ChanceFigure
     f_measure: ChanceFigure
     beat_align_other_songs: float | None
+    bar_periodicity: ChanceFigure | None = None
+    bar_periodicity_other_songs: float | None = None
+
+    @property
+    def follows_bars(self) -> bool:
+        """The motions repeat after their own songs' bars more than after other songs' bars,
+        significantly (one-sided p < 0.05 over every pairing of motions with songs)."""
+        return self.bar_periodicity is not None and self.bar_periodicity.above_chance
 
     @property
     def follows_beat(self) -> bool:
@@ -364,6 +388,14 @@ class BeatFollowing:
                 f"period at {level} with the beat period {self.tempo_correlation:.2f} over {n} songs, "
                 f"p {_p(self.tempo_p_value)})"
             )
+        if self.bar_periodicity is not None:
+            lines.append(
+                f"{what} repeats with its song's bars: {_yes(self.follows_bars)} (autocorrelation after one or two "
+                f"bars {self.bar_periodicity.value:.3f}; against the other songs' bars "
+                f"{self.bar_periodicity_other_songs:.3f}; {self.bar_periodicity.chance_from} "
+                f"{self.bar_periodicity.chance:.3f} +- {self.bar_periodicity.chance_spread:.3f}, "
+                f"p {_p(self.bar_periodicity.p_value)})"
+            )
         return lines
 
     def to_dict(self) -> dict:
@@ -393,6 +425,9 @@ class BeatFollowing:
             "beat_align_motion": figure(self.beat_align_motion),
             "f_measure": figure(self.f_measure),
             "beat_align_other_songs": self.beat_align_other_songs,
+            "bar_periodicity": None if self.bar_periodicity is None else figure(self.bar_periodicity),
+            "bar_periodicity_other_songs": self.bar_periodicity_other_songs,
+            "follows_bars": self.follows_bars,
             "recordings": {
                 r.name: {
                     "beat_period_s": r.beat_period_s,
@@ -405,6 +440,7 @@ class BeatFollowing:
                     "beat_align_motion": r.beat_align_motion,
                     "f_measure": r.f_measure,
                     "motion_beats": r.motion_beats,
+                    "beats_per_bar": r.beats_per_bar,
                     "peaks": [{"lag_s": lag, "height": h} for lag, h in r.period.peaks],
                 }
                 for r in self.recordings
@@ -485,7 +521,65 @@ def beat_following(recordings: Sequence[RecordingBeats], *, draws: int = CHANCE_
                 ]
             )
         )
-    return BeatFollowing(rhythms, in_metre, at_beat, levels, tempo, tempo_p, *phase, other_songs)
+    bars, bars_other = _bar_periodicity(recordings, draws, rng)
+    return BeatFollowing(rhythms, in_metre, at_beat, levels, tempo, tempo_p, *phase, other_songs, bars, bars_other)
+
+
+def bar_lags_s(rec: RecordingBeats) -> tuple[float, float]:
+    """One bar and two bars of a recording's music, seconds."""
+    bar = rec.beats_per_bar * rec.beat_period_s
+    return bar, 2 * bar
+
+
+def bar_periodicity(curve: np.ndarray, fps: float, lags_s: Sequence[float], tolerance: float = BAR_TOLERANCE) -> float:
+    """How much a motion repeats after the given lags: the highest value of its vertical
+    autocorrelation ``curve`` [L + 1] (lags 0..L frames, :func:`vertical_autocorrelation`) within
+    ``tolerance`` of any of ``lags_s`` (seconds), unitless -1..1; NaN where no such lag is on the
+    curve. A dance that repeats its figures every bar or two bars of its song scores high against
+    that song's bars; against another song's bars it scores what its curve happens to hold there."""
+    values = []
+    for lag in lags_s:
+        lo = max(1, int(np.floor(lag * (1 - tolerance) * fps)))
+        hi = min(len(curve) - 1, int(np.ceil(lag * (1 + tolerance) * fps)))
+        window = curve[lo : hi + 1]
+        if window.size and np.isfinite(window).any():
+            values.append(float(np.nanmax(window)))
+    return max(values) if values else float("nan")
+
+
+def _bar_periodicity(
+    recordings: Sequence[RecordingBeats], draws: int, rng: np.random.Generator
+) -> tuple[ChanceFigure | None, float | None]:
+    """(the motions' bar periodicity against their own songs with its chance level over every
+    pairing of motions with songs, the mean against the other songs); (None, None) for one song."""
+    from itertools import permutations
+
+    n = len(recordings)
+    if n < 2:
+        return None, None
+    lags = [bar_lags_s(r) for r in recordings]
+    longest = max(max(pair) for pair in lags) * (1 + BAR_TOLERANCE)
+    scores = np.full((n, n), np.nan)  # [motion, song]
+    for i, rec in enumerate(recordings):
+        try:
+            curve = vertical_autocorrelation(rec.positions, rec.mask, rec.fps, longest, rec.up_axis)
+        except KinectDataError:
+            continue
+        for j in range(n):
+            scores[i, j] = bar_periodicity(curve, rec.fps, lags[j])
+    scores = np.nan_to_num(scores, nan=0.0)  # a lag beyond half the motion: no evidence of repeating there
+    observed = float(np.mean(np.diag(scores)))
+    if n <= EXACT_PAIRINGS:
+        pairings = np.array(list(permutations(range(n))))
+    else:
+        pairings = np.array([rng.permutation(n) for _ in range(draws)])
+    chance = scores[np.arange(n), pairings].mean(axis=1)  # [pairings]
+    hits = int(np.count_nonzero(chance >= observed - 1e-12))
+    # exact: the share of every pairing; drawn: plus one over draws plus one (the observed pairing is one)
+    p = hits / len(chance) if n <= EXACT_PAIRINGS else (1 + hits) / (1 + len(chance))
+    from_ = "every pairing of the motions with the songs" if n <= EXACT_PAIRINGS else f"{draws} random pairings"
+    others = float(scores[~np.eye(n, dtype=bool)].mean())
+    return ChanceFigure(observed, float(chance.mean()), float(chance.std()), p, from_), others
 
 
 def _tempo_correlation(

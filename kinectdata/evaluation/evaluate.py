@@ -31,7 +31,7 @@ from __future__ import annotations
 import platform
 import time
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -41,9 +41,17 @@ import torch
 
 from kinectdata.core.errors import KinectDataError
 from kinectdata.dataset.shards import read_index
+from kinectdata.evaluation.baselines import (
+    TrainingSong,
+    baseline_comparison,
+    mean_pose_noise,
+    music_descriptor,
+    retrieval,
+)
 from kinectdata.evaluation.field_scores import write_metrics_json
 from kinectdata.evaluation.figures import rhythm_plot, trajectories
 from kinectdata.evaluation.listening import HeldOutSong, listening_report
+from kinectdata.evaluation.metre import Metre, recording_metre
 from kinectdata.evaluation.metrics import motion_energy, smape
 from kinectdata.evaluation.protocols import Protocol, get_protocol
 from kinectdata.evaluation.rhythm_eval import (
@@ -202,6 +210,9 @@ def evaluate(
     protocol: str | Protocol = "bailando",
     bootstrap: int = 1000,
     checksums: bool = True,
+    beats_per_bar: int | None = None,
+    more_protocols: tuple[str, ...] = (),
+    baselines: bool = True,
 ) -> dict[str, Any]:
     """Score a run on a dataset split; write ``results.json``, ``metrics.json`` (the field's table)
     and figures into ``out`` (default ``RUN/evaluation``); return the results. ``engines``: the
@@ -209,7 +220,12 @@ def evaluate(
     pairs the run's model does not run on are left out). ``protocol``: whose table the field's
     metrics reproduce (:data:`~kinectdata.evaluation.protocols.PROTOCOLS`), with ``bootstrap``
     resamples for their intervals (:mod:`kinectdata.evaluation.run_field`). The dataset folder is
-    verified first (``checksums=False`` skips the shards' SHA-256)."""
+    verified first (``checksums=False`` skips the shards' SHA-256). ``beats_per_bar``: the metre
+    of the songs whose recordings-manifest entry gives none (default: estimated from each song,
+    :mod:`~kinectdata.evaluation.metre`). ``more_protocols``: other protocols whose tables are
+    made too (``metrics_<name>.json``). ``baselines``: also score the mean training pose with noise
+    at the real speed and the retrieval baseline (:mod:`~kinectdata.evaluation.baselines`) by the
+    same protocols, beside the model."""
     protocol = get_protocol(protocol) if isinstance(protocol, str) else protocol
     run, dataset = Path(run), Path(dataset)
     net, config = load_model(run)
@@ -297,19 +313,40 @@ def evaluate(
     beats = split_beats(recordings, manifest, fps)
     per_recording = rhythm_evaluation(recordings, free, real, spec, beats, fps)
     results["rhythm"] = {"summary": summarize_rhythm(per_recording), "recordings": per_recording}
-    results["listening"] = listening_controls(net, recordings, beats, manifest, config, free=free)
-    try:
-        field = run_field_scores(free, real, beats, spec, config["dataset"], protocol, bootstrap=bootstrap)
-        record = field.to_dict()
-        results["field"] = {
-            "metrics_json": str(write_metrics_json(field, out / "metrics.json")),
-            "protocol": protocol.name,
-            "metrics": record["metrics"],
-            "warnings": record["warnings"],
-            "table": field.table(),
-        }
-    except KinectDataError as exc:  # 2-D targets, a joint set without a mapping, joints never placed
-        results["field"] = {"unavailable": str(exc)}
+    results["listening"] = listening_controls(
+        net, recordings, beats, manifest, config, free=free, beats_per_bar=beats_per_bar
+    )
+    runs, retrieved = {"generated": free}, {}
+    if baselines:
+        made, retrieved = baseline_runs(dataset, manifest, recordings, real, config, norm)
+        runs |= made
+    for number, chosen in enumerate([protocol, *(get_protocol(p) for p in more_protocols)]):
+        try:
+            field = {
+                name: run_field_scores(motions, real, beats, spec, config["dataset"], chosen, bootstrap=bootstrap)
+                for name, motions in runs.items()
+            }
+            scored = field["generated"]
+            record = scored.to_dict()
+            entry = {
+                "metrics_json": str(
+                    write_metrics_json(scored, out / ("metrics.json" if number == 0 else f"metrics_{chosen.name}.json"))
+                ),
+                "protocol": chosen.name,
+                "metrics": record["metrics"],
+                "warnings": record["warnings"],
+                "table": scored.table(),
+            }
+            if baselines:
+                entry["baselines"] = {name: f.to_dict()["metrics"] for name, f in field.items() if name != "generated"}
+                entry["retrieved"] = retrieved
+                entry["comparison"] = baseline_comparison(field)
+        except KinectDataError as exc:  # 2-D targets, a joint set without a mapping, joints never placed
+            entry = {"unavailable": str(exc)}
+        if number == 0:
+            results["field"] = entry
+        else:
+            results.setdefault("field_protocols", {})[chosen.name] = entry
     shown_rhythm = next((name for name, r in per_recording.items() if "real" in r), None)
     if shown_rhythm is not None:
         for which in ("real", "generated"):
@@ -321,6 +358,44 @@ def evaluate(
             results["figures"].append(str(fig))
     write_json(out / "results.json", results)
     return results
+
+
+def baseline_runs(
+    dataset: Path,
+    manifest: dict[str, Any],
+    recordings: list[dict[str, Any]],
+    real: dict[str, tuple[np.ndarray, np.ndarray]],
+    config: dict[str, Any],
+    norm: Normalizer,
+    seed: int = 0,
+) -> tuple[dict[str, dict[str, np.ndarray]], dict[str, str]]:
+    """The baselines' motion for each recording (:mod:`~kinectdata.evaluation.baselines`), as
+    denormalised targets [T-1, D] like a free run: ``{"mean_pose_noise": {...}, "retrieval": {...}}``,
+    and which training recording each retrieval took. The mean pose is the run's mean training
+    pose; retrieval searches the dataset's training split."""
+    spec = TargetSpec.from_dict(config["dataset"]["target"])
+    fps = config["dataset"]["fps"]
+    rng = np.random.default_rng(seed)
+    mean_pose = norm.invert(np.asarray(config["dataset"]["start_pose"], np.float32)[None], spec)[0]
+    training = []
+    for r in manifest["recordings"]:
+        if r["split"] != "train" or r.get("snr_db") is not None:
+            continue
+        with h5py.File(dataset / r["shard"], "r") as f:
+            rows = slice(r["start"], r["start"] + r["frames"])
+            values = norm.invert(f["current"][rows], spec, mask=f["mask"][rows])
+            training.append(TrainingSong(r["name"], music_descriptor(f["input"][rows]), values))
+    noise, retrieval_runs, retrieved = {}, {}, {}
+    for rec in recordings:
+        values, mask = real[rec["name"]]
+        noise[rec["name"]] = mean_pose_noise(mean_pose, values, mask, fps, rng)
+        if training:
+            motion, source = retrieval(music_descriptor(rec["input"]), len(values), training)
+            retrieval_runs[rec["name"]], retrieved[rec["name"]] = motion, source
+    runs = {"mean_pose_noise": noise}
+    if training:
+        runs["retrieval"] = retrieval_runs
+    return runs, retrieved
 
 
 @dataclass
@@ -335,12 +410,14 @@ class SongSet:
         features_of: ``features_of(samples [S]) -> features [T, ...]`` of mono audio at
             ``features_of.sample_rate``, on the motion clock.
         unavailable: why no recording has beats ("" when some have).
+        metres: per song, its metre and where it came from (manifest, given, estimated).
     """
 
     songs: list[HeldOutSong]
     generate_many: Callable[[list[tuple[np.ndarray, np.ndarray]]], list[np.ndarray]]
     features_of: Callable[[np.ndarray], np.ndarray]
     unavailable: str = ""
+    metres: dict[str, Metre] = field(default_factory=dict)
 
     def generate(self, features: np.ndarray, first_pose: np.ndarray) -> np.ndarray:
         """One song's positions [T-1, J, C] (see ``generate_many``)."""
@@ -372,6 +449,7 @@ def _song_set(
     beats: dict[str, tuple],
     manifest: dict[str, Any],
     config: dict[str, Any],
+    beats_per_bar: int | None = None,
 ) -> SongSet:
     kind = model_kind(model_name(config))
     spec = TargetSpec.from_dict(config["dataset"]["target"])
@@ -394,7 +472,7 @@ def _song_set(
         runs = kind.free_runs(net, [f for f, _ in jobs], [p for _, p in jobs])
         return [body(v, np.ones_like(v, bool))[0] for v in (norm.invert(g, spec) for g in runs)]
 
-    songs = []
+    songs, metres = [], {}
     for r in recordings:
         music = beats[r["name"]][0]
         if music is None:
@@ -403,25 +481,36 @@ def _song_set(
             samples = recording_audio(inputs[r["recording"]], r["info"], len(r["current"]), fps, cfg.sample_rate)
             rms = float(np.sqrt(np.mean(np.square(samples, dtype=np.float64)))) if samples.size else None
         except (KinectDataError, OSError):
-            rms = None
+            samples, rms = None, None
+        metre = recording_metre(inputs[r["recording"]], samples, cfg.sample_rate, music, beats_per_bar)
+        metres[r["name"]] = metre
         first = r.get("first_pose")
         if first is None:
             first = kind.fill_previous(r["current"][0], r["mask"][0], config["dataset"]["start_pose"])
         positions, pmask = body(norm.invert(r["current"], spec, mask=r["mask"]), r["mask"])
-        songs.append(HeldOutSong(r["name"], r["input"], first, positions, pmask, music, fps, rms))
+        songs.append(HeldOutSong(r["name"], r["input"], first, positions, pmask, music, fps, rms, metre.beats_per_bar))
     why = "" if songs else "no recording of the split has music beats (ground truth or tracked)"
-    return SongSet(songs, generate_many, features_of, why)
+    return SongSet(songs, generate_many, features_of, why, metres)
 
 
-def split_songs(net: torch.nn.Module, run_config: dict[str, Any], dataset: str | Path, split: str = "test") -> SongSet:
+def split_songs(
+    net: torch.nn.Module,
+    run_config: dict[str, Any],
+    dataset: str | Path,
+    split: str = "test",
+    *,
+    beats_per_bar: int | None = None,
+    checksums: bool = True,
+) -> SongSet:
     """The clean recordings of a dataset split as :class:`SongSet` for a network trained with
-    ``run_config`` (a run's ``config.json``): e.g. to measure beat following during training."""
+    ``run_config`` (a run's ``config.json``): e.g. to measure beat following during training.
+    ``beats_per_bar``: the metre of the songs whose manifest entry does not give one (default:
+    estimated from the music)."""
     dataset = Path(dataset)
-    manifest = read_manifest(dataset)
+    manifest = read_manifest(dataset, checksums=checksums)
     recordings = _recordings(dataset, manifest, split)
-    return _song_set(
-        net, recordings, split_beats(recordings, manifest, run_config["dataset"]["fps"]), manifest, run_config
-    )
+    beats = split_beats(recordings, manifest, run_config["dataset"]["fps"])
+    return _song_set(net, recordings, beats, manifest, run_config, beats_per_bar)
 
 
 def listening_controls(
@@ -433,13 +522,14 @@ def listening_controls(
     *,
     seed: int = 0,
     free: dict[str, np.ndarray] | None = None,
+    beats_per_bar: int | None = None,
 ) -> dict[str, Any]:
     """The beat-following figures with their chance levels and the listening controls
     (:func:`~kinectdata.evaluation.listening.listening_report`) over the recordings whose beats are
     known (ground truth or tracked), as JSON-ready figures with ``verdicts``; ``{"unavailable": why}``
     when no recording has beats or the motion is too short for them. ``free``: per recording, its
     free run without reset, denormalised [T-1, D], when the caller has made it (not run again)."""
-    found = _song_set(net, recordings, beats, manifest, config)
+    found = _song_set(net, recordings, beats, manifest, config, beats_per_bar)
     if not found.songs:
         return {"unavailable": found.unavailable}
     try:
@@ -448,9 +538,14 @@ def listening_controls(
             name: body_positions(values, np.ones_like(values, bool), spec, config["dataset"])[0]
             for name, values in (free or {}).items()
         }
-        return listening_report(
+        report = listening_report(
             found.songs, found.generate, found.features_of, seed=seed, generated=done, generate_many=found.generate_many
         ).to_dict()
+        report["metres"] = {
+            name: {"beats_per_bar": m.beats_per_bar, "source": m.source, "scores": m.scores}
+            for name, m in found.metres.items()
+        }
+        return report
     except KinectDataError as exc:  # too short for two bars of lags, too few beats
         return {"unavailable": str(exc)}
 
@@ -485,6 +580,9 @@ def format_results(results: dict[str, Any]) -> str:
     )
     rhythm = results.get("rhythm", {}).get("summary", {})
     listening = results.get("listening", {})
+    if listening.get("metres"):
+        said = ", ".join(f"{name} {m['beats_per_bar']} ({m['source']})" for name, m in listening["metres"].items())
+        lines.append(f"  metre          beats per bar: {said}")
     if "verdicts" in listening:
         lines += [f"  {line}" for line in listening["verdicts"]]
     elif listening:

@@ -32,7 +32,9 @@ import numpy as np
 
 from kinectdata.core.errors import KinectDataError
 from kinectdata.evaluation.beat_following import (
+    BEATS_PER_BAR,
     PERIOD_TOLERANCE,
+    SIGNIFICANCE,
     BeatFollowing,
     RecordingBeats,
     beat_following,
@@ -59,6 +61,8 @@ class HeldOutSong:
         beats_s: [B] the music's beat times on the motion's clock, seconds.
         fps: motion frames per second.
         rms: the audio's root mean square (full scale 1), for the noise control (None: no noise control).
+        beats_per_bar: the music's metre (:mod:`~kinectdata.evaluation.metre`), which the metrical
+            levels (bar, two bars) are built from.
     """
 
     name: str
@@ -69,6 +73,7 @@ class HeldOutSong:
     beats_s: np.ndarray
     fps: float
     rms: float | None = None
+    beats_per_bar: int = BEATS_PER_BAR
 
 
 @dataclass(frozen=True)
@@ -87,6 +92,8 @@ class Listening:
         baselines: Beat Align Score (music direction) of the mean pose with noise and of another
             song's real motion, against each song's beats.
         generated_positions: per song, the generated motion [T-1, J, C] (frames 1..T-1).
+        swapped_period_changes: share of swapped runs whose dominant period is more than 10 % away
+            from the period the same start pose made with its own song (None: no swapped runs).
     """
 
     real: BeatFollowing
@@ -100,6 +107,7 @@ class Listening:
     energy_ratio: float
     baselines: dict[str, float | None]
     generated_positions: dict[str, np.ndarray] = field(repr=False, default_factory=dict)
+    swapped_period_changes: float | None = None
 
     @property
     def alive(self) -> bool:
@@ -119,6 +127,36 @@ class Listening:
         )
         noise = self.noise is None or not self.noise.follows_beat
         return self.generated.follows_beat and swapped and noise
+
+    @property
+    def period_spread(self) -> float | None:
+        """The longest of the generated motion's dominant periods over its shortest (None: fewer than
+        two songs with a period): 1 for a motion that keeps one period whatever it hears."""
+        periods = [r.period.period_s for r in self.generated.recordings if r.period.period_s]
+        return max(periods) / min(periods) if len(periods) > 1 else None
+
+    @property
+    def no_fixed_oscillator(self) -> bool:
+        """The generated motion's dominant period differs between songs (spread above 1 + twice the
+        period tolerance) and follows their tempo at least as well as the real motion's (rank
+        correlation at least the real one's, p < 0.05), and changes in most swapped-song runs."""
+        spread, rho, real = self.period_spread, self.generated.tempo_correlation, self.real.tempo_correlation
+        return (
+            spread is not None
+            and spread > 1 + 2 * PERIOD_TOLERANCE
+            and rho is not None
+            and (real is None or rho >= real)
+            and self.generated.tempo_p_value is not None
+            and self.generated.tempo_p_value < SIGNIFICANCE
+            and self.swapped_period_changes is not None
+            and self.swapped_period_changes > 0.5
+        )
+
+    @property
+    def shifted_at_chance(self) -> bool:
+        """Audio shifted against the motion by two seconds and a fraction of a beat takes the motion's
+        beats off the original music's: their Beat Align Score is not significantly above chance."""
+        return not self.shifted.beat_align_music.above_chance
 
     @property
     def in_phase(self) -> bool:
@@ -167,6 +205,7 @@ class Listening:
             f"baselines: mean pose + noise {_fmt(self.baselines['mean_pose_noise'])}, "
             f"another song's real motion {_fmt(self.baselines['other_song'])})"
         )
+        lines.append(self._oscillator_verdict())
         lines.append(
             f"generated motion is alive: {'yes' if self.alive else 'no'} (energy {self.energy_ratio:.2f} x the real "
             f"motion's; wanted {ALIVE_RANGE[0]:g}-{ALIVE_RANGE[1]:g})"
@@ -176,6 +215,18 @@ class Listening:
             f"{self.silence_energy_ratio:.2g} x the energy with music)"
         )
         return lines
+
+    def _oscillator_verdict(self) -> str:
+        periods = [r.period.period_s for r in self.generated.recordings]
+        shown = [f"{p:.2f}" for p in periods if p] or ["none"]
+        rho, real = self.generated.tempo_correlation, self.real.tempo_correlation
+        tempo = "n/a" if rho is None else f"{rho:.2f} (p {_p_text(self.generated.tempo_p_value)})"
+        changes = "n/a" if self.swapped_period_changes is None else f"{self.swapped_period_changes:.0%}"
+        return (
+            f"generated motion is no fixed oscillator: {'yes' if self.no_fixed_oscillator else 'no'} (dominant "
+            f"periods {', '.join(shown)} s; rank correlation with the tempo {tempo}, the real motion's "
+            f"{'n/a' if real is None else f'{real:.2f}'}; the period changes with a swapped song in {changes} of runs)"
+        )
 
     def to_dict(self) -> dict[str, Any]:
         return {
@@ -192,6 +243,10 @@ class Listening:
             "listens": self.listens,
             "phase_ratio": self.phase_ratio,
             "in_phase": self.in_phase,
+            "period_spread": self.period_spread,
+            "swapped_period_changes": self.swapped_period_changes,
+            "no_fixed_oscillator": self.no_fixed_oscillator,
+            "shifted_at_chance": self.shifted_at_chance,
             "baselines": self.baselines,
             "verdicts": self.verdicts(),
         }
@@ -245,7 +300,10 @@ def listening_report(
         return generate_many(jobs) if generate_many is not None else [generate(f, p) for f, p in jobs]
 
     def following(motions: list[tuple[str, np.ndarray, np.ndarray | None, HeldOutSong]], first: int) -> BeatFollowing:
-        recs = [RecordingBeats(n, p, m, s.fps, s.beats_s, first_frame=first) for n, p, m, s in motions]
+        recs = [
+            RecordingBeats(n, p, m, s.fps, s.beats_s, first_frame=first, beats_per_bar=s.beats_per_bar)
+            for n, p, m, s in motions
+        ]
         return beat_following(recs, draws=draws, seed=seed)
 
     real = following([(s.name, s.real_positions, s.real_mask, s) for s in songs], 0)
@@ -255,7 +313,7 @@ def listening_report(
     generated_positions = {s.name: given[s.name] if s.name in given else made[s.name] for s in songs}
     generated = following([(s.name, generated_positions[s.name], None, s) for s in songs], 1)
 
-    swapped = follows_new = follows_old = None
+    swapped = follows_new = follows_old = changes = None
     partners = _swap_partners(songs, real)
     if partners:
         lengths = [min(len(songs[i].features), len(songs[j].features)) for i, j in partners]
@@ -269,9 +327,15 @@ def listening_report(
         follows_old = float(
             np.mean(
                 [
-                    metrical_level(r.period.period_s, _period(orig)) is not None
+                    metrical_level(r.period.period_s, _period(orig), orig.beats_per_bar) is not None
                     for r, (*_, orig) in zip(swapped.recordings, runs)
                 ]
+            )
+        )
+        own = {r.name: r.period.period_s for r in generated.recordings}
+        changes = float(
+            np.mean(
+                [_changed(r.period.period_s, own[songs[i].name]) for r, (i, _) in zip(swapped.recordings, partners)]
             )
         )
 
@@ -318,7 +382,16 @@ def listening_report(
         energy_ratio=energy,
         baselines=_baselines(songs, real, rng, draws, seed),
         generated_positions=generated_positions,
+        swapped_period_changes=changes,
     )
+
+
+def _changed(period: float | None, before: float | None) -> bool:
+    """Whether a dominant period differs from an earlier one by more than the period tolerance
+    (appearing or vanishing counts)."""
+    if period is None or before is None:
+        return (period is None) != (before is None)
+    return abs(period / before - 1) > PERIOD_TOLERANCE
 
 
 def _settle(song: HeldOutSong) -> int:
@@ -363,9 +436,13 @@ def _baselines(
         masked = np.where(valid[..., None], pos, np.nan)
         mean, spread = np.nanmean(masked, axis=0), np.nanstd(masked, axis=0)
         fake = mean + rng.normal(size=pos.shape) * np.nan_to_num(spread)
-        noisy.append(RecordingBeats(s.name, np.nan_to_num(fake), None, s.fps, s.beats_s))
+        noisy.append(RecordingBeats(s.name, np.nan_to_num(fake), None, s.fps, s.beats_s, beats_per_bar=s.beats_per_bar))
     noise_score = beat_following(noisy, draws=min(draws, 50), seed=seed).beat_align_music.value
     return {"mean_pose_noise": noise_score, "other_song": real.beat_align_other_songs}
+
+
+def _p_text(p: float | None) -> str:
+    return "n/a" if p is None else (f"= {p:.2g}" if p >= 0.001 else "< 0.001")
 
 
 def _fmt(v: float | None) -> str:

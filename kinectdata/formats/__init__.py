@@ -11,5 +11,6 @@ from . import finedance as _finedance  # noqa: F401
 from . import htr as _htr  # noqa: F401
 from . import ntu as _ntu  # noqa: F401
 from . import openpose as _openpose  # noqa: F401
+from . import tang2018 as _tang2018  # noqa: F401
 
 __all__ = ["Reader", "detect_format", "read_motion", "readers", "register_reader"]

@@ -256,13 +256,14 @@ class CdhcKind(ModelKind):
         spec = TargetSpec.from_dict(manifest["config"]["target"])
         if spec.orientations:
             raise ConfigError(f"the cdhc model regresses coordinates and limb lengths; {spec.name} has quaternions")
-        if manifest["normalisation"]["method"] != "none" or spec.position_scale != "recording_minmax":
+        method = manifest["normalisation"]["method"]
+        if method == "none" and spec.position_scale != "recording_minmax":
             raise ConfigError(
-                f"the cdhc model's sigmoid output covers 0..1: it needs targets scaled into 0..1 per recording "
-                f"(position_scale recording_minmax, normalisation none); "
-                f"this dataset's are {spec.position_scale} and {manifest['normalisation']['method']}"
+                "the cdhc model's output covers 0..1 for targets left unnormalised (the paper's per-video min-max "
+                f"coordinates, position_scale recording_minmax) or -0.9..0.9 for normalised ones (maxabs, minmax); "
+                f"this dataset's are {spec.position_scale} and {method}"
             )
-        if manifest["config"].get("root_centre"):
+        if manifest["config"].get("root_centre") and spec.limbs and spec.root in spec.positions:
             raise ConfigError(
                 "the cdhc model's limb loss measures limbs between its output coordinates; root-centred "
                 "coordinates put the root in another frame of reference than its children: build without --root-centre"
@@ -283,6 +284,7 @@ class CdhcKind(ModelKind):
             coordinates=spec.dimensions * len(spec.positions),
             joint_dims=spec.dimensions,
             limbs=tuple((index[j], index[p]) for j, p in spec.limb_pairs()),
+            output="sigmoid" if manifest["normalisation"]["method"] == "none" else "linear",
         ).to_dict()
 
     def build(self, config: dict[str, Any]):

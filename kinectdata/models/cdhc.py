@@ -62,6 +62,9 @@ OPENPOSE_MPI_LIMBS = (
 """The 14 limbs of ``openpose_mpi`` as (joint, parent) indices into its 15 joints."""
 
 
+OUTPUTS = ("sigmoid", "linear")
+
+
 @dataclass(frozen=True)
 class CdhcConfig:
     """The network's hyperparameters and the layout of its pose vectors.
@@ -79,6 +82,8 @@ class CdhcConfig:
         joint_dims: coordinates per joint (2: x, y); joint j is components ``joint_dims * j ..``.
         limbs: (joint, parent) index pairs; limb i's target length is component ``coordinates + i``.
             Empty: no limb-length loss.
+        output: the last layer's activation: ``sigmoid`` for targets in 0..1 (the paper's per-video
+            min-max coordinates), ``linear`` for targets normalised into -0.9..0.9 (any other dataset).
     """
 
     output_dim: int
@@ -92,8 +97,11 @@ class CdhcConfig:
     coordinates: int = 30
     joint_dims: int = 2
     limbs: tuple[tuple[int, int], ...] = OPENPOSE_MPI_LIMBS
+    output: str = "sigmoid"
 
     def __post_init__(self) -> None:
+        if self.output not in OUTPUTS:
+            raise KinectDataError(f"CDHC config: output must be one of {', '.join(OUTPUTS)}, not {self.output!r}")
         sizes = {k: getattr(self, k) for k in ("output_dim", "input_dim", "channels", "decoder_channels")}
         sizes |= {"kernel_size": self.kernel_size, "joint_dims": self.joint_dims}
         for name, value in sizes.items():
@@ -236,6 +244,7 @@ class Decoder(nn.Module):
         self.blocks = _highways(cd, config.decoder_dilations, config)
         self.convs = nn.Sequential(*[m for _ in range(3) for m in (nn.Linear(cd, cd), nn.Tanh())])
         self.output = nn.Linear(cd, config.output_dim)
+        self.squash = config.output == "sigmoid"
 
     def forward(
         self, audio: torch.Tensor, skeleton: torch.Tensor, caches: list[torch.Tensor] | None = None
@@ -244,7 +253,8 @@ class Decoder(nn.Module):
         ([B, D], new caches)."""
         g = torch.sigmoid(self.gate(torch.cat([audio, skeleton], dim=-1)))
         x, caches = _run_blocks(self.blocks, self.fuse(g * audio + (1.0 - g) * skeleton), caches)
-        return torch.sigmoid(self.output(self.convs(x))), caches
+        out = self.output(self.convs(x))
+        return (torch.sigmoid(out) if self.squash else out), caches
 
 
 class CdhcNet(nn.Module):
@@ -274,7 +284,8 @@ class CdhcNet(nn.Module):
                 by one frame, the first being a start pose).
 
         Returns:
-            [B, T, D] poses in 0..1; frame t depends only on ``audio[:, :t+1]`` and ``previous[:, :t+1]``.
+            [B, T, D] poses (in 0..1 under a sigmoid output); frame t depends only on ``audio[:, :t+1]``
+            and ``previous[:, :t+1]``.
         """
         _check_inputs(self.config, audio, previous)
         a, _ = self.audio_encoder(audio)
@@ -429,8 +440,9 @@ def generate_many(
 
 
 def init_output_bias(net: CdhcNet, mean_pose: torch.Tensor | np.ndarray) -> None:
-    """Set the last convolution's bias to logit(``mean_pose`` clipped to 0.01..0.99), so that a net
-    whose last layer's input is near zero starts at the mean pose. ``mean_pose``: [D] in 0..1."""
+    """Set the last convolution's bias so that a net whose last layer's input is near zero starts
+    at the mean pose: logit(``mean_pose`` clipped to 0.01..0.99) under a sigmoid output (``mean_pose``
+    [D] in 0..1), the mean pose itself under a linear one."""
     mean = np.asarray(torch.as_tensor(mean_pose).detach().cpu(), dtype=np.float64)
     if mean.shape != (net.config.output_dim,):
         raise KinectDataError(f"CDHC mean pose must be [{net.config.output_dim}], not {list(mean.shape)}")
@@ -438,8 +450,9 @@ def init_output_bias(net: CdhcNet, mean_pose: torch.Tensor | np.ndarray) -> None
         bad = np.flatnonzero(~np.isfinite(mean)).tolist()
         raise KinectDataError(f"CDHC mean pose: components {bad} are not finite (never valid in the data?)")
     p = np.clip(mean, 0.01, 0.99)
+    bias = np.log(p / (1.0 - p)) if net.config.output == "sigmoid" else mean
     with torch.no_grad():
-        net.decoder.output.bias.copy_(torch.from_numpy(np.log(p / (1.0 - p))))
+        net.decoder.output.bias.copy_(torch.from_numpy(bias))
 
 
 def _limb_ends(config: CdhcConfig, device: torch.device) -> tuple[torch.Tensor, torch.Tensor]:

@@ -145,6 +145,39 @@ def loss_warning(history: list[dict], lr: float) -> str | None:
     return None
 
 
+WORSE_SMAPE_POINTS = 1.0
+"""A free-running validation SMAPE this many percentage points above its best, reached while the
+training loss at least halved since that best epoch, draws a :class:`TrainingWarning`."""
+
+
+def validation_warning(history: list[dict]) -> str | None:
+    """What to say when, at the newest epoch, the free-running validation SMAPE has just become
+    :data:`WORSE_SMAPE_POINTS` worse than its best epoch's while the training loss fell to half of
+    that epoch's or less (the model fits the training dances frame by frame and runs worse on its
+    own); else None. Said once per streak."""
+
+    smape, train = _losses(history, "val_smape"), _losses(history, "train_loss")
+
+    def worse(i: int) -> int | None:
+        seen = [k for k in range(i) if math.isfinite(smape[k])]
+        if i < 1 or not seen or not math.isfinite(smape[i]) or not math.isfinite(train[i]):
+            return None
+        best = min(seen, key=lambda k: smape[k])
+        return best if smape[i] - smape[best] >= WORSE_SMAPE_POINTS and train[i] <= train[best] / 2 else None
+
+    last = len(history) - 1
+    best = worse(last)
+    if best is None or (last > 0 and worse(last - 1) is not None):
+        return None
+    return (
+        f"the free-running validation SMAPE is {smape[last]:.2f} % at epoch {history[last]['epoch']}, worse than its "
+        f"{smape[best]:.2f} % at epoch {history[best]['epoch']}, while the training loss fell from {train[best]:.4g} "
+        f"to {train[last]:.4g}: the model fits the training dances frame by frame but runs worse on its own; "
+        f"stop earlier (--epochs {history[best]['epoch']}) or give it its own motion to learn from (docs/training.md, "
+        '"Learning real dance")'
+    )
+
+
 def ending_warning(history: list[dict], lr: float) -> str | None:
     """What to say when a finished run's training or validation loss ended above where it started
     (its first epoch's); else None."""
@@ -440,9 +473,9 @@ def train(
                     row.update(epoch_metrics(net))
                 net.train()
             history.append(row)
-            said = loss_warning(history, config.lr) if world.main else None
-            if said:
-                warnings.warn(said, TrainingWarning, stacklevel=2)
+            for said in (loss_warning(history, config.lr), validation_warning(history)) if world.main else ():
+                if said:
+                    warnings.warn(said, TrainingWarning, stacklevel=2)
             if world.main:  # the others keep no files
                 _write_log(run, history)
                 if writer is not None:

@@ -199,11 +199,15 @@ def test_the_model_follows_the_dataset_and_mismatches_are_refused(ltd_dataset, s
     assert PIPELINES["listen-to-dance"]["model"] == "cdhc"
 
 
-def test_cdhc_needs_0_1_targets_without_root_centring(sessions, tmp_path):
+def test_cdhc_needs_0_1_or_normalised_targets_and_limbs_in_one_frame(sessions, tmp_path):
     from kinectdata.training.config import TrainConfig
     from kinectdata.training.train import train
 
-    for option, words in ((["--normalisation", "minmax"], "covers 0..1"), (["--root-centre"], "without --root-centre")):
+    cases = (
+        (["--target", "positions", "--normalisation", "none"], "covers 0..1 for targets left unnormalised"),
+        (["--root-centre"], "without --root-centre"),
+    )
+    for option, words in cases:
         out = tmp_path / option[0].strip("-")
         args = ["build-dataset", sessions, "-o", out, "--pipeline", "listen-to-dance", "--video-fps", 30]
         assert run_cli(*args, "--split-ratios", "1,1,1", *option).exit_code == 0

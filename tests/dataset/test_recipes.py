@@ -12,18 +12,26 @@ import yaml
 from click.testing import CliRunner
 from corpus_copies import (
     AISTPP_SEQUENCES,
+    TANG2018_DANCES,
     coco_keypoints_m,
     finedance_motion,
     made_up_rest_joints,
     make_aistpp_copy,
     make_bvh_folder,
     make_finedance_copy,
+    make_tang2018_copy,
 )
 
 from kinectdata.cli import main
 from kinectdata.core.errors import ConfigError, CorpusError, SchemaError
-from kinectdata.dataset.inputs import read_recordings
-from kinectdata.dataset.recipes import prepare_aistpp, prepare_bvh_folder, prepare_corpus, prepare_finedance
+from kinectdata.dataset.inputs import RecordingEntry, read_recordings
+from kinectdata.dataset.recipes import (
+    prepare_aistpp,
+    prepare_bvh_folder,
+    prepare_corpus,
+    prepare_finedance,
+    prepare_tang2018,
+)
 from kinectdata.formats import read_motion
 
 
@@ -243,6 +251,121 @@ def test_options_a_recipe_does_not_take_are_refused():
         prepare_bvh_folder("no_such_folder")
 
 
+# -- Dance with Melody (tang2018) ---------------------------------------------------------------------
+
+TANG2018_TEST = {"C_2", "C_4", "R_2", "R_3", "T_5", "W_1", "W_3"}
+TANG2018_VAL = {"C_6", "R_4", "W_4"}
+"""kinectdata's acceptance split as docs/corpora.md states it (the recipe's KINECTDATA_SPLIT)."""
+COMPLETE = {name for name, dance in TANG2018_DANCES.items() if dance.complete}
+STYLE = {"C": ("cha-cha", 4), "R": ("rumba", 4), "T": ("tango", 4), "W": ("waltz", 3)}
+
+
+@pytest.fixture(scope="module")
+def tang(tmp_path_factory):
+    return make_tang2018_copy(tmp_path_factory.mktemp("tang2018"), seconds=3.0)
+
+
+def test_tang2018_lists_the_complete_dances_in_the_acceptance_split(tang):
+    manifest = prepare_tang2018(tang)
+    expected = {n: "test" if n in TANG2018_TEST else "val" if n in TANG2018_VAL else "train" for n in COMPLETE}
+    assert {e.name: e.split for e in manifest.recordings} == expected
+    assert manifest.split_counts() == {"train": 4, "val": 3, "test": 7}
+    assert [e.name for e in manifest.recordings] == ["C_2", "C_4", "C_6", "C_7", "R_2", "R_3", "R_4", "R_5",
+                                                     "T_5", "W_1", "W_3", "W_4", "W_5", "W_6"]  # fmt: skip
+    assert manifest.build_options == ("--root-centre",) and manifest.target == "positions"
+    unsplit = prepare_corpus("tang2018", tang, split="none")
+    assert {e.name: e.split for e in unsplit.recordings} == dict.fromkeys(COMPLETE)
+    assert unsplit.split_counts() == {"unsplit": len(COMPLETE)}
+    assert {e.name for e in prepare_tang2018(tang, split=None).recordings} == COMPLETE
+
+
+def test_tang2018_leaves_out_the_incomplete_dances_naming_the_missing_file(tang):
+    skipped = dict(prepare_tang2018(tang).skipped)
+    assert skipped == {
+        "C_1": "DANCE_C_1/skeletons.json is missing or empty",
+        "C_9": "DANCE_C_9/audio.mp3 is missing or empty",
+        "R_6": "DANCE_R_6/skeletons.json is missing or empty",
+        "T_1": "DANCE_T_1/skeletons.json is missing or empty",  # it lacks audio.mp3 too
+        "W_2": "DANCE_W_2/audio.mp3 is missing or empty",
+        "W_9": "DANCE_W_9/audio.mp3 is missing or empty",  # held, but empty
+        "W_13": "DANCE_W_13/skeletons.json is missing or empty",
+    }
+    assert set(skipped) == set(TANG2018_DANCES) - COMPLETE
+
+
+def test_tang2018_entries_carry_the_style_metre_offset_and_format(tang):
+    for entry in prepare_tang2018(tang).recordings:
+        dance = TANG2018_DANCES[entry.name]
+        assert (entry.style, entry.beats_per_bar) == STYLE[entry.name[0]]
+        assert entry.offset == pytest.approx(dance.start / 25.0, abs=1e-12)
+        assert (entry.recording, entry.audio) == (f"DANCE_{entry.name}/skeletons.json", f"DANCE_{entry.name}/audio.mp3")
+        assert entry.format == "tang2018"
+
+
+def test_a_tang2018_entry_reads_at_the_dances_own_rate(tang, tmp_path):
+    out = prepare_tang2018(tang).write(tmp_path / "tang.yaml")
+    doc = yaml.safe_load(out.read_text())
+    assert doc["corpus"] == "tang2018" and doc["recordings"][0]["beats_per_bar"] == 4
+    entries = {e.name: e for e in read_recordings(out, allow_outside_paths=True)}
+    assert (entries["W_4"].style, entries["W_4"].beats_per_bar) == ("waltz", 3)
+    motion = entries["W_4"].read_motion()
+    frames, extra = 75, TANG2018_DANCES["W_4"].extra
+    np.testing.assert_allclose(motion.times, np.arange(frames) * (frames + extra) / (25.0 * frames), rtol=1e-12)
+    direct = read_motion(tang / "DANCE_W_4" / "skeletons.json")
+    np.testing.assert_array_equal(motion.positions, direct.positions)
+
+
+def test_music_facts_change_no_arrays_so_no_build_key():
+    entry = RecordingEntry(name="W_1", recording="a.json", audio="a.mp3", offset=0.0, format="tang2018")
+    with_facts = RecordingEntry(**{**entry.to_dict(), "style": "waltz", "beats_per_bar": 3})
+    assert with_facts.options() == entry.options()
+    assert with_facts.to_dict()["beats_per_bar"] == 3
+
+
+def test_a_csv_manifest_reads_beats_per_bar_as_a_whole_number(tang):
+    path = tang / "dances.csv"
+    path.write_text(
+        "name,recording,audio,split,offset,format,style,beats_per_bar\n"
+        "W_1,DANCE_W_1/skeletons.json,DANCE_W_1/audio.mp3,train,0,tang2018,waltz, 3\n"
+        "R_2,DANCE_R_2/skeletons.json,DANCE_R_2/audio.mp3,test,0.32,tang2018,rumba,\n"
+    )
+    entries = {e.name: e for e in read_recordings(path)}
+    assert entries["W_1"].beats_per_bar == 3 and isinstance(entries["W_1"].beats_per_bar, int)
+    assert (entries["W_1"].style, entries["R_2"].beats_per_bar) == ("waltz", None)
+    path.write_text(path.read_text().replace("rumba,\n", "rumba,3.5\n"))
+    with pytest.raises(SchemaError) as err:
+        read_recordings(path)
+    assert str(err.value) == f"{path}, line 3: beats_per_bar '3.5' is not a whole number"
+    result = CliRunner().invoke(main, ["build-dataset", str(path), "-o", str(tang / "never"), "--target", "positions"])
+    assert _one_line_error(result) == f"Error: {path}, line 3: beats_per_bar '3.5' is not a whole number"
+    path.unlink()
+
+
+def test_tang2018_refuses_a_split_it_does_not_have_and_a_folder_without_dances(tang, tmp_path):
+    result = CliRunner().invoke(main, ["prepare", "tang2018", str(tang), "-o", str(tmp_path / "r.yaml"), "--split",
+                                       "cross_genre"])  # fmt: skip
+    assert "split 'cross_genre': the tang2018 recipe takes 'kinectdata' or 'none'" in _one_line_error(result)
+    result = CliRunner().invoke(main, ["prepare", "tang2018", str(tang / "utils"), "-o", str(tmp_path / "r.yaml")])
+    assert "no DANCE_<style>_<n> folders" in _one_line_error(result)
+    assert not (tmp_path / "r.yaml").exists()
+
+
+def test_tang2018_leaves_out_a_dance_whose_config_is_broken_saying_what_is_wrong(tmp_path):
+    dances = {name: TANG2018_DANCES[name] for name in ("W_1", "W_3")}
+    root = make_tang2018_copy(tmp_path, seconds=0.5, dances=dances)
+    (root / "DANCE_W_1" / "config.json").write_text('{"start_position": 40, "end_position": 20}')
+    manifest = prepare_tang2018(root)
+    assert [e.name for e in manifest.recordings] == ["W_3"]
+    assert manifest.skipped == (("W_1", "DANCE_W_1/config.json: end_position 20 is not after start_position 40"),)
+    (root / "DANCE_W_3" / "config.json").write_text("[]")  # nothing left: one line naming the first reason
+    result = CliRunner().invoke(main, ["prepare", "tang2018", str(root), "-o", str(tmp_path / "r.yaml")])
+    assert _one_line_error(result) == (
+        f"Error: {root}: no recording could be listed (2 left out; the first: "
+        "DANCE_W_1/config.json: end_position 20 is not after start_position 40)"
+    )
+    assert not (tmp_path / "r.yaml").exists()
+
+
 # -- from the command line to a dataset -----------------------------------------------------------------
 
 
@@ -275,3 +398,40 @@ def test_formats_lists_the_corpus_readers_array_schemas_and_joint_sets():
     assert any(line.split()[:1] == ["aistpp_keypoints3d_optim"] for line in lines)
     for joint_set, size in (("coco17_tree", 19), ("smplh52", 52)):
         assert any(line.split()[:3] == [joint_set, str(size), "joints,"] for line in lines)
+
+
+def test_prepare_tang2018_then_build_dataset_root_centred_keeps_splits_and_music_facts(tang, tmp_path):
+    runner = CliRunner()
+    manifest = tmp_path / "tang.yaml"
+    result = runner.invoke(main, ["prepare", "tang2018", str(tang), "-o", str(manifest)])
+    assert result.exit_code == 0, result.output
+    lines = result.output.strip().splitlines()
+    assert lines[0] == f"wrote {manifest}: 14 recordings of tang2018 (4 train, 3 val, 7 test) under {tang.resolve()}"
+    assert lines[1:4] == ["left out 7:", "  C_1: DANCE_C_1/skeletons.json is missing or empty",
+                          "  C_9: DANCE_C_9/audio.mp3 is missing or empty"]  # fmt: skip
+    assert lines[-2] == "  ... and 2 more"
+    assert lines[-1] == (
+        f"next: kinectdata build-dataset {manifest} -o DATASET --target positions --root-centre --allow-outside-paths"
+    )
+    args = ["build-dataset", str(manifest), "-o", str(tmp_path / "ds"), "--target", "positions"]
+    result = runner.invoke(main, [*args, "--root-centre", "--allow-outside-paths"])
+    assert result.exit_code == 0, result.output
+    import json
+
+    doc = json.loads((tmp_path / "ds" / "manifest.json").read_text())
+    expected = {n: "test" if n in TANG2018_TEST else "val" if n in TANG2018_VAL else "train" for n in COMPLETE}
+    assert {r["name"]: r["split"] for r in doc["recordings"]} == expected
+    assert {s: sorted(v["recordings"]) for s, v in doc["splits"].items()} == {
+        s: sorted(n for n, x in expected.items() if x == s) for s in ("train", "val", "test")
+    }
+    assert doc["config"]["root_centre"] is True and doc["config"]["target"]["joint_set"] == "tang2018"
+    inputs = {e["name"]: e for e in doc["inputs"]}
+    assert {n: (e["style"], e["beats_per_bar"]) for n, e in inputs.items()} == {n: STYLE[n[0]] for n in COMPLETE}
+    offsets = {r["name"]: r["offset"] for r in doc["recordings"]}
+    assert offsets["C_7"] == {"seconds": pytest.approx(60 / 25.0), "source": "given", "confidence": 1.0}
+
+    unsplit = tmp_path / "unsplit.yaml"
+    result = runner.invoke(main, ["prepare", "tang2018", str(tang), "-o", str(unsplit), "--split", "none"])
+    assert result.exit_code == 0, result.output
+    assert "14 recordings of tang2018 (14 unsplit)" in result.output
+    assert {e.split for e in read_recordings(unsplit, allow_outside_paths=True)} == {None}

@@ -29,7 +29,7 @@ import numpy as np
 import pytest
 import soundfile
 from conftest import REPO
-from corpus_copies import make_aistpp_copy, make_bvh_folder, make_finedance_copy
+from corpus_copies import make_aistpp_copy, make_bvh_folder, make_finedance_copy, make_tang2018_copy
 
 DOCUMENTS = [REPO / "README.md", *sorted((REPO / "docs").glob("*.md"))]
 SHELL = {"sh", "bash", "shell", "console"}
@@ -239,6 +239,7 @@ STAGE: dict[str, Callable[[Path], None]] = {
     "aist_plusplus_final/": lambda work: make_aistpp_copy(work),
     "FineDance/data/finedance/": lambda work: make_finedance_copy(work),
     "bvh_corpus/": lambda work: make_bvh_folder(work),
+    "Music-to-Dance-Motion-Synthesis/": lambda work: make_tang2018_copy(work),
     "dataset": _dataset,
 }
 """How to make each input an example names but no earlier example of its document makes."""

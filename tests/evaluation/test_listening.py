@@ -93,3 +93,57 @@ def test_motion_energy_is_the_mean_squared_speed():
     pos = np.zeros((300, 1, 3))
     pos[:, 0, 0] = 0.5 * t  # 0.5 m/s
     assert motion_energy_per_s(pos, None, FPS) == pytest.approx(0.25)
+
+
+# the metre of each song: (0, 3), (1, 3), (2, 0) and (3, 0) are the swapped pairs (each song with the
+# song whose tempo differs most), and each pair joins a song in 3 with one in 4
+METRES = (3, 3, 4, 4)
+
+
+def metred_songs(metres: tuple[int, ...]) -> list[HeldOutSong]:
+    """songs() with the given metres; each real motion carries its song's index in its depth (z = 2.5 + i)."""
+    out = []
+    for i, (song, metre) in enumerate(zip(songs(), metres)):
+        real = song.real_positions.copy()
+        real[:, :, 2] += i
+        out.append(HeldOutSong(song.name, song.features, real[0], real, None, song.beats_s, FPS, 0.1, metre))
+    return out
+
+
+def waltzer(features: np.ndarray, first_pose: np.ndarray) -> np.ndarray:
+    """Frames 1..T-1, lowest on every sixth onset it hears: two bars of a waltz."""
+    onsets = np.flatnonzero(features[:, 0] > 0.5)
+    return bounce(onsets[::6], len(features))[1:]
+
+
+def bar_dancer(features: np.ndarray, first_pose: np.ndarray) -> np.ndarray:
+    """Frames 1..T-1, deaf: it dances one bar of the song its first pose comes from (known from the
+    pose's depth), whatever music it is given."""
+    i = int(round(first_pose[0, 2] - 2.5))
+    lowest = np.arange(0, len(features) + 200, METRES[i] * PERIODS[i] * FPS)
+    return bounce(lowest, len(features))[1:]
+
+
+def test_a_waltz_is_at_two_bars_only_when_its_songs_are_known_to_be_in_three():
+    result = listening_report(metred_songs((3, 3, 3, 3)), waltzer, features_of, draws=30)
+    assert result.generated.levels == {"two bars": 4} and result.generated.follows_beat
+    assert [r.beats_per_bar for r in result.generated.recordings] == [3] * 4
+    assert result.swapped_follows_new == 1.0  # two bars of the new song, in its metre
+    assert [r.beats_per_bar for r in result.real.recordings + result.noise.recordings] == [3] * 8
+    assert [r.beats_per_bar for r in result.shifted.recordings + result.swapped.recordings] == [3] * 8
+    in_four = listening_report(metred_songs((4, 4, 4, 4)), waltzer, features_of, draws=30)
+    assert in_four.generated.levels == {"none": 4} and not in_four.generated.follows_beat
+    assert in_four.swapped_follows_new == 0.0
+
+
+def test_the_swapped_control_measures_the_old_song_in_its_own_metre():
+    """A deaf dancer repeats one bar of its original song whatever it hears: the swapped runs follow
+    the old song (in 3 or in 4, as that song is), not the new one (in the other metre)."""
+    result = listening_report(metred_songs(METRES), bar_dancer, features_of, draws=30)
+    assert result.generated.levels == {"bar": 4}
+    assert result.swapped_follows_old == 1.0
+    # of the new songs' metres only one is met: song 1's bar (3 x 0.6 = 1.8 s) is within 10 % of a bar
+    # of song 3 (4 x 0.42 = 1.68 s)
+    assert result.swapped_follows_new == 0.25
+    assert [r.beats_per_bar for r in result.swapped.recordings] == [METRES[j] for j in (3, 3, 0, 0)]  # the new songs'
+    assert not result.listens

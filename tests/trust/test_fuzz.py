@@ -35,7 +35,7 @@ import h5py
 import numpy as np
 import pytest
 from conftest import DATA, REPO
-from corpus_copies import finedance_motion
+from corpus_copies import finedance_motion, tang2018_dance
 from helpers import random_motion
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
@@ -119,11 +119,13 @@ def check_motion(motion: Motion) -> None:
         np.testing.assert_allclose(norms, 1.0, atol=1e-6)
 
 
-def read_both_ways(path: Path, fmt: str, options: dict[str, Any]) -> None:
-    """Read with the format named, then with the format detected (sniffers see the damage too)."""
+def read_both_ways(path: Path, fmt: str, options: dict[str, Any], damaged: Path | None = None) -> None:
+    """Read with the format named, then with the format detected (sniffers see the damage too). An
+    error must name ``damaged`` (the file read, unless the damage is in a file read beside it)."""
     for given_format in (fmt, None):
         opts = options if given_format else {k: v for k, v in options.items() if k != "schema"}
-        motion = answer_or_clear_error(path, lambda: read_motion(path, format=given_format, **opts))  # noqa: B023
+        read = lambda: read_motion(path, format=given_format, **opts)  # noqa: B023, E731
+        motion = answer_or_clear_error(damaged or path, read)
         if motion is not None:
             check_motion(motion)
 
@@ -145,6 +147,19 @@ class Seed:
     name: str
     data: bytes
     options: dict[str, Any] = field(default_factory=dict)
+    beside: tuple[tuple[str, bytes], ...] = ()
+    """Files written unharmed next to it (name, bytes): what its reader reads besides."""
+    reads: str | None = None
+    """The file the reader is given, when the seed is a file read beside it (a config.json)."""
+
+    def place(self, folder: Path, data: bytes | None = None) -> tuple[Path, Path]:
+        """Write the seed (or ``data`` in its place) and the files beside it into ``folder``:
+        (the file written, the file to read)."""
+        for name, companion in self.beside:
+            (folder / name).write_bytes(companion)
+        path = folder / self.name
+        path.write_bytes(self.data if data is None else data)
+        return path, folder / (self.reads or self.name)
 
 
 def _head_lines(path: Path, n: int) -> bytes:
@@ -200,7 +215,21 @@ def seeds() -> dict[str, Seed]:
         found.update({f"csv_{d}": _csv_seed(d, Path(tmp)) for d in shipped_csv_schemas()})
     found.update({f"openpose_{i}": s for i, s in enumerate(_openpose_seeds())})
     found.update(_corpus_seeds())
+    found.update(_tang2018_seeds())
     return found
+
+
+def _tang2018_seeds() -> dict[str, Seed]:
+    """A Dance with Melody skeletons.json (3 frames of a made-up body) with its config.json beside
+    it, and the config.json damaged instead."""
+    skeletons = json.dumps(tang2018_dance(3, seed=9)).encode()
+    config = json.dumps({"start_position": 41, "end_position": 45}).encode()
+    return {
+        "tang2018": Seed("tang2018", "skeletons.json", skeletons, beside=(("config.json", config),)),
+        "tang2018_config": Seed(
+            "tang2018", "config.json", config, beside=(("skeletons.json", skeletons),), reads="skeletons.json"
+        ),
+    }
 
 
 def _corpus_seeds() -> dict[str, Seed]:
@@ -240,6 +269,8 @@ SEED_NAMES = [
     "arrays_npz",
     "arrays_pkl",
     "finedance",
+    "tang2018",
+    "tang2018_config",
 ]
 
 
@@ -251,8 +282,7 @@ def test_the_seeds_are_valid_files(tmp_path):
     """Unharmed, every seed reads as a Motion (else the fuzzing would only test error paths)."""
     assert sorted(seeds()) == sorted(SEED_NAMES)
     for seed in seeds().values():
-        path = tmp_path / seed.name
-        path.write_bytes(seed.data)
+        _, path = seed.place(tmp_path)
         check_motion(read_motion(path, format=seed.format, **seed.options))
         if seed.format == "csv":  # the dialect is detected too
             check_motion(read_motion(path, **{k: v for k, v in seed.options.items() if k != "schema"}))
@@ -362,9 +392,8 @@ def damaged(draw, data: bytes) -> bytes:
 
 
 def fuzz_reader(seed: Seed, folder: Path, data: bytes) -> None:
-    path = folder / seed.name
-    path.write_bytes(data)
-    read_both_ways(path, seed.format, seed.options)
+    damaged, path = seed.place(folder, data)
+    read_both_ways(path, seed.format, seed.options, damaged)
 
 
 @pytest.mark.parametrize("name", SEED_NAMES)
@@ -433,6 +462,7 @@ EVERY_READER = [
     ("azure_json", "take.json", {}),
     ("htr", "take.htr", {}),
     ("openpose", "take.jsonl", {"video_fps": 30.0}),
+    ("tang2018", "skeletons.json", {}),
     ("oni", "take.oni", {}),
 ]
 
@@ -442,6 +472,8 @@ EVERY_READER = [
 @given(data=st.binary(max_size=4096) | st.sampled_from([b"", b"\xef\xbb\xbf", b"\r\n", b"\x00" * 64]))
 def test_random_bytes_give_a_clear_error(fuzz_folder, fmt, name, options, data):
     path = fuzz_folder / name
+    if fmt == "tang2018":  # its config.json beside it, unharmed
+        seeds()["tang2018"].place(fuzz_folder)
     path.write_bytes(data)
     if fmt == "oni":
         answer_or_clear_error(path, lambda: _read_oni(path))
@@ -453,16 +485,15 @@ def test_random_bytes_give_a_clear_error(fuzz_folder, fmt, name, options, data):
 def test_empty_and_utf16_files(fuzz_folder, name):
     """An empty file is an error naming it; UTF-16 text is read or refused, never a crash."""
     seed = seeds()[name]
-    path = fuzz_folder / seed.name
-    path.write_bytes(b"")
+    _, path = seed.place(fuzz_folder, b"")
     with pytest.raises(KinectDataError, match=re.escape(seed.name)):
         read_motion(path, format=seed.format, **seed.options)
     try:
         text = seed.data.decode("utf-8")
     except UnicodeDecodeError:
         return  # a binary format (.npy, .npz, a pickle): no text to save as UTF-16
-    path.write_bytes(text.encode("utf-16"))
-    read_both_ways(path, seed.format, seed.options)
+    damaged, path = seed.place(fuzz_folder, text.encode("utf-16"))
+    read_both_ways(path, seed.format, seed.options, damaged)
 
 
 # -- counts that claim a billion of something --------------------------------------------------------
@@ -474,6 +505,8 @@ HUGE_COUNTS = [
     ("azure_json", lambda d: d.replace(b'"num_bodies": 1', b'"num_bodies": 1000000000', 1), "num_bodies 1000000000"),
     ("sample_data", lambda d: d.replace(b"\n0.000000,1,", b"\n0.000000,1000000000,", 1), "joint index 1e+09"),
     ("openpose_2", lambda d: d.replace(b'"frame": 4', b'"frame": 1000000000'), None),
+    ("tang2018", lambda d: d.replace(b'"length": 3', b'"length": 1000000000'), "length says 1000000000 frames"),
+    ("tang2018_config", lambda d: d.replace(b"45", b"1000000045"), None),
 ]
 
 
@@ -483,8 +516,7 @@ def test_a_count_claiming_a_billion_allocates_nothing_of_that_size(fuzz_folder, 
     seed = seeds()[name]
     data = edit(seed.data)
     assert data != seed.data
-    path = fuzz_folder / seed.name
-    path.write_bytes(data)
+    _, path = seed.place(fuzz_folder, data)
     tracemalloc.start()
     try:
         if refusal is None:
@@ -815,16 +847,18 @@ SAME_READING = [  # the edit must not change what is read
     ("csv_lsl_kinect", lambda d: _line(d, 4, lambda ln: _cell(ln, 1, b'"' + ln.split(b",")[1]))),  # stray quote
     ("csv_kinectreader", lambda d: d.replace(b",\n", b"\n")),  # no trailing delimiter on any row
     ("kinect_v2_real", lambda d: _line(d, 1, lambda ln: ln.rstrip(b","))),  # nor on the first
+    ("tang2018", lambda d: json.dumps(json.loads(d), indent=1).encode()),  # saved again, indented
+    ("tang2018", lambda d: b"\xef\xbb\xbf" + d),  # with a byte-order mark
+    ("tang2018_config", lambda d: d.replace(b"41", b"41.0") + b"\n"),
 ]
 
 
 @pytest.mark.parametrize(("name", "edit"), SAME_READING)
 def test_edits_that_change_nothing_read(fuzz_folder, name, edit):
     seed = seeds()[name]
-    path = fuzz_folder / seed.name
-    path.write_bytes(seed.data)
+    _, path = seed.place(fuzz_folder)
     before = read_motion(path, format=seed.format, **seed.options)
-    path.write_bytes(edit(seed.data))
+    seed.place(fuzz_folder, edit(seed.data))
     after = read_motion(path, format=seed.format, **seed.options)
     np.testing.assert_array_equal(after.times, before.times)
     np.testing.assert_array_equal(after.positions, before.positions)
@@ -856,19 +890,25 @@ REFUSED = [  # (seed, edit, regex the error must match after the file name)
     ("azure_json", lambda d: re.sub(rb'"timestamp_usec": \d+', b'"timestamp_usec": -4611686018427387904', d, count=1)
      .replace(b"1267900", b"4611686018427387904").replace(b"1301233", b"4611686018427387905"),
      r", frame 2: timestamp_usec 4611686018427387905, counted from the first frame's -4611686018427387904, "),
+    ("tang2018", lambda d: re.sub(rb'("center": \[\[)[-0-9.e]+', rb"\g<1>" + _HUGE, d, count=1),
+     r", frame 0: 'center' is not \[3\] numbers here$"),  # an OverflowError once
+    ("tang2018", lambda d: d.replace(b'"length": 3', b'"length": 1' + b"0" * 5000),
+     r": not JSON \(Exceeds the limit \(4300 digits\)"),  # a ValueError once
+    ("tang2018_config", lambda d: d.replace(b"45", _HUGE),
+     r": end_position must be a song frame \(a number from 0 to 2\*\*53\), not 1000+\.\.\.$"),  # an OverflowError once
+    ("tang2018_config", lambda d: d.replace(b"41", b"1" + b"0" * 5000), r": not JSON \(Exceeds the limit"),
 ]  # fmt: skip
 
 
 @pytest.mark.parametrize(("name", "edit", "message"), REFUSED)
 def test_edits_refused_with_the_place(fuzz_folder, name, edit, message):
     seed = seeds()[name]
-    path = fuzz_folder / seed.name
     data = edit(seed.data)
     assert data != seed.data
-    path.write_bytes(data)
+    damaged, path = seed.place(fuzz_folder, data)
     with pytest.raises(FormatError) as err:
         read_motion(path, format=seed.format, **seed.options)
-    assert re.match(re.escape(str(path)) + message, str(err.value)), str(err.value)
+    assert re.match(re.escape(str(damaged)) + message, str(err.value)), str(err.value)
 
 
 SHARD_REFUSED = [

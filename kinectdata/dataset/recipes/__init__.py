@@ -20,6 +20,7 @@ from kinectdata.dataset.recipes.aistpp import prepare_aistpp
 from kinectdata.dataset.recipes.bvh_folder import prepare_bvh_folder
 from kinectdata.dataset.recipes.finedance import prepare_finedance
 from kinectdata.dataset.recipes.manifest import CorpusManifest
+from kinectdata.dataset.recipes.tang2018 import prepare_tang2018
 
 
 @dataclass(frozen=True)
@@ -54,6 +55,12 @@ register_recipe(
     "finedance", prepare_finedance, "FineDance data folder (motion/*.npy, music_wav/) + its smplx_neu_J_1.npy"
 )
 register_recipe("bvh-folder", prepare_bvh_folder, "a folder of .bvh files, each with its music beside it")
+register_recipe(
+    "tang2018",
+    prepare_tang2018,
+    "Dance with Melody (Tang et al. 2018) repository folder (DANCE_<style>_<n>/ with skeletons.json, config.json, "
+    "audio.mp3)",
+)
 
 
 def prepare_corpus(corpus: str, path: str | Path, **options: Any) -> CorpusManifest:
@@ -76,6 +83,7 @@ __all__ = [
     "prepare_aistpp",
     "prepare_bvh_folder",
     "prepare_finedance",
+    "prepare_tang2018",
     "prepare_corpus",
     "register_recipe",
 ]

@@ -27,6 +27,8 @@ class CorpusManifest:
         description: the corpus's facts the recipe relied on, written into the manifest.
         target: the target a dataset of the corpus is built with (``--target``): a generic one,
             since no shipped target spec is made for a corpus's own joints.
+        build_options: other ``build-dataset`` options the corpus needs (e.g. ``--root-centre``
+            where the body's place in the room drifts).
     """
 
     corpus: str
@@ -35,6 +37,7 @@ class CorpusManifest:
     skipped: tuple[tuple[str, str], ...] = ()
     description: str = ""
     target: str = "positions"
+    build_options: tuple[str, ...] = ()
 
     def split_counts(self) -> dict[str, int]:
         """Recordings per split (``unsplit`` for those the build will draw)."""

@@ -1,0 +1,189 @@
+"""Do the bundled models learn to dance to real music on real dance? ``bench_learning --corpus
+tang2018 PATH``: a local copy of a real corpus (never shipped: the path is yours), its acceptance
+split, each model trained with its defaults within the budget, ``evaluate`` on the test dances,
+and issue 25's goals printed with their figures, chance levels and verdicts:
+
+- a. alive and human: energy 0.5-2 x the real motion's, jerk and PFC at most 2 x the real
+  motion's, bone-length variation (CV) at most the real motion's;
+- b. no fixed oscillator: the dominant period differs between songs, follows their tempo (rank
+  correlation at least the real motion's) and changes when the song is swapped;
+- c. listens: the swapped-song, noise and shifted-audio controls pass and silence stops the motion
+  (energy at most 0.1 x);
+- d. the field's metrics (bailando and aist protocols, 95 % intervals) beside the mean training
+  pose with noise at the real speed and the retrieval baseline: the model beats the first (lower
+  FID_k and FID_g); the gap to the second is printed.
+
+The test dances are never trained on, tuned on or used to pick a checkpoint: training validates
+on the validation dances only.
+"""
+
+from __future__ import annotations
+
+import json
+import shutil
+import time
+from pathlib import Path
+from typing import Any
+
+from kinectdata.dataset.build import build_dataset
+from kinectdata.dataset.config import BuildConfig
+from kinectdata.dataset.recipes import prepare_corpus
+from kinectdata.evaluation.evaluate import evaluate, format_results
+from kinectdata.training.config import TrainConfig
+from kinectdata.training.train import train
+
+from .summary import record
+
+BUILDS = {
+    "yalta": {"pipeline": "yalta2016", "normalisation": None},
+    "cdhc": {"pipeline": "listen-to-dance", "normalisation": "maxabs"},
+}
+"""How each model's dataset of a real corpus is built: its pipeline's features, the corpus's generic
+target (every joint's position, root-centred as the recipe says), normalised into -0.9..0.9."""
+PROTOCOLS = ("bailando", "aist")
+
+
+def build_corpus(corpus: str, path: Path, out: Path, models: list[str]) -> dict[str, Path]:
+    """The recordings manifest of the local copy and one dataset per model (reused when built before)."""
+    manifest = prepare_corpus(corpus, path)
+    listed = manifest.write(out / "recordings.yaml")
+    counts = ", ".join(f"{n} {split}" for split, n in manifest.split_counts().items())
+    print(f"  {corpus}: {len(manifest.recordings)} recordings ({counts}), {len(manifest.skipped)} left out", flush=True)
+    datasets = {}
+    for model in models:
+        how = BUILDS[model]
+        config = BuildConfig.from_pipeline(
+            how["pipeline"],
+            target=manifest.target,
+            normalisation=how["normalisation"],
+            root_centre="--root-centre" in manifest.build_options,
+        )
+        started = time.perf_counter()
+        folder = out / f"{model}_dataset"
+        built = build_dataset(listed, folder, config, jobs=2, allow_outside_paths=True)
+        rows = {s: built["splits"][s]["rows"] for s in ("train", "val", "test")}
+        print(f"  {model} dataset: {rows} rows ({time.perf_counter() - started:.0f} s)", flush=True)
+        datasets[model] = folder
+    return datasets
+
+
+def goals(results: dict[str, Any]) -> list[tuple[str, bool, str]]:
+    """Issue 25's goals a-d as (goal, met, figures) from ``evaluate``'s results."""
+    listening = results["listening"]
+    field = results["field"]
+    metrics = field.get("metrics", {})
+    out = []
+
+    def ratio(name: str) -> tuple[float | None, str]:
+        row = metrics.get(name, {})
+        g, r = row.get("generated"), row.get("reference")
+        if g is None or not r:
+            return None, "n/a"
+        return g / r, f"{g:.4g} vs {r:.4g} = {g / r:.2f} x"
+
+    if "verdicts" in listening:
+        energy = listening["energy_ratio"]
+        jerk, jerk_text = ratio("jerk")
+        pfc, pfc_text = ratio("PFC")
+        bone = metrics.get("bone CV", {})
+        bone_ok = bone.get("generated") is not None and bone.get("generated") <= (bone.get("reference") or 0)
+        alive = 0.5 <= energy <= 2.0
+        human = jerk is not None and jerk <= 2 and pfc is not None and pfc <= 2 and bone_ok
+        out.append(
+            (
+                "a. alive and human",
+                alive and human,
+                f"energy {energy:.2f} x (0.5-2); jerk {jerk_text} (<= 2); PFC {pfc_text} (<= 2); bone-length CV "
+                f"{_num(bone.get('generated'))} vs the real {_num(bone.get('reference'))} (<= real)",
+            )
+        )
+        gen, real = listening["generated"], listening["real"]
+        out.append(
+            (
+                "b. no fixed oscillator",
+                listening["no_fixed_oscillator"],
+                f"period spread {_num(listening['period_spread'])} x; tempo rank correlation "
+                f"{_num(gen['tempo_correlation'])} (p {_num(gen['tempo_p_value'])}) vs the real motion's "
+                f"{_num(real['tempo_correlation'])}; period changed with the swapped song in "
+                f"{_pct(listening['swapped_period_changes'])} of runs",
+            )
+        )
+        noise = listening["noise"]
+        stops = listening["silence_energy_ratio"] <= 0.1
+        passes = listening["listens"] and listening["shifted_at_chance"] and stops
+        out.append(
+            (
+                "c. listens",
+                passes,
+                f"swapped song: at the new song's metre {_pct(listening['swapped_follows_new'])}, the old one's "
+                f"{_pct(listening['swapped_follows_old'])}; noise: at a metrical level "
+                f"{_pct(None if noise is None else noise['in_metre']['value'])}; shifted audio's Beat Align Score "
+                f"{listening['shifted']['beat_align_music']['value']:.3f} (chance "
+                f"{listening['shifted']['beat_align_music']['chance']:.3f}, at chance: "
+                f"{'yes' if listening['shifted_at_chance'] else 'no'}); "
+                f"silence {listening['silence_energy_ratio']:.2g} x",
+            )
+        )
+    for name, entry in [("bailando", field), *results.get("field_protocols", {}).items()]:
+        if "comparison" not in entry:
+            out.append((f"d. field metrics ({name})", False, entry.get("unavailable", "not scored")))
+            continue
+        versus = entry["comparison"]
+        noise, retrieval = versus.get("mean_pose_noise", {}), versus.get("retrieval", {})
+        out.append(
+            (
+                f"d. beats the mean pose + noise ({entry['protocol']})",
+                bool(noise.get("beats")),
+                f"FID_k {_num(noise.get('FID_k'))} vs {_num(noise.get('FID_k_baseline'))}, FID_g "
+                f"{_num(noise.get('FID_g'))} vs {_num(noise.get('FID_g_baseline'))}; the gap to retrieval: FID_k "
+                f"{_num(retrieval.get('FID_k_baseline'))}, FID_g {_num(retrieval.get('FID_g_baseline'))}",
+            )
+        )
+    return out
+
+
+def run(corpus: str, path: Path, out: Path, minutes: float, models: list[str], seed: int) -> dict[str, Any]:
+    """Build, train every model within ``minutes``, evaluate on the test split, print the goals."""
+    datasets = build_corpus(corpus, path, out, models)
+    summary = {}
+    for model in models:
+        run_dir = out / model
+        shutil.rmtree(run_dir, ignore_errors=True)
+        config = TrainConfig.for_model(model, epochs=1000, max_minutes=minutes, seed=seed)
+        print(f"  [{model}] the defaults of train-baseline; budget {minutes:g} min", flush=True)
+
+        def progress(row: dict[str, Any]) -> None:
+            print(f"    epoch {row['epoch']:3d} step {row['step']:5d}: train {row['train_loss']:.4f} "
+                  f"val {row['val_loss']:.4f} SMAPE {row['val_smape']:.2f} %", flush=True)  # fmt: skip
+
+        started = time.perf_counter()
+        history = train(datasets[model], run_dir, config, progress=progress)
+        trained = (time.perf_counter() - started) / 60
+        results = evaluate(run_dir, datasets[model], "test", more_protocols=PROTOCOLS[1:])
+        print(f"  [{model}] trained {trained:.1f} min, {history[-1]['step']} steps; on the test dances:")
+        print("\n".join("    " + line for line in format_results(results).splitlines()))
+        met = goals(results)
+        print(f"  [{model}] goals:")
+        for goal, ok, figures in met:
+            print(f"    {goal}: {'yes' if ok else 'no'} ({figures})")
+        record(
+            "learning",
+            f"{model} on {corpus} ({trained:.0f} min): goals met",
+            f"{sum(ok for _, ok, _ in met)} of {len(met)}",
+        )
+        summary[model] = {
+            "minutes": trained,
+            "goals": met,
+            "listening": results["listening"],
+            "field": results["field"],
+        }
+    (out / "learning_real.json").write_text(json.dumps(summary, indent=1, default=str))
+    return summary
+
+
+def _num(v: Any) -> str:
+    return "n/a" if v is None else f"{v:.3g}"
+
+
+def _pct(v: float | None) -> str:
+    return "n/a" if v is None else f"{v:.0%}"

@@ -1,0 +1,117 @@
+"""The music's metre: 3 or 4 beats per bar, estimated from synthesized music whose downbeats sound
+different from the other beats, and where a recording's metre comes from."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+pytest.importorskip("librosa")
+
+from kinectdata.core.errors import KinectDataError  # noqa: E402
+from kinectdata.evaluation.metre import (  # noqa: E402
+    MEL_BANDS,
+    MIN_BEATS,
+    Metre,
+    bar_similarity,
+    beat_descriptors,
+    estimate_beats_per_bar,
+    recording_metre,
+)
+
+RATE = 22050
+
+
+def _tone(rate: int, seconds: float, freqs: tuple[float, ...], decay_s: float) -> np.ndarray:
+    t = np.arange(int(seconds * rate)) / rate
+    return sum(np.sin(2 * np.pi * f * t) for f in freqs) / len(freqs) * np.exp(-t / decay_s)
+
+
+def _click(rng: np.random.Generator, rate: int, highpass: bool) -> np.ndarray:
+    """A 5 ms burst of noise, differenced (brighter) for the high click."""
+    burst = rng.normal(0, 1, int(0.005 * rate))
+    if highpass:
+        burst = np.diff(burst, prepend=0.0)
+    return burst / np.abs(burst).max()
+
+
+def music(bpm: float, beats_per_bar: int, bars: int, seed: int, rate: int = RATE) -> tuple[np.ndarray, np.ndarray]:
+    """(mono samples [S] full scale, beat times [B] s): on every downbeat a low bass tone (55/82 Hz)
+    and a click, on the other beats a high click and a chord (A major, 440-660 Hz, or in alternate bars
+    D major); every hit's loudness jitters, and white noise 40 dB below full scale runs underneath."""
+    rng = np.random.default_rng(seed)
+    beat = 60.0 / bpm
+    first = 0.25 + rng.uniform(0, 0.05)
+    beats = first + beat * np.arange(bars * beats_per_bar)
+    out = np.zeros(int((beats[-1] + 2 * beat) * rate))
+    for k, b in enumerate(beats):
+        at = int(round(b * rate))
+        gain = rng.uniform(0.7, 1.0)
+        if k % beats_per_bar == 0:
+            hit = 0.8 * _tone(rate, 0.9 * beat, (55.0, 82.4), 0.25)
+            hit[: int(0.005 * rate)] += 0.3 * _click(rng, rate, False)
+        else:
+            chord = (440.0, 554.4, 659.3) if (k // beats_per_bar) % 2 == 0 else (587.3, 740.0, 880.0)
+            hit = 0.3 * _tone(rate, 0.9 * beat, chord, 0.15)
+            hit[: int(0.005 * rate)] += 0.4 * _click(rng, rate, True)
+        out[at : at + hit.size] += gain * hit
+    out += rng.normal(0, 0.01, out.size)
+    return (out / max(1.0, np.abs(out).max())).astype(np.float32), beats
+
+
+@pytest.mark.parametrize("bpm", [100.0, 117.0, 130.0])
+@pytest.mark.parametrize("seed", [0, 1])
+@pytest.mark.parametrize("bars_of", [3, 4])
+def test_the_estimate_tells_three_from_four(bpm, seed, bars_of):
+    samples, beats = music(bpm, bars_of, bars=12, seed=seed)
+    metre = estimate_beats_per_bar(samples, RATE, beats)
+    assert metre.beats_per_bar == bars_of and metre.source == "estimated"
+    assert set(metre.scores) == {3, 4}
+    other = 7 - bars_of
+    assert metre.scores[bars_of] > metre.scores[other] + 0.2  # not a near tie
+    # a bar of the right length pairs downbeats with downbeats (alike), of the wrong one mostly
+    # downbeats with other beats (unlike, after each band is standardised)
+    assert metre.scores[bars_of] > 0 > metre.scores[other]
+    assert f"{bars_of} beats per bar (estimated; bar-to-bar similarity 3: " in metre.describe()
+
+
+def test_beat_descriptors_are_standardised_and_hear_the_bass_on_the_downbeats():
+    samples, beats = music(110.0, 3, bars=8, seed=2)
+    d = beat_descriptors(samples, RATE, beats)
+    assert d.shape == (len(beats) - 1, MEL_BANDS)
+    np.testing.assert_allclose(d.mean(axis=0), 0.0, atol=1e-4)
+    np.testing.assert_allclose(d.std(axis=0), 1.0, atol=1e-4)
+    # the lowest mel bands (below ~150 Hz, where the bass tone sits) are loud on downbeats only
+    down = np.arange(len(d)) % 3 == 0
+    assert d[down, :3].mean() > 1.0 and d[~down, :3].mean() < -0.3
+
+
+def test_bar_similarity_is_the_mean_cosine_one_and_two_bars_apart():
+    from scipy.spatial.distance import cosine
+
+    rng = np.random.default_rng(0)
+    d = rng.normal(size=(20, 5))
+    for m in (2, 3, 4):
+        expected = np.mean([np.mean([1 - cosine(d[k], d[k + lag]) for k in range(20 - lag)]) for lag in (m, 2 * m)])
+        assert bar_similarity(d, m) == pytest.approx(expected, rel=1e-12)
+    periodic = np.tile(rng.normal(size=(3, 5)), (7, 1))  # repeats every 3 rows exactly
+    assert bar_similarity(periodic, 3) == pytest.approx(1.0)
+    assert bar_similarity(periodic, 4) < 0.9
+
+
+def test_too_few_beats_is_an_error():
+    samples, beats = music(120.0, 4, bars=4, seed=0)  # 16 beats
+    assert len(beats) == MIN_BEATS - 1
+    with pytest.raises(KinectDataError, match=f"at least {MIN_BEATS} beats, got 16"):
+        estimate_beats_per_bar(samples, RATE, beats)
+
+
+def test_a_recordings_metre_comes_from_its_manifest_entry_then_the_caller_then_the_music():
+    waltz, beats = music(105.0, 3, bars=10, seed=3)
+    assert recording_metre({"beats_per_bar": 3}, None, RATE, beats, given=4) == Metre(3, "manifest", {})
+    assert recording_metre({"beats_per_bar": None}, waltz, RATE, beats, given=2) == Metre(2, "given", {})
+    estimated = recording_metre({}, waltz, RATE, beats)
+    assert (estimated.beats_per_bar, estimated.source) == (3, "estimated") and estimated.scores
+    assert recording_metre({}, None, RATE, beats) == Metre(4, "default", {})
+    assert recording_metre({}, waltz, RATE, beats[:10]) == Metre(4, "default", {})  # too few beats
+    assert Metre(4, "default", {}).describe() == "4 beats per bar (default)"
