@@ -219,6 +219,32 @@ def main() -> None:
             f"    {preset:<13} pipeline float64: {t_64:.3f} s, max error {e64.max():.1e}; "
             f"float32: {t_32:.3f} s, max error {e32.max():.1e} (99.9th percentile {np.percentile(e32, 99.9):.1e})"
         )
+    pulse(x, starts, seconds)
+
+
+def pulse(x: np.ndarray, starts: np.ndarray, seconds: float) -> None:
+    """The music's pulse (``rhythm`` features, the ``_rhythm`` presets' second part): its cost over
+    the whole song against the yalta2016 STFT's in the same run, and one frame at a time (what
+    ``generate`` and a live model pay per frame: each frame reads its 6.4 s of history)."""
+    from kinectdata.features import compute_features
+    from kinectdata.features.rhythm import RhythmConfig
+
+    stft = PRESETS["yalta2016"]
+    vector, plane = RhythmConfig(), RhythmConfig(columns=5)
+    dt_stft, _ = _timed(lambda: stft_features(x, starts, stft))
+    dt_vec, _ = _timed(lambda: compute_features(x, starts, vector))
+    dt_plane, _ = _timed(lambda: compute_features(x, starts, plane))
+    few = starts[len(starts) // 2 : len(starts) // 2 + 60]
+    per_stft, _ = _timed(lambda: [stft_features(x, few[k : k + 1], stft) for k in range(few.size)])
+    per_pulse, _ = _timed(lambda: [compute_features(x, few[k : k + 1], plane) for k in range(few.size)])
+    print("  the music's pulse (rhythm features):")
+    print(f"    [129] at the slice end   {dt_vec:7.3f} s  {seconds / dt_vec:7.0f}x real time")
+    print(f"    [1, 129, 5] plane        {dt_plane:7.3f} s  {seconds / dt_plane:7.0f}x real time, "
+          f"{dt_plane / dt_stft:.1f}x the yalta2016 STFT ({dt_stft:.3f} s)")  # fmt: skip
+    print(f"    one frame at a time      {per_pulse / few.size * 1e3:.2f} ms per frame (plane), "
+          f"{per_stft / few.size * 1e3:.3f} ms for the STFT alone: {per_pulse / per_stft:.0f}x")  # fmt: skip
+    record("features", "the pulse [1, 129, 5] against the yalta2016 STFT, whole song", f"{dt_plane / dt_stft:.1f}x")
+    record("features", "the pulse, one frame at a time", f"{per_pulse / few.size * 1e3:.2f} ms per frame")
 
 
 if __name__ == "__main__":

@@ -34,6 +34,7 @@ from typing import Any
 
 import torch
 
+from kinectdata.apps.quickstart import SYNTHETIC_LOOP
 from kinectdata.dataset.build import build_dataset
 from kinectdata.dataset.config import BuildConfig
 from kinectdata.evaluation.beat_following import RecordingBeats, beat_following
@@ -55,6 +56,7 @@ PIPELINES = {"yalta": "yalta2016", "cdhc": "listen-to-dance"}
 
 RECIPES: dict[str, dict[str, Any]] = {
     "yalta": {
+        **SYNTHETIC_LOOP,
         "units": 128,
         "feedback": "teacher",
         "velocity_weight": 10.0,
@@ -65,6 +67,7 @@ RECIPES: dict[str, dict[str, Any]] = {
         "clip_norm": 1.0,
     },
     "cdhc": {
+        **SYNTHETIC_LOOP,
         "channels": 128,
         "decoder_channels": 128,
         "velocity_weight": 10.0,

@@ -142,25 +142,44 @@ def goals(results: dict[str, Any]) -> list[tuple[str, bool, str]]:
     return out
 
 
-def run(corpus: str, path: Path, out: Path, minutes: float, models: list[str], seed: int) -> dict[str, Any]:
-    """Build, train every model within ``minutes``, evaluate on the test split, print the goals."""
+def run(
+    corpus: str,
+    path: Path,
+    out: Path,
+    minutes: float,
+    models: list[str],
+    seed: int,
+    bootstrap: int = 1000,
+    changes: dict[str, dict[str, Any]] | None = None,
+) -> dict[str, Any]:
+    """Build, train every model within ``minutes`` with its defaults (and ``changes[model]``, for
+    the tests' small runs), evaluate on the test split (``bootstrap`` resamples for the field's
+    intervals), print the goals."""
     datasets = build_corpus(corpus, path, out, models)
     summary = {}
     for model in models:
         run_dir = out / model
         shutil.rmtree(run_dir, ignore_errors=True)
-        config = TrainConfig.for_model(model, epochs=1000, max_minutes=minutes, seed=seed)
+        config = TrainConfig.for_model(
+            model, **{"epochs": 1000, "max_minutes": minutes, "seed": seed, **(changes or {}).get(model, {})}
+        )
         print(f"  [{model}] the defaults of train-baseline; budget {minutes:g} min", flush=True)
 
         def progress(row: dict[str, Any]) -> None:
             print(f"    epoch {row['epoch']:3d} step {row['step']:5d}: train {row['train_loss']:.4f} "
-                  f"val {row['val_loss']:.4f} SMAPE {row['val_smape']:.2f} %", flush=True)  # fmt: skip
+                  f"val {row['val_loss']:.4f}, SMAPE {row['val_smape']:.2f} %, free-running rhythm loss "
+                  f"{row['val_rhythm']:.3f}", flush=True)  # fmt: skip
 
         started = time.perf_counter()
         history = train(datasets[model], run_dir, config, progress=progress)
         trained = (time.perf_counter() - started) / 60
-        results = evaluate(run_dir, datasets[model], "test", more_protocols=PROTOCOLS[1:])
-        print(f"  [{model}] trained {trained:.1f} min, {history[-1]['step']} steps; on the test dances:")
+        figure = curves(history, out / f"learning-real-{model}.png", f"{model} on {corpus}: the defaults")
+        results = evaluate(run_dir, datasets[model], "test", more_protocols=PROTOCOLS[1:], bootstrap=bootstrap)
+        kept = next((r["epoch"] for r in history if r.get("kept")), history[-1]["epoch"])
+        print(
+            f"  [{model}] trained {trained:.1f} min, {history[-1]['step']} steps, {len(history)} epochs, model.pt "
+            f"from epoch {kept} (lowest free-running validation rhythm loss); curves: {figure}; on the test dances:"
+        )
         print("\n".join("    " + line for line in format_results(results).splitlines()))
         met = goals(results)
         print(f"  [{model}] goals:")
@@ -179,6 +198,32 @@ def run(corpus: str, path: Path, out: Path, minutes: float, models: list[str], s
         }
     (out / "learning_real.json").write_text(json.dumps(summary, indent=1, default=str))
     return summary
+
+
+def curves(history: list[dict[str, Any]], path: Path, title: str) -> Path:
+    """Training and validation loss (top), the free-running validation rhythm loss with the kept
+    epoch marked (bottom), per epoch."""
+    from kinectdata.core.figures import pyplot
+
+    plt = pyplot()
+    epochs = [r["epoch"] for r in history]
+    fig, (top, bottom) = plt.subplots(2, 1, figsize=(8, 6), sharex=True)
+    top.plot(epochs, [r["train_loss"] for r in history], label="training loss (teacher + rhythm)")
+    top.plot(epochs, [r["val_loss"] for r in history], label="validation loss (teacher)")
+    top.set_yscale("log")
+    top.legend()
+    top.set_title(title)
+    bottom.plot(epochs, [r["val_rhythm"] for r in history], label="free-running validation rhythm loss")
+    kept = [r["epoch"] for r in history if r.get("kept")]
+    if kept:
+        value = next(r["val_rhythm"] for r in history if r["epoch"] == kept[0])
+        bottom.plot(kept, [value], "o", label=f"kept: epoch {kept[0]}")
+    bottom.set_xlabel("epoch")
+    bottom.legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+    return path
 
 
 def _num(v: Any) -> str:

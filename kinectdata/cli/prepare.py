@@ -64,7 +64,14 @@ def prepare(corpus, path, out, **options) -> None:
             click.echo(f"  ... and {len(manifest.skipped) - _SHOWN_SKIPPED} more")
     flag = " --allow-outside-paths" if manifest.root_outside(out) else ""
     extra = "".join(f" {o}" for o in manifest.build_options)
-    click.echo(f"next: kinectdata build-dataset {out} -o DATASET --target {manifest.target}{extra}{flag}")
+    click.echo(
+        f"next: kinectdata build-dataset {out} -o DATASET --target {manifest.target}{extra} "
+        f"--features yalta2016_rhythm{flag}"
+    )
+    click.echo(
+        "  (for the cdhc model: --pipeline listen-to-dance --features listen_to_dance_rhythm --normalisation maxabs; "
+        "then kinectdata train-baseline --data DATASET --out RUN)"
+    )
 
 
 COMMANDS = [prepare]

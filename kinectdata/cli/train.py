@@ -43,6 +43,22 @@ _LOOP_OPTIONS = (
         click.FloatRange(min=0, min_open=True),
         "Time budget: when it runs out, the epoch ends there and the run finishes with a usable model.",
     ),
+    (
+        "free_weight",
+        click.FloatRange(min=0),
+        "Weight of the free-running rhythm loss: the model also runs on its own through each window and the "
+        "spectra of its motion's changes are matched to the real motion's (how much and how often it moves); 0: none.",
+    ),
+    (
+        "silence_share",
+        click.FloatRange(0, 1),
+        "Share of training windows whose music goes silent from a random frame on, the pose held (to stop in silence).",
+    ),
+    (
+        "keep",
+        click.Choice(["last", "best"]),
+        "model.pt: the last epoch, or the one with the best free-running validation rhythm loss.",
+    ),  # fmt: skip
 )
 """The training loop's options (:data:`kinectdata.training.config.LOOP_DEFAULTS`): every model's."""
 
@@ -123,16 +139,17 @@ def train_options(f):
     return f
 
 
-def make_train_config(model: str | None, data: str | None = None, **settings):
-    """The TrainConfig of the typed settings over the model's defaults; the model defaults to the
-    dataset's (:func:`kinectdata.models.registry.model_for_dataset` of ``data``'s manifest)."""
+def make_train_config(model: str | None, data: str | None = None, paper: bool = False, **settings):
+    """The TrainConfig of the typed settings over the model's defaults (with ``paper``, its
+    published settings); the model defaults to the dataset's
+    (:func:`kinectdata.models.registry.model_for_dataset` of ``data``'s manifest)."""
     from kinectdata.models.registry import DEFAULT_MODEL, model_for_dataset
     from kinectdata.models.run import read_manifest
     from kinectdata.training.config import TrainConfig
 
     if model is None:
         model = DEFAULT_MODEL if data is None else model_for_dataset(read_manifest(data, verify=False))
-    return TrainConfig.for_model(model, **settings)
+    return TrainConfig.for_model(model, paper=paper, **settings)
 
 
 def _row(row: dict) -> str:
@@ -156,14 +173,25 @@ no_checksums_option = click.option(
 @click.option("--data", required=True, type=click.Path(exists=True, file_okay=False), help="Dataset folder.")
 @click.option("--out", required=True, type=click.Path(file_okay=False), help="Run folder to write.")
 @click.option("--resume", is_flag=True, help="Continue the run in --out from its last checkpoint, exactly.")
+@click.option(
+    "--paper",
+    is_flag=True,
+    help="Start from the model's published settings (yalta: 500 units, its own outputs fed back, Adam 1e-4, "
+    "batches of 50, sequences of 150, gradient noise; cdhc: 256 channels, Adam 2e-4, batches of 16) instead of the "
+    "recipe that learns real dance; options typed beside it still apply.",
+)
 @no_checksums_option
 @train_options
-def train_baseline(data, out, resume, no_checksums, **options) -> None:
-    """Train a registered model on a dataset (by default the dataset's): e.g. the DCNN + deep LSTM
-    of Yalta et al. (2016) (the paper's settings by default: Adam 1e-4, MSE, sequences of 150,
-    batches of 50, 10 epochs, annealed gradient noise) or the CDHC encoder-decoder of Lee et al.
-    (2018) (teacher forcing, L1 + limb-length loss; Adam 2e-4, sequences of 300, batches of 16, 20
-    epochs).
+def train_baseline(data, out, resume, paper, no_checksums, **options) -> None:
+    """Train a registered model on a dataset (by default the dataset's): the DCNN + deep LSTM of
+    Yalta et al. (2016) or the CDHC encoder-decoder of Lee et al. (2018). The defaults are the
+    recipe that learns real dance on a CPU (docs/training.md, "Learning real dance": teacher-forced
+    loss plus a free-running rhythm loss, a fifth of the windows silenced, windows of 10 s,
+    batches of 8, Adam 1e-3, the best free-running validation epoch kept); --paper gives the
+    papers' settings (yalta: Adam 1e-4, MSE, its own outputs fed back, sequences of 150, batches
+    of 50, 10 epochs, annealed gradient noise; cdhc: teacher forcing, L1 + limb-length loss, Adam
+    2e-4, sequences of 300, batches of 16, 20 epochs). On real dance build the dataset with the
+    music's pulse (build-dataset --features yalta2016_rhythm or listen_to_dance_rhythm).
 
     Writes into --out: config.json, checkpoint.pt (each epoch, atomically), log.csv, loss.png,
     and at the end model.pt and what the model adds (yalta: stream.ts, TorchScript of the
@@ -177,10 +205,12 @@ def train_baseline(data, out, resume, no_checksums, **options) -> None:
         from kinectdata.models.run import read_config
         from kinectdata.training.config import TrainConfig
 
+        if paper:
+            raise click.UsageError("--paper starts a run; --resume continues one with its own settings")
         typed = {k: v for k, v in options.items() if v is not None}
         config = TrainConfig.from_dict(read_config(out)["train"]).replace(**typed)
     else:
-        config = make_train_config(data=data, **options)
+        config = make_train_config(data=data, paper=paper, **options)
     import warnings
 
     from kinectdata.training.train import TrainingWarning
@@ -353,7 +383,7 @@ def sweep_command(data, out, only, no_checksums, **options) -> None:
     rows = sweep(
         data,
         out,
-        TrainConfig(kind.name, **{**table.base, **typed}),
+        TrainConfig(kind.name, paper=True, **{**table.base, **typed}),
         variants,
         progress=lambda name, r: click.echo(f"{name}: SMAPE {shown(r)}"),
         checksums=not no_checksums,

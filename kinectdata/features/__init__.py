@@ -7,7 +7,12 @@ An extractor is a callable ``(samples, starts, config, *, chunk_frames=...) -> (
 - ``"stft"``: :func:`kinectdata.features.stft.stft_features` with a :class:`StftConfig`
   (presets ``"yalta2016"``, ``"motion_dance"``), the Yalta et al. pipeline;
 - ``"mel"``: :func:`kinectdata.features.mel.mel_features` with a :class:`MelConfig` (preset
-  ``"listen_to_dance"``), the Lee et al. pipeline.
+  ``"listen_to_dance"``), the Lee et al. pipeline;
+- ``"rhythm"``: :func:`kinectdata.features.rhythm.rhythm_features` with a :class:`RhythmConfig`:
+  the music's pulse at 43 tempi, computed causally from its onsets;
+- ``"stack"``: :func:`kinectdata.features.stack.stack_features`, parts stacked on their first
+  axis (presets ``"yalta2016_rhythm"``: the STFT and the pulse as two channels [2, 129, 5];
+  ``"listen_to_dance_rhythm"``: log-mel and pulse [209]).
 
 All presets are in :data:`PRESETS`. A configuration's dict names its extractor
 (``"extractor"``; a dict without one is an STFT configuration, as datasets before the mel
@@ -25,6 +30,8 @@ import numpy as np
 
 from kinectdata.core.errors import ConfigError
 from kinectdata.features.mel import MelConfig, mel_features
+from kinectdata.features.rhythm import RhythmConfig, rhythm_features
+from kinectdata.features.stack import StackConfig, stack_features
 from kinectdata.features.stft import PRESETS as STFT_PRESETS
 from kinectdata.features.stft import StftConfig, stft_features
 
@@ -32,6 +39,8 @@ __all__ = [
     "PRESETS",
     "FeatureConfig",
     "MelConfig",
+    "RhythmConfig",
+    "StackConfig",
     "StftConfig",
     "compute_features",
     "extractor_names",
@@ -42,10 +51,17 @@ __all__ = [
     "stft_features",
 ]
 
-FeatureConfig = StftConfig | MelConfig
-PRESETS: dict[str, FeatureConfig] = {**STFT_PRESETS, "listen_to_dance": MelConfig()}
-"""Feature configurations by name: ``yalta2016``, ``motion_dance`` (STFT) and ``listen_to_dance`` (mel)."""
-_CONFIG_TYPES = {"stft": StftConfig, "mel": MelConfig}
+FeatureConfig = StftConfig | MelConfig | RhythmConfig | StackConfig
+PRESETS: dict[str, FeatureConfig] = {
+    **STFT_PRESETS,
+    "listen_to_dance": MelConfig(),
+    "yalta2016_rhythm": StackConfig((STFT_PRESETS["yalta2016"], RhythmConfig(columns=5))),
+    "motion_dance_rhythm": StackConfig((STFT_PRESETS["motion_dance"], RhythmConfig(columns=5))),
+    "listen_to_dance_rhythm": StackConfig((MelConfig(), RhythmConfig())),
+}
+"""Feature configurations by name: ``yalta2016``, ``motion_dance`` (STFT), ``listen_to_dance``
+(mel), and each with the music's pulse stacked on (``_rhythm``)."""
+_CONFIG_TYPES = {"stft": StftConfig, "mel": MelConfig, "rhythm": RhythmConfig, "stack": StackConfig}
 
 Extractor = Callable[..., Any]
 
@@ -101,3 +117,5 @@ def compute_features(samples: np.ndarray, starts: np.ndarray, config: FeatureCon
 
 register_extractor("stft", stft_features)
 register_extractor("mel", mel_features)
+register_extractor("rhythm", rhythm_features)
+register_extractor("stack", stack_features)

@@ -28,17 +28,53 @@ YALTA_ACTIVATIONS = ("tanh", "relu", "elu")
 FEEDBACKS = ("predicted", "teacher")
 
 
+PAPER_LOOP: dict[str, Any] = {
+    "sequence": 150,
+    "stride": None,
+    "batch_size": 50,
+    "epochs": 10,
+    "lr": 1e-4,
+    "noise_eta": 0.01,
+    "noise_gamma": 0.55,
+    "clip_norm": None,
+    "free_weight": 0.0,
+    "silence_share": 0.0,
+    "keep": "last",
+}
+"""Yalta et al.'s training loop: sequences of 150 (not overlapping), batches of 50, 10 epochs, Adam
+1e-4, annealed gradient noise, the teacher-forced (or fed-back) loss alone, the last epoch kept;
+the base of every model's loop settings (``TrainConfig``'s ``LOOP_DEFAULTS``)."""
+
+REAL_DANCE_LOOP: dict[str, Any] = {
+    "sequence": 300,
+    "stride": 75,
+    "batch_size": 8,
+    "epochs": 12,
+    "lr": 1e-3,
+    "noise_eta": 0.0,
+    "clip_norm": 1.0,
+    "free_weight": 1.0,
+    "silence_share": 0.2,
+    "keep": "best",
+}
+"""The loop that learns real dance on a CPU (docs/training.md, "Learning real dance"), both models'
+default: windows of 10 s every 2.5 s, many small steps (batches of 8, Adam 1e-3, the gradient's norm
+clipped to 1, no gradient noise), the free-running rhythm loss beside the model's own, a fifth of
+the windows silenced, and the epoch whose free-running validation motion is most like the real
+motion kept."""
+
+
 @dataclass(frozen=True)
 class YaltaSettings:
-    """The yalta model's settings (the defaults are the paper's best: ELU, 500 units, its own
-    previous output fed back)."""
+    """The yalta model's settings (defaults: the recipe that learns real dance; the paper's best,
+    ELU, 500 units and its own previous output fed back, with ``--paper``)."""
 
-    units: int = field(default=500, metadata={"help": "LSTM units per layer (the paper: 250, 500, 1000).", "min": 1})
+    units: int = field(default=128, metadata={"help": "LSTM units per layer (the paper: 250, 500, 1000).", "min": 1})
     activation: str = field(
         default="elu", metadata={"help": "activation after each convolution and fc1.", "choices": YALTA_ACTIVATIONS}
     )
     feedback: str = field(
-        default="predicted",
+        default="teacher",
         metadata={
             "help": "previous pose fed to the decoder in training: the model's own output (the paper) or the true one.",
             "choices": FEEDBACKS,
@@ -96,7 +132,11 @@ class YaltaKind(ModelKind):
     name = "yalta"
     description = "the DCNN + deep LSTM of Yalta et al. (2016)"
     settings_type = YaltaSettings
-    training_defaults: dict[str, Any] = {}  # TrainConfig's base defaults are this paper's
+    training_defaults: dict[str, Any] = REAL_DANCE_LOOP
+    paper: dict[str, Any] = {**PAPER_LOOP, "units": 500, "feedback": "predicted", "velocity_weight": 0.0}
+    """Yalta et al. (2016): ELU, 500 units, its own outputs fed back, MSE, Adam 1e-4, sequences of
+    150, batches of 50, 10 epochs, gradient noise (eta 0.01 from the authors' later code, gamma
+    0.55 Neelakantan et al.'s)."""
     resets = True  # free runs can zero the LSTM states every training sequence
     streams = True
     engines = {"torch": ("float32", "float16"), "onnxruntime": ("float32",)}
@@ -104,6 +144,7 @@ class YaltaKind(ModelKind):
     run_exports = {"stream.ts": "torchscript"}  # the streaming LSTM for robots
     state_names = ("h1", "c1", "h2", "c2")
     sweep = YALTA_SWEEP
+    runs_free_in_training = True
 
     @property
     def network_type(self) -> type:
@@ -134,6 +175,14 @@ class YaltaKind(ModelKind):
     def predict(self, net, audio, previous, settings: YaltaSettings):
         """[B, L, D] from a batch: ``previous`` [B, L, D] the true poses before each frame."""
         return net(audio, previous if settings.feedback == "teacher" else previous[:, 0], settings.feedback)
+
+    def predict_free(self, net, audio, previous, settings: YaltaSettings):
+        """The configured feedback's poses and the free run, on one pass of the audio path."""
+        given = previous if settings.feedback == "teacher" else previous[:, 0]
+        if settings.feedback == "predicted":  # its training already runs free
+            poses = net(audio, given, "predicted")
+            return poses, poses
+        return net(audio, previous, "teacher", free=True)
 
     def loss(self, net, pred, pose, mask, settings: YaltaSettings):
         loss = masked_mse(pred, pose, mask)
@@ -193,9 +242,10 @@ class YaltaKind(ModelKind):
 
 @dataclass(frozen=True)
 class CdhcSettings:
-    """The cdhc model's settings (the paper's widths; DC-TTS's dropout)."""
+    """The cdhc model's settings (defaults: the recipe that learns real dance, 128 channels; the
+    paper's widths with ``--paper``; DC-TTS's dropout)."""
 
-    channels: int = field(default=256, metadata={"help": "width of the audio and skeleton encoders.", "min": 1})
+    channels: int = field(default=128, metadata={"help": "width of the audio and skeleton encoders.", "min": 1})
     decoder_channels: int = field(default=128, metadata={"help": "width of the fused code and the decoder.", "min": 1})
     dropout: float = field(
         default=0.05, metadata={"help": "dropout after each highway block.", "min": 0, "max": 1, "max_open": True}
@@ -224,20 +274,29 @@ class CdhcKind(ModelKind):
     name = "cdhc"
     description = "the CDHC encoder-decoder of Lee et al. (2018)"
     settings_type = CdhcSettings
-    training_defaults = {
+    training_defaults = REAL_DANCE_LOOP
+    paper = {
+        "channels": 256,
+        "decoder_channels": 128,
+        "velocity_weight": 0.0,
         "sequence": 300,
+        "stride": None,
         "batch_size": 16,
         "epochs": 20,
         "lr": 2e-4,
         "noise_eta": 0.0,
         "clip_norm": 1.0,
+        "free_weight": 0.0,
+        "silence_share": 0.0,
+        "keep": "last",
     }
     """The paper gives no schedule; these follow DC-TTS, whose blocks it uses (Adam 2e-4, gradient
     norm clipped to 1), with 10 s sequences (longer than the 265-frame receptive field), no
-    gradient noise."""
+    gradient noise, teacher forcing and the paper's widths (256 channels, a 128-channel decoder)."""
     resets = False  # no state to reset: the receptive field is fixed
     streams = True
     engines = {"torch": ("float32",)}
+    runs_free_in_training = True
 
     @property
     def network_type(self) -> type:
@@ -304,6 +363,9 @@ class CdhcKind(ModelKind):
 
     def predict(self, net, audio, previous, settings: CdhcSettings):
         return net(audio, previous)  # teacher forcing: the true pose of each previous frame
+
+    def predict_free(self, net, audio, previous, settings: CdhcSettings):
+        return net(audio, previous, free=True)
 
     def loss(self, net, pred, pose, mask, settings: CdhcSettings):
         from kinectdata.models.cdhc import cdhc_loss

@@ -275,8 +275,10 @@ class CdhcNet(nn.Module):
         """Frames (at the motion rate) that output t depends on: t - R + 1 .. t, in both inputs."""
         return self.config.receptive_field
 
-    def forward(self, audio: torch.Tensor, previous: torch.Tensor) -> torch.Tensor:
-        """Poses from audio features and the previous poses (teacher forcing).
+    def forward(self, audio: torch.Tensor, previous: torch.Tensor, free: bool = False):
+        """Poses from audio features and the previous poses (teacher forcing); with ``free``, also
+        the free run from ``previous[:, 0]`` (the network fed its own outputs, frame by frame with
+        the blocks' caches, differentiable): ``(poses, free poses [B, T, D])``.
 
         Args:
             audio: [B, T, F] features, frame t at the motion's frame t.
@@ -290,7 +292,16 @@ class CdhcNet(nn.Module):
         _check_inputs(self.config, audio, previous)
         a, _ = self.audio_encoder(audio)
         s, _ = self.skeleton_encoder(previous)
-        return self.decoder(a, s)[0]
+        poses = self.decoder(a, s)[0]
+        if not free:
+            return poses
+        stream = StreamingCdhc(self)
+        _, caches = stream.initial_state(audio.shape[0])
+        pose, steps = previous[:, 0], []
+        for t in range(audio.shape[1]):
+            pose, caches = stream.decode(a[:, t], pose, caches)
+            steps.append(pose)
+        return poses, torch.stack(steps, dim=1)
 
 
 def _check_inputs(config: CdhcConfig, audio: torch.Tensor, previous: torch.Tensor) -> None:

@@ -11,7 +11,8 @@ It says:
   a bad value. Field metadata ``help``, ``choices``, ``min``/``max`` (with ``min_open``/
   ``max_open``) describe the setting for the command line. ``training_defaults`` are the training
   loop's settings (``sequence``, ``batch_size``, ``epochs``, ``lr``, ...) where this model's
-  differ from :class:`kinectdata.training.config.TrainConfig`'s base defaults;
+  differ from :class:`kinectdata.training.config.TrainConfig`'s base defaults; ``paper``, the
+  published settings, the loop's and the model's (``train-baseline --paper``);
 - **what it needs of a dataset**: :meth:`ModelKind.check_dataset` raises ConfigError with the
   reason (feature shape, target layout, normalisation); the registry adds the dataset's name and
   which ``--model`` or ``--pipeline`` to use;
@@ -19,7 +20,8 @@ It says:
   ``network_type`` (the class :meth:`build` returns), :meth:`init_output` (the output layer
   starting at the mean pose);
 - **training**: :meth:`fill_previous` (what a masked previous pose becomes), :meth:`predict` (a
-  training batch through the network: its feedback), :meth:`loss`, :meth:`free_batch` (a
+  training batch through the network: its feedback), :meth:`predict_free` (that and the network's
+  own free run through the window, for kinds with ``runs_free_in_training``), :meth:`loss`, :meth:`free_batch` (a
   validation batch free-running), :meth:`describe` and :meth:`loss_name` (the loss figure's
   title and axis);
 - **running free**: :meth:`free_run` over a whole recording, given its first true pose (:meth:`free_runs`
@@ -121,6 +123,8 @@ class ModelKind(Protocol):
     run_exports: Mapping[str, str] = {}
     state_names: tuple[str, ...] = ()
     sweep: Sweep | None = None
+    runs_free_in_training: bool = False
+    paper: Mapping[str, Any] = {}
 
     @property
     def network_type(self) -> type:
@@ -146,6 +150,13 @@ class ModelKind(Protocol):
         """Poses ``[B, L, D]`` for a training batch: ``audio [B, L, *F]``, ``previous [B, L, D]``
         (the true poses before each frame); ``net`` may be wrapped in DistributedDataParallel."""
         raise NotImplementedError(f"the {self.name} model does not define predict")
+
+    def predict_free(self, net: Any, audio: Any, previous: Any, settings: Any) -> tuple[Any, Any]:
+        """``(poses, free poses)`` for a training batch: :meth:`predict`'s poses and the network
+        running on its own outputs through the window from ``previous[:, 0]``, differentiable (the
+        free-running rhythm loss: ``TrainConfig.free_weight``). Only for kinds with
+        ``runs_free_in_training``."""
+        raise NotImplementedError(f"the {self.name} model does not run free in training")
 
     def loss(self, net: Any, pred: Any, pose: Any, mask: Any, settings: Any) -> Any:
         """The scalar training loss of predictions against the true poses, over ``mask``'s valid values."""

@@ -24,3 +24,125 @@ def masked_velocity_l1(prediction, target, mask):
     both = (mask[:, 1:] & mask[:, :-1]).to(prediction.dtype)
     change = (prediction[:, 1:] - prediction[:, :-1]) - (target[:, 1:] - target[:, :-1])
     return (change.abs() * both).sum() / both.sum().clamp(min=1.0)
+
+
+RHYTHM_FFTS = (32, 64, 128)
+"""Window lengths (frames) of the rhythm spectra: about 1, 2 and 4 seconds at 30 fps."""
+RHYTHM_MAX_HZ = 6.0
+"""The rhythm spectra stop here: dance moves are slower; sensor jitter is faster."""
+
+
+def masked_rhythm_spectrum_loss(prediction, target, mask, fps: float, ffts=RHYTHM_FFTS, max_hz: float = RHYTHM_MAX_HZ):
+    """How differently two motions move, whatever their phase: the multi-resolution spectra of their
+    frame-to-frame changes compared (torch tensors; differentiable).
+
+    For each of the D components valid in every frame of a [B, L, D] window, the changes
+    [L - 1] are cut into Hann windows of each length in ``ffts`` (a quarter apart), and the
+    magnitudes of their spectra from the first bin above 0 Hz up to ``max_hz`` are compared: the
+    spectral convergence ``||Y - X|| / ||Y||`` plus the mean absolute difference of the log
+    magnitudes (floored at 1 % of the target's mean magnitude), averaged over the lengths (the
+    multi-resolution STFT loss of audio generation: Yamamoto et al. 2020, Parallel WaveGAN, on
+    motion). A motion that moves as much and as often as the target at every tempo scores near 0
+    however its steps fall against the target's; standing still or moving faster or more scores
+    high. Windows shorter than a length skip it.
+
+    Args:
+        prediction, target: [B, L, D] poses (normalised units).
+        mask: [B, L, D] bool validity of the target.
+        fps: frames per second (for ``max_hz``).
+
+    Returns:
+        A scalar tensor (0 when no component is valid throughout or the window is too short).
+    """
+    import torch
+
+    change = prediction[:, 1:] - prediction[:, :-1]
+    real = target[:, 1:] - target[:, :-1]
+    B, L, D = real.shape
+    valid = (mask[:, 1:] & mask[:, :-1]).all(dim=1).reshape(B * D).to(prediction.dtype)
+    x = change.permute(0, 2, 1).reshape(B * D, L)
+    y = torch.where(mask[:, 1:] & mask[:, :-1], real, torch.zeros_like(real)).permute(0, 2, 1).reshape(B * D, L)
+    total, used = prediction.new_zeros(()), 0
+    for n in ffts:
+        if L < n:
+            continue
+        window = torch.hann_window(n, device=prediction.device, dtype=prediction.dtype)
+        top = max(2, int(max_hz * n / fps) + 1)
+        X = torch.stft(x, n, hop_length=n // 4, window=window, center=False, return_complex=True).abs()[:, 1:top]
+        Y = torch.stft(y, n, hop_length=n // 4, window=window, center=False, return_complex=True).abs()[:, 1:top]
+        floor = 1e-2 * Y.mean().detach() + 1e-8
+        convergence = torch.linalg.vector_norm(X - Y, dim=(1, 2)) / torch.linalg.vector_norm(Y, dim=(1, 2)).clamp(
+            min=1e-8
+        )
+        log_distance = (torch.log(X + floor) - torch.log(Y + floor)).abs().mean(dim=(1, 2))
+        total = total + ((convergence + log_distance) * valid).sum() / valid.sum().clamp(min=1.0)
+        used += 1
+    return total / max(used, 1)
+
+
+def masked_energy_loss(prediction, target, mask):
+    """How far a motion's speed is from the target's, in ratio: per component of [B, L, D] windows,
+    the squared log of the ratio of the mean squared frame-to-frame changes (over frame pairs valid
+    in the target), each floored at 1 % of the target's mean over the batch (torch tensors;
+    differentiable). Moving twice or half as fast costs the same, log(4)^2; a window where the
+    target holds still asks the motion to hold still too."""
+    import torch
+
+    both = (mask[:, 1:] & mask[:, :-1]).to(prediction.dtype)
+    pairs = both.sum(dim=1)  # [B, D]
+
+    def energy(x):
+        return (((x[:, 1:] - x[:, :-1]) ** 2) * both).sum(dim=1) / pairs.clamp(min=1.0)
+
+    made, real = energy(prediction), energy(target)
+    floor = 1e-2 * real.mean().detach() + 1e-12
+    counted = (pairs > 0).to(prediction.dtype)
+    log_ratio = torch.log(made + floor) - torch.log(real + floor)
+    return (log_ratio**2 * counted).sum() / counted.sum().clamp(min=1.0)
+
+
+def masked_bone_loss(prediction, target, mask, bones, scale, offset, dims: int = 3):
+    """How much a motion's bones stretch: per bone, the mean absolute difference between its length
+    in each frame of the prediction and its mean length over the target window (metres, after
+    undoing the normalisation ``y = (x - offset) * scale``), over the bones valid in the target
+    throughout (torch tensors; differentiable).
+
+    Args:
+        prediction, target, mask: [B, L, D]; positions first, ``dims`` components per joint.
+        bones: (joint, parent) index pairs into the positioned joints
+            (:meth:`~kinectdata.targets.specs.TargetSpec.position_bones`).
+        scale, offset: [D] the normalisation.
+    """
+    import torch
+
+    if not bones:
+        return prediction.new_zeros(())
+    joints = max(max(pair) for pair in bones) + 1
+    width = joints * dims
+
+    def metres(x):
+        return (x[..., :width] / scale[:width] + offset[:width]).unflatten(-1, (joints, dims))
+
+    child = torch.tensor([c for c, _ in bones], device=prediction.device)
+    parent = torch.tensor([p for _, p in bones], device=prediction.device)
+    made, real = metres(prediction), metres(target)
+    made_length = torch.linalg.vector_norm(made[..., child, :] - made[..., parent, :], dim=-1)  # [B, L, bones]
+    real_length = torch.linalg.vector_norm(real[..., child, :] - real[..., parent, :], dim=-1)
+    valid = mask[..., :width].unflatten(-1, (joints, dims)).all(dim=-1)
+    both = (valid[..., child] & valid[..., parent]).all(dim=1)  # [B, bones]: valid throughout the window
+    typical = real_length.mean(dim=1, keepdim=True)
+    stretch = (made_length - typical).abs().mean(dim=1)  # [B, bones]
+    counted = both.to(prediction.dtype)
+    return (stretch * counted).sum() / counted.sum().clamp(min=1.0)
+
+
+def masked_rhythm_loss(prediction, target, mask, fps: float, body=None):
+    """The free-running loss of training (``TrainConfig.free_weight``): the spectra of the motion's
+    changes (:func:`masked_rhythm_spectrum_loss`: how often and how much at each tempo, whatever the
+    phase), its overall speed (:func:`masked_energy_loss`) and, given ``body`` (a mapping with
+    ``bones``, ``scale``, ``offset``, ``dims`` for :func:`masked_bone_loss`), how much its bones
+    stretch, in metres, against the target's. [B, L, D] tensors; a scalar."""
+    loss = masked_rhythm_spectrum_loss(prediction, target, mask, fps) + masked_energy_loss(prediction, target, mask)
+    if body is not None:
+        loss = loss + masked_bone_loss(prediction, target, mask, **body)
+    return loss

@@ -114,11 +114,18 @@ class YaltaNet(nn.Module):
             outputs.append(pose)
         return torch.stack(outputs, dim=1), state
 
-    def forward(self, audio: torch.Tensor, previous: torch.Tensor, feedback: str = "predicted") -> torch.Tensor:
-        """[B, T, 1, 129, 5] features and the previous poses (see :meth:`decode`) -> [B, T, D] poses."""
+    def forward(self, audio: torch.Tensor, previous: torch.Tensor, feedback: str = "predicted", free: bool = False):
+        """[B, T, C, 129, 5] features and the previous poses (see :meth:`decode`) -> [B, T, D] poses.
+
+        With ``free`` (``previous`` [B, T, D], the true poses before each frame), also the free run
+        from the first of them on the same audio codes: ``(poses, free poses [B, T, D])``.
+        """
         codes, _ = self.encode(audio)
-        poses, _ = self.decode(codes, previous, feedback)
-        return poses
+        if not free:
+            return self.decode(codes, previous, feedback)[0]
+        first = previous[:, 0] if previous.dim() == 3 else previous
+        poses = self.decode(codes, previous, feedback)[0]
+        return poses, self.decode(codes, first, "predicted")[0]
 
 
 def _packed(lstm: nn.LSTM) -> tuple[list[torch.Tensor], list[torch.Tensor]]:

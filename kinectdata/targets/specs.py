@@ -132,6 +132,21 @@ class TargetSpec:
             return slice(k, k + 1)
         raise ConfigError(f"kind must be 'position', 'orientation' or 'limb', not {kind!r}")
 
+    def position_bones(self, root_centred: bool = False) -> list[tuple[int, int]]:
+        """(joint, parent) index pairs into :attr:`positions` of the joint set's bones whose two ends
+        are both positioned; with ``root_centred``, without the bones at the root (its position is
+        then its travel, not an offset from itself)."""
+        js, where = self.joints, {j: i for i, j in enumerate(self.positions)}
+        pairs = []
+        for j in self.positions:
+            parent = js.parents[js.index(j)]
+            if parent < 0 or js.names[parent] not in where:
+                continue
+            if root_centred and self.root in (j, js.names[parent]):
+                continue
+            pairs.append((where[j], where[js.names[parent]]))
+        return pairs
+
     def limb_pairs(self) -> list[tuple[str, str]]:
         """(joint, parent) of each limb, in the order of :attr:`limbs`."""
         js = self.joints

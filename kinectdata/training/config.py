@@ -13,17 +13,11 @@ from dataclasses import dataclass
 from typing import Any
 
 from kinectdata.core.errors import ConfigError, KinectDataError
+from kinectdata.models.bundled import PAPER_LOOP
 from kinectdata.models.registry import DEFAULT_MODEL, make_settings, model_kind
 
 LOOP_DEFAULTS: dict[str, Any] = {
-    "sequence": 150,
-    "stride": None,
-    "batch_size": 50,
-    "epochs": 10,
-    "lr": 1e-4,
-    "noise_eta": 0.01,
-    "noise_gamma": 0.55,
-    "clip_norm": None,
+    **PAPER_LOOP,
     "seed": 0,
     "device": "auto",
     "max_minutes": None,
@@ -31,6 +25,11 @@ LOOP_DEFAULTS: dict[str, Any] = {
 }
 """The training loop's settings and their base defaults (Yalta et al.'s; a model's
 ``training_defaults`` change them)."""
+
+KEEPS = ("last", "best")
+ADDED_OFF = {"free_weight": 0.0, "silence_share": 0.0, "keep": "last"}
+"""Loop settings added after runs were written: a run's config.json without them trained without
+them, whatever today's defaults are (resuming it goes on as it started)."""
 
 FLAT_BEFORE = ("units", "activation", "feedback", "channels", "decoder_channels", "dropout", "limb_weight")
 """The model settings every run's ``config.json`` held side by side before each model had its own:
@@ -42,7 +41,9 @@ class TrainConfig:
     """Training settings: the loop's and the model's own.
 
     ``TrainConfig(model, **settings)`` takes the loop's settings and the model's by name (flat, as
-    ``config.json`` holds them); what is not given takes the model's default. ``settings=`` may give
+    ``config.json`` holds them); what is not given takes the model's default: the recipe that learns
+    real dance on a CPU (docs/training.md, "Learning real dance"). ``paper=True`` starts from the
+    model's published settings instead (its kind's ``paper``). ``settings=`` may give
     the model's settings as a whole (an instance of its ``settings_type`` or a mapping).
     Attribute access reaches the model's settings too (``config.units`` for the yalta model).
 
@@ -64,6 +65,15 @@ class TrainConfig:
         max_minutes: a time budget for training (None: none). When it runs out the current epoch
             ends at the step it reached, is validated and logged, and the run finishes as if its
             epochs were done (``model.pt`` and the exports written).
+        free_weight: weight of the free-running rhythm loss (0: none): in every training window the
+            model also runs on its own outputs from the window's first true pose, and the spectra of
+            its motion's frame-to-frame changes and their overall size are matched to the real
+            motion's (:func:`~kinectdata.models.losses.masked_rhythm_loss`): how much and how often
+            it moves, not when. Models whose kind ``runs_free_in_training``.
+        silence_share: share of training windows whose music is silenced from a random frame on,
+            the pose then held (:mod:`kinectdata.training.augment`): a model learns to stop in silence.
+        keep: which epoch ``model.pt`` (and the exports) hold: ``last``, or ``best``, the epoch whose
+            free-running validation rhythm loss (``val_rhythm`` in ``log.csv``) is lowest.
     """
 
     model: str
@@ -79,14 +89,20 @@ class TrainConfig:
     device: str
     max_minutes: float | None
     previous_noise: float
+    free_weight: float
+    silence_share: float
+    keep: str
     settings: Any
 
-    def __init__(self, model: str | None = None, *, settings: Any = None, **given: Any) -> None:
+    def __init__(self, model: str | None = None, *, settings: Any = None, paper: bool = False, **given: Any) -> None:
         kind = model_kind(model or DEFAULT_MODEL)
         clash = sorted({f.name for f in dataclasses.fields(kind.settings_type)} & {*LOOP_DEFAULTS, "model"})
         if clash:
             raise ConfigError(f"the {kind.name} model's settings {', '.join(clash)} clash with the training loop's")
         loop = {**LOOP_DEFAULTS, **kind.training_defaults}
+        if paper:  # the published settings, under what is given
+            loop.update({k: v for k, v in kind.paper.items() if k in loop})
+            given = {**{k: v for k, v in kind.paper.items() if k not in loop}, **given}
         own = {k: v for k, v in given.items() if k not in loop}
         loop.update({k: v for k, v in given.items() if k in loop})
         object.__setattr__(self, "model", kind.name)
@@ -102,6 +118,14 @@ class TrainConfig:
             raise ConfigError("lr and clip_norm must be positive, noise_eta and noise_gamma at least 0")
         if not self.previous_noise >= 0:
             raise ConfigError(f"previous_noise must be at least 0, not {self.previous_noise!r}")
+        if not self.free_weight >= 0:
+            raise ConfigError(f"free_weight must be at least 0, not {self.free_weight!r}")
+        if not 0 <= self.silence_share <= 1:
+            raise ConfigError(f"silence_share must be in 0..1, not {self.silence_share!r}")
+        if self.keep not in KEEPS:
+            raise ConfigError(f"keep must be {' or '.join(KEEPS)}, not {self.keep!r}")
+        if self.free_weight > 0 and not model_kind(self.model).runs_free_in_training:
+            raise ConfigError(f"free_weight: the {self.model} model cannot run free in training")
         if self.max_minutes is not None and not self.max_minutes > 0:
             raise ConfigError(f"max_minutes must be positive, not {self.max_minutes!r}")
         if self.device not in ("auto", "cpu", "cuda"):
@@ -135,9 +159,10 @@ class TrainConfig:
         return [(k, mine.get(k), theirs.get(k)) for k in {**mine, **theirs} if mine.get(k) != theirs.get(k)]
 
     @classmethod
-    def for_model(cls, model: str, **settings: Any) -> TrainConfig:
-        """The settings of ``model`` (its defaults), with ``settings`` (None: the default)."""
-        return cls(model, **{k: v for k, v in settings.items() if v is not None})
+    def for_model(cls, model: str, paper: bool = False, **settings: Any) -> TrainConfig:
+        """The settings of ``model`` (its defaults, or with ``paper`` its published ones), with
+        ``settings`` (None: the default)."""
+        return cls(model, paper=paper, **{k: v for k, v in settings.items() if v is not None})
 
     @classmethod
     def from_dict(cls, d: dict[str, Any]) -> TrainConfig:
@@ -150,7 +175,8 @@ class TrainConfig:
         unknown = sorted(set(d) - set(LOOP_DEFAULTS) - own - set(FLAT_BEFORE))
         if unknown:
             raise ConfigError(f"unknown training settings {', '.join(unknown)} for the {kind.name} model")
-        return cls(kind.name, **{k: v for k, v in d.items() if k in LOOP_DEFAULTS or k in own})
+        old = {k: v for k, v in ADDED_OFF.items() if k not in d}
+        return cls(kind.name, **old, **{k: v for k, v in d.items() if k in LOOP_DEFAULTS or k in own})
 
     def resolved_device(self):
         """The torch device to train on."""

@@ -57,7 +57,7 @@ def sweep(
     manifest = read_manifest(dataset, checksums=checksums)
     kind = model_kind(base.model if base is not None else model_for_dataset(manifest))
     table = model_sweep(kind)
-    base = base or TrainConfig(kind.name, **table.base)
+    base = base or TrainConfig(kind.name, paper=True, **table.base)
     names = variants or list(table.variants)
     unknown = [n for n in names if n not in table.variants]
     if unknown:

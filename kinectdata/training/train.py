@@ -42,6 +42,7 @@ from kinectdata.core.errors import KinectDataError, KinectDataWarning
 from kinectdata.dataset.windows import WindowDataset
 from kinectdata.evaluation.metrics import smape
 from kinectdata.inference.export import export_network, stream_metadata
+from kinectdata.models.losses import masked_rhythm_loss
 from kinectdata.models.registry import check_fits, model_for_dataset, model_kind
 from kinectdata.models.run import (
     CHECKPOINT,
@@ -55,6 +56,7 @@ from kinectdata.models.run import (
     write_json,
 )
 from kinectdata.targets.normalization import Normalizer
+from kinectdata.training.augment import silence_windows, silent_frame
 from kinectdata.training.config import TrainConfig
 from kinectdata.training.distributed import (
     PaddedWindows,
@@ -70,8 +72,20 @@ from kinectdata.training.distributed import (
 )
 from kinectdata.training.figures import loss_curves
 
-LOG_FIELDS = ["epoch", "step", "train_loss", "val_loss", "val_smape", "seconds", "frames_per_second", "stopped"]
-"""``log.csv``'s columns; ``stopped`` is ``time budget`` on the epoch that the time budget cut short."""
+LOG_FIELDS = [
+    "epoch",
+    "step",
+    "train_loss",
+    "val_loss",
+    "val_smape",
+    "val_rhythm",
+    "seconds",
+    "frames_per_second",
+    "stopped",
+    "kept",
+]
+"""``log.csv``'s columns; ``stopped`` is ``time budget`` on the epoch that the time budget cut short;
+``kept`` marks the epoch ``model.pt`` holds when the run keeps its best (``TrainConfig.keep``)."""
 
 
 MIN_STEPS = 300
@@ -286,11 +300,16 @@ def validate(
     config: TrainConfig,
     device: torch.device,
     start_pose: list[float] | None = None,
-) -> tuple[float, float]:
-    """(loss as in training, SMAPE in % free-running) over a split's windows; ``start_pose`` [D]
-    stands in for masked previous values (as the model's ``fill_previous`` says)."""
+    fps: float = 30.0,
+    body: dict[str, Any] | None = None,
+) -> tuple[float, float, float]:
+    """(loss as in training, SMAPE in % free-running, the free-running rhythm loss) over a split's
+    windows: the model runs free from each window's first true pose; the rhythm loss
+    (:func:`~kinectdata.models.losses.masked_rhythm_loss`) compares how much and how often
+    it moves with the real motion, whatever the phase. ``start_pose`` [D] stands in for masked
+    previous values (as the model's ``fill_previous`` says)."""
     if len(windows) == 0:
-        return float("nan"), float("nan")
+        return float("nan"), float("nan"), float("nan")
     kind = model_kind(config.model)
     net.eval()
     losses, weights, generated, real, masks = [], [], [], [], []
@@ -308,7 +327,42 @@ def validate(
             masks.append(mask.cpu().numpy())
     net.train()
     loss = float(np.average(losses, weights=weights))
-    return loss, smape(np.concatenate(generated), np.concatenate(real), np.concatenate(masks))
+    generated, real, masks = np.concatenate(generated), np.concatenate(real), np.concatenate(masks)
+    rhythm = float(
+        masked_rhythm_loss(
+            torch.from_numpy(np.asarray(generated, np.float32)),
+            torch.from_numpy(np.asarray(real, np.float32)),
+            torch.from_numpy(masks),
+            fps,
+            body,
+        )
+    )
+    return loss, smape(generated, real, masks), rhythm
+
+
+def _body(manifest: dict[str, Any], device: torch.device) -> dict[str, Any] | None:
+    """What the free-running loss needs to measure a motion's bones (:func:`masked_bone_loss`): the
+    target's positioned bones, the normalisation to undo; None when the target positions no bone."""
+    from kinectdata.targets.specs import TargetSpec
+
+    spec = TargetSpec.from_dict(manifest["config"]["target"])
+    bones = spec.position_bones(root_centred=bool(manifest["config"].get("root_centre")))
+    norm = manifest["normalisation"]
+    if not bones or spec.position_scale != "none" or norm.get("scale") is None:
+        return None  # no bone, or coordinates scaled per recording (no metres to measure in)
+
+    def tensor(values):
+        return torch.tensor([1.0 if v is None else v for v in values], dtype=torch.float32, device=device)
+
+    return {"bones": bones, "scale": tensor(norm["scale"]), "offset": tensor(norm["offset"]), "dims": spec.dimensions}
+
+
+def _better(history: list[dict]) -> bool:
+    """Whether the newest epoch's free-running validation rhythm loss is the lowest so far (the
+    first finite one counts)."""
+    values = [r.get("val_rhythm") for r in history]
+    last = values[-1]
+    return last is not None and all(v is None or last < v for v in values[:-1])
 
 
 def _write_log(run: Path, history: list[dict]) -> None:
@@ -397,8 +451,10 @@ def train(
         optimizer = torch.optim.Adam(net.parameters(), lr=config.lr)
         order = torch.Generator().manual_seed(config.seed + 1)
         noise = torch.Generator().manual_seed(config.seed + 2)
+        augment = torch.Generator().manual_seed(config.seed + 3)  # silenced windows
         history: list[dict] = []
         step = 0
+        best: dict[str, Any] | None = None  # the kept epoch's weights (keep="best")
         if state is not None:
             run_config["dataset"]["start_pose"] = saved["dataset"]["start_pose"]
             if world.main:
@@ -407,6 +463,10 @@ def train(
             optimizer.load_state_dict(state["optimizer"])
             order.set_state(state["order_rng"])
             noise.set_state(state["noise_rng"])
+            if "augment_rng" in state:  # checkpoints written before windows were silenced have none
+                augment.set_state(state["augment_rng"])
+            if "best_model" in state:
+                best = {"epoch": int(state["best_epoch"]), "model": state["best_model"]}
             torch.set_rng_state(state["torch_rng"])
             history, step = json.loads(state["history"]), int(state["step"])
             if len(history) > config.epochs:
@@ -425,6 +485,9 @@ def train(
         model = replicate(net, world, device)
         net.train()
         params = list(net.parameters())
+        fps = float(manifest["config"]["fps"])
+        silent = silent_frame(manifest["config"]["features"], fps) if config.silence_share > 0 else None
+        body = _body(manifest, device)
         deadline = None if config.max_minutes is None else time.monotonic() + 60 * config.max_minutes
         out_of_time = False
         for epoch in range(len(history) + 1, config.epochs + 1):
@@ -433,14 +496,21 @@ def train(
                 if deadline is not None and frames and from_main([float(time.monotonic() > deadline)], world)[0]:
                     out_of_time = True  # every rank stops at the same step: the main one decides
                     break
+                if silent is not None:
+                    batch = silence_windows(batch, silent, config.silence_share, augment)
                 audio, pose, mask = batch["audio"].to(device), batch["pose"].to(device), batch["mask"].to(device)
                 previous = kind.fill_previous(
                     batch["previous"].to(device), batch["previous_mask"].to(device), start_pose
                 )
                 if config.previous_noise > 0:  # torch's generator: seeded, and saved in the checkpoint
                     previous = previous + config.previous_noise * torch.randn(previous.shape).to(device)
-                pred = kind.predict(model, audio, previous, config.settings)
-                loss = kind.loss(net, pred, pose, mask, config.settings)
+                if config.free_weight > 0:
+                    pred, free = kind.predict_free(model, audio, previous, config.settings)
+                    loss = kind.loss(net, pred, pose, mask, config.settings)
+                    loss = loss + config.free_weight * masked_rhythm_loss(free, pose, mask, fps, body)
+                else:
+                    pred = kind.predict(model, audio, previous, config.settings)
+                    loss = kind.loss(net, pred, pose, mask, config.settings)
                 valid = float(mask.sum())
                 optimizer.zero_grad(set_to_none=True)
                 (loss * share_of_batch(valid, world)).backward()
@@ -454,8 +524,10 @@ def train(
                 weight += valid
             total, weight, frames = sum_over_ranks([total, weight, frames], world)
             check_replicas(params, world, epoch)
-            val_loss, val_smape = validate(net, val_windows, config, device, start_pose) if world.main else (0.0, 0.0)
-            val_loss, val_smape = from_main([val_loss, val_smape], world)
+            figures = (
+                validate(net, val_windows, config, device, start_pose, fps, body) if world.main else (0.0, 0.0, 0.0)
+            )
+            val_loss, val_smape, val_rhythm = from_main(list(figures), world)
             seconds = time.perf_counter() - started
             row = {
                 "epoch": epoch,
@@ -463,6 +535,7 @@ def train(
                 "train_loss": total / max(weight, 1.0),
                 "val_loss": val_loss if math.isfinite(val_loss) else None,
                 "val_smape": val_smape if math.isfinite(val_smape) else None,
+                "val_rhythm": val_rhythm if math.isfinite(val_rhythm) else None,
                 "seconds": round(seconds, 3),
                 "frames_per_second": round(frames / seconds, 1),
                 "stopped": "time budget" if out_of_time else None,
@@ -473,13 +546,15 @@ def train(
                     row.update(epoch_metrics(net))
                 net.train()
             history.append(row)
+            if config.keep == "best" and world.main and _better(history):
+                best = {"epoch": epoch, "model": {k: v.detach().clone().cpu() for k, v in net.state_dict().items()}}
             for said in (loss_warning(history, config.lr), validation_warning(history)) if world.main else ():
                 if said:
                     warnings.warn(said, TrainingWarning, stacklevel=2)
             if world.main:  # the others keep no files
                 _write_log(run, history)
                 if writer is not None:
-                    for key in ("train_loss", "val_loss", "val_smape"):
+                    for key in ("train_loss", "val_loss", "val_smape", "val_rhythm"):
                         if row[key] is not None:
                             writer.add_scalar(key, row[key], epoch)
                 save_checkpoint(
@@ -490,7 +565,9 @@ def train(
                         "step": step,
                         "order_rng": order.get_state(),
                         "noise_rng": noise.get_state(),
+                        "augment_rng": augment.get_state(),
                         "torch_rng": torch.get_rng_state(),
+                        **({} if best is None else {"best_epoch": best["epoch"], "best_model": best["model"]}),
                         "history": json.dumps(history),
                         "config": json.dumps(run_config),
                     },
@@ -511,6 +588,11 @@ def train(
     title = f"{run.name}: {kind.describe(config.settings)}"
     loss_curves(history, run / "loss.png", title=title, loss_name=kind.loss_name(config.settings))
     net = net.cpu().eval()
+    if best is not None:  # keep="best": model.pt and the exports hold that epoch
+        net.load_state_dict(best["model"])
+        for row in history:
+            row["kept"] = "best" if row["epoch"] == best["epoch"] else None
+        _write_log(run, history)
     save_checkpoint(run / MODEL, {"model": net.state_dict(), "config": json.dumps(run_config)})
     for name, fmt in kind.run_exports.items():  # e.g. the yalta model's stream.ts, for robots
         export_network(net, run / name, fmt, metadata=stream_metadata(run_config, kind=kind), kind=kind)

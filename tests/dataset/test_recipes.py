@@ -376,8 +376,12 @@ def test_prepare_then_build_dataset_keeps_the_published_splits(aistpp, tmp_path)
     assert result.exit_code == 0, result.output
     assert "4 recordings of aistpp (2 train, 1 val, 1 test)" in result.output
     assert "gLH_sBM_cAll_d16_mLH0_ch01: in ignore_list.txt" in result.output
-    next_line = result.output.strip().splitlines()[-1]
-    assert next_line == f"next: kinectdata build-dataset {manifest} -o DATASET --target positions --allow-outside-paths"
+    next_line = result.output.strip().splitlines()[-2]
+    assert result.output.strip().splitlines()[-1].startswith("  (for the cdhc model: --pipeline listen-to-dance")
+    assert next_line == (
+        f"next: kinectdata build-dataset {manifest} -o DATASET --target positions --features yalta2016_rhythm "
+        "--allow-outside-paths"
+    )
     args = ["build-dataset", str(manifest), "-o", str(tmp_path / "ds"), "--target", "positions"]
     result = runner.invoke(main, [*args, "--allow-outside-paths"])
     assert result.exit_code == 0, result.output
@@ -409,9 +413,10 @@ def test_prepare_tang2018_then_build_dataset_root_centred_keeps_splits_and_music
     assert lines[0] == f"wrote {manifest}: 14 recordings of tang2018 (4 train, 3 val, 7 test) under {tang.resolve()}"
     assert lines[1:4] == ["left out 7:", "  C_1: DANCE_C_1/skeletons.json is missing or empty",
                           "  C_9: DANCE_C_9/audio.mp3 is missing or empty"]  # fmt: skip
-    assert lines[-2] == "  ... and 2 more"
-    assert lines[-1] == (
-        f"next: kinectdata build-dataset {manifest} -o DATASET --target positions --root-centre --allow-outside-paths"
+    assert lines[-3] == "  ... and 2 more"
+    assert lines[-2] == (
+        f"next: kinectdata build-dataset {manifest} -o DATASET --target positions --root-centre "
+        "--features yalta2016_rhythm --allow-outside-paths"
     )
     args = ["build-dataset", str(manifest), "-o", str(tmp_path / "ds"), "--target", "positions"]
     result = runner.invoke(main, [*args, "--root-centre", "--allow-outside-paths"])

@@ -207,6 +207,12 @@ def _recordings_manifest(work: Path) -> None:
     (work / "recordings.yaml").write_text("\n".join(lines) + "\n", encoding="utf-8")
 
 
+def _tang_manifest(work: Path) -> None:
+    """A recordings manifest of a copy made in Dance with Melody's shape (the corpus itself has no licence)."""
+    make_tang2018_copy(work)
+    _kinectdata("prepare", "tang2018", "Music-to-Dance-Motion-Synthesis", "-o", "tang.yaml", cwd=work)
+
+
 def _dataset(work: Path) -> None:
     _kinectdata("build-dataset", "sample_data", "-o", "dataset", "--split-ratios", "1,1,1", cwd=work)
 
@@ -240,6 +246,7 @@ STAGE: dict[str, Callable[[Path], None]] = {
     "FineDance/data/finedance/": lambda work: make_finedance_copy(work),
     "bvh_corpus/": lambda work: make_bvh_folder(work),
     "Music-to-Dance-Motion-Synthesis/": lambda work: make_tang2018_copy(work),
+    "tang.yaml": _tang_manifest,
     "dataset": _dataset,
 }
 """How to make each input an example names but no earlier example of its document makes."""

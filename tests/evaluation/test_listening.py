@@ -73,9 +73,14 @@ def test_a_model_that_listens_passes_every_control():
     assert result.phase_ratio == pytest.approx(1.0, rel=0.05) and result.in_phase
     assert result.baselines["mean_pose_noise"] < result.generated.beat_align_music.value
     assert result.listens
+    # no fixed oscillator: the periods spread with the tempi, follow them as the real motion's do,
+    # and every swapped run takes the new song's period
+    assert result.period_spread > 1.2 and result.swapped_period_changes == 1.0 and result.no_fixed_oscillator
+    assert result.shifted_at_chance
     text = "\n".join(result.verdicts())
     assert "generated motion follows the beat: yes" in text and "listens to the music: yes" in text
     assert "stops in silence: yes" in text and "is alive: yes" in text
+    assert "generated motion is no fixed oscillator: yes" in text
 
 
 def test_a_model_that_ignores_the_audio_fails_them():
@@ -83,9 +88,11 @@ def test_a_model_that_ignores_the_audio_fails_them():
     assert not result.generated.follows_beat
     assert not result.listens and not result.in_phase
     assert result.silence_energy_ratio == pytest.approx(1.0, rel=0.05)
+    assert result.period_spread == pytest.approx(1.0, abs=0.05) and result.swapped_period_changes == 0.0
+    assert not result.no_fixed_oscillator
     text = "\n".join(result.verdicts())
     assert "generated motion follows the beat: no" in text and "listens to the music: no" in text
-    assert "stops in silence: no" in text
+    assert "stops in silence: no" in text and "generated motion is no fixed oscillator: no" in text
 
 
 def test_motion_energy_is_the_mean_squared_speed():

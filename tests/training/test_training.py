@@ -136,16 +136,14 @@ def test_runs_written_before_still_load_and_resume(trained_run, sample_dataset, 
     state = torch.load(run / "checkpoint.pt", weights_only=True)
     state.pop("sha256", None)  # checkpoints before digests had none
     torch.save({**state, "config": json.dumps(config)}, run / "checkpoint.pt")
-    assert TrainConfig.from_dict(OLD_FLAT) == TrainConfig(**TINY_TRAINING)
+    then = {**TINY_TRAINING, "stride": None, "clip_norm": None, "feedback": "predicted"}  # the run's own
+    assert TrainConfig.from_dict(OLD_FLAT) == TrainConfig(**then)
     net, _ = load_model(run)
     assert net.config.units == 32
     (run / "model.pt").unlink()
-    history = train(sample_dataset, run, TrainConfig(**{**TINY_TRAINING, "epochs": 3}), resume=True)
+    history = train(sample_dataset, run, TrainConfig(**{**then, "epochs": 3}), resume=True)
     assert [r["epoch"] for r in history] == [1, 2, 3]
-    assert (
-        json.loads((run / "config.json").read_text())["train"]
-        == TrainConfig(**{**TINY_TRAINING, "epochs": 3}).to_dict()
-    )
+    assert json.loads((run / "config.json").read_text())["train"] == TrainConfig(**{**then, "epochs": 3}).to_dict()
     cdhc = TrainConfig.from_dict({**OLD_FLAT, "model": "cdhc", "feedback": "teacher"})
     assert cdhc.model == "cdhc" and cdhc.channels == 256 and "units" not in cdhc.to_dict()
     with pytest.raises(KinectDataError, match="unknown training settings colour"):
@@ -179,18 +177,35 @@ def test_settings_are_validated(sample_dataset, tmp_path):
     assert not (tmp_path / "r").exists()
 
 
-def test_defaults_are_the_papers_and_its_authors_code():
+def test_the_paper_settings_are_the_papers_and_its_authors_code():
     """The paper: Adam 1e-4, 150 steps, batches of 50, 10 epochs, "gradient noise"; the noise's
     eta 0.01 is the authors' later code's, gamma 0.55 Neelakantan et al.'s."""
-    c = TrainConfig()
+    c = TrainConfig(paper=True)
     assert (c.lr, c.sequence, c.batch_size, c.epochs, c.noise_eta, c.noise_gamma) == (1e-4, 150, 50, 10, 0.01, 0.55)
-    assert (c.units, c.feedback, c.clip_norm) == (500, "predicted", None)
+    assert (c.units, c.feedback, c.clip_norm, c.free_weight, c.silence_share) == (500, "predicted", None, 0.0, 0.0)
+    assert TrainConfig(paper=True, lr=3e-4).lr == 3e-4  # what is typed beside it still applies
+    cdhc = TrainConfig("cdhc", paper=True)
+    assert (cdhc.channels, cdhc.decoder_channels, cdhc.lr, cdhc.batch_size, cdhc.epochs) == (256, 128, 2e-4, 16, 20)
+
+
+def test_the_defaults_are_the_recipe_that_learns_real_dance():
+    for model in ("yalta", "cdhc"):
+        c = TrainConfig(model)
+        assert (c.sequence, c.stride, c.batch_size, c.lr, c.noise_eta, c.clip_norm) == (300, 75, 8, 1e-3, 0.0, 1.0)
+        assert (c.free_weight, c.silence_share, c.keep) == (1.0, 0.2, "best")
+    assert (TrainConfig().units, TrainConfig().feedback) == (128, "teacher")
+
+
+def test_a_run_written_before_the_rhythm_loss_resumes_without_it():
+    old = {k: v for k, v in TrainConfig(paper=True).to_dict().items() if k not in ("free_weight", "silence_share", "keep")}
+    read = TrainConfig.from_dict(old)
+    assert (read.free_weight, read.silence_share, read.keep) == (0.0, 0.0, "last")
 
 
 @pytest.mark.parametrize("step", [0, 9, 99])
 def test_gradient_noise_has_the_annealed_variance(step):
     """Neelakantan et al. (2015): N(0, eta / (1 + t)^gamma) added to every gradient."""
-    config = dataclasses.replace(TrainConfig(), noise_eta=0.01, noise_gamma=0.55)
+    config = dataclasses.replace(TrainConfig(paper=True), noise_eta=0.01, noise_gamma=0.55)
     p = torch.nn.Parameter(torch.zeros(200_000))
     p.grad = torch.zeros_like(p)
     _add_gradient_noise([p], step, config, torch.Generator().manual_seed(0))

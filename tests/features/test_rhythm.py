@@ -1,0 +1,364 @@
+"""Pulse (rhythm) features and stacked features: the onset envelope and each frame's values against
+a computation done independently (tests/rhythm_reference.py), tempo and phase on click tracks with
+known answers (and librosa's tempo), causality, silence, chunking and streaming, configurations."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+import pytest
+from rhythm_reference import ideal_pulse, reference_frames, reference_onsets, reference_tempi
+
+from kinectdata.core.errors import ConfigError
+from kinectdata.features import (
+    PRESETS,
+    MelConfig,
+    RhythmConfig,
+    StackConfig,
+    StftConfig,
+    compute_features,
+    feature_config,
+)
+from kinectdata.features.rhythm import onset_envelope, rhythm_features
+from kinectdata.features.streaming import StreamingFeatures
+
+librosa = pytest.importorskip("librosa")
+
+SR = 16000
+VECTOR = RhythmConfig()
+PLANE = RhythmConfig(columns=5)
+OTHER = RhythmConfig(  # every parameter changed: a hop of 4 ms, shorter windows, fewer bands and tempi
+    hop_samples=64,
+    frame_samples=400,
+    n_mels=24,
+    fmax=6000.0,
+    detrend_s=0.3,
+    window_s=4.0,
+    decay_s=1.5,
+    n_tempi=20,
+    tempo_range_bpm=(60.0, 200.0),
+    columns=3,
+    column_hop=128,
+    column_end=448,
+)
+
+
+def frame_starts(n_samples: int, fps: float = 30.0) -> np.ndarray:
+    return np.round(np.arange(int(n_samples / SR * fps)) * SR / fps).astype(np.int64)
+
+
+def random_clicks(seconds: float, seed: int) -> np.ndarray:
+    """float32: white noise at -50 dBFS, clicks (5 ms decaying 1.5 kHz bursts) at random times about
+    3 a second, and a kick every 0.5 s with jitter: onsets with some pulse, not a strict one."""
+    rng = np.random.default_rng(seed)
+    n = int(seconds * SR)
+    x = rng.normal(0, 10 ** (-50 / 20), n)
+    burst = np.sin(2 * np.pi * 1500 * np.arange(80) / SR) * np.exp(-np.arange(80) / 20)
+    kick = np.sin(2 * np.pi * 60 * np.arange(1600) / SR) * np.exp(-np.arange(1600) / 400)
+    for t in np.sort(rng.uniform(0, seconds, int(3 * seconds))):
+        i = int(t * SR)
+        x[i : i + 80] += rng.uniform(0.1, 0.6) * burst[: n - i]
+    for t in np.arange(0.25, seconds, 0.5) + rng.normal(0, 0.01, len(np.arange(0.25, seconds, 0.5))):
+        i = int(t * SR)
+        x[i : i + 1600] += 0.5 * kick[: max(0, min(1600, n - i))]
+    return x.astype(np.float32)
+
+
+def click_track(bpm: float, seconds: float = 14.0, first: float = 0.3) -> tuple[np.ndarray, np.ndarray]:
+    """(float32 audio, click times in s): 5 ms 1.5 kHz clicks every 60 / bpm s in digital silence."""
+    n = int(seconds * SR)
+    x = np.zeros(n)
+    burst = 0.5 * np.sin(2 * np.pi * 1500 * np.arange(80) / SR) * np.exp(-np.arange(80) / 20)
+    times = np.arange(first, seconds, 60.0 / bpm)
+    samples = np.round(times * SR).astype(int)
+    for i in samples:
+        x[i : i + 80] += burst[: n - i]
+    return x.astype(np.float32), samples / SR
+
+
+@pytest.fixture(scope="module")
+def clicks() -> np.ndarray:
+    return random_clicks(10.0, seed=4)
+
+
+# ---------------------------------------------------------------- against the direct computation
+
+
+@pytest.mark.parametrize("config", [VECTOR, OTHER], ids=["default", "other"])
+def test_onset_envelope_matches_an_independent_computation(clicks, config):
+    got = onset_envelope(clicks, config)
+    expected = reference_onsets(clicks, config)
+    assert got.shape == (clicks.size // config.hop_samples + 1,)
+    assert (got >= 0).all() and (got > 0).mean() > 0.05  # something to compare: not all zeros
+    np.testing.assert_allclose(got, expected, rtol=1e-9, atol=1e-7 * expected.max())
+
+
+@pytest.mark.parametrize("config", [VECTOR, PLANE, OTHER], ids=["vector", "plane", "other"])
+def test_frames_match_the_windowed_sum_evaluated_term_by_term(clicks, config):
+    starts = frame_starts(clicks.size)
+    feats, padded = rhythm_features(clicks, starts, config)
+    assert feats.dtype == np.float32 and feats.shape == (starts.size, *config.output_shape)
+    settled = config.window_s + config.detrend_s + 0.2  # the reference needs a whole window of onsets
+    chosen = np.flatnonzero(starts / SR > settled)
+    chosen = np.unique(np.concatenate([chosen[:: max(1, chosen.size // 8)], chosen[-3:]]))  # ... and the last ones
+    expected = reference_frames(clicks, starts[chosen], config)
+    assert np.abs(expected).max() > 0.3  # a pulse to compare
+    np.testing.assert_allclose(feats[chosen], expected, atol=2e-6)
+    assert padded[-1] and not padded[chosen[:-3]].any()
+
+
+def test_values_are_salience_then_its_cosine_and_sine_tempo_by_tempo(clicks):
+    feats, _ = rhythm_features(clicks, frame_starts(clicks.size), VECTOR)
+    v = feats[-60:].astype(np.float64).reshape(60, 43, 3)
+    salience, cosine, sine = v[..., 0], v[..., 1], v[..., 2]
+    assert (salience >= 0).all() and (salience <= 1 + 1e-6).all()
+    np.testing.assert_allclose(cosine**2 + sine**2, salience**2, atol=1e-6)
+    np.testing.assert_array_equal(PRESETS["yalta2016_rhythm"].parts[1].tempi_bpm, VECTOR.tempi_bpm)
+    np.testing.assert_allclose(VECTOR.tempi_bpm, reference_tempi(VECTOR), rtol=1e-12)
+    assert VECTOR.tempi_bpm[0] == pytest.approx(40) and VECTOR.tempi_bpm[-1] == pytest.approx(240)
+
+
+# ---------------------------------------------------------------- click tracks: known tempo and phase
+
+
+def _best_tempo(feats: np.ndarray, starts: np.ndarray, after_s: float = 7.0) -> float:
+    salience = feats[starts / SR > after_s].reshape(-1, 43, 3)[..., 0].mean(axis=0)
+    return float(VECTOR.tempi_bpm[np.argmax(salience)])
+
+
+def _octave_of(tempo: float, truth: float, tolerance: float = 0.04) -> bool:
+    return any(abs(tempo / (truth * f) - 1) <= tolerance for f in (0.5, 1.0, 2.0))
+
+
+@pytest.mark.parametrize("bpm", [75.0, 100.0, 128.0, 150.0])
+def test_click_tracks_tempo_and_salience_curve_follow_the_ideal_pulse(bpm):
+    """The salience at every tempo is that of an ideal impulse train at the click times (computed in
+    continuous time, tempi off the grid included: 100 BPM lies between two grid tempi), within 0.03; the most
+    salient tempo is the clicks' or an octave of it, as librosa's tempo estimate is."""
+    audio, times = click_track(bpm)
+    starts = frame_starts(audio.size)
+    feats, _ = rhythm_features(audio, starts, VECTOR)
+    tempi = VECTOR.tempi_bpm
+    late = np.flatnonzero(starts / SR > 7.0)
+    for k in late[::10]:
+        t = (starts[k] + VECTOR.slice_samples) / SR
+        ideal = np.abs(ideal_pulse(t, times, tempi, VECTOR))
+        np.testing.assert_allclose(feats[k].reshape(43, 3)[:, 0], ideal, atol=0.03, err_msg=f"frame {k}")
+    best = _best_tempo(feats, starts)
+    assert _octave_of(best, bpm), (best, bpm)
+    assert feats[late].reshape(-1, 43, 3)[..., 0].max(axis=1).min() > 0.9  # a strict pulse: near 1 throughout
+    theirs = float(np.atleast_1d(librosa.feature.tempo(y=audio, sr=SR))[0])
+    assert _octave_of(theirs, bpm), (theirs, bpm)
+    octaves = math.log2(best / theirs)
+    assert abs(octaves - round(octaves)) < math.log2(1.05), (best, theirs)
+
+
+def test_on_a_grid_tempo_salience_is_one_and_the_phase_is_the_time_since_the_click():
+    """Clicks at exactly a grid tempo (116.2 BPM): salience 1 to within the spread of a click's
+    onsets over a few hops; the phase is 2 pi f (time since the last click) to within 10 ms (two
+    hops: a click's onset is seen at the first hop after it), so it rises linearly over each beat
+    and wraps at each click; cosine near 1 just after a click, near -1 half a beat later."""
+    k = 25
+    bpm = float(VECTOR.tempi_bpm[k])
+    audio, times = click_track(bpm)
+    starts = frame_starts(audio.size)
+    feats, _ = rhythm_features(audio, starts, VECTOR)
+    late = np.flatnonzero(starts / SR > 7.0)
+    v = feats[late].astype(np.float64).reshape(-1, 43, 3)[:, k]
+    assert v[:, 0].min() > 0.98
+    phase = np.arctan2(v[:, 2], v[:, 1])
+    instant = (starts[late] + VECTOR.slice_samples) / SR
+    since = instant - times[np.searchsorted(times, instant, side="right") - 1]  # s since the last click
+    allowed = 2 * np.pi * bpm / 60 * 0.010
+    error = np.angle(np.exp(1j * (phase - 2 * np.pi * bpm / 60 * since)))
+    assert np.abs(error).max() < allowed, np.abs(error).max()
+    # the wrap: just after each click the phase is near 0 (cosine near the salience), mid-beat near pi
+    just_after = since < 0.03
+    assert just_after.sum() >= 5 and (v[just_after, 1] > 0.9).all()
+    middle = np.abs(since - 30 / bpm) < 0.03
+    assert middle.sum() >= 5 and (v[middle, 1] < -0.9).all()
+
+
+# ---------------------------------------------------------------- causality, silence, padding
+
+
+@pytest.mark.parametrize("config", [VECTOR, PLANE], ids=["vector", "plane"])
+def test_a_frame_does_not_depend_on_audio_after_its_slice(clicks, config):
+    starts = frame_starts(clicks.size)
+    before, _ = rhythm_features(clicks, starts, config)
+    cut = int(starts[250]) + config.slice_samples  # frame 250's slice ends here
+    other = clicks.copy()
+    other[cut:] = np.random.default_rng(1).normal(0, 0.5, other.size - cut)
+    after, _ = rhythm_features(other, starts, config)
+    ends = starts + config.slice_samples
+    np.testing.assert_array_equal(after[ends <= cut], before[ends <= cut])
+    assert np.abs(after[ends > cut + 2000] - before[ends > cut + 2000]).max() > 0.01  # the change shows later
+
+
+def test_a_frame_depends_only_on_its_own_samples_not_on_where_the_audio_begins(clicks):
+    """The same samples prefixed with any number of zeros (here not a multiple of the hop) give the
+    same values for the same frames: the onsets are taken on a grid through each frame's instants."""
+    starts = frame_starts(clicks.size)
+    base, _ = rhythm_features(clicks, starts, PLANE)
+    for shift in (37, 80, 1001):
+        shifted, _ = rhythm_features(np.concatenate([np.zeros(shift, np.float32), clicks]), starts + shift, PLANE)
+        np.testing.assert_allclose(shifted, base, atol=1e-6, err_msg=f"shift {shift}")
+
+
+def test_silence_gives_zeros_also_long_after_music():
+    """Digital silence: every value exactly 0, from the start and once a whole window has passed
+    since the music stopped (its onsets have left the window: no rounding residue may remain)."""
+    starts = frame_starts(16 * SR)
+    feats, _ = rhythm_features(np.zeros(16 * SR, np.float32), starts, VECTOR)
+    assert not feats.any()
+    for seed in range(4):
+        music = random_clicks(7.0, seed=seed)
+        audio = np.concatenate([music, np.zeros(8 * SR, np.float32)])
+        feats, _ = rhythm_features(audio, starts, VECTOR)
+        onsets_gone = starts / SR > 7.0 + VECTOR.window_s + 0.05
+        assert np.abs(feats[starts / SR < 7.0]).max() > 0.3
+        assert not feats[onsets_gone].any(), (seed, np.abs(feats[onsets_gone]).max())
+        assert np.abs(feats).max() <= 1 + 1e-6
+
+
+def test_padded_only_where_the_slice_runs_off_the_audio_not_its_history():
+    audio = random_clicks(3.0, seed=2)
+    starts = np.array([-600, -1, 0, 5, 16000, audio.size - 534, audio.size - 533, audio.size + 100])
+    feats, padded = rhythm_features(audio, starts, PLANE)
+    np.testing.assert_array_equal(padded, [True, True, False, False, False, False, True, True])
+    assert feats.shape == (8, 1, 129, 5) and np.isfinite(feats).all()
+    assert PLANE.span == (-PLANE.history, 534) and PLANE.history > 6.4 * SR  # history reaches before the audio
+    # a frame entirely before the audio reads only zeros
+    assert not feats[0].any()
+
+
+# ---------------------------------------------------------------- chunking and streaming
+
+
+@pytest.mark.parametrize("config", [VECTOR, PLANE], ids=["vector", "plane"])
+def test_chunking_does_not_change_the_values(clicks, config):
+    starts = frame_starts(clicks.size)
+    whole, padded = rhythm_features(clicks, starts, config, chunk_frames=1024)
+    chunked, padded7 = rhythm_features(clicks, starts, config, chunk_frames=7)
+    np.testing.assert_allclose(chunked, whole, rtol=0, atol=1e-9)
+    np.testing.assert_array_equal(padded7, padded)
+    reordered, _ = rhythm_features(clicks, starts[::-1], config, chunk_frames=50)  # frames in any order
+    np.testing.assert_allclose(reordered[::-1], whole, rtol=0, atol=1e-9)
+
+
+@pytest.mark.parametrize("preset", ["yalta2016_rhythm", "listen_to_dance_rhythm"])
+@pytest.mark.parametrize("block", [1777, 16001])
+def test_streaming_equals_the_whole_audio(preset, block):
+    config = PRESETS[preset]
+    audio = random_clicks(11.0, seed=block)
+    starts = frame_starts(audio.size + 300)  # the last frames run past the end
+    expected, expected_padded = compute_features(audio, starts, config)
+    got, padded = np.full_like(expected, np.nan), np.zeros(starts.size, bool)
+
+    def sink(k0, feats, pad):
+        got[k0 : k0 + len(feats)], padded[k0 : k0 + len(feats)] = feats, pad
+
+    stream = StreamingFeatures(starts, config, sink)
+    lo, hi = config.span
+    for i in range(0, audio.size, block):
+        stream.push(audio[i : i + block])
+        assert stream.buffer.size <= block + (hi - lo) + 534
+    stream.finish()
+    assert not np.isnan(got).any()
+    np.testing.assert_allclose(got, expected, rtol=0, atol=1e-6)
+    np.testing.assert_array_equal(padded, expected_padded)
+
+
+# ---------------------------------------------------------------- configurations
+
+
+def test_rhythm_config_round_trip_and_dispatch():
+    for config in (VECTOR, PLANE, OTHER):
+        d = json.loads(json.dumps(config.to_dict()))
+        assert d["extractor"] == "rhythm" and feature_config(d) == config and RhythmConfig.from_dict(d) == config
+    assert VECTOR.output_shape == (129,) and PLANE.output_shape == (1, 129, 5) and OTHER.output_shape == (1, 60, 3)
+    np.testing.assert_array_equal(PLANE.instants, [160, 240, 320, 400, 480])  # the STFT sub-frames' ends
+    with pytest.raises(ConfigError, match="unknown RhythmConfig keys"):
+        RhythmConfig.from_dict({**VECTOR.to_dict(), "tempo": 120})
+    with pytest.raises(ConfigError, match="not a rhythm configuration"):
+        RhythmConfig.from_dict({**VECTOR.to_dict(), "extractor": "mel"})
+
+
+@pytest.mark.parametrize(
+    "kwargs, message",
+    [
+        ({"hop_samples": 0}, "hop_samples must be a positive integer"),
+        ({"n_tempi": -3}, "n_tempi must be a positive integer"),
+        ({"frame_samples": 2.5}, "frame_samples must be a positive integer"),
+        ({"n_mels": True}, "n_mels must be a positive integer"),
+        ({"columns": -1}, "columns must be a whole number at least 0"),
+        ({"tempo_range_bpm": (240.0, 40.0)}, r"tempo_range_bpm must be \(low, high\) with 0 < low < high"),
+        ({"tempo_range_bpm": (0.0, 40.0)}, "tempo_range_bpm"),
+        ({"decay_s": 0}, "decay_s must be positive"),
+        ({"window_s": 1.0}, r"window_s \(1 s\) must hold one beat of 40 BPM"),
+        ({"columns": 8}, "the columns must lie at or after the slice start"),
+        ({"columns": 2, "column_end": 600}, "slice"),
+    ],
+)
+def test_bad_rhythm_settings_are_config_errors(kwargs, message):
+    with pytest.raises(ConfigError, match=message):
+        RhythmConfig(**kwargs)
+
+
+def test_stack_presets_shapes_spans_and_round_trip():
+    yalta, ltd = PRESETS["yalta2016_rhythm"], PRESETS["listen_to_dance_rhythm"]
+    assert yalta.output_shape == (2, 129, 5) and ltd.output_shape == (209,)
+    assert PRESETS["motion_dance_rhythm"].output_shape == (2, 129, 5)
+    for config in (yalta, ltd):
+        lo, hi = config.span
+        assert 6.4 < -lo / SR < 6.5  # the pulse's window, detrending and first spectrum before the slice
+        assert hi == (779 if config is ltd else 534)  # the mel window reaches 779 samples after the slice start
+        d = json.loads(json.dumps(config.to_dict()))
+        assert d["extractor"] == "stack" and feature_config(d) == config
+    assert yalta.parts[0] == PRESETS["yalta2016"] and ltd.parts[0] == PRESETS["listen_to_dance"]
+    assert (yalta.sample_rate, yalta.slice_samples) == (16000, 534)
+
+
+def test_stacked_features_are_their_parts_concatenated_and_padded_where_any_part_is():
+    audio = random_clicks(2.0, seed=9)
+    starts = np.array([-100, 0, 3000, audio.size - 534, audio.size - 600])
+    for name, axis_len in (("yalta2016_rhythm", 2), ("listen_to_dance_rhythm", 209)):
+        config = PRESETS[name]
+        feats, padded = compute_features(audio, starts, config)
+        parts = [compute_features(audio, starts, p) for p in config.parts]
+        assert feats.shape == (5, *config.output_shape) and feats.shape[1] == axis_len
+        np.testing.assert_array_equal(feats, np.concatenate([f for f, _ in parts], axis=1))
+        np.testing.assert_array_equal(padded, parts[0][1] | parts[1][1])
+    # the mel window reaches 245 samples before the slice and past its end: frame 1 is padded by it alone
+    assert padded.tolist() == [True, True, False, True, True]
+
+
+@pytest.mark.parametrize(
+    "parts, message",
+    [
+        ((StftConfig(),), "at least two parts"),
+        ((StftConfig(), RhythmConfig()), "agree beyond their first axis"),
+        ((MelConfig(), RhythmConfig(columns=5)), "agree beyond their first axis"),
+        ((MelConfig(), RhythmConfig(sample_rate=22050)), "share sample rate and slice"),
+        ((MelConfig(), RhythmConfig(slice_samples=640)), "share sample rate and slice"),
+        ((StackConfig((MelConfig(), RhythmConfig())), MelConfig()), "cannot hold stacked features"),
+    ],
+)
+def test_bad_stacks_are_config_errors(parts, message):
+    with pytest.raises(ConfigError, match=message):
+        StackConfig(parts)
+
+
+def test_bad_stack_dicts_are_config_errors():
+    good = PRESETS["listen_to_dance_rhythm"].to_dict()
+    with pytest.raises(ConfigError, match="list of parts"):
+        feature_config({**good, "extra": 1})
+    with pytest.raises(ConfigError, match="list of parts"):
+        feature_config({"extractor": "stack", "parts": "mel"})
+    with pytest.raises(ConfigError, match="unknown feature extractor"):
+        feature_config({"extractor": "stack", "parts": [{"extractor": "cqt"}, good["parts"][1]]})
+    nested = {"extractor": "stack", "parts": [good, good["parts"][0]]}
+    with pytest.raises(ConfigError, match="cannot hold stacked features"):
+        feature_config(nested)

@@ -1,0 +1,43 @@
+"""``bench_learning --corpus tang2018 PATH`` end to end on a copy made in the corpus's shape (the
+corpus itself has no licence): both models built, trained for a moment, scored on the test
+dances, and issue 25's goals printed with their figures."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+from conftest import REPO
+from corpus_copies import make_tang2018_copy
+
+
+@pytest.mark.slow
+def test_the_real_corpus_benchmark_prints_every_goal(tmp_path, monkeypatch, capsys):
+    monkeypatch.syspath_prepend(str(REPO))
+    from benchmarks.learning_real import run
+
+    corpus = make_tang2018_copy(tmp_path, seconds=8.0)
+    small = {"sequence": 60, "stride": 60, "epochs": 1}
+    changes = {"yalta": {**small, "units": 16}, "cdhc": {**small, "channels": 16, "decoder_channels": 16}}
+    summary = run("tang2018", corpus, tmp_path / "out", 0.01, ["yalta", "cdhc"], 0, bootstrap=0, changes=changes)
+    printed = capsys.readouterr().out
+    for model in ("yalta", "cdhc"):
+        assert f"[{model}] goals:" in printed
+        goals = [goal for goal, _, _ in summary[model]["goals"]]
+        assert goals[:3] == ["a. alive and human", "b. no fixed oscillator", "c. listens"], goals
+        assert any(g.startswith("d. beats the mean pose + noise (bailando)") for g in goals), goals
+        assert any(g.startswith("d. beats the mean pose + noise (aist)") for g in goals), goals
+        assert (tmp_path / "out" / f"learning-real-{model}.png").is_file()
+    saved = json.loads((tmp_path / "out" / "learning_real.json").read_text())
+    assert set(saved) == {"yalta", "cdhc"}
+    assert "model.pt from epoch 1 (lowest free-running validation rhythm loss)" in printed
+
+
+def test_without_a_corpus_the_real_benchmark_says_why_it_is_not_run(monkeypatch, capsys):
+    monkeypatch.syspath_prepend(str(REPO))
+    import benchmarks.bench_learning as bench
+
+    monkeypatch.setattr(bench, "make_corpus", lambda *a, **k: (_ for _ in ()).throw(SystemExit("stop")))
+    with pytest.raises(SystemExit):
+        bench.main(["--minutes", "0.01"])
+    assert "real corpus: not run (--corpus tang2018 PATH" in capsys.readouterr().out

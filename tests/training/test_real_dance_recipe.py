@@ -1,0 +1,202 @@
+"""The parts of the recipe that learns real dance: the free-running rhythm loss, silenced windows,
+keeping the best free-running validation epoch, the papers' settings by name."""
+
+from __future__ import annotations
+
+import csv
+import math
+
+import numpy as np
+import pytest
+import torch
+from conftest import TINY_TRAINING
+
+from kinectdata.core.errors import ConfigError
+from kinectdata.models.losses import masked_energy_loss, masked_rhythm_loss, masked_rhythm_spectrum_loss
+from kinectdata.models.run import load_checkpoint
+from kinectdata.training.config import TrainConfig
+from kinectdata.training.train import train
+
+RECIPE = {**TINY_TRAINING, "sequence": 40, "epochs": 3, "free_weight": 1.0, "silence_share": 0.5, "keep": "best"}
+
+
+def _sines(freqs_hz, phases, frames=300, fps=30.0, amplitude=0.3):
+    t = np.arange(frames) / fps
+    return torch.tensor(
+        np.stack([amplitude * np.sin(2 * np.pi * f * t + p) for f, p in zip(freqs_hz, phases)], axis=1)[None],
+        dtype=torch.float32,
+    )
+
+
+def test_the_rhythm_loss_ignores_phase_but_not_tempo_or_size():
+    real = _sines([0.5, 1.0, 2.0], [0.0, 0.3, 1.0])
+    mask = torch.ones_like(real, dtype=torch.bool)
+    shifted = _sines([0.5, 1.0, 2.0], [2.0, -1.2, 2.9])  # the same moves, other phases
+    faster = _sines([0.65, 1.3, 2.6], [0.0, 0.3, 1.0])  # 30 % faster
+    smaller = real * 0.3
+    still = torch.zeros_like(real)
+    loss = {name: float(masked_rhythm_spectrum_loss(m, real, mask, 30.0)) for name, m in
+            [("same", real), ("shifted", shifted), ("faster", faster), ("smaller", smaller), ("still", still)]}  # fmt: skip
+    assert loss["same"] == pytest.approx(0.0, abs=1e-6)
+    assert loss["shifted"] < 0.15 * min(loss["faster"], loss["smaller"], loss["still"])
+    assert loss["still"] > loss["smaller"] > loss["shifted"]
+
+
+def test_the_rhythm_loss_is_the_documented_spectral_distance():
+    """One component, one window length: the spectral convergence plus the log distance, computed
+    with numpy's FFT over Hann windows of the frame-to-frame changes a quarter apart."""
+    rng = np.random.default_rng(0)
+    a, b = rng.normal(size=(1, 65, 1)).cumsum(axis=1), rng.normal(size=(1, 65, 1)).cumsum(axis=1)
+    mask = np.ones_like(b, bool)
+    got = float(masked_rhythm_spectrum_loss(torch.tensor(a), torch.tensor(b), torch.tensor(mask), 30.0, ffts=(32,)))
+    n, hop, top = 32, 8, int(6.0 * 32 / 30.0) + 1
+    window = 0.5 - 0.5 * np.cos(2 * np.pi * np.arange(n) / n)  # periodic Hann
+
+    def spectra(x):
+        d = np.diff(x[0, :, 0])
+        return np.abs(np.array([np.fft.rfft(d[s : s + n] * window) for s in range(0, d.size - n + 1, hop)]))[:, 1:top]
+
+    X, Y = spectra(a), spectra(b)
+    floor = 1e-2 * Y.mean() + 1e-8
+    expected = np.linalg.norm(X - Y) / np.linalg.norm(Y) + np.abs(np.log(X + floor) - np.log(Y + floor)).mean()
+    assert got == pytest.approx(expected, rel=1e-5)
+
+
+def test_the_energy_loss_is_the_squared_log_ratio_of_mean_squared_changes():
+    real = _sines([0.5, 1.0], [0.0, 0.5])
+    mask = torch.ones_like(real, dtype=torch.bool)
+    twice = float(masked_energy_loss(real * 2.0, real, mask))
+    half = float(masked_energy_loss(real * 0.5, real, mask))
+    steps = np.diff(real[0].numpy(), axis=0)
+    floor = 1e-2 * np.mean(np.mean(steps**2, axis=0))
+    ms = np.mean(steps**2, axis=0)
+    assert twice == pytest.approx(np.mean(np.log((4 * ms + floor) / (ms + floor)) ** 2), rel=1e-5)
+    assert half == pytest.approx(np.mean(np.log((ms / 4 + floor) / (ms + floor)) ** 2), rel=1e-5)
+    assert float(masked_energy_loss(real, real, mask)) == pytest.approx(0.0, abs=1e-9)
+    combined = masked_rhythm_loss(real * 2.0, real, mask, 30.0)
+    assert float(combined) == pytest.approx(
+        float(masked_rhythm_spectrum_loss(real * 2.0, real, mask, 30.0)) + twice, rel=1e-6
+    )
+
+
+def test_the_rhythm_loss_leaves_out_components_invalid_anywhere_in_the_window():
+    real = _sines([0.5, 1.0], [0.0, 0.0])
+    wrong = real.clone()
+    wrong[..., 1] = 0.0  # component 1 stands still
+    mask = torch.ones_like(real, dtype=torch.bool)
+    assert float(masked_rhythm_spectrum_loss(wrong, real, mask, 30.0)) > 0.5
+    mask[0, 10, 1] = False
+    assert float(masked_rhythm_spectrum_loss(wrong, real, mask, 30.0)) == pytest.approx(0.0, abs=1e-6)
+
+
+def test_a_run_keeps_its_best_free_running_epoch(sample_dataset, tmp_path):
+    run = tmp_path / "r"
+    history = train(sample_dataset, run, TrainConfig(**RECIPE))
+    with (run / "log.csv").open() as f:
+        rows = list(csv.DictReader(f))
+    rhythm = [float(r["val_rhythm"]) for r in rows]
+    assert all(math.isfinite(v) for v in rhythm) and len(rows) == 3
+    best = int(np.argmin(rhythm))
+    assert [r["kept"] for r in rows] == ["best" if i == best else "" for i in range(3)]
+    assert [h.get("kept") for h in history] == ["best" if i == best else None for i in range(3)]
+    kept = load_checkpoint(run / "model.pt")["model"]
+    stored = load_checkpoint(run / "checkpoint.pt")
+    assert int(stored["best_epoch"]) == best + 1
+    for name, value in kept.items():
+        assert torch.equal(value, stored["best_model"][name]), name
+    if best != 2:  # the last epoch's weights are the checkpoint's, not the kept ones
+        assert any(not torch.equal(kept[k], stored["model"][k]) for k in kept)
+
+
+def test_a_recipe_run_resumes_to_the_same_weights(sample_dataset, tmp_path):
+    whole, parts = tmp_path / "whole", tmp_path / "parts"
+    train(sample_dataset, whole, TrainConfig(**RECIPE))
+    train(sample_dataset, parts, TrainConfig(**RECIPE), stop_after=1)
+    train(sample_dataset, parts, TrainConfig(**RECIPE), resume=True)
+    a, b = load_checkpoint(whole / "model.pt")["model"], load_checkpoint(parts / "model.pt")["model"]
+    for name in a:
+        assert torch.equal(a[name], b[name]), name
+
+
+@pytest.fixture(scope="module")
+def pulse_mel_dataset(tmp_path_factory):
+    """The sample sessions with log-mel and pulse inputs and maxabs-normalised 3-D positions: what
+    the cdhc model learns real dance from."""
+    from conftest import REPO
+
+    from kinectdata.dataset.build import build_dataset
+    from kinectdata.dataset.config import BuildConfig
+
+    out = tmp_path_factory.mktemp("pulse_mel") / "dataset"
+    config = BuildConfig.from_pipeline(
+        "listen-to-dance", features="listen_to_dance_rhythm", target="kinect_v2_positions", normalisation="maxabs",
+        split_ratios=(1 / 3, 1 / 3, 1 / 3),
+    )  # fmt: skip
+    build_dataset(REPO / "sample_data", out, config)
+    return out
+
+
+def test_the_cdhc_model_trains_free_too(pulse_mel_dataset, tmp_path):
+    config = TrainConfig(
+        "cdhc", channels=16, decoder_channels=16, sequence=40, stride=None, batch_size=4, epochs=1, lr=1e-3,
+        free_weight=1.0, silence_share=0.5, keep="best",
+    )  # fmt: skip
+    history = train(pulse_mel_dataset, tmp_path / "c", config)
+    assert math.isfinite(history[0]["train_loss"]) and history[0]["val_rhythm"] is not None
+
+
+def test_a_model_that_cannot_run_free_in_training_is_refused():
+    from kinectdata.models.kind import ModelKind
+    from kinectdata.models.registry import MODELS
+
+    class Rigid(ModelKind):
+        name = "rigid-test"
+        settings_type = type(TrainConfig().settings)
+
+    MODELS["rigid-test"] = Rigid()
+    try:
+        with pytest.raises(ConfigError, match="the rigid-test model cannot run free in training"):
+            TrainConfig("rigid-test", free_weight=1.0)
+        assert TrainConfig("rigid-test", free_weight=0.0).free_weight == 0.0
+    finally:
+        del MODELS["rigid-test"]
+
+
+@pytest.mark.parametrize(("setting", "value"), [("free_weight", -1.0), ("silence_share", 1.5), ("keep", "first")])
+def test_bad_recipe_settings_are_refused(setting, value):
+    with pytest.raises(ConfigError, match=setting):
+        TrainConfig(**{setting: value})
+
+
+def test_the_bone_loss_measures_stretch_in_metres():
+    """Two joints, one bone: the real bone is 0.5 m long throughout; the prediction's swings between
+    0.4 and 0.6 m (normalised by maxabs-like scales): the loss is its mean |length - 0.5| in metres."""
+    from kinectdata.models.losses import masked_bone_loss
+
+    frames = 20
+    lengths = np.where(np.arange(frames) % 2 == 0, 0.4, 0.6)
+    scale = torch.tensor([2.0, 1.0, 3.0, 2.0, 1.0, 3.0])
+    offset = torch.tensor([0.1, 0.0, -0.2, 0.1, 0.0, -0.2])
+    real = np.zeros((1, frames, 6))
+    real[0, :, 4] = 0.5  # joint 1 half a metre above joint 0
+    made = real.copy()
+    made[0, :, 4] = lengths
+    normalise = lambda x: (torch.tensor(x, dtype=torch.float32) - offset) * scale  # noqa: E731
+    mask = torch.ones(1, frames, 6, dtype=torch.bool)
+    got = float(masked_bone_loss(normalise(made), normalise(real), mask, [(1, 0)], scale, offset))
+    assert got == pytest.approx(np.mean(np.abs(lengths - 0.5)), abs=1e-6)
+    mask[0, 3, 5] = False  # a bone invalid somewhere in the window is not counted
+    assert float(masked_bone_loss(normalise(made), normalise(real), mask, [(1, 0)], scale, offset)) == 0.0
+
+
+def test_position_bones_leave_out_the_root_when_it_is_centred():
+    from kinectdata.core.jointsets import load_joint_set
+    from kinectdata.targets.specs import generic_target
+
+    spec = generic_target("positions", load_joint_set("tang2018"))
+    names = spec.positions
+    everything = {(names[c], names[p]) for c, p in spec.position_bones()}
+    centred = {(names[c], names[p]) for c, p in spec.position_bones(root_centred=True)}
+    assert ("spine", "pelvis") in everything and ("spine", "pelvis") not in centred
+    assert everything - centred == {(j, "pelvis") for j in ("spine",)}
+    assert ("right_knee", "right_hip") in centred and len(everything) == 24
