@@ -35,11 +35,12 @@ from kinectdata.training.train import train
 from .summary import record
 
 BUILDS = {
-    "yalta": {"pipeline": "yalta2016", "normalisation": None},
-    "cdhc": {"pipeline": "listen-to-dance", "normalisation": "maxabs"},
+    "yalta": {"pipeline": "yalta2016", "features": "yalta2016_rhythm", "normalisation": None},
+    "cdhc": {"pipeline": "listen-to-dance", "features": "listen_to_dance_rhythm", "normalisation": "maxabs"},
 }
-"""How each model's dataset of a real corpus is built: its pipeline's features, the corpus's generic
-target (every joint's position, root-centred as the recipe says), normalised into -0.9..0.9."""
+"""How each model's dataset of a real corpus is built: its pipeline's features with the music's pulse
+(as docs/training.md says real dance needs), the corpus's generic target (every joint's position,
+root-centred as the recipe says), normalised into -0.9..0.9."""
 PROTOCOLS = ("bailando", "aist")
 
 
@@ -54,6 +55,7 @@ def build_corpus(corpus: str, path: Path, out: Path, models: list[str]) -> dict[
         how = BUILDS[model]
         config = BuildConfig.from_pipeline(
             how["pipeline"],
+            features=how["features"],
             target=manifest.target,
             normalisation=how["normalisation"],
             root_centre="--root-centre" in manifest.build_options,

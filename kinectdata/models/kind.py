@@ -50,6 +50,23 @@ from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
 
+PAPER_LOOP: dict[str, Any] = {
+    "sequence": 150,
+    "stride": None,
+    "batch_size": 50,
+    "epochs": 10,
+    "lr": 1e-4,
+    "noise_eta": 0.01,
+    "noise_gamma": 0.55,
+    "clip_norm": None,
+    "free_weight": 0.0,
+    "silence_share": 0.0,
+    "keep": "last",
+}
+"""Yalta et al.'s training loop: sequences of 150 (not overlapping), batches of 50, 10 epochs, Adam
+1e-4, annealed gradient noise, the teacher-forced (or fed-back) loss alone, the last epoch kept;
+the base of every model's loop settings (``TrainConfig``'s ``LOOP_DEFAULTS``)."""
+
 
 @dataclass(frozen=True)
 class Sweep:

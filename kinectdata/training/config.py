@@ -13,7 +13,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from kinectdata.core.errors import ConfigError, KinectDataError
-from kinectdata.models.bundled import PAPER_LOOP
+from kinectdata.models.kind import PAPER_LOOP
 from kinectdata.models.registry import DEFAULT_MODEL, make_settings, model_kind
 
 LOOP_DEFAULTS: dict[str, Any] = {

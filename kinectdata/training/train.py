@@ -165,7 +165,9 @@ training loss at least halved since that best epoch, draws a :class:`TrainingWar
 
 
 def validation_warning(history: list[dict]) -> str | None:
-    """What to say when, at the newest epoch, the free-running validation SMAPE has just become
+    """What to say when a free-running validation figure gets worse while the training loss falls:
+    at the newest epoch, the free-running rhythm loss has just risen :data:`RISING_EPOCHS` epochs in
+    a row while the training loss fell, or the free-running SMAPE has just become
     :data:`WORSE_SMAPE_POINTS` worse than its best epoch's while the training loss fell to half of
     that epoch's or less (the model fits the training dances frame by frame and runs worse on its
     own); else None. Said once per streak."""
@@ -180,6 +182,16 @@ def validation_warning(history: list[dict]) -> str | None:
         return best if smape[i] - smape[best] >= WORSE_SMAPE_POINTS and train[i] <= train[best] / 2 else None
 
     last = len(history) - 1
+    rhythm = _losses(history, "val_rhythm")
+    if _rose(rhythm, RISING_EPOCHS) and train[-1] < train[-RISING_EPOCHS - 1]:
+        low = min((k for k in range(last + 1) if math.isfinite(rhythm[k])), key=lambda k: rhythm[k])
+        n, first = RISING_EPOCHS, history[-RISING_EPOCHS - 1]["epoch"]
+        return (
+            f"the free-running validation rhythm loss rose {n} epochs in a row ({rhythm[-n - 1]:.4g} at epoch "
+            f"{first} -> {rhythm[-1]:.4g} at epoch {history[-1]['epoch']}) while the training loss fell: on its own "
+            f"the model dances less like the real dancers; its best epoch is {history[low]['epoch']} "
+            f"({rhythm[low]:.4g}), which --keep best keeps"
+        )
     best = worse(last)
     if best is None or (last > 0 and worse(last - 1) is not None):
         return None
@@ -328,6 +340,8 @@ def validate(
     net.train()
     loss = float(np.average(losses, weights=weights))
     generated, real, masks = np.concatenate(generated), np.concatenate(real), np.concatenate(masks)
+    if body is not None:  # the free runs are numpy arrays: measured on the CPU
+        body = {**body, "scale": body["scale"].cpu(), "offset": body["offset"].cpu()}
     rhythm = float(
         masked_rhythm_loss(
             torch.from_numpy(np.asarray(generated, np.float32)),

@@ -45,7 +45,7 @@ def test_shipped_joint_sets_have_the_documented_sizes():
     sizes = {name: len(load_joint_set(name)) for name in shipped_joint_sets()}
     assert sizes == {
         "kinect_v2": 25, "nite": 15, "azure_kinect": 32, "openpose_mpi": 15, "smpl24": 24,
-        "coco17_tree": 19, "smplh52": 52,
+        "coco17_tree": 19, "smplh52": 52, "tang2018": 25,
     }  # fmt: skip
     assert load_joint_set("openpose_mpi").dimensions == 2
 

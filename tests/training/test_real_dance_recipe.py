@@ -35,8 +35,8 @@ def test_the_rhythm_loss_ignores_phase_but_not_tempo_or_size():
     faster = _sines([0.65, 1.3, 2.6], [0.0, 0.3, 1.0])  # 30 % faster
     smaller = real * 0.3
     still = torch.zeros_like(real)
-    loss = {name: float(masked_rhythm_spectrum_loss(m, real, mask, 30.0)) for name, m in
-            [("same", real), ("shifted", shifted), ("faster", faster), ("smaller", smaller), ("still", still)]}  # fmt: skip
+    motions = {"same": real, "shifted": shifted, "faster": faster, "smaller": smaller, "still": still}
+    loss = {name: float(masked_rhythm_spectrum_loss(m, real, mask, 30.0)) for name, m in motions.items()}
     assert loss["same"] == pytest.approx(0.0, abs=1e-6)
     assert loss["shifted"] < 0.15 * min(loss["faster"], loss["smaller"], loss["still"])
     assert loss["still"] > loss["smaller"] > loss["shifted"]

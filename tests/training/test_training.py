@@ -197,7 +197,8 @@ def test_the_defaults_are_the_recipe_that_learns_real_dance():
 
 
 def test_a_run_written_before_the_rhythm_loss_resumes_without_it():
-    old = {k: v for k, v in TrainConfig(paper=True).to_dict().items() if k not in ("free_weight", "silence_share", "keep")}
+    added = ("free_weight", "silence_share", "keep")
+    old = {k: v for k, v in TrainConfig(paper=True).to_dict().items() if k not in added}
     read = TrainConfig.from_dict(old)
     assert (read.free_weight, read.silence_share, read.keep) == (0.0, 0.0, "last")
 

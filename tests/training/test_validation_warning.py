@@ -66,3 +66,21 @@ def test_missing_or_not_finite_values_say_nothing():
     assert validation_warning([{"epoch": 1, "train_loss": 0.5}, {"epoch": 2, "train_loss": 0.1}]) is None
     # an epoch without validation is not a best epoch; the finite ones are compared
     assert said_at(rows((0.5, nan), (0.4, 19.0), (0.3, None), (0.15, 20.5))) == [4]
+
+
+def test_a_free_running_rhythm_loss_rising_while_training_falls_is_said_once():
+    from kinectdata.training.train import validation_warning
+
+    train = [3.0, 2.5, 2.2, 2.0, 1.9, 1.8]
+    rhythm = [3.0, 2.5, 2.6, 2.7, 2.8, 2.9]
+    rows = [
+        {"epoch": i + 1, "train_loss": t, "val_smape": 50.0, "val_rhythm": r}
+        for i, (t, r) in enumerate(zip(train, rhythm))
+    ]
+    said = [validation_warning(rows[:n]) for n in range(1, 7)]
+    assert said[:4] == [None] * 4 and said[5] is None
+    assert said[4] == (
+        "the free-running validation rhythm loss rose 3 epochs in a row (2.5 at epoch 2 -> 2.8 at epoch 5) while the "
+        "training loss fell: on its own the model dances less like the real dancers; its best epoch is 2 (2.5), which "
+        "--keep best keeps"
+    )
