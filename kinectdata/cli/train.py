@@ -178,14 +178,14 @@ no_checksums_option = click.option(
     is_flag=True,
     help="Start from the model's published settings (yalta: 500 units, its own outputs fed back, Adam 1e-4, "
     "batches of 50, sequences of 150, gradient noise; cdhc: 256 channels, Adam 2e-4, batches of 16) instead of the "
-    "recipe that learns real dance; options typed beside it still apply.",
+    "recipe for real dance; options typed beside it still apply.",
 )
 @no_checksums_option
 @train_options
 def train_baseline(data, out, resume, paper, no_checksums, **options) -> None:
     """Train a registered model on a dataset (by default the dataset's): the DCNN + deep LSTM of
     Yalta et al. (2016) or the CDHC encoder-decoder of Lee et al. (2018). The defaults are the
-    recipe that learns real dance on a CPU (docs/training.md, "Learning real dance": teacher-forced
+    recipe for real dance on a CPU (docs/training.md, "Learning real dance": teacher-forced
     loss plus a free-running rhythm loss, a fifth of the windows silenced, windows of 10 s,
     batches of 8, Adam 1e-3, the best free-running validation epoch kept); --paper gives the
     papers' settings (yalta: Adam 1e-4, MSE, its own outputs fed back, sequences of 150, batches

@@ -26,6 +26,7 @@ from kinectdata.models.losses import masked_mse, masked_velocity_l1, masked_velo
 
 YALTA_ACTIVATIONS = ("tanh", "relu", "elu")
 FEEDBACKS = ("predicted", "teacher")
+PREDICTS = ("pose", "change")
 
 
 REAL_DANCE_LOOP: dict[str, Any] = {
@@ -40,7 +41,7 @@ REAL_DANCE_LOOP: dict[str, Any] = {
     "silence_share": 0.2,
     "keep": "best",
 }
-"""The loop that learns real dance on a CPU (docs/training.md, "Learning real dance"), both models'
+"""The loop for real dance on a CPU (docs/training.md, "Learning real dance"), both models'
 default: windows of 10 s every 2.5 s, many small steps (batches of 8, Adam 1e-3, the gradient's norm
 clipped to 1, no gradient noise), the free-running rhythm loss beside the model's own, a fifth of
 the windows silenced, and the epoch whose free-running validation motion is most like the real
@@ -49,7 +50,7 @@ motion kept."""
 
 @dataclass(frozen=True)
 class YaltaSettings:
-    """The yalta model's settings (defaults: the recipe that learns real dance; the paper's best,
+    """The yalta model's settings (defaults: the recipe for real dance; the paper's best,
     ELU, 500 units and its own previous output fed back, with ``--paper``)."""
 
     units: int = field(default=128, metadata={"help": "LSTM units per layer (the paper: 250, 500, 1000).", "min": 1})
@@ -225,7 +226,7 @@ class YaltaKind(ModelKind):
 
 @dataclass(frozen=True)
 class CdhcSettings:
-    """The cdhc model's settings (defaults: the recipe that learns real dance, 128 channels; the
+    """The cdhc model's settings (defaults: the recipe for real dance, 128 channels; the
     paper's widths with ``--paper``; DC-TTS's dropout)."""
 
     channels: int = field(default=128, metadata={"help": "width of the audio and skeleton encoders.", "min": 1})
@@ -243,8 +244,29 @@ class CdhcSettings:
             "min": 0,
         },
     )
+    predicts: str = field(
+        default="change",
+        metadata={
+            "help": "on normalised targets, the decoder predicts each pose (the paper's) or its change from the "
+            "previous pose (a residual output: the paper's stays at the mean pose on real dance).",
+            "choices": PREDICTS,
+        },
+    )
+    leak: float = field(
+        default=0.05,
+        metadata={
+            "help": "with --predicts change: the share of the previous pose's distance from the mean training pose "
+            "taken back every frame (0: a pure sum of changes, which drifts off the body over a song).",
+            "min": 0,
+            "max": 1,
+        },
+    )
 
     def __post_init__(self) -> None:
+        if not 0 <= self.leak <= 1:
+            raise ConfigError(f"leak must be in 0..1, not {self.leak}")
+        if self.predicts not in PREDICTS:
+            raise ConfigError(f"predicts must be one of {', '.join(PREDICTS)}, not {self.predicts!r}")
         if min(self.channels, self.decoder_channels) < 1 or not 0 <= self.dropout < 1 or self.limb_weight < 0:
             raise ConfigError("channels must be positive, dropout in [0, 1) and limb_weight at least 0")
         if not self.velocity_weight >= 0:
@@ -262,6 +284,7 @@ class CdhcKind(ModelKind):
         "channels": 256,
         "decoder_channels": 128,
         "velocity_weight": 0.0,
+        "predicts": "pose",
         "sequence": 300,
         "stride": None,
         "batch_size": 16,
@@ -317,6 +340,10 @@ class CdhcKind(ModelKind):
 
         spec = TargetSpec.from_dict(manifest["config"]["target"])
         index = {j: i for i, j in enumerate(spec.positions)}
+        if manifest["normalisation"]["method"] == "none":
+            output = "sigmoid"
+        else:
+            output = "residual" if settings.predicts == "change" else "linear"
         return CdhcConfig(
             output_dim=manifest["target_dim"],
             input_dim=manifest["feature_shape"][0],
@@ -326,7 +353,8 @@ class CdhcKind(ModelKind):
             coordinates=spec.dimensions * len(spec.positions),
             joint_dims=spec.dimensions,
             limbs=tuple((index[j], index[p]) for j, p in spec.limb_pairs()),
-            output="sigmoid" if manifest["normalisation"]["method"] == "none" else "linear",
+            output=output,
+            leak=settings.leak if output == "residual" else 0.0,
         ).to_dict()
 
     def build(self, config: dict[str, Any]):

@@ -28,7 +28,11 @@ With the default pose layout (D = 44, ``OPENPOSE_MPI_LIMBS``), the first 30 comp
 ``openpose_mpi`` joints' x, y (Head, Neck, RShoulder, RElbow, RWrist, LShoulder, LElbow, LWrist,
 RHip, RKnee, RAnkle, LHip, LKnee, LAnkle, Chest) and the next 14 the lengths of the links from each
 joint but the root Chest to its parent, all in per-video min-max units. :func:`cdhc_loss` is the L1
-loss plus the limb-length loss; :func:`generate` runs the network autoregressively with
+loss plus the limb-length loss. With ``output="residual"`` the decoder's last layer gives the change
+from the previous pose, added to it (a residual connection to the output as in Martinez, Black,
+Romero 2017, "On human motion prediction using recurrent neural networks"): on real dance the
+paper's output, which must rebuild the whole pose from the codes, stays at the mean pose for
+hundreds of steps (docs/training.md). :func:`generate` runs the network autoregressively with
 :class:`StreamingCdhc`, one frame at a time with per-layer caches (O(T), not O(T^2)).
 """
 
@@ -62,7 +66,7 @@ OPENPOSE_MPI_LIMBS = (
 """The 14 limbs of ``openpose_mpi`` as (joint, parent) indices into its 15 joints."""
 
 
-OUTPUTS = ("sigmoid", "linear")
+OUTPUTS = ("sigmoid", "linear", "residual")
 
 
 @dataclass(frozen=True)
@@ -83,7 +87,11 @@ class CdhcConfig:
         limbs: (joint, parent) index pairs; limb i's target length is component ``coordinates + i``.
             Empty: no limb-length loss.
         output: the last layer's activation: ``sigmoid`` for targets in 0..1 (the paper's per-video
-            min-max coordinates), ``linear`` for targets normalised into -0.9..0.9 (any other dataset).
+            min-max coordinates), ``linear`` for targets normalised into -0.9..0.9 (any other dataset),
+            ``residual`` for those too, the linear output being the change from the previous pose.
+        leak: under a residual output, the share of the previous pose's distance from the anchor
+            (the mean training pose, :func:`init_output_bias`) taken back every frame, 0..1: a pure
+            sum of changes (0) drifts off the body over a song.
     """
 
     output_dim: int
@@ -98,8 +106,11 @@ class CdhcConfig:
     joint_dims: int = 2
     limbs: tuple[tuple[int, int], ...] = OPENPOSE_MPI_LIMBS
     output: str = "sigmoid"
+    leak: float = 0.0
 
     def __post_init__(self) -> None:
+        if not 0.0 <= self.leak <= 1.0:
+            raise KinectDataError(f"CDHC config: leak must be in 0..1, not {self.leak}")
         if self.output not in OUTPUTS:
             raise KinectDataError(f"CDHC config: output must be one of {', '.join(OUTPUTS)}, not {self.output!r}")
         sizes = {k: getattr(self, k) for k in ("output_dim", "input_dim", "channels", "decoder_channels")}
@@ -269,6 +280,13 @@ class CdhcNet(nn.Module):
         self.audio_encoder = Encoder(config.input_dim, config)
         self.skeleton_encoder = Encoder(config.output_dim, config)
         self.decoder = Decoder(config)
+        if config.output == "residual":  # the pose a leaky residual output returns to (init_output_bias)
+            self.register_buffer("anchor", torch.zeros(config.output_dim))
+
+    def add_change(self, change: torch.Tensor, previous: torch.Tensor) -> torch.Tensor:
+        """A residual output's pose [..., D]: ``previous + change - leak * (previous - anchor)``."""
+        leak = self.config.leak
+        return previous + change - leak * (previous - self.anchor) if leak else previous + change
 
     @property
     def receptive_field(self) -> int:
@@ -293,6 +311,8 @@ class CdhcNet(nn.Module):
         a, _ = self.audio_encoder(audio)
         s, _ = self.skeleton_encoder(previous)
         poses = self.decoder(a, s)[0]
+        if self.config.output == "residual":
+            poses = self.add_change(poses, previous)
         if not free:
             return poses
         stream = StreamingCdhc(self)
@@ -348,6 +368,8 @@ class StreamingCdhc(nn.Module):
         n = len(self.net.skeleton_encoder.blocks)
         s, skeleton_caches = self.net.skeleton_encoder(previous, pose_caches[:n])
         pose, decoder_caches = self.net.decoder(code, s, pose_caches[n:])
+        if self.net.config.output == "residual":
+            pose = self.net.add_change(pose, previous)
         return pose, skeleton_caches + decoder_caches
 
     def forward(
@@ -453,7 +475,8 @@ def generate_many(
 def init_output_bias(net: CdhcNet, mean_pose: torch.Tensor | np.ndarray) -> None:
     """Set the last convolution's bias so that a net whose last layer's input is near zero starts
     at the mean pose: logit(``mean_pose`` clipped to 0.01..0.99) under a sigmoid output (``mean_pose``
-    [D] in 0..1), the mean pose itself under a linear one."""
+    [D] in 0..1), the mean pose itself under a linear one; under a residual output, no change (0),
+    and the mean pose becomes the anchor its leak returns to."""
     mean = np.asarray(torch.as_tensor(mean_pose).detach().cpu(), dtype=np.float64)
     if mean.shape != (net.config.output_dim,):
         raise KinectDataError(f"CDHC mean pose must be [{net.config.output_dim}], not {list(mean.shape)}")
@@ -461,9 +484,11 @@ def init_output_bias(net: CdhcNet, mean_pose: torch.Tensor | np.ndarray) -> None
         bad = np.flatnonzero(~np.isfinite(mean)).tolist()
         raise KinectDataError(f"CDHC mean pose: components {bad} are not finite (never valid in the data?)")
     p = np.clip(mean, 0.01, 0.99)
-    bias = np.log(p / (1.0 - p)) if net.config.output == "sigmoid" else mean
+    bias = {"sigmoid": np.log(p / (1.0 - p)), "linear": mean, "residual": np.zeros_like(mean)}[net.config.output]
     with torch.no_grad():
         net.decoder.output.bias.copy_(torch.from_numpy(bias))
+        if net.config.output == "residual":
+            net.anchor.copy_(torch.from_numpy(mean))
 
 
 def _limb_ends(config: CdhcConfig, device: torch.device) -> tuple[torch.Tensor, torch.Tensor]:

@@ -27,8 +27,8 @@ LOOP_DEFAULTS: dict[str, Any] = {
 ``training_defaults`` change them)."""
 
 KEEPS = ("last", "best")
-ADDED_OFF = {"free_weight": 0.0, "silence_share": 0.0, "keep": "last"}
-"""Loop settings added after runs were written: a run's config.json without them trained without
+ADDED_OFF = {"free_weight": 0.0, "silence_share": 0.0, "keep": "last", "predicts": "pose"}
+"""Loop (and model) settings added after runs were written: a run's config.json without them trained without
 them, whatever today's defaults are (resuming it goes on as it started)."""
 
 FLAT_BEFORE = ("units", "activation", "feedback", "channels", "decoder_channels", "dropout", "limb_weight")
@@ -175,7 +175,7 @@ class TrainConfig:
         unknown = sorted(set(d) - set(LOOP_DEFAULTS) - own - set(FLAT_BEFORE))
         if unknown:
             raise ConfigError(f"unknown training settings {', '.join(unknown)} for the {kind.name} model")
-        old = {k: v for k, v in ADDED_OFF.items() if k not in d}
+        old = {k: v for k, v in ADDED_OFF.items() if k not in d and (k in LOOP_DEFAULTS or k in own)}
         return cls(kind.name, **old, **{k: v for k, v in d.items() if k in LOOP_DEFAULTS or k in own})
 
     def resolved_device(self):

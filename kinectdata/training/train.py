@@ -206,11 +206,16 @@ def validation_warning(history: list[dict]) -> str | None:
 
 def ending_warning(history: list[dict], lr: float) -> str | None:
     """What to say when a finished run's training or validation loss ended above where it started
-    (its first epoch's); else None."""
+    (its first epoch's); else None. A run with the free-running loss is judged on its free-running
+    validation rhythm loss: its teacher-forced validation loss can sit where it started while it
+    learns to dance on its own (a model predicting the change from the previous pose copies that
+    pose from its first epoch)."""
     if len(history) < 2:
         return None
     said = []
-    for key, name in (("train_loss", "training"), ("val_loss", "validation")):
+    free = any(math.isfinite(v) for v in _losses(history, "val_rhythm"))
+    validation = ("val_rhythm", "free-running validation rhythm") if free else ("val_loss", "validation")
+    for key, name in (("train_loss", "training"), validation):
         losses = _losses(history, key)
         first, last = losses[0], losses[-1]
         if math.isfinite(first) and (last > first or math.isinf(last)):

@@ -1,5 +1,6 @@
 """The CDHC network's output layer: a sigmoid for targets in 0..1 (the paper's), a linear one for
-normalised targets of any dataset, and which datasets the cdhc model takes."""
+normalised targets of any dataset or, by default on those, the change from the previous pose (a
+residual output), and which datasets the cdhc model takes."""
 
 from __future__ import annotations
 
@@ -27,7 +28,7 @@ def one_thread():
     torch.set_num_threads(threads)
 
 
-def small(output: str, seed: int = 0) -> CdhcNet:
+def small(output: str, seed: int = 0, leak: float = 0.0) -> CdhcNet:
     torch.manual_seed(seed)
     config = CdhcConfig(
         output_dim=D,
@@ -38,6 +39,7 @@ def small(output: str, seed: int = 0) -> CdhcNet:
         joint_dims=3,
         limbs=((1, 0),) * 2,
         output=output,
+        leak=leak,
     )
     return CdhcNet(config).eval()
 
@@ -47,8 +49,10 @@ def inputs(T: int = 12, scale: float = 1.0):
     return scale * torch.rand(2, T, F, generator=g), scale * torch.rand(2, T, D, generator=g)
 
 
-def test_the_output_is_sigmoid_or_linear_and_old_configs_are_sigmoid():
-    with pytest.raises(KinectDataError, match="CDHC config: output must be one of sigmoid, linear, not 'tanh'"):
+def test_the_output_is_sigmoid_linear_or_residual_and_old_configs_are_sigmoid():
+    with pytest.raises(
+        KinectDataError, match="CDHC config: output must be one of sigmoid, linear, residual, not 'tanh'"
+    ):
         CdhcConfig(output_dim=44, input_dim=80, output="tanh")
     config = CdhcConfig(output_dim=8, input_dim=5, coordinates=6, joint_dims=3, limbs=((1, 0), (1, 0)), output="linear")
     assert CdhcConfig.from_dict(json.loads(json.dumps(config.to_dict()))) == config
@@ -113,10 +117,11 @@ def test_cdhc_takes_normalised_3d_positions_even_root_centred(root_centre):
         found = manifest("kinect_v2_positions", method, root_centre)  # 25 joints in 3-D, no limbs
         kind.check_dataset(found)
         config = kind.network_config(settings, found)
-        assert config["output"] == "linear" and config["joint_dims"] == 3 and config["coordinates"] == 75
+        assert config["output"] == "residual" and config["joint_dims"] == 3 and config["coordinates"] == 75
         assert config["limbs"] == []
-        net = kind.build(config)
-        assert net.config.output == "linear"
+        assert kind.build(config).config.output == "residual"
+        paper = kind.network_config(kind.settings_type(channels=8, decoder_channels=8, predicts="pose"), found)
+        assert kind.build(paper).config.output == "linear"
 
 
 def test_cdhc_refuses_unnormalised_targets_unless_scaled_per_recording():
@@ -135,3 +140,64 @@ def test_cdhc_refuses_unnormalised_targets_unless_scaled_per_recording():
     # its limbs are measured between its coordinates: root-centring is still refused
     with pytest.raises(ConfigError, match="without --root-centre"):
         kind.check_dataset(manifest("listen_to_dance", "none", root_centre=True))
+
+
+def test_a_residual_output_adds_the_linear_output_to_the_previous_pose():
+    """The same weights: residual(audio, previous) == linear(audio, previous) + previous, and at
+    initialisation (bias 0, last weights 0) the pose stays where it was."""
+    linear, residual = small("linear", seed=4), small("residual", seed=4)
+    residual.load_state_dict({**linear.state_dict(), "anchor": residual.anchor})
+    audio, previous = inputs()
+    with torch.no_grad():
+        np.testing.assert_allclose(
+            residual(audio, previous).numpy(), (linear(audio, previous) + previous).numpy(), atol=1e-6
+        )
+        init_output_bias(residual, np.full(D, 0.7))
+        assert not residual.decoder.output.bias.any()
+        residual.decoder.output.weight.zero_()
+        np.testing.assert_allclose(residual(audio, previous).numpy(), previous.numpy(), atol=1e-7)
+
+
+def test_a_residual_net_runs_free_as_a_loop_feeding_back_its_sums():
+    """generate() from a first pose equals a loop over the full-sequence forward, each step fed the
+    poses made so far (an independent computation: O(T^2) teacher-forced passes), and the training
+    forward's free run equals generate()."""
+    from kinectdata.models.cdhc import generate
+
+    net = small("residual", seed=5)
+    audio = inputs(T=9)[0][0]
+    first = torch.linspace(-0.5, 0.5, D)
+    made = generate(net, audio, first)
+    poses = [first]
+    with torch.no_grad():
+        for t in range(len(audio)):
+            previous = torch.stack(poses)[None]  # poses of frames -1 .. t-1
+            poses.append(net(audio[None, : t + 1], previous)[0, t])
+    np.testing.assert_allclose(made, torch.stack(poses[1:]).numpy(), atol=1e-5)
+    with torch.no_grad():
+        _, free = net(audio[None], torch.cat([first[None], torch.zeros(len(audio) - 1, D)])[None], free=True)
+    np.testing.assert_allclose(free[0].numpy(), made, atol=1e-5)
+
+
+def test_a_leaky_residual_output_takes_back_a_share_of_the_distance_from_the_mean_pose():
+    """pose = previous + change - leak * (previous - anchor), the anchor being the mean pose given
+    to init_output_bias; a network whose change is 0 decays to the mean pose geometrically."""
+    from kinectdata.models.cdhc import generate
+
+    linear, leaky = small("linear", seed=6), small("residual", seed=6, leak=0.25)
+    mean = np.linspace(-0.4, 0.4, D)
+    init_output_bias(leaky, mean)
+    state = {k: v for k, v in leaky.state_dict().items() if k != "anchor"}
+    linear.load_state_dict(state)
+    np.testing.assert_allclose(leaky.anchor.numpy(), mean, atol=1e-7)
+    audio, previous = inputs()
+    with torch.no_grad():
+        expected = linear(audio, previous) + previous - 0.25 * (previous - torch.as_tensor(mean, dtype=torch.float32))
+        np.testing.assert_allclose(leaky(audio, previous).numpy(), expected.numpy(), atol=1e-6)
+        leaky.decoder.output.weight.zero_()
+    first = np.full(D, 0.8, dtype=np.float32)
+    made = generate(leaky, audio[0], first)
+    steps = np.arange(1, len(made) + 1)[:, None]
+    np.testing.assert_allclose(made, mean + (first - mean) * 0.75**steps, atol=1e-5)
+    with pytest.raises(KinectDataError, match="leak must be in 0..1"):
+        CdhcConfig(output_dim=D, input_dim=F, output="residual", leak=1.5)

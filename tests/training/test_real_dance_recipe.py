@@ -1,4 +1,4 @@
-"""The parts of the recipe that learns real dance: the free-running rhythm loss, silenced windows,
+"""The parts of the recipe for real dance: the free-running rhythm loss, silenced windows,
 keeping the best free-running validation epoch, the papers' settings by name."""
 
 from __future__ import annotations
@@ -73,9 +73,13 @@ def test_the_energy_loss_is_the_squared_log_ratio_of_mean_squared_changes():
     assert twice == pytest.approx(np.mean(np.log((4 * ms + floor) / (ms + floor)) ** 2), rel=1e-5)
     assert half == pytest.approx(np.mean(np.log((ms / 4 + floor) / (ms + floor)) ** 2), rel=1e-5)
     assert float(masked_energy_loss(real, real, mask)) == pytest.approx(0.0, abs=1e-9)
+    from kinectdata.models.losses import POSTURE_WEIGHT, masked_posture_loss
+
     combined = masked_rhythm_loss(real * 2.0, real, mask, 30.0)
+    posture = float(masked_posture_loss(real * 2.0, real, mask))
+    assert posture > 0.1  # twice the spread
     assert float(combined) == pytest.approx(
-        float(masked_rhythm_spectrum_loss(real * 2.0, real, mask, 30.0)) + twice, rel=1e-6
+        float(masked_rhythm_spectrum_loss(real * 2.0, real, mask, 30.0)) + twice + POSTURE_WEIGHT * posture, rel=1e-6
     )
 
 
@@ -168,9 +172,9 @@ def test_bad_recipe_settings_are_refused(setting, value):
         TrainConfig(**{setting: value})
 
 
-def test_the_bone_loss_measures_stretch_in_metres():
+def test_the_bone_loss_measures_stretch_as_a_share_of_the_bone():
     """Two joints, one bone: the real bone is 0.5 m long throughout; the prediction's swings between
-    0.4 and 0.6 m (normalised by maxabs-like scales): the loss is its mean |length - 0.5| in metres."""
+    0.4 and 0.6 m (normalised by maxabs-like scales): the loss is its mean |length - 0.5| / 0.5."""
     from kinectdata.models.losses import masked_bone_loss
 
     frames = 20
@@ -184,7 +188,7 @@ def test_the_bone_loss_measures_stretch_in_metres():
     normalise = lambda x: (torch.tensor(x, dtype=torch.float32) - offset) * scale  # noqa: E731
     mask = torch.ones(1, frames, 6, dtype=torch.bool)
     got = float(masked_bone_loss(normalise(made), normalise(real), mask, [(1, 0)], scale, offset))
-    assert got == pytest.approx(np.mean(np.abs(lengths - 0.5)), abs=1e-6)
+    assert got == pytest.approx(np.mean(np.abs(lengths - 0.5)) / 0.5, abs=1e-6)
     mask[0, 3, 5] = False  # a bone invalid somewhere in the window is not counted
     assert float(masked_bone_loss(normalise(made), normalise(real), mask, [(1, 0)], scale, offset)) == 0.0
 
@@ -200,3 +204,25 @@ def test_position_bones_leave_out_the_root_when_it_is_centred():
     assert ("spine", "pelvis") in everything and ("spine", "pelvis") not in centred
     assert everything - centred == {(j, "pelvis") for j in ("spine",)}
     assert ("right_knee", "right_hip") in centred and len(everything) == 24
+
+
+def test_the_posture_loss_compares_means_and_spreads_not_timing():
+    """Known answers: the same motion late by a quarter period costs nothing; a copy moved by 0.3
+    costs 0.3; a still copy costs its spread (the std of a sine of amplitude a is a / sqrt(2));
+    frames masked out do not count."""
+    from kinectdata.models.losses import masked_posture_loss
+
+    t = torch.arange(300, dtype=torch.float32) / 30.0
+    real = (0.5 * torch.sin(2 * np.pi * t))[None, :, None].repeat(1, 1, 2)  # whole periods: mean 0
+    mask = torch.ones_like(real, dtype=torch.bool)
+    late = (0.5 * torch.cos(2 * np.pi * t))[None, :, None].repeat(1, 1, 2)
+    assert float(masked_posture_loss(late, real, mask)) == pytest.approx(0.0, abs=1e-4)
+    assert float(masked_posture_loss(real + 0.3, real, mask)) == pytest.approx(0.3, abs=1e-5)
+    still = torch.zeros_like(real)
+    assert float(masked_posture_loss(still, real, mask)) == pytest.approx(0.5 / np.sqrt(2), abs=1e-3)
+    wild = real.clone()
+    wild[:, 150:] = 100.0
+    mask[:, 150:] = False
+    assert float(masked_posture_loss(wild, real, mask)) == pytest.approx(
+        float(masked_posture_loss(real[:, :150], real[:, :150], mask[:, :150])), abs=1e-6
+    )

@@ -293,6 +293,15 @@ def test_a_loss_that_ends_above_where_it_started_is_said_at_the_end():
     assert "training loss ended above" in said and "validation" not in said
     assert ending_warning(rows([0.5, 0.9], [None, None])[:1], 1e-3) is None  # one epoch: nothing to compare
     assert "training loss ended above" in ending_warning(rows([0.5, math.inf], [0.6, 0.5]), 1e-3)
+    # with the free-running loss, its validation figure is what is judged: C3's teacher-forced
+    # validation loss (0.0188 -> 0.0199) rose while its free-running rhythm loss fell (40.1 -> 15.4)
+    learned = [
+        {**r, "val_rhythm": v} for r, v in zip(rows([196.5, 26.7, 12.3], [0.0188, 0.0190, 0.0199]), [40.1, 23.7, 15.4])
+    ]
+    assert ending_warning(learned, 1e-3) is None
+    learned[-1]["val_rhythm"] = 41.0
+    said = ending_warning(learned, 1e-3)
+    assert said.startswith("the free-running validation rhythm loss ended above where it started (40.1 at epoch 1")
 
 
 def test_train_says_how_the_losses_ended(sample_dataset, tmp_path, monkeypatch):
