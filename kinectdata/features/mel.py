@@ -29,7 +29,6 @@ same whatever the chunking and however the audio is streamed.
 
 from __future__ import annotations
 
-import dataclasses
 import functools
 from dataclasses import dataclass
 from typing import Any, ClassVar
@@ -37,6 +36,7 @@ from typing import Any, ClassVar
 import numpy as np
 
 from kinectdata.core.errors import ConfigError
+from kinectdata.features.config_dict import config_from_dict, config_to_dict
 
 __all__ = ["MelConfig", "mel_features", "mel_filterbank"]
 
@@ -95,22 +95,12 @@ class MelConfig:
 
     def to_dict(self) -> dict[str, Any]:
         """A JSON-able dict of every field, with ``"extractor": "mel"``."""
-        d = {"extractor": self.extractor, **dataclasses.asdict(self)}
-        d["db_range"] = list(d["db_range"])
-        return d
+        return config_to_dict(self)
 
     @classmethod
     def from_dict(cls, d: dict[str, Any]) -> MelConfig:
         """The config of a :meth:`to_dict` dict; unknown keys raise ConfigError."""
-        kw = {k: v for k, v in d.items() if k != "extractor"}
-        if d.get("extractor", cls.extractor) != cls.extractor:
-            raise ConfigError(f"not a mel configuration (extractor {d['extractor']!r})")
-        unknown = sorted(set(kw) - {f.name for f in dataclasses.fields(cls)})
-        if unknown:
-            raise ConfigError(f"unknown MelConfig keys: {unknown}")
-        if "db_range" in kw:
-            kw["db_range"] = tuple(kw["db_range"])
-        return cls(**kw)
+        return config_from_dict(cls, d, "a mel")
 
 
 def _hz_to_mel(hz: np.ndarray) -> np.ndarray:

@@ -37,7 +37,6 @@ one onset envelope each.
 
 from __future__ import annotations
 
-import dataclasses
 import functools
 from dataclasses import dataclass
 from typing import Any, ClassVar
@@ -45,6 +44,7 @@ from typing import Any, ClassVar
 import numpy as np
 
 from kinectdata.core.errors import ConfigError
+from kinectdata.features.config_dict import config_from_dict, config_to_dict
 
 __all__ = ["RhythmConfig", "rhythm_features"]
 
@@ -153,22 +153,12 @@ class RhythmConfig:
 
     def to_dict(self) -> dict[str, Any]:
         """A JSON-able dict of every field, with ``"extractor": "rhythm"``."""
-        d = {"extractor": self.extractor, **dataclasses.asdict(self)}
-        d["tempo_range_bpm"] = list(d["tempo_range_bpm"])
-        return d
+        return config_to_dict(self)
 
     @classmethod
     def from_dict(cls, d: dict[str, Any]) -> RhythmConfig:
         """The config of a :meth:`to_dict` dict; unknown keys raise ConfigError."""
-        kw = {k: v for k, v in d.items() if k != "extractor"}
-        if d.get("extractor", cls.extractor) != cls.extractor:
-            raise ConfigError(f"not a rhythm configuration (extractor {d['extractor']!r})")
-        unknown = sorted(set(kw) - {f.name for f in dataclasses.fields(cls)})
-        if unknown:
-            raise ConfigError(f"unknown RhythmConfig keys: {unknown}")
-        if "tempo_range_bpm" in kw:
-            kw["tempo_range_bpm"] = tuple(kw["tempo_range_bpm"])
-        return cls(**kw)
+        return config_from_dict(cls, d, "a rhythm")
 
 
 @functools.lru_cache(maxsize=8)

@@ -87,7 +87,6 @@ the segment; ``tests/test_features.py`` checks this.
 
 from __future__ import annotations
 
-import dataclasses
 import functools
 import math
 from dataclasses import dataclass
@@ -97,6 +96,7 @@ import numpy as np
 from numpy.lib.stride_tricks import sliding_window_view
 
 from kinectdata.core.errors import ConfigError
+from kinectdata.features.config_dict import config_from_dict, config_to_dict
 
 __all__ = ["PRESETS", "StftConfig", "stft_features"]
 
@@ -231,27 +231,13 @@ class StftConfig:
 
     def to_dict(self) -> dict[str, Any]:
         """A JSON-able dict of every field (tuples as lists); :meth:`from_dict` inverts it exactly."""
-        d = dataclasses.asdict(self)
-        for name in ("db_range", "out_range"):
-            d[name] = list(d[name])
-        return d
+        return config_to_dict(self, with_extractor=False)
 
     @classmethod
     def from_dict(cls, d: dict[str, Any]) -> StftConfig:
         """The config of a :meth:`to_dict` dict (also after a JSON round trip). Missing keys take
         their defaults; unknown keys raise ConfigError. An ``"extractor"`` key must say ``"stft"``."""
-        if d.get("extractor", cls.extractor) != cls.extractor:
-            raise ConfigError(f"not an STFT configuration (extractor {d['extractor']!r})")
-        d = {k: v for k, v in d.items() if k != "extractor"}
-        names = {f.name for f in dataclasses.fields(cls)}
-        unknown = sorted(set(d) - names)
-        if unknown:
-            raise ConfigError(f"unknown StftConfig keys: {unknown}")
-        kw = dict(d)
-        for name in ("db_range", "out_range"):
-            if name in kw:
-                kw[name] = tuple(kw[name])
-        return cls(**kw)
+        return config_from_dict(cls, d, "an STFT")
 
 
 PRESETS: dict[str, StftConfig] = {

@@ -1,0 +1,39 @@
+"""Feature configurations to and from JSON-able dicts (a dataset manifest's ``config.features``):
+one place for what every extractor's config does alike."""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import Any
+
+from kinectdata.core.errors import ConfigError
+
+
+def _tuple_fields(cls: type) -> list[str]:
+    """The fields declared as tuples (lists in JSON)."""
+    return [f.name for f in dataclasses.fields(cls) if str(f.type).startswith("tuple")]
+
+
+def config_to_dict(config: Any, *, with_extractor: bool = True) -> dict[str, Any]:
+    """Every field of a feature config dataclass, tuples as lists; first ``"extractor"``: the
+    class's ``extractor`` name (unless ``with_extractor`` is False)."""
+    d = dataclasses.asdict(config)
+    for name in _tuple_fields(type(config)):
+        d[name] = list(d[name])
+    return {"extractor": config.extractor, **d} if with_extractor else d
+
+
+def config_from_dict(cls: type, d: dict[str, Any], kind: str) -> Any:
+    """The ``cls`` config of a :func:`config_to_dict` dict (also after a JSON round trip); missing
+    keys take their defaults. ConfigError naming ``kind`` (e.g. "an STFT") when an ``"extractor"``
+    key names another extractor, or the class when a key is unknown."""
+    if d.get("extractor", cls.extractor) != cls.extractor:
+        raise ConfigError(f"not {kind} configuration (extractor {d['extractor']!r})")
+    kw = {k: v for k, v in d.items() if k != "extractor"}
+    unknown = sorted(set(kw) - {f.name for f in dataclasses.fields(cls)})
+    if unknown:
+        raise ConfigError(f"unknown {cls.__name__} keys: {unknown}")
+    for name in _tuple_fields(cls):
+        if name in kw:
+            kw[name] = tuple(kw[name])
+    return cls(**kw)
