@@ -218,21 +218,34 @@ def train_and_score(
 
 def learning_curves(history: list[dict[str, Any]], path: Path, title: str) -> Path:
     """Training and validation loss, and the test songs' beat figures, per epoch."""
+
+    def beats(bottom, epochs):
+        in_metre = [r["test_in_metre"] for r in history]
+        bottom.plot(epochs, in_metre, label="test songs with the period at a metrical level")
+        bottom.plot(epochs, [r["test_beat_align"] for r in history], label="Beat Align Score")
+        bottom.plot(epochs, [r["test_beat_align_chance"] for r in history], "--", label="its chance level")
+        bottom.set_ylim(0, 1.05)
+
+    return loss_figure(history, path, title, ("training loss", "validation loss"), beats)
+
+
+def loss_figure(
+    history: list[dict[str, Any]], path: Path, title: str, labels: tuple[str, str], draw_bottom: Any
+) -> Path:
+    """A learning-curve figure saved at ``path``: training and validation loss per epoch on top (log
+    scale, ``labels``), below what ``draw_bottom(axes, epochs)`` draws."""
     from kinectdata.core.figures import pyplot
 
     plt = pyplot()
     epochs = [r["epoch"] for r in history]
     fig, (top, bottom) = plt.subplots(2, 1, figsize=(8, 6), sharex=True)
-    top.plot(epochs, [r["train_loss"] for r in history], label="training loss")
-    top.plot(epochs, [r["val_loss"] for r in history], label="validation loss")
+    top.plot(epochs, [r["train_loss"] for r in history], label=labels[0])
+    top.plot(epochs, [r["val_loss"] for r in history], label=labels[1])
     top.set_yscale("log")
     top.legend()
     top.set_title(title)
-    bottom.plot(epochs, [r["test_in_metre"] for r in history], label="test songs with the period at a metrical level")
-    bottom.plot(epochs, [r["test_beat_align"] for r in history], label="Beat Align Score")
-    bottom.plot(epochs, [r["test_beat_align_chance"] for r in history], "--", label="its chance level")
+    draw_bottom(bottom, epochs)
     bottom.set_xlabel("epoch")
-    bottom.set_ylim(0, 1.05)
     bottom.legend(fontsize=8)
     fig.tight_layout()
     fig.savefig(path, dpi=100)

@@ -32,6 +32,7 @@ from kinectdata.evaluation.evaluate import evaluate, format_results
 from kinectdata.training.config import TrainConfig
 from kinectdata.training.train import train
 
+from .bench_learning import loss_figure
 from .summary import record
 
 BUILDS = {
@@ -205,27 +206,16 @@ def run(
 def curves(history: list[dict[str, Any]], path: Path, title: str) -> Path:
     """Training and validation loss (top), the free-running validation rhythm loss with the kept
     epoch marked (bottom), per epoch."""
-    from kinectdata.core.figures import pyplot
 
-    plt = pyplot()
-    epochs = [r["epoch"] for r in history]
-    fig, (top, bottom) = plt.subplots(2, 1, figsize=(8, 6), sharex=True)
-    top.plot(epochs, [r["train_loss"] for r in history], label="training loss (teacher + rhythm)")
-    top.plot(epochs, [r["val_loss"] for r in history], label="validation loss (teacher)")
-    top.set_yscale("log")
-    top.legend()
-    top.set_title(title)
-    bottom.plot(epochs, [r["val_rhythm"] for r in history], label="free-running validation rhythm loss")
-    kept = [r["epoch"] for r in history if r.get("kept")]
-    if kept:
-        value = next(r["val_rhythm"] for r in history if r["epoch"] == kept[0])
-        bottom.plot(kept, [value], "o", label=f"kept: epoch {kept[0]}")
-    bottom.set_xlabel("epoch")
-    bottom.legend(fontsize=8)
-    fig.tight_layout()
-    fig.savefig(path, dpi=100)
-    plt.close(fig)
-    return path
+    def rhythm(bottom, epochs):
+        bottom.plot(epochs, [r["val_rhythm"] for r in history], label="free-running validation rhythm loss")
+        kept = [r["epoch"] for r in history if r.get("kept")]
+        if kept:
+            value = next(r["val_rhythm"] for r in history if r["epoch"] == kept[0])
+            bottom.plot(kept, [value], "o", label=f"kept: epoch {kept[0]}")
+
+    labels = ("training loss (teacher + rhythm)", "validation loss (teacher)")
+    return loss_figure(history, path, title, labels, rhythm)
 
 
 def _num(v: Any) -> str:
