@@ -49,10 +49,16 @@ SAMPLE_COMMAND = "kinectdata synth sample_data --seed 1 --count 3 --duration 22"
 """The command that made ``sample_data/`` (also run by the quickstart when the folder is absent)."""
 
 FRAME_S = 1 / 30
-SYNTHETIC_LOOP = {"stride": None, "free_weight": 0.0, "silence_share": 0.0, "keep": "last"}
+SYNTHETIC_LOOP = {
+    "stride": None,
+    "free_weight": 0.0,
+    "silence_share": 0.0,
+    "keep": "last",
+    "inputs": "music-and-poses",
+}
 """What the synthetic recipe leaves out of the real-dance defaults: non-overlapping windows, the
-teacher-forced loss alone, no silenced windows, the last epoch kept (docs/training.md, "Learning
-the beat": it learns the synthetic dancer, not real dance)."""
+teacher-forced loss alone, no silenced windows, the last epoch kept, the previous poses given to
+the decoder (docs/training.md, "Learning the beat": it learns the synthetic dancer, not real dance)."""
 
 QUICK_TRAINING = {
     **SYNTHETIC_LOOP,

@@ -50,6 +50,12 @@ _LOOP_OPTIONS = (
         "spectra of its motion's changes are matched to the real motion's (how much and how often it moves); 0: none.",
     ),
     (
+        "posture_weight",
+        click.FloatRange(min=0),
+        "Weight of the postures in the free-running loss: each coordinate's mean and spread over the window against "
+        "the real motion's.",
+    ),
+    (
         "silence_share",
         click.FloatRange(0, 1),
         "Share of training windows whose music goes silent from a random frame on, the pose held (to stop in silence).",

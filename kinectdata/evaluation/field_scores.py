@@ -34,7 +34,7 @@ from kinectdata.evaluation.metrics import (
     peer_motion_beats,
     standardise_by_reference,
 )
-from kinectdata.evaluation.metrics.distribution import Interval
+from kinectdata.evaluation.metrics.distribution import FAR_FEATURE, Interval, far_from_reference_features
 from kinectdata.evaluation.metrics.foot_contact import SCALE as PFC_SCALE
 from kinectdata.evaluation.protocols import Protocol
 
@@ -201,6 +201,13 @@ def score_sets(
                 "one; standardising by the reference (as the peers do) multiplies them by 1e10"
             )
         g_std, r_std = standardise_by_reference(gen, ref)
+        far = far_from_reference_features(g_std, constant)
+        if far:
+            warnings.append(
+                f"FID_{label}: feature(s) {far} of the generated set lie more than {FAR_FEATURE:g} reference standard "
+                f"deviations from the reference mean (the reference barely varies in them): they make up nearly all "
+                f"of FID_{label}, which then says little about the other features"
+            )
         fewest = min(len(generated), len(reference))
         if fewest <= dims:
             warnings.append(

@@ -46,6 +46,7 @@ import torch.nn.functional as F
 from torch import nn
 
 from kinectdata.core.errors import KinectDataError
+from kinectdata.models.kind import INPUTS
 
 OPENPOSE_MPI_LIMBS = (
     (0, 1),  # Head-Neck
@@ -92,6 +93,10 @@ class CdhcConfig:
         leak: under a residual output, the share of the previous pose's distance from the anchor
             (the mean training pose, :func:`init_output_bias`) taken back every frame, 0..1: a pure
             sum of changes (0) drifts off the body over a song.
+        inputs: ``music-and-poses`` (the paper's: the previous poses through the skeleton encoder)
+            or ``music``: the skeleton encoder sees zeros whatever poses it is given, so each pose
+            is a function of the music up to its frame (no feedback: the free run is the
+            teacher-forced pass; needs a ``linear`` or ``sigmoid`` output).
     """
 
     output_dim: int
@@ -107,10 +112,15 @@ class CdhcConfig:
     limbs: tuple[tuple[int, int], ...] = OPENPOSE_MPI_LIMBS
     output: str = "sigmoid"
     leak: float = 0.0
+    inputs: str = "music-and-poses"
 
     def __post_init__(self) -> None:
         if not 0.0 <= self.leak <= 1.0:
             raise KinectDataError(f"CDHC config: leak must be in 0..1, not {self.leak}")
+        if self.inputs not in INPUTS:
+            raise KinectDataError(f"CDHC config: inputs must be one of {', '.join(INPUTS)}, not {self.inputs!r}")
+        if self.inputs == "music" and self.output == "residual":
+            raise KinectDataError("CDHC config: a residual output adds to the previous pose: inputs 'music' has none")
         if self.output not in OUTPUTS:
             raise KinectDataError(f"CDHC config: output must be one of {', '.join(OUTPUTS)}, not {self.output!r}")
         sizes = {k: getattr(self, k) for k in ("output_dim", "input_dim", "channels", "decoder_channels")}
@@ -283,6 +293,11 @@ class CdhcNet(nn.Module):
         if config.output == "residual":  # the pose a leaky residual output returns to (init_output_bias)
             self.register_buffer("anchor", torch.zeros(config.output_dim))
 
+    def seen_poses(self, previous: torch.Tensor) -> torch.Tensor:
+        """What the skeleton encoder is given of the previous poses [..., D]: them, or zeros when
+        the config's ``inputs`` is ``music``."""
+        return torch.zeros_like(previous) if self.config.inputs == "music" else previous
+
     def add_change(self, change: torch.Tensor, previous: torch.Tensor) -> torch.Tensor:
         """A residual output's pose [..., D]: ``previous + change - leak * (previous - anchor)``."""
         leak = self.config.leak
@@ -309,12 +324,14 @@ class CdhcNet(nn.Module):
         """
         _check_inputs(self.config, audio, previous)
         a, _ = self.audio_encoder(audio)
-        s, _ = self.skeleton_encoder(previous)
+        s, _ = self.skeleton_encoder(self.seen_poses(previous))
         poses = self.decoder(a, s)[0]
         if self.config.output == "residual":
             poses = self.add_change(poses, previous)
         if not free:
             return poses
+        if self.config.inputs == "music":  # no feedback: running free is this same pass
+            return poses, poses
         stream = StreamingCdhc(self)
         _, caches = stream.initial_state(audio.shape[0])
         pose, steps = previous[:, 0], []
@@ -366,7 +383,7 @@ class StreamingCdhc(nn.Module):
     ) -> tuple[torch.Tensor, list[torch.Tensor]]:
         """One frame from its audio code [B, C] and the previous pose [B, D] -> ([B, D] pose, new caches)."""
         n = len(self.net.skeleton_encoder.blocks)
-        s, skeleton_caches = self.net.skeleton_encoder(previous, pose_caches[:n])
+        s, skeleton_caches = self.net.skeleton_encoder(self.net.seen_poses(previous), pose_caches[:n])
         pose, decoder_caches = self.net.decoder(code, s, pose_caches[n:])
         if self.net.config.output == "residual":
             pose = self.net.add_change(pose, previous)
@@ -459,6 +476,9 @@ def generate_many(
     net.eval()
     try:
         with torch.inference_mode():
+            if config.inputs == "music":  # nothing fed back: the whole song in one causal pass
+                out = net(audio, torch.zeros(*audio.shape[:2], config.output_dim, dtype=like.dtype, device=like.device))
+                return [out[i, :n].float().cpu().numpy() for i, n in enumerate(lengths)]
             codes, _ = net.audio_encoder(audio)
             _, caches = stream.initial_state(len(audios))
             out = torch.empty(len(audios), max(lengths), config.output_dim, dtype=like.dtype, device=like.device)

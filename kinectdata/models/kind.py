@@ -60,12 +60,18 @@ PAPER_LOOP: dict[str, Any] = {
     "noise_gamma": 0.55,
     "clip_norm": None,
     "free_weight": 0.0,
+    "posture_weight": 0.0,
     "silence_share": 0.0,
     "keep": "last",
 }
 """Yalta et al.'s training loop: sequences of 150 (not overlapping), batches of 50, 10 epochs, Adam
 1e-4, annealed gradient noise, the teacher-forced (or fed-back) loss alone, the last epoch kept;
 the base of every model's loop settings (``TrainConfig``'s ``LOOP_DEFAULTS``)."""
+
+
+INPUTS = ("music-and-poses", "music")
+"""What a bundled model's decoder is given (its ``inputs`` setting): the music and the previous
+poses (the papers') or the music only."""
 
 
 @dataclass(frozen=True)

@@ -80,22 +80,34 @@ def masked_rhythm_spectrum_loss(prediction, target, mask, fps: float, ffts=RHYTH
     return total / max(used, 1)
 
 
-def masked_energy_loss(prediction, target, mask):
-    """How far a motion's speed is from the target's, in ratio: per component of [B, L, D] windows,
-    the squared log of the ratio of the mean squared frame-to-frame changes (over frame pairs valid
-    in the target), each floored at 1 % of the target's mean over the batch (torch tensors;
-    differentiable). Moving twice or half as fast costs the same, log(4)^2; a window where the
-    target holds still asks the motion to hold still too."""
+ENERGY_CHUNK_S = 2.0
+"""The stretch of a window (seconds) over which :func:`masked_rhythm_loss` matches the motion's speed.
+Over a whole window, a burst of motion then stillness matched the real speed on average: the cdhc
+model on tang2018's validation dances moved 2-18 x the real energy in its first 5 s and 0.04-0.4 x
+after (docs/benchmarks.md)."""
+
+
+def masked_energy_loss(prediction, target, mask, chunk: int | None = None):
+    """How far a motion's speed is from the target's, in ratio: per component of [B, L, D] windows
+    and per stretch of ``chunk`` frame-to-frame changes (None: the whole window; a last shorter
+    stretch counts as one), the squared log of the ratio of the mean squared changes (over frame
+    pairs valid in the target), each floored at 1 % of the target's mean over the batch (torch
+    tensors; differentiable). Moving twice or half as fast costs the same, log(4)^2; a stretch where
+    the target holds still asks the motion to hold still too."""
     import torch
 
-    both = (mask[:, 1:] & mask[:, :-1]).to(prediction.dtype)
-    pairs = both.sum(dim=1)  # [B, D]
+    both = (mask[:, 1:] & mask[:, :-1]).to(prediction.dtype)  # [B, L-1, D]
+    steps = both.shape[1]
+    size = steps if chunk is None or chunk >= steps else max(1, int(chunk))
+    bounds = [(s, min(s + size, steps)) for s in range(0, steps, size)]
+    pairs = torch.stack([both[:, a:b].sum(dim=1) for a, b in bounds], dim=1)  # [B, chunks, D]
 
     def energy(x):
-        return (((x[:, 1:] - x[:, :-1]) ** 2) * both).sum(dim=1) / pairs.clamp(min=1.0)
+        squared = ((x[:, 1:] - x[:, :-1]) ** 2) * both
+        return torch.stack([squared[:, a:b].sum(dim=1) for a, b in bounds], dim=1) / pairs.clamp(min=1.0)
 
     made, real = energy(prediction), energy(target)
-    floor = 1e-2 * real.mean().detach() + 1e-12
+    floor = 1e-2 * (real * (pairs > 0)).sum().detach() / (pairs > 0).sum().clamp(min=1) + 1e-12
     counted = (pairs > 0).to(prediction.dtype)
     log_ratio = torch.log(made + floor) - torch.log(real + floor)
     return (log_ratio**2 * counted).sum() / counted.sum().clamp(min=1.0)
@@ -159,13 +171,6 @@ def masked_bone_loss(prediction, target, mask, bones, scale, offset, dims: int =
     return (stretch * counted).sum() / counted.sum().clamp(min=1.0)
 
 
-POSTURE_WEIGHT = 10.0
-"""The posture term's weight in :func:`masked_rhythm_loss` (:func:`masked_posture_loss`, normalised
-units: a motion 0.1 away from the real one's range weighs 1). On the validation dances of tang2018
-it took the yalta model's periods from near 1.1-1.25 s for all three songs to each song's bar or
-two bars with seed 0 (not with seed 1), and it keeps the cdhc model's summed changes on the body
-together with its leak (docs/benchmarks.md)."""
-
 BONE_WEIGHT = 10.0
 """The bone term's weight in :func:`masked_rhythm_loss`: a stretch of a tenth of a bone's length
 (about the real dancers' bone-length CV on tang2018) then weighs 1, the order of the spectral
@@ -173,15 +178,27 @@ term; the stretch in metres at weight 1 left the bones 1.5 times as variable as 
 the validation dances (docs/benchmarks.md)."""
 
 
-def masked_rhythm_loss(prediction, target, mask, fps: float, body=None):
+def _changes(prediction, target, mask):
+    """The frame-to-frame changes [B, L-1, D] of both sequences and where they are valid."""
+    return prediction[:, 1:] - prediction[:, :-1], target[:, 1:] - target[:, :-1], mask[:, 1:] & mask[:, :-1]
+
+
+def masked_rhythm_loss(prediction, target, mask, fps: float, body=None, posture_weight: float = 3.0):
     """The free-running loss of training (``TrainConfig.free_weight``): the spectra of the motion's
     changes (:func:`masked_rhythm_spectrum_loss`: how often and how much at each tempo, whatever the
-    phase), its overall speed (:func:`masked_energy_loss`), its postures' means and spreads
-    (:func:`masked_posture_loss`, times :data:`POSTURE_WEIGHT`) and, given ``body`` (a mapping with
-    ``bones``, ``scale``, ``offset``, ``dims`` for :func:`masked_bone_loss`), how much its bones
+    phase), its speed and the size of its speed's changes in every :data:`ENERGY_CHUNK_S` seconds
+    (:func:`masked_energy_loss` of the motion and of its frame-to-frame changes: the second keeps a
+    motion made from the music alone from jittering), its postures' means and spreads
+    (:func:`masked_posture_loss`, times ``posture_weight``: ``TrainConfig.posture_weight``) and,
+    given ``body`` (a mapping with ``bones``, ``scale``, ``offset``, ``dims`` for
+    :func:`masked_bone_loss`), how much its bones
     stretch against the target's (times :data:`BONE_WEIGHT`). [B, L, D] tensors; a scalar."""
-    loss = masked_rhythm_spectrum_loss(prediction, target, mask, fps) + masked_energy_loss(prediction, target, mask)
-    loss = loss + POSTURE_WEIGHT * masked_posture_loss(prediction, target, mask)
+    chunk = max(1, round(ENERGY_CHUNK_S * fps))
+    loss = masked_rhythm_spectrum_loss(prediction, target, mask, fps) + masked_energy_loss(
+        prediction, target, mask, chunk
+    )
+    loss = loss + masked_energy_loss(*_changes(prediction, target, mask), chunk)
+    loss = loss + posture_weight * masked_posture_loss(prediction, target, mask)
     if body is not None:
         loss = loss + BONE_WEIGHT * masked_bone_loss(prediction, target, mask, **body)
     return loss

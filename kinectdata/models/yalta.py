@@ -11,7 +11,8 @@ Per motion frame (their Table 1):
   the pose (D values, no activation: the targets are normalised into -0.9..0.9).
 
 The previous pose is the model's own previous output (``feedback="predicted"``, their Figure 4)
-or the true one (``"teacher"``). The convolutions and LSTM1-3 do not depend on it, so they run over
+or the true one (``"teacher"``); with ``inputs="music"`` LSTM4-6 are given zeros in its place,
+so each pose is a function of the music so far. The convolutions and LSTM1-3 do not depend on it, so they run over
 a whole sequence at once; only LSTM4-6 and fc2 step frame by frame when the predictions are fed
 back. :class:`StreamingYalta` is the same network one frame at a time, for live use and export.
 """
@@ -25,6 +26,7 @@ import torch
 from torch import nn
 
 from kinectdata.core.errors import ConfigError
+from kinectdata.models.kind import INPUTS
 
 ACTIVATIONS = {"tanh": nn.Tanh, "relu": nn.ReLU, "elu": nn.ELU}
 CONV_CHANNELS = (16, 32, 64, 65)
@@ -41,14 +43,19 @@ class YaltaConfig:
         units: LSTM units per layer (the paper tries 250, 500, 1000).
         activation: ``tanh``, ``relu`` or ``elu`` (after each convolution and fc1).
         input_shape: (channels, frequency bins, STFT frames) of a frame's features.
+        inputs: ``music-and-poses`` (the paper's: LSTM4-6 are given the previous pose) or
+            ``music`` (they are given zeros in its place: no feedback).
     """
 
     output_dim: int
     units: int = 500
     activation: str = "elu"
     input_shape: tuple[int, int, int] = (1, 129, 5)
+    inputs: str = "music-and-poses"
 
     def __post_init__(self) -> None:
+        if self.inputs not in INPUTS:
+            raise ConfigError(f"inputs must be one of {', '.join(INPUTS)}, not {self.inputs!r}")
         if self.activation not in ACTIVATIONS:
             raise ConfigError(f"activation must be one of {', '.join(ACTIVATIONS)}, not {self.activation!r}")
         if self.units < 1 or self.output_dim < 1:
@@ -102,7 +109,11 @@ class YaltaNet(nn.Module):
         Returns:
             ([B, T, D] poses, LSTM4-6 state).
         """
-        if feedback == "teacher":
+        if self.config.inputs == "music":
+            previous = torch.zeros_like(previous)
+        if feedback == "teacher" or self.config.inputs == "music":  # music only: no feedback to step
+            if previous.dim() == 2:
+                previous = previous[:, None].expand(-1, codes.shape[1], -1)
             hidden, state = self.lstm2(torch.cat([codes, previous], dim=-1), state)
             return self.fc2(hidden), state
         if feedback != "predicted":
@@ -125,6 +136,8 @@ class YaltaNet(nn.Module):
             return self.decode(codes, previous, feedback)[0]
         first = previous[:, 0] if previous.dim() == 3 else previous
         poses = self.decode(codes, previous, feedback)[0]
+        if self.config.inputs == "music":  # the free run is this same pass
+            return poses, poses
         return poses, self.decode(codes, first, "predicted")[0]
 
 
@@ -211,6 +224,14 @@ class StreamingYalta(nn.Module):
         self.lstm1 = _PackedLSTM(net.lstm1, dtype)
         self.fc1 = _Affine(net.fc1[0].weight, net.fc1[0].bias, dtype)
         self.lstm2 = _PackedLSTM(net.lstm2, dtype)
+        if net.config.inputs == "music":  # the pose's weights, zeroed, give what zeros in its place give
+            with torch.no_grad():
+                first = self.lstm2.cells[0].weight
+                poses = slice(CODE, CODE + net.config.output_dim)
+                if self.lstm2.cells[0].vector_matrix:
+                    first[poses] = 0
+                else:
+                    first[:, poses] = 0
         self.fc2 = _Affine(net.fc2.weight, net.fc2.bias, dtype)
 
     @torch.jit.export

@@ -27,7 +27,14 @@ LOOP_DEFAULTS: dict[str, Any] = {
 ``training_defaults`` change them)."""
 
 KEEPS = ("last", "best")
-ADDED_OFF = {"free_weight": 0.0, "silence_share": 0.0, "keep": "last", "predicts": "pose"}
+ADDED_OFF = {
+    "free_weight": 0.0,
+    "silence_share": 0.0,
+    "keep": "last",
+    "predicts": "pose",
+    "inputs": "music-and-poses",
+    "posture_weight": 10.0,
+}
 """Loop (and model) settings added after runs were written: a run's config.json without them trained without
 them, whatever today's defaults are (resuming it goes on as it started)."""
 
@@ -70,6 +77,11 @@ class TrainConfig:
             its motion's frame-to-frame changes and their overall size are matched to the real
             motion's (:func:`~kinectdata.models.losses.masked_rhythm_loss`): how much and how often
             it moves, not when. Models whose kind ``runs_free_in_training``.
+        posture_weight: weight of the posture term in the free-running loss
+            (:func:`~kinectdata.models.losses.masked_posture_loss`: each coordinate's mean and spread
+            over the window against the real one's). The yalta model follows the songs at 3 and
+            played one period for all at 10 (2 seeds of 3); the cdhc model from the music alone
+            moves at 10 and stands still at 3 (docs/benchmarks.md). Runs written before it had 10.
         silence_share: share of training windows whose music is silenced from a random frame on,
             the pose then held (:mod:`kinectdata.training.augment`): a model learns to stop in silence.
         keep: which epoch ``model.pt`` (and the exports) hold: ``last``, or ``best``, the epoch whose
@@ -90,6 +102,7 @@ class TrainConfig:
     max_minutes: float | None
     previous_noise: float
     free_weight: float
+    posture_weight: float
     silence_share: float
     keep: str
     settings: Any
@@ -120,6 +133,8 @@ class TrainConfig:
             raise ConfigError(f"previous_noise must be at least 0, not {self.previous_noise!r}")
         if not self.free_weight >= 0:
             raise ConfigError(f"free_weight must be at least 0, not {self.free_weight!r}")
+        if not self.posture_weight >= 0:
+            raise ConfigError(f"posture_weight must be at least 0, not {self.posture_weight!r}")
         if not 0 <= self.silence_share <= 1:
             raise ConfigError(f"silence_share must be in 0..1, not {self.silence_share!r}")
         if self.keep not in KEEPS:

@@ -130,7 +130,9 @@ def _rose(losses: list[float], n: int) -> bool:
 def loss_warning(history: list[dict], lr: float) -> str | None:
     """What to say when, at the newest of the epochs so far (log rows), the training loss has just
     become non-finite or has just risen :data:`RISING_EPOCHS` epochs in a row, or the validation loss
-    has just risen that many epochs in a row; else None. Said once per streak: on the epoch it starts."""
+    has just risen that many epochs in a row; else None. Said once per streak: on the epoch it starts.
+    A run with the free-running loss is judged on its free-running figures (:func:`validation_warning`):
+    its teacher-forced validation loss may rise while it learns to dance on its own."""
     losses = _losses(history, "train_loss")
     epoch, last = history[-1]["epoch"], losses[-1]
     lower = f"try --lr {lr / 10:g}"
@@ -148,7 +150,8 @@ def loss_warning(history: list[dict], lr: float) -> str | None:
             f"epoch {epoch}): the learning rate ({lr:g}) may be too high; {lower} or --clip-norm 1"
         )
     val = _losses(history, "val_loss")
-    if _rose(val, n):
+    free = any(math.isfinite(v) for v in _losses(history, "val_rhythm"))
+    if not free and _rose(val, n):
         best = min(range(len(val)), key=lambda i: val[i] if math.isfinite(val[i]) else math.inf)
         return (
             f"the validation loss rose {n} epochs in a row ({val[-n - 1]:.4g} at epoch {epoch - n} -> {val[-1]:.4g} "
@@ -354,6 +357,7 @@ def validate(
             torch.from_numpy(masks),
             fps,
             body,
+            config.posture_weight,
         )
     )
     return loss, smape(generated, real, masks), rhythm
@@ -526,7 +530,9 @@ def train(
                 if config.free_weight > 0:
                     pred, free = kind.predict_free(model, audio, previous, config.settings)
                     loss = kind.loss(net, pred, pose, mask, config.settings)
-                    loss = loss + config.free_weight * masked_rhythm_loss(free, pose, mask, fps, body)
+                    loss = loss + config.free_weight * masked_rhythm_loss(
+                        free, pose, mask, fps, body, config.posture_weight
+                    )
                 else:
                     pred = kind.predict(model, audio, previous, config.settings)
                     loss = kind.loss(net, pred, pose, mask, config.settings)

@@ -161,7 +161,7 @@ def test_listen_to_dance_rhythm_with_3d_positions_suits_the_cdhc_model(tmp_path)
     kind = model_kind("cdhc")
     kind.check_dataset(manifest)
     net_config = kind.network_config(kind.settings_type(channels=8, decoder_channels=8), manifest)
-    assert net_config["input_dim"] == 209 and net_config["output"] == "residual"
+    assert net_config["input_dim"] == 209 and net_config["inputs"] == "music" and net_config["output"] == "linear"
     net = kind.build(net_config).eval()
     rec = manifest["recordings"][0]
     with h5py.File(tmp_path / "ltd_rhythm" / rec["shard"], "r") as f:

@@ -131,6 +131,23 @@ def test_frechet_distance_and_diversity_against_scipy_by_another_route():
     assert M.diversity(a[:3], draw=np.array([0, 0, 1])) == pytest.approx(np.linalg.norm(a[0] - a[1]))
 
 
+def test_a_feature_the_reference_barely_varies_in_is_named_when_it_swamps_fid():
+    from kinectdata.evaluation.metrics.distribution import far_from_reference_features
+
+    rng = np.random.default_rng(4)
+    reference, generated = rng.normal(size=(6, 4)), rng.normal(size=(5, 4))
+    reference[:, 1] = 5.0 + 1e-9 * rng.normal(size=6)  # nearly constant, not exactly
+    reference[:, 3] = 2.0  # exactly constant: constant_reference_features names it
+    generated[:, 3] = 2.0 + rng.normal(size=5)
+    g_std, _ = M.standardise_by_reference(generated, reference)
+    assert M.constant_reference_features(generated, reference) == [3]
+    assert far_from_reference_features(g_std, [3]) == [1]
+    # by hand: feature 1 sits about 5e9 reference standard deviations away
+    assert abs(generated[0, 1] - reference[:, 1].mean()) / reference[:, 1].std() > 1e3
+    generated[:, 1] = reference[:5, 1]
+    assert far_from_reference_features(M.standardise_by_reference(generated, reference)[0], [3]) == []
+
+
 def test_quality_checks_on_known_answers():
     t = np.arange(100) / 50.0
     p = np.zeros((100, 2, 3))

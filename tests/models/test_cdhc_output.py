@@ -28,7 +28,7 @@ def one_thread():
     torch.set_num_threads(threads)
 
 
-def small(output: str, seed: int = 0, leak: float = 0.0) -> CdhcNet:
+def small(output: str, seed: int = 0, leak: float = 0.0, inputs: str = "music-and-poses") -> CdhcNet:
     torch.manual_seed(seed)
     config = CdhcConfig(
         output_dim=D,
@@ -40,11 +40,12 @@ def small(output: str, seed: int = 0, leak: float = 0.0) -> CdhcNet:
         limbs=((1, 0),) * 2,
         output=output,
         leak=leak,
+        inputs=inputs,
     )
     return CdhcNet(config).eval()
 
 
-def inputs(T: int = 12, scale: float = 1.0):
+def batch(T: int = 12, scale: float = 1.0):
     g = torch.Generator().manual_seed(1)
     return scale * torch.rand(2, T, F, generator=g), scale * torch.rand(2, T, D, generator=g)
 
@@ -68,20 +69,20 @@ def test_a_linear_output_starts_at_a_mean_pose_outside_0_1():
     init_output_bias(net, mean)
     np.testing.assert_allclose(net.decoder.output.bias.detach().numpy(), mean, atol=1e-7)  # no logit
     with torch.no_grad():
-        start = net(*inputs()).numpy()
+        start = net(*batch()).numpy()
     # at initialisation the last layer's input is small: the output is near its bias, unsquashed
     assert np.abs(start - mean).max() < 0.5
     assert (start[..., 0] < 0).all() and (start[..., 5] > 1).all()
     with torch.no_grad():
         net.decoder.output.weight.zero_()
-        exact = net(*inputs()).numpy()
+        exact = net(*batch()).numpy()
     np.testing.assert_allclose(exact, np.broadcast_to(mean, exact.shape), atol=1e-6)
     # a sigmoid net given the same mean pose starts at it clipped into 0.01..0.99
     squashed = small("sigmoid")
     init_output_bias(squashed, mean)
     with torch.no_grad():
         squashed.decoder.output.weight.zero_()
-        out = squashed(*inputs()).numpy()
+        out = squashed(*batch()).numpy()
     np.testing.assert_allclose(out, np.broadcast_to(np.clip(mean, 0.01, 0.99), out.shape), atol=1e-6)
 
 
@@ -94,7 +95,7 @@ def test_the_linear_output_is_the_sigmoid_outputs_logit():
             if isinstance(module, torch.nn.Linear):
                 module.weight.mul_(4.0)
         sigmoid.load_state_dict(linear.state_dict())
-        a, b = linear(*inputs(scale=20.0)).numpy(), sigmoid(*inputs(scale=20.0)).numpy()
+        a, b = linear(*batch(scale=20.0)).numpy(), sigmoid(*batch(scale=20.0)).numpy()
     assert a.min() < 0 or a.max() > 1
     np.testing.assert_allclose(expit(a.astype(np.float64)), b, atol=1e-6)
 
@@ -112,7 +113,7 @@ def manifest(target: str, method: str, root_centre: bool = False) -> dict:
 @pytest.mark.parametrize("root_centre", [False, True])
 def test_cdhc_takes_normalised_3d_positions_even_root_centred(root_centre):
     kind = model_kind("cdhc")
-    settings = kind.settings_type(channels=8, decoder_channels=8)
+    settings = kind.settings_type(channels=8, decoder_channels=8, inputs="music-and-poses")
     for method in ("maxabs", "minmax"):
         found = manifest("kinect_v2_positions", method, root_centre)  # 25 joints in 3-D, no limbs
         kind.check_dataset(found)
@@ -147,7 +148,7 @@ def test_a_residual_output_adds_the_linear_output_to_the_previous_pose():
     initialisation (bias 0, last weights 0) the pose stays where it was."""
     linear, residual = small("linear", seed=4), small("residual", seed=4)
     residual.load_state_dict({**linear.state_dict(), "anchor": residual.anchor})
-    audio, previous = inputs()
+    audio, previous = batch()
     with torch.no_grad():
         np.testing.assert_allclose(
             residual(audio, previous).numpy(), (linear(audio, previous) + previous).numpy(), atol=1e-6
@@ -165,7 +166,7 @@ def test_a_residual_net_runs_free_as_a_loop_feeding_back_its_sums():
     from kinectdata.models.cdhc import generate
 
     net = small("residual", seed=5)
-    audio = inputs(T=9)[0][0]
+    audio = batch(T=9)[0][0]
     first = torch.linspace(-0.5, 0.5, D)
     made = generate(net, audio, first)
     poses = [first]
@@ -190,7 +191,7 @@ def test_a_leaky_residual_output_takes_back_a_share_of_the_distance_from_the_mea
     state = {k: v for k, v in leaky.state_dict().items() if k != "anchor"}
     linear.load_state_dict(state)
     np.testing.assert_allclose(leaky.anchor.numpy(), mean, atol=1e-7)
-    audio, previous = inputs()
+    audio, previous = batch()
     with torch.no_grad():
         expected = linear(audio, previous) + previous - 0.25 * (previous - torch.as_tensor(mean, dtype=torch.float32))
         np.testing.assert_allclose(leaky(audio, previous).numpy(), expected.numpy(), atol=1e-6)
@@ -201,3 +202,41 @@ def test_a_leaky_residual_output_takes_back_a_share_of_the_distance_from_the_mea
     np.testing.assert_allclose(made, mean + (first - mean) * 0.75**steps, atol=1e-5)
     with pytest.raises(KinectDataError, match="leak must be in 0..1"):
         CdhcConfig(output_dim=D, input_dim=F, output="residual", leak=1.5)
+
+
+def test_a_music_only_net_makes_the_same_poses_whatever_poses_it_is_given():
+    """inputs 'music': the skeleton encoder sees zeros, so the poses are those of the paper's net
+    (same weights) given all-zero previous poses, whatever previous poses come in; its free run in
+    training is that same pass, and generate() (which feeds back its outputs) makes them too."""
+    from kinectdata.models.cdhc import FrameCdhc, generate
+
+    music, paper = small("linear", seed=7, inputs="music"), small("linear", seed=7)
+    paper.load_state_dict(music.state_dict())
+    audio, previous = batch()
+    with torch.no_grad():
+        expected = paper(audio, torch.zeros_like(previous))
+        np.testing.assert_allclose(music(audio, previous).numpy(), expected.numpy(), atol=1e-6)
+        np.testing.assert_allclose(music(audio, previous * -3.0).numpy(), expected.numpy(), atol=1e-6)
+        assert (paper(audio, previous) - expected).abs().max() > 1e-3  # the paper's net does use them
+        poses, free = music(audio, previous, free=True)
+        assert free is poses
+    np.testing.assert_allclose(generate(music, audio[0], previous[0, 0]), expected[0].numpy(), atol=1e-5)
+    stream = FrameCdhc(music)  # frame by frame with caches, fed poses it ignores
+    state, made = stream.initial_state(), []
+    with torch.no_grad():
+        for t in range(audio.shape[1]):
+            pose, *state = stream(audio[0, t], previous[0, t] + 1.0, *state)
+            made.append(pose)
+    np.testing.assert_allclose(torch.stack(made).numpy(), expected[0].numpy(), atol=1e-5)
+    with pytest.raises(KinectDataError, match="inputs must be one of music-and-poses, music, not 'poses'"):
+        CdhcConfig(output_dim=D, input_dim=F, inputs="poses")
+    with pytest.raises(KinectDataError, match="inputs 'music' has none"):
+        CdhcConfig(output_dim=D, input_dim=F, output="residual", inputs="music")
+
+
+def test_the_music_only_setting_gives_a_linear_output():
+    kind = model_kind("cdhc")
+    given = manifest("listen_to_dance", "maxabs")
+    assert kind.network_config(kind.settings_type(inputs="music"), given)["output"] == "linear"
+    assert kind.network_config(kind.settings_type(inputs="music"), given)["leak"] == 0.0
+    assert kind.network_config(kind.settings_type(), given)["inputs"] == "music"  # the default on real dance

@@ -73,14 +73,52 @@ def test_the_energy_loss_is_the_squared_log_ratio_of_mean_squared_changes():
     assert twice == pytest.approx(np.mean(np.log((4 * ms + floor) / (ms + floor)) ** 2), rel=1e-5)
     assert half == pytest.approx(np.mean(np.log((ms / 4 + floor) / (ms + floor)) ** 2), rel=1e-5)
     assert float(masked_energy_loss(real, real, mask)) == pytest.approx(0.0, abs=1e-9)
-    from kinectdata.models.losses import POSTURE_WEIGHT, masked_posture_loss
+    from kinectdata.models.losses import ENERGY_CHUNK_S, masked_posture_loss
 
-    combined = masked_rhythm_loss(real * 2.0, real, mask, 30.0)
+    combined = masked_rhythm_loss(real * 2.0, real, mask, 30.0, posture_weight=7.0)
     posture = float(masked_posture_loss(real * 2.0, real, mask))
     assert posture > 0.1  # twice the spread
+    chunk = round(ENERGY_CHUNK_S * 30.0)
+    in_chunks = float(masked_energy_loss(real * 2.0, real, mask, chunk))
+    steps, made_steps = real[:, 1:] - real[:, :-1], 2.0 * (real[:, 1:] - real[:, :-1])
+    changes = float(masked_energy_loss(made_steps, steps, mask[:, 1:], chunk))
+    assert changes == pytest.approx(in_chunks, rel=0.05)  # sines: their changes are sines as well
     assert float(combined) == pytest.approx(
-        float(masked_rhythm_spectrum_loss(real * 2.0, real, mask, 30.0)) + twice + POSTURE_WEIGHT * posture, rel=1e-6
+        float(masked_rhythm_spectrum_loss(real * 2.0, real, mask, 30.0)) + in_chunks + changes + 7.0 * posture,
+        rel=1e-6,
     )
+
+
+def test_the_rhythm_loss_sees_jitter_the_spectra_below_6_hz_miss():
+    """A 10 Hz jitter of 0.002 on sines of 0.3: barely more speed, but the changes between frames change a lot."""
+    real = _sines([0.5, 1.0], [0.0, 0.5], amplitude=0.3)
+    t = torch.arange(300, dtype=torch.float32) / 30.0
+    jitter = real + 0.002 * torch.sin(2 * math.pi * 10.0 * t)[None, :, None]
+    mask = torch.ones_like(real, dtype=torch.bool)
+    assert float(masked_rhythm_spectrum_loss(jitter, real, mask, 30.0)) < 0.05
+    assert float(masked_energy_loss(jitter, real, mask, 60)) < 0.1
+    assert float(masked_rhythm_loss(jitter, real, mask, 30.0)) > 1.0
+
+
+def test_the_energy_loss_in_stretches_sees_a_burst_then_stillness():
+    """Twice the real speed for the first half of a window, then still: the same mean speed over
+    the window (a whole-window loss near 0), but per 60-frame stretch every ratio is off."""
+    real = _sines([0.5, 1.0], [0.0, 0.5])
+    burst = real.clone()
+    burst[:, :150] = real[:, :150] * math.sqrt(2.0)  # changes' squares x2 for half the window
+    burst[:, 150:] = burst[:, 149:150]
+    mask = torch.ones_like(real, dtype=torch.bool)
+    steps_real = np.diff(real[0].numpy(), axis=0) ** 2
+    steps_made = np.diff(burst[0].numpy(), axis=0) ** 2
+    whole = float(masked_energy_loss(burst, real, mask))
+    assert whole < 0.05
+    chunks = [(a, min(a + 60, 299)) for a in range(0, 299, 60)]
+    made = np.array([steps_made[a:b].mean(axis=0) for a, b in chunks])
+    ref = np.array([steps_real[a:b].mean(axis=0) for a, b in chunks])
+    floor = 1e-2 * ref.mean()
+    expected = np.mean(np.log((made + floor) / (ref + floor)) ** 2)
+    assert float(masked_energy_loss(burst, real, mask, 60)) == pytest.approx(expected, rel=1e-4)
+    assert expected > 1.0
 
 
 def test_the_rhythm_loss_leaves_out_components_invalid_anywhere_in_the_window():

@@ -41,7 +41,13 @@ def test_the_run_folder_holds_everything(trained_run, sample_dataset):
     assert float(rows[1]["train_loss"]) == pytest.approx(history[1]["train_loss"])
     config = json.loads((run / "config.json").read_text())
     assert config["train"] == TrainConfig(**TINY_TRAINING).to_dict()
-    assert config["model"] == {"output_dim": 65, "units": 32, "activation": "elu", "input_shape": [1, 129, 5]}
+    assert config["model"] == {
+        "output_dim": 65,
+        "units": 32,
+        "activation": "elu",
+        "input_shape": [1, 129, 5],
+        "inputs": "music-and-poses",
+    }
     manifest = json.loads((sample_dataset / "manifest.json").read_text())
     assert config["dataset"]["normalisation"] == manifest["normalisation"]
     assert config["dataset"]["build_key"] == manifest["build_key"]
@@ -136,7 +142,7 @@ def test_runs_written_before_still_load_and_resume(trained_run, sample_dataset, 
     state = torch.load(run / "checkpoint.pt", weights_only=True)
     state.pop("sha256", None)  # checkpoints before digests had none
     torch.save({**state, "config": json.dumps(config)}, run / "checkpoint.pt")
-    then = {**TINY_TRAINING, "stride": None, "clip_norm": None, "feedback": "predicted"}  # the run's own
+    then = {**TINY_TRAINING, "stride": None, "clip_norm": None, "feedback": "predicted", "posture_weight": 10.0}
     assert TrainConfig.from_dict(OLD_FLAT) == TrainConfig(**then)
     net, _ = load_model(run)
     assert net.config.units == 32
@@ -274,6 +280,8 @@ def test_a_rising_validation_loss_is_said_once_with_the_best_epoch():
     assert "lowest 0.5 at epoch 3" in said[5] and "--epochs 3" in said[5] and "--lr 1e-05" in said[5]
     without_val = [{**r, "val_loss": None} for r in rows]  # no val split: nothing to say
     assert all(loss_warning(without_val[:n], 1e-4) is None for n in range(1, 8))
+    free = [{**r, "val_rhythm": 5.0 - r["epoch"] / 10} for r in rows]  # judged on its free runs, which improve
+    assert all(loss_warning(free[:n], 1e-4) is None for n in range(1, 8))
 
 
 def test_a_loss_that_ends_above_where_it_started_is_said_at_the_end():

@@ -53,6 +53,20 @@ def constant_reference_features(generated: np.ndarray, reference: np.ndarray) ->
     return [int(i) for i in np.flatnonzero((np.ptp(r, axis=0) == 0) & (np.ptp(g, axis=0) > 0))]
 
 
+FAR_FEATURE = 1e3
+"""A standardised generated feature beyond this many reference standard deviations swamps FID."""
+
+
+def far_from_reference_features(generated_std: np.ndarray, constant: list[int] = ()) -> list[int]:
+    """Feature indices of a standardised generated set [N, D] (:func:`standardise_by_reference`)
+    with a value more than :data:`FAR_FEATURE` reference standard deviations from the reference
+    mean, leaving out ``constant`` (those :func:`constant_reference_features` already names): a
+    feature whose reference spread is tiny but not zero then weighs millions of times the others
+    in FID."""
+    far = np.flatnonzero(np.abs(np.asarray(generated_std, dtype=np.float64)).max(axis=0) > FAR_FEATURE)
+    return [int(i) for i in far if int(i) not in set(constant)]
+
+
 def frechet_distance(generated: np.ndarray, reference: np.ndarray) -> float:
     """Fréchet distance between Gaussians fitted to two feature sets (already standardised).
 
