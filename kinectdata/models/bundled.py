@@ -21,7 +21,7 @@ from typing import Any
 import numpy as np
 
 from kinectdata.core.errors import ConfigError
-from kinectdata.models.kind import INPUTS, PAPER_LOOP, ModelKind, Sweep, in_run_batches
+from kinectdata.models.kind import INPUTS, PAPER_LOOP, ModelKind, Sweep, check_inputs, in_run_batches
 from kinectdata.models.losses import masked_mse, masked_velocity_l1, masked_velocity_mse
 
 YALTA_ACTIVATIONS = ("tanh", "relu", "elu")
@@ -87,8 +87,7 @@ class YaltaSettings:
     inputs: str = _inputs_field("music-and-poses")
 
     def __post_init__(self) -> None:
-        if self.inputs not in INPUTS:
-            raise ConfigError(f"inputs must be one of {', '.join(INPUTS)}, not {self.inputs!r}")
+        check_inputs(self.inputs)
         if self.feedback not in FEEDBACKS:
             raise ConfigError(f"feedback must be predicted or teacher, not {self.feedback!r}")
         if self.activation not in YALTA_ACTIVATIONS:
@@ -289,8 +288,7 @@ class CdhcSettings:
     def __post_init__(self) -> None:
         if not 0 <= self.leak <= 1:
             raise ConfigError(f"leak must be in 0..1, not {self.leak}")
-        if self.inputs not in INPUTS:
-            raise ConfigError(f"inputs must be one of {', '.join(INPUTS)}, not {self.inputs!r}")
+        check_inputs(self.inputs)
         if self.predicts not in PREDICTS:
             raise ConfigError(f"predicts must be one of {', '.join(PREDICTS)}, not {self.predicts!r}")
         if min(self.channels, self.decoder_channels) < 1 or not 0 <= self.dropout < 1 or self.limb_weight < 0:

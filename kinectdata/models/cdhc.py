@@ -46,7 +46,7 @@ import torch.nn.functional as F
 from torch import nn
 
 from kinectdata.core.errors import KinectDataError
-from kinectdata.models.kind import INPUTS
+from kinectdata.models.kind import check_inputs
 
 OPENPOSE_MPI_LIMBS = (
     (0, 1),  # Head-Neck
@@ -117,8 +117,7 @@ class CdhcConfig:
     def __post_init__(self) -> None:
         if not 0.0 <= self.leak <= 1.0:
             raise KinectDataError(f"CDHC config: leak must be in 0..1, not {self.leak}")
-        if self.inputs not in INPUTS:
-            raise KinectDataError(f"CDHC config: inputs must be one of {', '.join(INPUTS)}, not {self.inputs!r}")
+        check_inputs(self.inputs, "CDHC config: ")
         if self.inputs == "music" and self.output == "residual":
             raise KinectDataError("CDHC config: a residual output adds to the previous pose: inputs 'music' has none")
         if self.output not in OUTPUTS:

@@ -50,6 +50,8 @@ from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
 
+from kinectdata.core.errors import ConfigError
+
 PAPER_LOOP: dict[str, Any] = {
     "sequence": 150,
     "stride": None,
@@ -72,6 +74,12 @@ the base of every model's loop settings (``TrainConfig``'s ``LOOP_DEFAULTS``).""
 INPUTS = ("music-and-poses", "music")
 """What a bundled model's decoder is given (its ``inputs`` setting): the music and the previous
 poses (the papers') or the music only."""
+
+
+def check_inputs(inputs: str, prefix: str = "") -> None:
+    """Raise :class:`ConfigError` unless ``inputs`` is one of :data:`INPUTS` (``prefix`` starts the message)."""
+    if inputs not in INPUTS:
+        raise ConfigError(f"{prefix}inputs must be one of {', '.join(INPUTS)}, not {inputs!r}")
 
 
 @dataclass(frozen=True)

@@ -9,21 +9,25 @@ def masked_mse(prediction, target, mask):
     return ((prediction - target) ** 2 * mask).sum() / mask.sum().clamp(min=1.0)
 
 
+def _changes(prediction, target, mask):
+    """The frame-to-frame changes [B, L-1, D] of both sequences and where they are valid."""
+    return prediction[:, 1:] - prediction[:, :-1], target[:, 1:] - target[:, :-1], mask[:, 1:] & mask[:, :-1]
+
+
 def masked_velocity_mse(prediction, target, mask):
     """Mean squared error of the frame-to-frame changes [B, L-1, D] of [B, L, D] sequences, over
     the entries valid in both frames (torch tensors; differentiable). Weighs the motion itself,
     which a pose loss lets a model trade for staying near the mean pose."""
-    both = mask[:, 1:] & mask[:, :-1]
-    return masked_mse(prediction[:, 1:] - prediction[:, :-1], target[:, 1:] - target[:, :-1], both)
+    return masked_mse(*_changes(prediction, target, mask))
 
 
 def masked_velocity_l1(prediction, target, mask):
     """Mean absolute error of the frame-to-frame changes [B, L-1, D] of [B, L, D] sequences, over
     the entries valid in both frames (torch tensors; differentiable): the L1 form of
     :func:`masked_velocity_mse`, for models trained with L1."""
-    both = (mask[:, 1:] & mask[:, :-1]).to(prediction.dtype)
-    change = (prediction[:, 1:] - prediction[:, :-1]) - (target[:, 1:] - target[:, :-1])
-    return (change.abs() * both).sum() / both.sum().clamp(min=1.0)
+    made, real, both = _changes(prediction, target, mask)
+    both = both.to(prediction.dtype)
+    return ((made - real).abs() * both).sum() / both.sum().clamp(min=1.0)
 
 
 RHYTHM_FFTS = (32, 64, 128)
@@ -176,11 +180,6 @@ BONE_WEIGHT = 10.0
 (about the real dancers' bone-length CV on tang2018) then weighs 1, the order of the spectral
 term; the stretch in metres at weight 1 left the bones 1.5 times as variable as the real ones on
 the validation dances (docs/benchmarks.md)."""
-
-
-def _changes(prediction, target, mask):
-    """The frame-to-frame changes [B, L-1, D] of both sequences and where they are valid."""
-    return prediction[:, 1:] - prediction[:, :-1], target[:, 1:] - target[:, :-1], mask[:, 1:] & mask[:, :-1]
 
 
 def masked_rhythm_loss(prediction, target, mask, fps: float, body=None, posture_weight: float = 3.0):

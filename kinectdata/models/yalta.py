@@ -26,7 +26,7 @@ import torch
 from torch import nn
 
 from kinectdata.core.errors import ConfigError
-from kinectdata.models.kind import INPUTS
+from kinectdata.models.kind import check_inputs
 
 ACTIVATIONS = {"tanh": nn.Tanh, "relu": nn.ReLU, "elu": nn.ELU}
 CONV_CHANNELS = (16, 32, 64, 65)
@@ -54,8 +54,7 @@ class YaltaConfig:
     inputs: str = "music-and-poses"
 
     def __post_init__(self) -> None:
-        if self.inputs not in INPUTS:
-            raise ConfigError(f"inputs must be one of {', '.join(INPUTS)}, not {self.inputs!r}")
+        check_inputs(self.inputs)
         if self.activation not in ACTIVATIONS:
             raise ConfigError(f"activation must be one of {', '.join(ACTIVATIONS)}, not {self.activation!r}")
         if self.units < 1 or self.output_dim < 1:

@@ -121,6 +121,11 @@ def _losses(history: list[dict], key: str) -> list[float]:
     return [float("nan") if r.get(key) is None else float(r[key]) for r in history]
 
 
+def _ran_free(history: list[dict]) -> bool:
+    """Whether the run measured its free runs (a free-running validation rhythm loss in some epoch)."""
+    return any(math.isfinite(v) for v in _losses(history, "val_rhythm"))
+
+
 def _rose(losses: list[float], n: int) -> bool:
     """Whether the last value ends the first run of ``n`` rises in a row (so a streak is said once)."""
     rising = [b > a for a, b in zip(losses[:-1], losses[1:])]  # False where either is NaN
@@ -150,8 +155,7 @@ def loss_warning(history: list[dict], lr: float) -> str | None:
             f"epoch {epoch}): the learning rate ({lr:g}) may be too high; {lower} or --clip-norm 1"
         )
     val = _losses(history, "val_loss")
-    free = any(math.isfinite(v) for v in _losses(history, "val_rhythm"))
-    if not free and _rose(val, n):
+    if not _ran_free(history) and _rose(val, n):
         best = min(range(len(val)), key=lambda i: val[i] if math.isfinite(val[i]) else math.inf)
         return (
             f"the validation loss rose {n} epochs in a row ({val[-n - 1]:.4g} at epoch {epoch - n} -> {val[-1]:.4g} "
@@ -216,7 +220,7 @@ def ending_warning(history: list[dict], lr: float) -> str | None:
     if len(history) < 2:
         return None
     said = []
-    free = any(math.isfinite(v) for v in _losses(history, "val_rhythm"))
+    free = _ran_free(history)
     validation = ("val_rhythm", "free-running validation rhythm") if free else ("val_loss", "validation")
     for key, name in (("train_loss", "training"), validation):
         losses = _losses(history, key)

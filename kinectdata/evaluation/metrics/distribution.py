@@ -64,7 +64,8 @@ def far_from_reference_features(generated_std: np.ndarray, constant: list[int] =
     feature whose reference spread is tiny but not zero then weighs millions of times the others
     in FID."""
     far = np.flatnonzero(np.abs(np.asarray(generated_std, dtype=np.float64)).max(axis=0) > FAR_FEATURE)
-    return [int(i) for i in far if int(i) not in set(constant)]
+    named = set(constant)
+    return [int(i) for i in far if int(i) not in named]
 
 
 def frechet_distance(generated: np.ndarray, reference: np.ndarray) -> float:
