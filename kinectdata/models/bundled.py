@@ -303,9 +303,7 @@ class CdhcKind(ModelKind):
     name = "cdhc"
     description = "the CDHC encoder-decoder of Lee et al. (2018)"
     settings_type = CdhcSettings
-    training_defaults = {**REAL_DANCE_LOOP, "posture_weight": 10.0}
-    """The loop for real dance, the postures held harder: from the music alone at posture weight 3
-    it stood nearly still on the validation dances (0.05 x the real energy; 0.34 x at 10)."""
+    training_defaults = REAL_DANCE_LOOP
     paper = {
         "channels": 256,
         "decoder_channels": 128,

@@ -353,7 +353,7 @@ def validate(
     loss = float(np.average(losses, weights=weights))
     generated, real, masks = np.concatenate(generated), np.concatenate(real), np.concatenate(masks)
     if body is not None:  # the free runs are numpy arrays: measured on the CPU
-        body = {**body, "scale": body["scale"].cpu(), "offset": body["offset"].cpu()}
+        body = {key: value.cpu() if torch.is_tensor(value) else value for key, value in body.items()}
     rhythm = float(
         masked_rhythm_loss(
             torch.from_numpy(np.asarray(generated, np.float32)),
@@ -381,7 +381,38 @@ def _body(manifest: dict[str, Any], device: torch.device) -> dict[str, Any] | No
     def tensor(values):
         return torch.tensor([1.0 if v is None else v for v in values], dtype=torch.float32, device=device)
 
-    return {"bones": bones, "scale": tensor(norm["scale"]), "offset": tensor(norm["offset"]), "dims": spec.dimensions}
+    root_centred = bool(manifest["config"].get("root_centre"))
+    body = {"bones": bones, "scale": tensor(norm["scale"]), "offset": tensor(norm["offset"]), "dims": spec.dimensions}
+    feet = _feet(spec) if spec.root in spec.positions else None
+    body["feet"] = None if feet is None else torch.tensor(feet, dtype=torch.float32, device=device)
+    body["root"] = spec.positions.index(spec.root) if spec.root in spec.positions else None
+    body["centred"] = root_centred
+    return body
+
+
+SMPL24_FEET = ("left_ankle", "left_foot", "right_ankle", "right_foot")
+"""The joints EDGE's foot contact score reads (:mod:`kinectdata.evaluation.metrics.foot_contact`)."""
+
+
+def _feet(spec) -> np.ndarray | None:
+    """[4, P] weights of the :data:`SMPL24_FEET` joints over the target's P positioned joints, from
+    its joint set's SMPL-24 mapping; None when the set has no mapping, or a foot needs a joint the
+    target does not position (then the free-running loss has no foot term)."""
+    from kinectdata.core.joint_mapping import load_smpl24_mapping
+    from kinectdata.core.jointsets import load_joint_set
+
+    if spec.dimensions != 3:
+        return None
+    try:
+        mapping = load_smpl24_mapping(spec.joints)
+    except KinectDataError:
+        return None
+    smpl = load_joint_set("smpl24")
+    rows = mapping.weights[[smpl.index(name) for name in SMPL24_FEET]]  # [4, J]
+    columns = [spec.joints.index(name) for name in spec.positions]
+    if np.delete(rows, columns, axis=1).any():
+        return None
+    return rows[:, columns]
 
 
 def _better(history: list[dict]) -> bool:
