@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+from dataclasses import dataclass, replace
+from typing import Any
+
 
 def masked_mse(prediction, target, mask):
     """Mean squared error over the valid entries (torch tensors; differentiable)."""
@@ -146,6 +149,13 @@ def masked_posture_loss(prediction, target, mask):
     return (gap * counted).sum() / counted.sum().clamp(min=1.0)
 
 
+def _metres(x, scale, offset, joints: int, dims: int):
+    """The first ``joints`` joints' positions [..., joints, dims] in metres, from normalised [..., D]
+    vectors ``y = (x - offset) * scale``."""
+    width = joints * dims
+    return (x[..., :width] / scale[:width] + offset[:width]).unflatten(-1, (joints, dims))
+
+
 def masked_bone_loss(prediction, target, mask, bones, scale, offset, dims: int = 3):
     """How much a motion's bones stretch: per bone, the mean absolute difference between its length
     in each frame of the prediction and its mean length over the target window, as a fraction of
@@ -165,13 +175,9 @@ def masked_bone_loss(prediction, target, mask, bones, scale, offset, dims: int =
         return prediction.new_zeros(())
     joints = max(max(pair) for pair in bones) + 1
     width = joints * dims
-
-    def metres(x):
-        return (x[..., :width] / scale[:width] + offset[:width]).unflatten(-1, (joints, dims))
-
     child = torch.tensor([c for c, _ in bones], device=prediction.device)
     parent = torch.tensor([p for _, p in bones], device=prediction.device)
-    made, real = metres(prediction), metres(target)
+    made, real = _metres(prediction, scale, offset, joints, dims), _metres(target, scale, offset, joints, dims)
     made_length = torch.linalg.vector_norm(made[..., child, :] - made[..., parent, :], dim=-1)  # [B, L, bones]
     real_length = torch.linalg.vector_norm(real[..., child, :] - real[..., parent, :], dim=-1)
     valid = mask[..., :width].unflatten(-1, (joints, dims)).all(dim=-1)
@@ -209,7 +215,7 @@ def masked_foot_loss(
     width = joints * dims
 
     def world(x):
-        p = (x[..., :width] / scale[:width] + offset[:width]).unflatten(-1, (joints, dims))
+        p = _metres(x, scale, offset, joints, dims)
         if not centred:
             return p
         others = torch.ones(joints, 1, dtype=p.dtype, device=p.device)
@@ -253,6 +259,33 @@ term; the stretch in metres at weight 1 left the bones 1.5 times as variable as 
 the validation dances (docs/benchmarks.md)."""
 
 
+@dataclass(frozen=True)
+class Body:
+    """What :func:`masked_rhythm_loss` needs to measure a motion's body in metres.
+
+    Attributes:
+        bones: (joint, parent) index pairs into the positioned joints, for :func:`masked_bone_loss`.
+        scale, offset: [D] torch tensors, the normalisation ``y = (x - offset) * scale``.
+        dims: components per position.
+        feet: [4, P] torch tensor for :func:`masked_foot_loss`, or None (no foot term).
+        root: the root's index among the positioned joints (needed with ``feet``).
+        centred: the positions are root-centred.
+    """
+
+    bones: list[tuple[int, int]]
+    scale: Any
+    offset: Any
+    dims: int = 3
+    feet: Any = None
+    root: int | None = None
+    centred: bool = False
+
+    def to(self, device) -> Body:
+        """The same body with its tensors on ``device``."""
+        feet = None if self.feet is None else self.feet.to(device)
+        return replace(self, scale=self.scale.to(device), offset=self.offset.to(device), feet=feet)
+
+
 def masked_rhythm_loss(prediction, target, mask, fps: float, body=None, posture_weight: float = 3.0):
     """The free-running loss of training (``TrainConfig.free_weight``): the spectra of the motion's
     changes (:func:`masked_rhythm_spectrum_loss`: how often and how much at each tempo, whatever the
@@ -260,10 +293,9 @@ def masked_rhythm_loss(prediction, target, mask, fps: float, body=None, posture_
     (:func:`masked_energy_loss` of the motion and of its frame-to-frame changes: the second keeps a
     motion made from the music alone from jittering), its postures' means and spreads
     (:func:`masked_posture_loss`, times ``posture_weight``: ``TrainConfig.posture_weight``) and,
-    given ``body`` (a mapping with ``bones``, ``scale``, ``offset``, ``dims`` for
-    :func:`masked_bone_loss`, and ``feet``, ``root``, ``centred`` for :func:`masked_foot_loss`
-    or ``feet`` None), how much its bones stretch against the target's (times :data:`BONE_WEIGHT`) and how
-    much more its feet slide (times :data:`FOOT_WEIGHT`). [B, L, D] tensors; a scalar."""
+    given a :class:`Body`, how much its bones stretch against the target's (times
+    :data:`BONE_WEIGHT`) and, when the body has feet, how much more they slide (times
+    :data:`FOOT_WEIGHT`). [B, L, D] tensors; a scalar."""
     chunk = max(1, round(ENERGY_CHUNK_S * fps))
     loss = masked_rhythm_spectrum_loss(prediction, target, mask, fps) + masked_energy_loss(
         prediction, target, mask, chunk
@@ -271,9 +303,11 @@ def masked_rhythm_loss(prediction, target, mask, fps: float, body=None, posture_
     loss = loss + masked_energy_loss(*_changes(prediction, target, mask), chunk)
     loss = loss + posture_weight * masked_posture_loss(prediction, target, mask)
     if body is not None:
-        bones = {k: body[k] for k in ("bones", "scale", "offset", "dims")}
-        loss = loss + BONE_WEIGHT * masked_bone_loss(prediction, target, mask, **bones)
-        if body.get("feet") is not None:
-            feet = {k: body[k] for k in ("feet", "scale", "offset", "root", "centred", "dims")}
-            loss = loss + FOOT_WEIGHT * masked_foot_loss(prediction, target, mask, **feet)
+        loss = loss + BONE_WEIGHT * masked_bone_loss(
+            prediction, target, mask, body.bones, body.scale, body.offset, body.dims
+        )
+        if body.feet is not None:
+            loss = loss + FOOT_WEIGHT * masked_foot_loss(
+                prediction, target, mask, body.feet, body.scale, body.offset, body.root, body.centred, dims=body.dims
+            )
     return loss

@@ -42,7 +42,7 @@ from kinectdata.core.errors import KinectDataError, KinectDataWarning
 from kinectdata.dataset.windows import WindowDataset
 from kinectdata.evaluation.metrics import smape
 from kinectdata.inference.export import export_network, stream_metadata
-from kinectdata.models.losses import masked_rhythm_loss
+from kinectdata.models.losses import Body, masked_rhythm_loss
 from kinectdata.models.registry import check_fits, model_for_dataset, model_kind
 from kinectdata.models.run import (
     CHECKPOINT,
@@ -325,7 +325,7 @@ def validate(
     device: torch.device,
     start_pose: list[float] | None = None,
     fps: float = 30.0,
-    body: dict[str, Any] | None = None,
+    body: Body | None = None,
 ) -> tuple[float, float, float]:
     """(loss as in training, SMAPE in % free-running, the free-running rhythm loss) over a split's
     windows: the model runs free from each window's first true pose; the rhythm loss
@@ -353,7 +353,7 @@ def validate(
     loss = float(np.average(losses, weights=weights))
     generated, real, masks = np.concatenate(generated), np.concatenate(real), np.concatenate(masks)
     if body is not None:  # the free runs are numpy arrays: measured on the CPU
-        body = {key: value.cpu() if torch.is_tensor(value) else value for key, value in body.items()}
+        body = body.to("cpu")
     rhythm = float(
         masked_rhythm_loss(
             torch.from_numpy(np.asarray(generated, np.float32)),
@@ -367,9 +367,10 @@ def validate(
     return loss, smape(generated, real, masks), rhythm
 
 
-def _body(manifest: dict[str, Any], device: torch.device) -> dict[str, Any] | None:
-    """What the free-running loss needs to measure a motion's bones (:func:`masked_bone_loss`): the
-    target's positioned bones, the normalisation to undo; None when the target positions no bone."""
+def _body(manifest: dict[str, Any], device: torch.device) -> Body | None:
+    """What the free-running loss needs to measure a motion's body: the target's positioned bones,
+    the normalisation to undo, its feet (:func:`_feet`) and root; None when the target positions
+    no bone."""
     from kinectdata.targets.specs import TargetSpec
 
     spec = TargetSpec.from_dict(manifest["config"]["target"])
@@ -381,13 +382,17 @@ def _body(manifest: dict[str, Any], device: torch.device) -> dict[str, Any] | No
     def tensor(values):
         return torch.tensor([1.0 if v is None else v for v in values], dtype=torch.float32, device=device)
 
-    root_centred = bool(manifest["config"].get("root_centre"))
-    body = {"bones": bones, "scale": tensor(norm["scale"]), "offset": tensor(norm["offset"]), "dims": spec.dimensions}
-    feet = _feet(spec) if spec.root in spec.positions else None
-    body["feet"] = None if feet is None else torch.tensor(feet, dtype=torch.float32, device=device)
-    body["root"] = spec.positions.index(spec.root) if spec.root in spec.positions else None
-    body["centred"] = root_centred
-    return body
+    root = spec.positions.index(spec.root) if spec.root in spec.positions else None
+    feet = None if root is None else _feet(spec)
+    return Body(
+        bones=bones,
+        scale=tensor(norm["scale"]),
+        offset=tensor(norm["offset"]),
+        dims=spec.dimensions,
+        feet=None if feet is None else torch.tensor(feet, dtype=torch.float32, device=device),
+        root=root,
+        centred=bool(manifest["config"].get("root_centre")),
+    )
 
 
 SMPL24_FEET = ("left_ankle", "left_foot", "right_ankle", "right_foot")
