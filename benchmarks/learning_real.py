@@ -25,9 +25,7 @@ import time
 from pathlib import Path
 from typing import Any
 
-from kinectdata.dataset.build import build_dataset
-from kinectdata.dataset.config import BuildConfig
-from kinectdata.dataset.recipes import prepare_corpus
+from kinectdata.apps.real_dance import build_corpus_datasets
 from kinectdata.evaluation.evaluate import evaluate, format_results
 from kinectdata.training.config import TrainConfig
 from kinectdata.training.train import train
@@ -35,39 +33,7 @@ from kinectdata.training.train import train
 from .bench_learning import loss_figure
 from .summary import record
 
-BUILDS = {
-    "yalta": {"pipeline": "yalta2016", "features": "yalta2016_rhythm", "normalisation": None},
-    "cdhc": {"pipeline": "listen-to-dance", "features": "listen_to_dance_rhythm", "normalisation": "maxabs"},
-}
-"""How each model's dataset of a real corpus is built: its pipeline's features with the music's pulse
-(as docs/training.md says real dance needs), the corpus's generic target (every joint's position,
-root-centred as the recipe says), normalised into -0.9..0.9."""
 PROTOCOLS = ("bailando", "aist")
-
-
-def build_corpus(corpus: str, path: Path, out: Path, models: list[str]) -> dict[str, Path]:
-    """The recordings manifest of the local copy and one dataset per model (reused when built before)."""
-    manifest = prepare_corpus(corpus, path)
-    listed = manifest.write(out / "recordings.yaml")
-    counts = ", ".join(f"{n} {split}" for split, n in manifest.split_counts().items())
-    print(f"  {corpus}: {len(manifest.recordings)} recordings ({counts}), {len(manifest.skipped)} left out", flush=True)
-    datasets = {}
-    for model in models:
-        how = BUILDS[model]
-        config = BuildConfig.from_pipeline(
-            how["pipeline"],
-            features=how["features"],
-            target=manifest.target,
-            normalisation=how["normalisation"],
-            root_centre="--root-centre" in manifest.build_options,
-        )
-        started = time.perf_counter()
-        folder = out / f"{model}_dataset"
-        built = build_dataset(listed, folder, config, jobs=2, allow_outside_paths=True)
-        rows = {s: built["splits"][s]["rows"] for s in ("train", "val", "test")}
-        print(f"  {model} dataset: {rows} rows ({time.perf_counter() - started:.0f} s)", flush=True)
-        datasets[model] = folder
-    return datasets
 
 
 def goals(results: dict[str, Any]) -> list[tuple[str, bool, str]]:
@@ -158,7 +124,7 @@ def run(
     """Build, train every model within ``minutes`` with its defaults (and ``changes[model]``, for
     the tests' small runs), evaluate on the test split (``bootstrap`` resamples for the field's
     intervals), print the goals."""
-    datasets = build_corpus(corpus, path, out, models)
+    datasets, _ = build_corpus_datasets(corpus, path, out, models, echo=lambda line: print("  " + line, flush=True))
     summary = {}
     for model in models:
         run_dir = out / model

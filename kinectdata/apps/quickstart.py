@@ -200,7 +200,7 @@ def run_quickstart(
     learn = build_dataset(corpus, out / "learn_dataset", BuildConfig.from_pipeline("yalta2016"), jobs=2)
     rows = {k: v["rows"] for k, v in learn["splits"].items()}
     echo(f"  {rows['train'] / 1800:.1f} min to train on, {rows.get('test', 0) / 1800:.1f} min of test songs")
-    learned = _train_evaluate_generate(
+    learned = train_evaluate_generate(
         out,
         learn,
         "yalta2016",
@@ -224,18 +224,23 @@ def _audio_of(manifest: dict[str, Any], recording: str) -> Path:
     return Path(next(e["audio"] for e in manifest["inputs"] if e["name"] == source))
 
 
-def _train_evaluate_generate(
+def train_evaluate_generate(
     out: Path,
     manifest: dict[str, Any],
     pipeline: str,
     settings: dict[str, Any],
     generated: str,
     echo: Callable[[str], Any],
+    *,
+    dataset: Path | None = None,
+    split: str = "test",
+    why_split: str = "songs at tempi never heard in training",
 ) -> dict[str, Any]:
-    """Train the pipeline's model on ``out/learn_dataset`` (its ``manifest``) into ``out/run``,
-    evaluate it on the test split and generate motion for the first test recording's audio (as the
-    manifest names it) into ``run/generated``. Returns ``{"run", "history", "evaluation",
-    "generated_frames"}``, or ``{}`` (said through ``echo``) when PyTorch is not installed."""
+    """Train the pipeline's model on ``dataset`` (default ``out/learn_dataset``; its ``manifest``)
+    into ``out/run``, evaluate it on ``split`` and generate motion for that split's first
+    recording's audio (as the manifest names it) into ``run/generated``. Returns ``{"run",
+    "history", "evaluation", "generated_frames"}``, or ``{}`` (said through ``echo``) when PyTorch
+    is not installed."""
     try:
         import torch  # noqa: F401
     except ImportError:
@@ -250,7 +255,7 @@ def _train_evaluate_generate(
     from kinectdata.training.train import train
 
     model = PIPELINES[pipeline]["model"]
-    dataset = out / "learn_dataset"
+    dataset = dataset or out / "learn_dataset"
     run = out / "run"
     shutil.rmtree(run, ignore_errors=True)  # a fresh run each time (a run folder refuses to be overwritten)
     shown = {k: v for k, v in settings.items() if not (k == "epochs" and settings.get("max_minutes"))}
@@ -265,12 +270,12 @@ def _train_evaluate_generate(
         )
 
     history = train(dataset, run, TrainConfig.for_model(model, **settings), progress=progress)
-    echo(f"[evaluate] {run} on the test split (songs at tempi never heard in training)")
+    echo(f"[evaluate] {run} on the {split} split ({why_split})")
     # the forward time on the default engine only: exporting for every engine would add seconds
     # to a first run (`kinectdata evaluate` times them all)
-    results = evaluate(run, dataset, "test", engines=[("torch", "float32")])
+    results = evaluate(run, dataset, split, engines=[("torch", "float32")])
     echo(format_results(results))
-    audio = _audio_of(manifest, manifest["splits"]["test"]["recordings"][0])
+    audio = _audio_of(manifest, manifest["splits"][split]["recordings"][0])
     echo(f"[generate] {audio} -> {run / generated}")
     motion, _ = generate(run, audio, run / generated)
     return {"run": str(run), "history": history, "evaluation": results, "generated_frames": motion.n_frames}
@@ -324,7 +329,7 @@ def run_listen_quickstart(
     corpus = learning_corpus(out / "corpus", corpus_minutes, openpose=True)
     echo(f"[build-dataset] {corpus} -> {out / 'learn_dataset'} (--pipeline listen-to-dance)")
     learn = build_dataset(corpus, out / "learn_dataset", config, jobs=2, video_fps=30.0)
-    learned = _train_evaluate_generate(
+    learned = train_evaluate_generate(
         out,
         learn,
         "listen-to-dance",

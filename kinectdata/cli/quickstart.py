@@ -24,7 +24,19 @@ import click
     "log-mel, the CDHC model, the rhythm analysis.",
 )
 @click.option(
-    "--minutes", default=6.0, show_default=True, type=click.FloatRange(min=0, min_open=True), help="Training budget."
+    "--corpus",
+    nargs=2,
+    default=None,
+    metavar="NAME PATH",
+    help="Run on a local copy of a real corpus instead of synthetic sessions (e.g. --corpus tang2018 "
+    "Music-to-Dance-Motion-Synthesis): prepare it, build the model's dataset with the music's pulse, train with "
+    "train-baseline's defaults, evaluate on its validation dances, generate.",
+)
+@click.option(
+    "--minutes",
+    default=None,
+    type=click.FloatRange(min=0, min_open=True),
+    help="Training budget.  [default: 6; 25 with --corpus]",
 )
 @click.option(
     "--corpus-minutes",
@@ -39,20 +51,34 @@ import click
 @click.option(
     "--units", default=None, type=click.IntRange(min=1), help="yalta2016: LSTM units per layer.  [default: 128]"
 )
-def quickstart(out, samples, pipeline, minutes, corpus_minutes, epochs, units) -> None:
+def quickstart(out, samples, pipeline, corpus, minutes, corpus_minutes, epochs, units) -> None:
     """Run the toolkit end to end in about 7 minutes on 2 CPU cores: synthesise a session, align
     every sample session (offset from the sync clap, checked against the ground truth), build and
     inspect a dataset; then synthesise a corpus to learn from, train the reference network within
     --minutes, evaluate it on songs at tempi it never heard (SMAPE, forward time, plots, silence
     test, and verdicts: does the motion follow the beat and the tempo, does the model listen) and
     generate motion for a test song. With --pipeline listen-to-dance: the same for OpenPose poses
-    and the CDHC model."""
+    and the CDHC model. With --corpus NAME PATH: a real corpus, with the settings that learn on one."""
+    overrides = {k: v for k, v in {"epochs": epochs, "units": units}.items() if v is not None}
+    if corpus is not None:
+        if samples is not None:
+            raise click.UsageError("--samples is for the synthetic quickstart: --corpus reads the corpus given")
+        from kinectdata.apps.real_dance import REAL_QUICK_MINUTES, run_real_quickstart
+
+        if pipeline == "listen-to-dance":
+            overrides.pop("units", None)
+        name, path = corpus
+        run_real_quickstart(
+            name, path, out, echo=click.echo, pipeline=pipeline, minutes=minutes or REAL_QUICK_MINUTES, **overrides
+        )
+        return
     from kinectdata.apps.quickstart import (  # imports the synthesiser, slow to load
+        QUICK_MINUTES,
         run_listen_quickstart,
         run_quickstart,
     )
 
-    overrides = {k: v for k, v in {"epochs": epochs, "units": units}.items() if v is not None}
+    minutes = minutes or QUICK_MINUTES
     if pipeline == "listen-to-dance":
         if samples is not None:
             raise click.UsageError("--samples applies to the yalta2016 quickstart (its sessions are synthesised)")

@@ -12,7 +12,7 @@ An extractor is a callable ``(samples, starts, config, *, chunk_frames=...) -> (
   the music's pulse at 43 tempi, computed causally from its onsets;
 - ``"stack"``: :func:`kinectdata.features.stack.stack_features`, parts stacked on their first
   axis (presets ``"yalta2016_rhythm"``: the STFT and the pulse as two channels [2, 129, 5];
-  ``"listen_to_dance_rhythm"``: log-mel and pulse [209]).
+  ``"listen_to_dance_rhythm"``: log-mel and pulse with its metrical levels [283]).
 
 All presets are in :data:`PRESETS`. A configuration's dict names its extractor
 (``"extractor"``; a dict without one is an STFT configuration, as datasets before the mel
@@ -52,12 +52,25 @@ __all__ = [
 ]
 
 FeatureConfig = StftConfig | MelConfig | RhythmConfig | StackConfig
+LISTEN_TO_DANCE_PULSE = RhythmConfig(
+    tempo_range_bpm=(15.0, 240.0),
+    n_tempi=65,
+    window_s=12.0,
+    decay_s=4.0,
+    levels=(1, 2, 3, 4),
+    beat_range_bpm=(40.0, 240.0),
+)
+"""The pulse the cdhc model is given: tempi down to 15 BPM (two bars of 4 at 120 BPM) over 12 s of
+onsets, and the predominant pulse at the beat, two beats and bars of 3 and 4: [203]. Its decoder
+reads each frame's features through convolutions, and given the 43 tempi alone it kept one tempo's
+phase whatever the song; with the levels it moved alive and human for both seeds tried
+(docs/benchmarks.md, "How the recipe was found")."""
 PRESETS: dict[str, FeatureConfig] = {
     **STFT_PRESETS,
     "listen_to_dance": MelConfig(),
     "yalta2016_rhythm": StackConfig((STFT_PRESETS["yalta2016"], RhythmConfig(columns=5))),
     "motion_dance_rhythm": StackConfig((STFT_PRESETS["motion_dance"], RhythmConfig(columns=5))),
-    "listen_to_dance_rhythm": StackConfig((MelConfig(), RhythmConfig())),
+    "listen_to_dance_rhythm": StackConfig((MelConfig(), LISTEN_TO_DANCE_PULSE)),
 }
 """Feature configurations by name: ``yalta2016``, ``motion_dance`` (STFT), ``listen_to_dance``
 (mel), and each with the music's pulse stacked on (``_rhythm``)."""

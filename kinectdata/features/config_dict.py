@@ -10,7 +10,7 @@ from kinectdata.core.errors import ConfigError
 
 
 def _tuple_fields(cls: type) -> list[str]:
-    """The fields declared as tuples (lists in JSON)."""
+    """The fields declared as tuples, or tuples or None (lists in JSON)."""
     return [f.name for f in dataclasses.fields(cls) if str(f.type).startswith("tuple")]
 
 
@@ -19,7 +19,7 @@ def config_to_dict(config: Any, *, with_extractor: bool = True) -> dict[str, Any
     class's ``extractor`` name (unless ``with_extractor`` is False)."""
     d = dataclasses.asdict(config)
     for name in _tuple_fields(type(config)):
-        d[name] = list(d[name])
+        d[name] = None if d[name] is None else list(d[name])
     return {"extractor": config.extractor, **d} if with_extractor else d
 
 
@@ -34,6 +34,6 @@ def config_from_dict(cls: type, d: dict[str, Any], kind: str) -> Any:
     if unknown:
         raise ConfigError(f"unknown {cls.__name__} keys: {unknown}")
     for name in _tuple_fields(cls):
-        if name in kw:
+        if name in kw and kw[name] is not None:
             kw[name] = tuple(kw[name])
     return cls(**kw)

@@ -22,17 +22,29 @@ on that corpus's songs; dB-scaled features 0.7-0.8). So the pulse is computed, c
 3. **Per tempo, three values**: the pulse's salience ``s_k = |T_k| / sum_m o[n - m] w[m]`` (0..1:
    1 for onsets exactly periodic at tempo k), and ``s_k cos(arg T_k)``, ``s_k sin(arg T_k)``.
    Silence gives zeros.
+4. **The predominant pulse at metrical levels** (``levels``, optional): the beat is the tempo of
+   ``beat_range_bpm`` with the greatest salience times a log-normal tempo prior (centred on 120
+   BPM, one octave wide: the prior of librosa's tempo estimate), as Grosche and Mueller's
+   predominant local pulse picks one tempo per instant; for each level m (1 the beat, 2 two beats,
+   3 and 4 a bar of 3 or 4 beats...) the pulse of the tempo nearest the beat's tempo / m gives
+   ``s* cos(arg T)``, ``s* sin(arg T)``, s* the beat's salience: a clock at the song's own beat
+   and bar whatever its tempo, which a network can read without finding the right tempo among
+   all of them itself (a convolutional decoder reading the tempi kept one tempo's phase, the same
+   period for every song). A level's tempo below ``tempo_range_bpm`` takes the lowest tempo. A
+   level above 1 has the phase of the onsets' own periodicity at its tempo: it tells the bar where
+   the downbeats sound different (louder, or across more of the spectrum); where they do not, it
+   restarts at every beat.
 
-Output per motion frame: ``[3 * n_tempi]`` values in -1..1 (tempo by tempo: salience, cosine,
-sine), or with ``columns`` = c, ``[1, 3 * n_tempi, c]``: those values at c instants spread over the
-frame's slice like the STFT features' sub-frames (43 tempi give 129 rows, the STFT's bins: the two
-stack as channels of one [2, 129, 5] input). A frame reads the ``window_s`` before its slice:
-history, so ``padded`` flags only frames whose own slice runs off the audio. Each frame's onsets
-are taken on a grid of hops through its last instant (the window of the last value ends exactly
-there), so its values depend on its own span of samples only, not on where the audio passed in
-begins: streaming gives what the whole file gives, up to float rounding. Frames whose instants
-lie at different phases of the hop (3 at 30 fps and 16 kHz: 534 + round(k 533.3) modulo 80) need
-one onset envelope each.
+Output per motion frame: ``[3 * n_tempi + 2 * len(levels)]`` values in -1..1 (tempo by tempo:
+salience, cosine, sine; then level by level: cosine, sine), or with ``columns`` = c, ``[1, 3 *
+n_tempi, c]``: those values at c instants spread over the frame's slice like the STFT features'
+sub-frames (43 tempi give 129 rows, the STFT's bins: the two stack as channels of one [2, 129, 5]
+input). A frame reads the ``window_s`` before its slice: history, so ``padded`` flags only frames
+whose own slice runs off the audio. Each frame's onsets are taken on a grid of hops through its last
+instant (the window of the last value ends exactly there), so its values depend on its own span of
+samples only, not on where the audio passed in begins: streaming gives what the whole file gives, up
+to float rounding. Frames whose instants lie at different phases of the hop (3 at 30 fps and 16 kHz:
+534 + round(k 533.3) modulo 80) need one onset envelope each.
 """
 
 from __future__ import annotations
@@ -62,6 +74,10 @@ class RhythmConfig:
         window_s: seconds of past onsets each pulse looks at. decay_s: the window's time constant
             (``w = exp(-t / decay_s)``).
         n_tempi, tempo_range_bpm: the tempi looked at (log-spaced, inclusive).
+        levels: metrical levels of the predominant pulse output after the tempi (module
+            docstring, step 4), as multiples of the beat's period; () for none.
+        beat_range_bpm: the tempi the beat is looked for among (within ``tempo_range_bpm``; None:
+            all of them).
         columns: 0 for a vector per frame (at the slice's end); c > 0 for a [1, 3 n_tempi, c]
             plane of values at c instants of the slice (``column_hop`` samples apart, the last
             ``column_end`` samples after the slice start, at most ``slice_samples``: the STFT
@@ -83,6 +99,8 @@ class RhythmConfig:
     decay_s: float = 2.0
     n_tempi: int = 43
     tempo_range_bpm: tuple[float, float] = (40.0, 240.0)
+    levels: tuple[int, ...] = ()
+    beat_range_bpm: tuple[float, float] | None = None
     columns: int = 0
     column_hop: int = 80
     column_end: int = 480
@@ -104,6 +122,20 @@ class RhythmConfig:
                 f"rhythm features: tempo_range_bpm must be (low, high) with 0 < low < high, got {lo}, {hi}"
             )
         object.__setattr__(self, "tempo_range_bpm", (lo, hi))
+        levels = tuple(self.levels)
+        if any(isinstance(m, bool) or int(m) != m or m < 1 for m in levels):
+            raise ConfigError(f"rhythm features: levels must be whole numbers at least 1, got {self.levels!r}")
+        object.__setattr__(self, "levels", tuple(int(m) for m in levels))
+        if self.beat_range_bpm is not None:
+            beat_lo, beat_hi = (float(v) for v in self.beat_range_bpm)
+            if not lo <= beat_lo < beat_hi <= hi:
+                raise ConfigError(
+                    f"rhythm features: beat_range_bpm ({beat_lo:g}, {beat_hi:g}) must be a range within "
+                    f"tempo_range_bpm ({lo:g}, {hi:g})"
+                )
+            object.__setattr__(self, "beat_range_bpm", (beat_lo, beat_hi))
+        if self.levels and self.columns:
+            raise ConfigError("rhythm features: levels are for the vector layout (columns 0)")
         for name in ("detrend_s", "window_s", "decay_s", "fmax"):
             if not float(getattr(self, name)) > 0:
                 raise ConfigError(f"rhythm features: {name} must be positive, got {getattr(self, name)!r}")
@@ -119,8 +151,8 @@ class RhythmConfig:
 
     @property
     def output_shape(self) -> tuple[int, ...]:
-        """``(3 n_tempi,)``, or ``(1, 3 n_tempi, columns)``."""
-        rows = 3 * self.n_tempi
+        """``(3 n_tempi + 2 len(levels),)``, or ``(1, 3 n_tempi, columns)``."""
+        rows = 3 * self.n_tempi + 2 * len(self.levels)
         return (1, rows, self.columns) if self.columns else (rows,)
 
     @property
@@ -234,7 +266,36 @@ def _pulse_values(x: np.ndarray, starts: np.ndarray, phase: int, config: RhythmC
     salience = np.where(total[..., None] > 0, np.abs(pulse) / np.maximum(total[..., None], 1e-30), 0.0)
     angle = np.angle(pulse)
     values = np.stack([salience, salience * np.cos(angle), salience * np.sin(angle)], axis=-1)  # [F, c, K, 3]
-    return values.reshape(*values.shape[:2], -1)
+    values = values.reshape(*values.shape[:2], -1)
+    if not config.levels:
+        return values
+    return np.concatenate([values, _level_values(salience, angle, config)], axis=-1)
+
+
+@functools.lru_cache(maxsize=8)
+def _level_tempi(config: RhythmConfig) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(the beat candidates' tempo indices [B], their log prior [B], [B, len(levels)] the index of
+    the tempo nearest each candidate's tempo / m for each level m)."""
+    tempi = config.tempi_bpm
+    lo, hi = config.beat_range_bpm or config.tempo_range_bpm
+    candidates = np.flatnonzero((tempi >= lo * (1 - 1e-9)) & (tempi <= hi * (1 + 1e-9)))
+    log_prior = -0.5 * np.log2(tempi[candidates] / 120.0) ** 2
+    wanted = tempi[candidates][:, None] / np.asarray(config.levels, np.float64)[None, :]
+    nearest = np.abs(np.log(tempi)[None, None, :] - np.log(wanted)[..., None]).argmin(axis=-1)
+    return candidates, log_prior, nearest
+
+
+def _level_values(salience: np.ndarray, angle: np.ndarray, config: RhythmConfig) -> np.ndarray:
+    """[F, c, 2 len(levels)] the predominant pulse's phasor at each metrical level (module
+    docstring, step 4) from the saliences and phases [F, c, K] of every tempo."""
+    candidates, log_prior, nearest = _level_tempi(config)
+    weighted = salience[..., candidates] * np.exp(log_prior)
+    best = weighted.argmax(axis=-1)  # [F, c] index into the candidates
+    beat_salience = np.take_along_axis(salience[..., candidates], best[..., None], axis=-1)  # [F, c, 1]
+    at = nearest[best]  # [F, c, levels]: the tempo of each level
+    phase = np.take_along_axis(angle, at, axis=-1)
+    out = np.stack([beat_salience * np.cos(phase), beat_salience * np.sin(phase)], axis=-1)  # [F, c, levels, 2]
+    return out.reshape(*out.shape[:2], -1)
 
 
 def rhythm_features(
@@ -266,7 +327,7 @@ def rhythm_features(
         # depend on its own samples only, not on where the audio passed in begins (streamed audio
         # arrives in a buffer that starts anywhere): one onset envelope per phase of that grid.
         phase = (block + last_instant) % hop
-        values = np.empty((block.size, config.instants.size, 3 * config.n_tempi))  # [F, c, 3K]
+        values = np.empty((block.size, config.instants.size, config.output_shape[-2 if config.columns else 0]))
         for p in np.unique(phase):
             rows = np.flatnonzero(phase == p)
             values[rows] = _pulse_values(x, block[rows], int(p), config)

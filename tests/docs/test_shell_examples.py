@@ -38,6 +38,8 @@ PROGRAMS = ("kinectdata", "pip", "pytest", "python", "dask", "torchrun")
 NOT_RUN = {
     "pip install": "installs the package: .ci/run does it before the suite runs",
     "pytest": "the test suite itself",
+    "kinectdata quickstart --corpus": "tests/apps/test_real_quickstart.py runs it on a copy made in the corpus's shape "
+    "(one epoch of a small model; the corpus itself cannot be shipped)",
     "kinectdata quickstart": "tests/cli/test_cli.py runs it (one epoch of a small model)",
     "torchrun": "four processes on a two-core machine: tests/training/test_distributed.py runs train-baseline "
     "under torchrun with two, and checks their losses against one process's",

@@ -200,6 +200,7 @@ def test_the_defaults_are_the_recipe_that_learns_real_dance():
         assert (c.sequence, c.stride, c.batch_size, c.lr, c.noise_eta, c.clip_norm) == (300, 75, 8, 1e-3, 0.0, 1.0)
         assert (c.free_weight, c.posture_weight, c.silence_share, c.keep) == (1.0, 3.0, 0.2, "best")
     assert (TrainConfig().units, TrainConfig().feedback) == (128, "teacher")
+    assert (TrainConfig("yalta").epochs, TrainConfig("cdhc").epochs) == (12, 40)  # the cdhc model's epochs are short
 
 
 def test_a_run_written_before_the_rhythm_loss_resumes_without_it():

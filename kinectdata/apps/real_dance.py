@@ -1,0 +1,146 @@
+"""The quickstart on a real corpus (``kinectdata quickstart --corpus tang2018 PATH``): what a user
+does with their first real dance corpus, with the settings that learn on one.
+
+1. ``prepare``: the corpus's recipe writes ``recordings.yaml`` (its published split, the
+   recordings it leaves out and why);
+2. ``build-dataset``: the model's pipeline with the music's pulse stacked on its spectra
+   (:data:`REAL_DANCE_BUILDS`; spectra alone do not let a model hear the beat of real songs,
+   docs/training.md, "Learning real dance"), the corpus's generic target as the recipe says
+   (root-centred for tang2018);
+3. ``train-baseline`` with its defaults (the real-dance recipe) within a time budget;
+4. ``evaluate`` on the **validation** dances: the test dances are left for the final figures
+   (``python -m benchmarks.bench_learning --corpus ...``), never looked at while settings are tried;
+5. ``generate``: motion for the first validation song.
+
+The corpus is read where it is (``--allow-outside-paths``): nothing of it is copied.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+from kinectdata.core.errors import ConfigError
+from kinectdata.dataset.build import build_dataset
+from kinectdata.dataset.config import BuildConfig
+from kinectdata.dataset.pipelines import PIPELINES
+from kinectdata.dataset.recipes import prepare_corpus
+
+REAL_DANCE_BUILDS: dict[str, dict[str, Any]] = {
+    "yalta2016": {"features": "yalta2016_rhythm", "normalisation": None},
+    "listen-to-dance": {"features": "listen_to_dance_rhythm", "normalisation": "maxabs"},
+}
+"""How a real corpus's dataset is built for each pipeline's model: the pipeline's features with the
+music's pulse, the corpus's generic target normalised into -0.9..0.9 (the listen-to-dance
+pipeline's per-video min-max is for 2-D OpenPose poses; ``maxabs`` keeps each coordinate's zero)."""
+
+REAL_QUICK_MINUTES = 25.0
+"""The real-corpus quickstart's training budget, minutes: what docs/benchmarks.md's validation runs
+of the defaults were given (one thread each)."""
+
+
+def model_of(pipeline: str) -> str:
+    """The model a pipeline trains (``yalta2016`` -> ``yalta``, ``listen-to-dance`` -> ``cdhc``)."""
+    return PIPELINES[pipeline]["model"]
+
+
+def pipeline_of(model: str) -> str:
+    """The pipeline of :data:`REAL_DANCE_BUILDS` whose model is ``model``."""
+    for pipeline in REAL_DANCE_BUILDS:
+        if model_of(pipeline) == model:
+            return pipeline
+    known = ", ".join(map(model_of, REAL_DANCE_BUILDS))
+    raise ConfigError(f"no real-corpus build for the model {model!r} (models: {known})")
+
+
+def build_corpus_datasets(
+    corpus: str,
+    path: str | Path,
+    out: str | Path,
+    models: list[str],
+    echo: Callable[[str], Any] = print,
+) -> tuple[dict[str, Path], dict[str, dict[str, Any]]]:
+    """The recordings manifest of a local corpus copy (``out/recordings.yaml``) and one dataset per
+    model (``out/<model>_dataset``, :data:`REAL_DANCE_BUILDS`; a finished build is reused).
+
+    Returns:
+        ``({model: dataset folder}, {model: the dataset's manifest})``.
+    """
+    out = Path(out)
+    manifest = prepare_corpus(corpus, path)
+    listed = manifest.write(out / "recordings.yaml")
+    counts = ", ".join(f"{n} {split}" for split, n in manifest.split_counts().items())
+    echo(f"[prepare {corpus}] {path} -> {listed}: {len(manifest.recordings)} recordings ({counts}), "
+         f"{len(manifest.skipped)} left out (the reasons are in the file)")  # fmt: skip
+    folders, built = {}, {}
+    for model in models:
+        pipeline = pipeline_of(model)
+        how = REAL_DANCE_BUILDS[pipeline]
+        config = BuildConfig.from_pipeline(
+            pipeline,
+            features=how["features"],
+            target=manifest.target,
+            normalisation=how["normalisation"],
+            root_centre="--root-centre" in manifest.build_options,
+        )
+        folder = out / f"{model}_dataset"
+        echo(f"[build-dataset] {listed} -> {folder} (--pipeline {pipeline} --features {how['features']}"
+             f" --target {manifest.target}{' --root-centre' if config.root_centre else ''})")  # fmt: skip
+        started = time.perf_counter()
+        built[model] = build_dataset(listed, folder, config, jobs=2, allow_outside_paths=True)
+        rows = {s: built[model]["splits"][s]["rows"] for s in built[model]["splits"]}
+        echo(f"  {rows} rows ({time.perf_counter() - started:.0f} s)")
+        folders[model] = folder
+    return folders, built
+
+
+def run_real_quickstart(
+    corpus: str,
+    path: str | Path,
+    out_dir: str | Path,
+    echo: Callable[[str], Any] = print,
+    *,
+    pipeline: str = "yalta2016",
+    minutes: float = REAL_QUICK_MINUTES,
+    **training: Any,
+) -> dict[str, Any]:
+    """The real-corpus quickstart into ``out_dir`` (module docstring): prepare, build, train the
+    pipeline's model with ``train-baseline``'s defaults (``training`` overrides them, e.g.
+    ``epochs=1`` in tests) within ``minutes``, evaluate on the validation split, generate.
+
+    Returns:
+        ``{"dataset", "rows", "run", "history", "evaluation", "generated_frames"}`` (the last four
+        only when PyTorch is installed).
+
+    Raises:
+        KinectDataError: the corpus cannot be read or built (one line naming the file).
+    """
+    from kinectdata.apps.quickstart import train_evaluate_generate
+
+    out = Path(out_dir)
+    model = model_of(pipeline)
+    folders, built = build_corpus_datasets(corpus, path, out, [model], echo)
+    summary = {"dataset": str(folders[model]), "rows": built[model]["totals"]["rows"]}
+    settings = {"epochs": 1000, "max_minutes": minutes, **training}
+    generated = "generated.csv"  # the corpus's own joint set: the canonical CSV holds any
+    learned = train_evaluate_generate(
+        out,
+        built[model],
+        pipeline,
+        settings,
+        generated,
+        echo,
+        dataset=folders[model],
+        split="val",
+        why_split="the validation dances: the test dances are kept for the acceptance run",
+    )
+    if learned:
+        run = Path(learned["run"])
+        echo(
+            f"[done] recordings: {out / 'recordings.yaml'}\n       dataset: {folders[model]}\n       run: {run} "
+            f"(loss.png, log.csv, model.pt)\n       evaluation: {run / 'evaluation'} (results.json, metrics.json, "
+            f"figures)\n       generated motion: {run / generated}"
+        )
+    return summary | learned
