@@ -119,10 +119,13 @@ class DaskExecutor:
     def map(self, function: Callable, tasks: Sequence, names: Sequence[str], progress: Progress = None) -> list[Any]:
         """``function(task)`` for each task on the cluster, results in task order. The function's
         KinectDataError comes back as raised; any other failure (a worker lost, a task that could
-        not be sent or run) becomes a KinectDataError naming the task by ``names[i]``."""
+        not be sent or run) becomes a KinectDataError naming the task by ``names[i]``. The first
+        failure is raised once every other task has ended, so that the work they finish is kept
+        for a rerun (closing the client at once would cancel tasks under way, at random)."""
         from distributed import as_completed
 
         results: list[Any] = [None] * len(tasks)
+        failure: KinectDataError | None = None
         with self._client() as client:
             futures = client.map(function, list(tasks), pure=False)
             index = {future.key: i for i, future in enumerate(futures)}
@@ -130,14 +133,18 @@ class DaskExecutor:
                 i = index[future.key]
                 try:
                     results[i] = future.result()
-                except KinectDataError:
-                    raise
+                except KinectDataError as exc:
+                    failure = failure or exc
                 except Exception as exc:
-                    raise KinectDataError(
-                        f"{names[i]}: failed on the Dask cluster at {self.scheduler}: {type(exc).__name__}: {exc}"
-                    ) from exc
+                    if failure is None:
+                        failure = KinectDataError(
+                            f"{names[i]}: failed on the Dask cluster at {self.scheduler}: {type(exc).__name__}: {exc}"
+                        )
+                        failure.__cause__ = exc
                 if progress:
                     progress(done, len(tasks))
+        if failure is not None:
+            raise failure
         return results
 
 
