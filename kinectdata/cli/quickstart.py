@@ -60,13 +60,13 @@ def quickstart(out, samples, pipeline, corpus, minutes, corpus_minutes, epochs, 
     generate motion for a test song. With --pipeline listen-to-dance: the same for OpenPose poses
     and the CDHC model. With --corpus NAME PATH: a real corpus, with the settings that learn on one."""
     overrides = {k: v for k, v in {"epochs": epochs, "units": units}.items() if v is not None}
+    if pipeline == "listen-to-dance":
+        overrides.pop("units", None)  # the yalta model's setting
     if corpus is not None:
         if samples is not None:
             raise click.UsageError("--samples is for the synthetic quickstart: --corpus reads the corpus given")
         from kinectdata.apps.real_dance import REAL_QUICK_MINUTES, run_real_quickstart
 
-        if pipeline == "listen-to-dance":
-            overrides.pop("units", None)
         name, path = corpus
         run_real_quickstart(
             name, path, out, echo=click.echo, pipeline=pipeline, minutes=minutes or REAL_QUICK_MINUTES, **overrides
@@ -82,7 +82,6 @@ def quickstart(out, samples, pipeline, corpus, minutes, corpus_minutes, epochs, 
     if pipeline == "listen-to-dance":
         if samples is not None:
             raise click.UsageError("--samples applies to the yalta2016 quickstart (its sessions are synthesised)")
-        overrides.pop("units", None)
         run_listen_quickstart(out, echo=click.echo, minutes=minutes, corpus_minutes=corpus_minutes, **overrides)
     else:
         run_quickstart(out, samples, echo=click.echo, minutes=minutes, corpus_minutes=corpus_minutes, **overrides)

@@ -150,9 +150,14 @@ class RhythmConfig:
             )
 
     @property
+    def values_per_instant(self) -> int:
+        """``3 n_tempi + 2 len(levels)``: the values taken at each instant of a frame."""
+        return 3 * self.n_tempi + 2 * len(self.levels)
+
+    @property
     def output_shape(self) -> tuple[int, ...]:
         """``(3 n_tempi + 2 len(levels),)``, or ``(1, 3 n_tempi, columns)``."""
-        rows = 3 * self.n_tempi + 2 * len(self.levels)
+        rows = self.values_per_instant
         return (1, rows, self.columns) if self.columns else (rows,)
 
     @property
@@ -327,7 +332,7 @@ def rhythm_features(
         # depend on its own samples only, not on where the audio passed in begins (streamed audio
         # arrives in a buffer that starts anywhere): one onset envelope per phase of that grid.
         phase = (block + last_instant) % hop
-        values = np.empty((block.size, config.instants.size, config.output_shape[-2 if config.columns else 0]))
+        values = np.empty((block.size, config.instants.size, config.values_per_instant))
         for p in np.unique(phase):
             rows = np.flatnonzero(phase == p)
             values[rows] = _pulse_values(x, block[rows], int(p), config)

@@ -395,16 +395,13 @@ def _body(manifest: dict[str, Any], device: torch.device) -> Body | None:
     )
 
 
-SMPL24_FEET = ("left_ankle", "left_foot", "right_ankle", "right_foot")
-"""The joints EDGE's foot contact score reads (:mod:`kinectdata.evaluation.metrics.foot_contact`)."""
-
-
 def _feet(spec) -> np.ndarray | None:
-    """[4, P] weights of the :data:`SMPL24_FEET` joints over the target's P positioned joints, from
-    its joint set's SMPL-24 mapping; None when the set has no mapping, or a foot needs a joint the
-    target does not position (then the free-running loss has no foot term)."""
+    """[4, P] weights of the SMPL-24 joints EDGE's foot contact score reads (left ankle and foot,
+    right ankle and foot: :mod:`kinectdata.evaluation.metrics.foot_contact`) over the target's P
+    positioned joints, from its joint set's SMPL-24 mapping; None when the set has no mapping, or a
+    foot needs a joint the target does not position (then the free-running loss has no foot term)."""
     from kinectdata.core.joint_mapping import load_smpl24_mapping
-    from kinectdata.core.jointsets import load_joint_set
+    from kinectdata.evaluation.metrics.foot_contact import LEFT_FOOT, RIGHT_FOOT
 
     if spec.dimensions != 3:
         return None
@@ -412,8 +409,7 @@ def _feet(spec) -> np.ndarray | None:
         mapping = load_smpl24_mapping(spec.joints)
     except KinectDataError:
         return None
-    smpl = load_joint_set("smpl24")
-    rows = mapping.weights[[smpl.index(name) for name in SMPL24_FEET]]  # [4, J]
+    rows = mapping.weights[[*LEFT_FOOT, *RIGHT_FOOT]]  # [4, J]
     columns = [spec.joints.index(name) for name in spec.positions]
     if np.delete(rows, columns, axis=1).any():
         return None
