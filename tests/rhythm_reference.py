@@ -102,3 +102,15 @@ def ideal_pulse(t: float, clicks: np.ndarray, tempi_bpm: np.ndarray, config) -> 
     lag = t - clicks[(clicks <= t) & (clicks > t - config.window_s)]
     weights = np.exp(-lag / config.decay_s)
     return (weights[None, :] * np.exp(2j * np.pi * (tempi_bpm[:, None] / 60) * lag[None, :])).sum(1) / weights.sum()
+
+
+def accented_eighths(bpm: float, seconds: float = 30.0, first: float = 0.3) -> np.ndarray:
+    """float32 audio at 16 kHz: 30 ms noise bursts at twice ``bpm``, those on the beat three times as loud as
+    those halfway between, over noise at -60 dBFS: onsets most periodic at twice the beat's rate."""
+    n = int(seconds * 16000)
+    x = np.random.default_rng(0).normal(0, 1e-3, n)
+    noise = 0.3 * np.random.default_rng(1).normal(0, 1, 480) * np.hanning(480)
+    for k, t in enumerate(np.arange(first, seconds - 0.1, 30.0 / bpm)):
+        i = int(round(t * 16000))
+        x[i : i + 480] += noise if k % 2 == 0 else noise / 3
+    return x.astype(np.float32)

@@ -28,7 +28,7 @@ def test_the_real_corpus_benchmark_prints_every_goal(tmp_path, monkeypatch, caps
         assert any(g.startswith("d. beats the mean pose + noise (bailando)") for g in goals), goals
         assert any(g.startswith("d. beats the mean pose + noise (aist)") for g in goals), goals
         assert (tmp_path / "out" / f"learning-real-{model}.png").is_file()
-    for model, shape in (("yalta", [2, 129, 5]), ("cdhc", [283])):  # spectra (or mel) with the pulse
+    for model, shape in (("yalta", [2, 129, 5]), ("cdhc", [153])):  # spectra (or mel) with the pulse
         built = json.loads((tmp_path / "out" / f"{model}_dataset" / "manifest.json").read_text())
         assert built["feature_shape"] == shape, (model, built["feature_shape"])
     saved = json.loads((tmp_path / "out" / "learning_real.json").read_text())

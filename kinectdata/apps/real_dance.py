@@ -123,7 +123,10 @@ def run_real_quickstart(
     model = model_of(pipeline)
     folders, built = build_corpus_datasets(corpus, path, out, [model], echo)
     summary = {"dataset": str(folders[model]), "rows": built[model]["totals"]["rows"]}
-    settings = {"epochs": 1000, "max_minutes": minutes, **training}
+    settings = {
+        "max_minutes": minutes,
+        **training,
+    }  # the defaults' epochs too: the cdhc model trained on past them stood still
     generated = "generated.csv"  # the corpus's own joint set: the canonical CSV holds any
     learned = train_evaluate_generate(
         out,

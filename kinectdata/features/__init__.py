@@ -12,7 +12,7 @@ An extractor is a callable ``(samples, starts, config, *, chunk_frames=...) -> (
   the music's pulse at 43 tempi, computed causally from its onsets;
 - ``"stack"``: :func:`kinectdata.features.stack.stack_features`, parts stacked on their first
   axis (presets ``"yalta2016_rhythm"``: the STFT and the pulse as two channels [2, 129, 5];
-  ``"listen_to_dance_rhythm"``: log-mel and pulse with its metrical levels [283]).
+  ``"listen_to_dance_rhythm"``: log-mel, the saliences of the pulse's tempi and its metrical levels [153]).
 
 All presets are in :data:`PRESETS`. A configuration's dict names its extractor
 (``"extractor"``; a dict without one is an STFT configuration, as datasets before the mel
@@ -59,12 +59,18 @@ LISTEN_TO_DANCE_PULSE = RhythmConfig(
     decay_s=4.0,
     levels=(1, 2, 3, 4),
     beat_range_bpm=(40.0, 240.0),
+    harmonic_weight=1.0,
+    tempo_phases=False,
 )
-"""The pulse the cdhc model is given: tempi down to 15 BPM (two bars of 4 at 120 BPM) over 12 s of
-onsets, and the predominant pulse at the beat, two beats and bars of 3 and 4: [203]. Its decoder
-reads each frame's features through convolutions, and given the 43 tempi alone it kept one tempo's
-phase whatever the song; with the levels it moved alive and human for both seeds tried
-(docs/benchmarks.md, "How the recipe was found")."""
+"""The pulse the cdhc model is given: the saliences of tempi down to 15 BPM (two bars of 4 at 120
+BPM) over 12 s of onsets, and the predominant pulse at the beat, two beats and bars of 3 and 4:
+[73]. Its decoder reads each frame's features through convolutions: given the 43 tempi with their
+phases it kept one tempo's phase, the same period for every song (each tempo's phase is a clock at
+that tempo whatever the music); with the levels it moved alive and human for both seeds tried, and
+without the tempi's phases (``tempo_phases=False``) the only clocks it is given are the song's own
+beat and bar. The beat is picked with the salience at twice each tempo added (``harmonic_weight``):
+without it, at twice the music's beat almost as often as at the beat (docs/benchmarks.md, "How the
+recipe was found"; ``python -m benchmarks.bench_pulse``)."""
 PRESETS: dict[str, FeatureConfig] = {
     **STFT_PRESETS,
     "listen_to_dance": MelConfig(),

@@ -2,7 +2,7 @@
 
 A spectrum and the pulse (:mod:`.rhythm`) together: ``yalta2016`` STFT [1, 129, 5] and the pulse
 as a [1, 129, 5] plane make a [2, 129, 5] input (two channels of the DCNN's first convolution);
-``listen_to_dance`` log-mel [80] and a pulse [203] make a [283] vector. The parts' shapes must
+``listen_to_dance`` log-mel [80] and a pulse [73] make a [153] vector. The parts' shapes must
 agree beyond their first axis. A frame reads the union of its parts' spans and is padded where
 any part's is.
 """

@@ -45,3 +45,25 @@ def test_the_real_quickstart_names_a_missing_corpus_in_one_line(tmp_path):
     assert unknown.exit_code != 0 and "unknown corpus 'no-such-corpus'" in unknown.output
     both = CliRunner().invoke(main, ["quickstart", "--corpus", "tang2018", str(tmp_path), "--samples", str(tmp_path)])
     assert both.exit_code == 2 and "--samples" in both.output
+
+
+@pytest.mark.parametrize("pipeline", ["yalta2016", "listen-to-dance"])
+def test_the_real_quickstart_keeps_the_defaults_epochs_with_its_time_budget(tmp_path, monkeypatch, pipeline):
+    """Only the budget is set: train-baseline's defaults keep their epochs (the cdhc model trained on
+    to 80 epochs kept an epoch that stood nearly still)."""
+    import kinectdata.apps.quickstart as quickstart
+    import kinectdata.apps.real_dance as real_dance
+
+    seen = {}
+    monkeypatch.setattr(
+        real_dance,
+        "build_corpus_datasets",
+        lambda corpus, path, out, models, echo: ({models[0]: tmp_path / "ds"}, {models[0]: {"totals": {"rows": 1}}}),
+    )
+    monkeypatch.setattr(
+        quickstart, "train_evaluate_generate", lambda out, manifest, p, settings, *a, **k: seen.update(settings) or {}
+    )
+    real_dance.run_real_quickstart(
+        "tang2018", tmp_path, tmp_path / "qs", lambda line: None, pipeline=pipeline, minutes=7
+    )
+    assert seen == {"max_minutes": 7}

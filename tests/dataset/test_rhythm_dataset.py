@@ -145,7 +145,7 @@ def test_the_yalta_model_takes_two_channels_and_streams_as_it_runs_whole(yalta_r
             poses.append(pose)
     np.testing.assert_allclose(torch.stack(poses).numpy(), whole.numpy(), atol=1e-5)
     with pytest.raises(ValueError, match=r"\[1, 129, 5\]"):
-        kind.check_dataset({**manifest, "feature_shape": [283]})
+        kind.check_dataset({**manifest, "feature_shape": [153]})
 
 
 def test_listen_to_dance_rhythm_with_3d_positions_suits_the_cdhc_model(tmp_path):
@@ -157,17 +157,17 @@ def test_listen_to_dance_rhythm_with_3d_positions_suits_the_cdhc_model(tmp_path)
         split_ratios=(1 / 3, 1 / 3, 1 / 3),
     )
     manifest = build_dataset(SAMPLES, tmp_path / "ltd_rhythm", config)
-    assert manifest["feature_shape"] == [283] and manifest["target_dim"] == 25 * 3
+    assert manifest["feature_shape"] == [153] and manifest["target_dim"] == 25 * 3
     kind = model_kind("cdhc")
     kind.check_dataset(manifest)
     net_config = kind.network_config(kind.settings_type(channels=8, decoder_channels=8), manifest)
-    assert net_config["input_dim"] == 283 and net_config["inputs"] == "music" and net_config["output"] == "linear"
+    assert net_config["input_dim"] == 153 and net_config["inputs"] == "music" and net_config["output"] == "linear"
     net = kind.build(net_config).eval()
     rec = manifest["recordings"][0]
     with h5py.File(tmp_path / "ltd_rhythm" / rec["shard"], "r") as f:
         audio = torch.from_numpy(f["input"][rec["start"] : rec["start"] + 40])[None]
         previous = torch.from_numpy(f["current"][rec["start"] : rec["start"] + 40])[None]
-    assert audio.shape == (1, 40, 283)
+    assert audio.shape == (1, 40, 153)
     with torch.no_grad():
         poses = net(audio, previous)
     assert poses.shape == (1, 40, 75) and torch.isfinite(poses).all()

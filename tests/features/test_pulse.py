@@ -4,12 +4,13 @@ known answers (and librosa's tempo), causality, silence, chunking and streaming,
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 
 import numpy as np
 import pytest
-from rhythm_reference import ideal_pulse, reference_frames, reference_onsets, reference_tempi
+from rhythm_reference import accented_eighths, ideal_pulse, reference_frames, reference_onsets, reference_tempi
 
 from kinectdata.core.errors import ConfigError
 from kinectdata.features import (
@@ -225,6 +226,36 @@ def test_the_predominant_pulse_turns_at_the_beat_and_at_its_bar(bpm):
     assert np.abs(error).max() < 0.4, np.abs(error).max()
 
 
+def test_the_harmonic_weight_picks_the_beat_where_its_eighth_notes_are_more_salient():
+    """Accented eighth notes at 90 BPM: the onsets are most periodic at 180 BPM, which the plain
+    pick takes (level 1 turning at 3 Hz); with the salience at twice each tempo added
+    (``harmonic_weight`` 1) the beat is 90 BPM (1.5 Hz), the fit within the tempo grid's spacing."""
+    audio = accented_eighths(90.0)
+    starts = frame_starts(audio.size)
+    late = np.flatnonzero(starts / SR > 14.0)
+    t = (starts[late] + LEVELS.slice_samples) / SR
+    spacing = (240.0 / 15.0) ** (1 / 64) - 1
+    for weight, beat_bpm in ((0.0, 180.0), (1.0, 90.0)):
+        config = dataclasses.replace(LEVELS, harmonic_weight=weight)
+        feats, _ = rhythm_features(audio, starts, config)
+        phase = np.arctan2(feats[late, 196], feats[late, 195])
+        turns_per_s = np.polyfit(t, np.unwrap(phase), 1)[0] / (2 * np.pi)
+        assert abs(turns_per_s / (beat_bpm / 60) - 1) < spacing / 2 + 1e-3, (weight, turns_per_s)
+
+
+def test_without_the_tempo_phases_a_frame_is_the_saliences_then_the_levels():
+    """``tempo_phases=False``: per tempo the salience alone (the first of the three values the
+    phases come with, which tests above check against the direct computation), the levels unchanged."""
+    audio = accented_bars(100.0, seconds=16.0)[0]
+    starts = frame_starts(audio.size)
+    full, _ = rhythm_features(audio, starts, LEVELS)
+    bare_config = dataclasses.replace(LEVELS, tempo_phases=False)
+    bare, _ = rhythm_features(audio, starts, bare_config)
+    assert bare_config.output_shape == (65 + 2 * 3,) == bare.shape[1:]
+    np.testing.assert_array_equal(bare[:, :65], full[:, 0:195:3])
+    np.testing.assert_array_equal(bare[:, 65:], full[:, 195:])
+
+
 def test_the_predominant_pulse_is_zero_in_silence_and_its_settings_round_trip():
     audio, _ = click_track(120.0, seconds=20.0)
     audio[int(8 * SR) :] = 0.0
@@ -233,6 +264,8 @@ def test_the_predominant_pulse_is_zero_in_silence_and_its_settings_round_trip():
     assert np.all(feats[starts / SR > 8.0 + LEVELS.window_s + 1.0, 195:] == 0.0)
     assert np.abs(feats[(starts / SR > 5.0) & (starts / SR < 7.5), 195:]).max() > 0.9
     assert RhythmConfig.from_dict(json.loads(json.dumps(LEVELS.to_dict()))) == LEVELS
+    halved = dataclasses.replace(LEVELS, harmonic_weight=0.5)
+    assert RhythmConfig.from_dict(json.loads(json.dumps(halved.to_dict()))) == halved
     assert LEVELS.output_shape == (201,) and RhythmConfig().levels == ()
 
 
@@ -358,6 +391,8 @@ def test_rhythm_config_round_trip_and_dispatch():
         ({"levels": (1, 0)}, "levels must be whole numbers at least 1"),
         ({"beat_range_bpm": (30.0, 200.0)}, r"beat_range_bpm \(30, 200\) must be a range within tempo_range_bpm"),
         ({"levels": (1, 2), "columns": 5}, "levels are for the vector layout"),
+        ({"harmonic_weight": -0.5}, "harmonic_weight must be at least 0"),
+        ({"tempo_phases": "no"}, "tempo_phases must be true or false"),
     ],
 )
 def test_bad_rhythm_settings_are_config_errors(kwargs, message):
@@ -367,7 +402,7 @@ def test_bad_rhythm_settings_are_config_errors(kwargs, message):
 
 def test_stack_presets_shapes_spans_and_round_trip():
     yalta, ltd = PRESETS["yalta2016_rhythm"], PRESETS["listen_to_dance_rhythm"]
-    assert yalta.output_shape == (2, 129, 5) and ltd.output_shape == (283,)
+    assert yalta.output_shape == (2, 129, 5) and ltd.output_shape == (153,)
     assert PRESETS["motion_dance_rhythm"].output_shape == (2, 129, 5)
     for config in (yalta, ltd):
         lo, hi = config.span
@@ -383,7 +418,7 @@ def test_stack_presets_shapes_spans_and_round_trip():
 def test_stacked_features_are_their_parts_concatenated_and_padded_where_any_part_is():
     audio = random_clicks(2.0, seed=9)
     starts = np.array([-100, 0, 3000, audio.size - 534, audio.size - 600])
-    for name, axis_len in (("yalta2016_rhythm", 2), ("listen_to_dance_rhythm", 283)):
+    for name, axis_len in (("yalta2016_rhythm", 2), ("listen_to_dance_rhythm", 153)):
         config = PRESETS[name]
         feats, padded = compute_features(audio, starts, config)
         parts = [compute_features(audio, starts, p) for p in config.parts]

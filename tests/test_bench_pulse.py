@@ -1,0 +1,40 @@
+"""``bench_pulse``: the pulse's beat against librosa's on audio with a known answer, and on a copy
+made in the Dance with Melody corpus's shape (its test songs never looked at)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from conftest import REPO
+from corpus_copies import make_tang2018_copy
+from rhythm_reference import accented_eighths
+
+pytest.importorskip("librosa")
+
+
+def test_on_accented_eighth_notes_only_the_harmonic_weight_picks_the_beat(monkeypatch):
+    """Eighth notes at 90 BPM, the beat's three times as loud: librosa's beat is 90 BPM; the plain
+    pick is at twice it in every frame, the pick with the salience at twice each tempo added at it."""
+    monkeypatch.syspath_prepend(str(REPO))
+    from benchmarks.bench_pulse import song_shares
+
+    bpm, shares = song_shares(accented_eighths(90.0, seconds=40.0), (0.0, 1.0))
+    assert abs(bpm - 90.0) < 2.0, bpm
+    assert shares[0.0][1] > 0.9 and shares[0.0][0] < 0.1, shares[0.0]
+    assert shares[1.0][0] > 0.9 and shares[1.0][1] < 0.1, shares[1.0]
+
+
+def test_on_a_corpus_copy_it_looks_at_the_training_and_validation_songs_only(tmp_path, monkeypatch, capsys):
+    monkeypatch.syspath_prepend(str(REPO))
+    from benchmarks.bench_pulse import main, run
+
+    corpus = make_tang2018_copy(tmp_path, seconds=8.0)
+    means = run("tang2018", corpus, (0.0, 1.0))
+    printed = capsys.readouterr().out
+    listed = [line.split()[0] for line in printed.splitlines() if "BPM" in line and "harmonic" not in line]
+    assert sorted(listed) == ["C_6", "C_7", "R_4", "R_5", "W_4", "W_5", "W_6"], listed
+    for shares in means.values():
+        assert np.all(shares >= 0) and shares.sum() <= 1 + 1e-9
+    assert "at the music's beat most often: harmonic weight" in printed
+    main([])
+    assert "not run: needs --corpus tang2018 PATH" in capsys.readouterr().out
