@@ -123,10 +123,8 @@ def run_real_quickstart(
     model = model_of(pipeline)
     folders, built = build_corpus_datasets(corpus, path, out, [model], echo)
     summary = {"dataset": str(folders[model]), "rows": built[model]["totals"]["rows"]}
-    settings = {
-        "max_minutes": minutes,
-        **training,
-    }  # the defaults' epochs too: the cdhc model trained on past them stood still
+    # only the budget: train-baseline's defaults keep their epochs (the cdhc model trained past them stood still)
+    settings = {"max_minutes": minutes, **training}
     generated = "generated.csv"  # the corpus's own joint set: the canonical CSV holds any
     learned = train_evaluate_generate(
         out,

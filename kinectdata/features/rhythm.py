@@ -43,16 +43,17 @@ on that corpus's songs; dB-scaled features 0.7-0.8). So the pulse is computed, c
    beat.
 
 Output per motion frame: ``[3 * n_tempi + 2 * len(levels)]`` values in -1..1 (tempo by tempo:
-salience, cosine, sine; then level by level: cosine, sine; with ``tempo_phases`` false
-``[n_tempi + 2 * len(levels)]``: the saliences, then the levels), or with ``columns`` = c, ``[1, 3 *
-n_tempi, c]``: those values at c instants spread over the frame's slice like the STFT features'
-sub-frames (43 tempi give 129 rows, the STFT's bins: the two stack as channels of one [2, 129, 5]
-input). A frame reads the ``window_s`` before its slice: history, so ``padded`` flags only frames
-whose own slice runs off the audio. Each frame's onsets are taken on a grid of hops through its last
-instant (the window of the last value ends exactly there), so its values depend on its own span of
-samples only, not on where the audio passed in begins: streaming gives what the whole file gives, up
-to float rounding. Frames whose instants lie at different phases of the hop (3 at 30 fps and 16 kHz:
-534 + round(k 533.3) modulo 80) need one onset envelope each.
+salience, cosine, sine; then level by level: cosine, sine; with ``tempo_phases`` false ``[n_tempi +
+2 * len(levels)]``: the saliences, then the levels), or with ``columns`` = c, ``[1, 3 * n_tempi,
+c]`` (``[1, n_tempi, c]`` without the tempo phases): those values at c instants spread over the
+frame's slice like the STFT features' sub-frames (43 tempi give 129 rows, the STFT's bins: the two
+stack as channels of one [2, 129, 5] input). A frame reads the ``window_s`` before its slice:
+history, so ``padded`` flags only frames whose own slice runs off the audio. Each frame's onsets are
+taken on a grid of hops through its last instant (the window of the last value ends exactly there),
+so its values depend on its own span of samples only, not on where the audio passed in begins:
+streaming gives what the whole file gives, up to float rounding. Frames whose instants lie at
+different phases of the hop (3 at 30 fps and 16 kHz: 534 + round(k 533.3) modulo 80) need one onset
+envelope each.
 """
 
 from __future__ import annotations
@@ -92,11 +93,11 @@ class RhythmConfig:
             saliences alone, so that the only clocks in the output are the levels' (a network given a
             fixed tempo's phase can keep time at that tempo whatever it hears).
         columns: 0 for a vector per frame (at the slice's end); c > 0 for a [1, 3 n_tempi, c]
-            plane of values at c instants of the slice (``column_hop`` samples apart, the last
-            ``column_end`` samples after the slice start, at most ``slice_samples``: the STFT
-            features' sub-frames end at 160, 240, ..., 480). A value is taken at the last hop of
-            the frame's grid at or before its instant (exactly at it when ``column_hop`` is a
-            multiple of ``hop_samples``).
+            (without the tempo phases [1, n_tempi, c]) plane of values at c instants of the slice
+            (``column_hop`` samples apart, the last ``column_end`` samples after the slice start, at
+            most ``slice_samples``: the STFT features' sub-frames end at 160, 240, ..., 480). A
+            value is taken at the last hop of the frame's grid at or before its instant (exactly at
+            it when ``column_hop`` is a multiple of ``hop_samples``).
     """
 
     extractor: ClassVar[str] = "rhythm"
@@ -177,7 +178,7 @@ class RhythmConfig:
 
     @property
     def output_shape(self) -> tuple[int, ...]:
-        """``(3 n_tempi + 2 len(levels),)``, or ``(1, 3 n_tempi, columns)``."""
+        """``(values_per_instant,)``, or ``(1, values_per_instant, columns)``."""
         rows = self.values_per_instant
         return (1, rows, self.columns) if self.columns else (rows,)
 
@@ -320,24 +321,29 @@ def _level_tempi(config: RhythmConfig) -> tuple[np.ndarray, np.ndarray, np.ndarr
     return candidates, log_prior, nearest, double
 
 
-def predominant_beat(salience: np.ndarray, config: RhythmConfig) -> np.ndarray:
-    """The beat's tempo index (into ``config.tempi_bpm``) [...] from the saliences [..., n_tempi] of
-    every tempo: among ``beat_range_bpm``, the greatest salience (plus ``harmonic_weight`` x the
-    salience at twice the tempo) times the log-normal prior (module docstring, step 4)."""
+def _beat_candidate(salience: np.ndarray, config: RhythmConfig) -> np.ndarray:
+    """[...] the beat's index into :func:`_level_tempi`'s candidates (see :func:`predominant_beat`)."""
     candidates, log_prior, _, double = _level_tempi(config)
     support = salience[..., candidates]
     if config.harmonic_weight > 0:
         support = support + config.harmonic_weight * np.where(double >= 0, salience[..., double], 0.0)
-    return candidates[(support * np.exp(log_prior)).argmax(axis=-1)]
+    return (support * np.exp(log_prior)).argmax(axis=-1)
+
+
+def predominant_beat(salience: np.ndarray, config: RhythmConfig) -> np.ndarray:
+    """The beat's tempo index (into ``config.tempi_bpm``) [...] from the saliences [..., n_tempi] of
+    every tempo: among ``beat_range_bpm``, the greatest salience (plus ``harmonic_weight`` x the
+    salience at twice the tempo) times the log-normal prior (module docstring, step 4)."""
+    return _level_tempi(config)[0][_beat_candidate(salience, config)]
 
 
 def _level_values(salience: np.ndarray, angle: np.ndarray, config: RhythmConfig) -> np.ndarray:
     """[F, c, 2 len(levels)] the predominant pulse's phasor at each metrical level (module
     docstring, step 4) from the saliences and phases [F, c, K] of every tempo."""
     candidates, _, nearest, _ = _level_tempi(config)
-    beat = predominant_beat(salience, config)  # [F, c]
-    beat_salience = np.take_along_axis(salience, beat[..., None], axis=-1)  # [F, c, 1]
-    at = nearest[np.searchsorted(candidates, beat)]  # [F, c, levels]: the tempo of each level
+    best = _beat_candidate(salience, config)  # [F, c]
+    beat_salience = np.take_along_axis(salience, candidates[best][..., None], axis=-1)  # [F, c, 1]
+    at = nearest[best]  # [F, c, levels]: the tempo of each level
     phase = np.take_along_axis(angle, at, axis=-1)
     out = np.stack([beat_salience * np.cos(phase), beat_salience * np.sin(phase)], axis=-1)  # [F, c, levels, 2]
     return out.reshape(*out.shape[:2], -1)
