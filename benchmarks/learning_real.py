@@ -28,6 +28,7 @@ from typing import Any
 
 from kinectdata.apps.real_dance import build_corpus_datasets
 from kinectdata.evaluation.evaluate import evaluate, format_results
+from kinectdata.evaluation.listening import ALIVE_RANGE
 from kinectdata.training.config import TrainConfig
 from kinectdata.training.train import train
 
@@ -112,6 +113,11 @@ def goals(results: dict[str, Any]) -> list[tuple[str, bool, str]]:
     return out
 
 
+def _times(ratio: float | None) -> str:
+    """An energy ratio as printed (``-`` when the epoch had no free runs to measure)."""
+    return "-" if ratio is None else f"{ratio:.2f} x"
+
+
 def run(
     corpus: str,
     path: Path,
@@ -144,7 +150,7 @@ def run(
         def progress(row: dict[str, Any]) -> None:
             print(f"    epoch {row['epoch']:3d} step {row['step']:5d}: train {row['train_loss']:.4f} "
                   f"val {row['val_loss']:.4f}, SMAPE {row['val_smape']:.2f} %, free-running rhythm loss "
-                  f"{row['val_rhythm']:.3f}", flush=True)  # fmt: skip
+                  f"{row['val_rhythm']:.3f}, songs' energy {_times(row['val_energy'])}", flush=True)  # fmt: skip
 
         started = time.perf_counter()
         with warnings.catch_warnings():  # one line, as the CLI prints them, not Python's two with a source line
@@ -153,10 +159,12 @@ def run(
         trained = (time.perf_counter() - started) / 60
         figure = curves(history, out / f"learning-real-{model}.png", f"{model} on {corpus}: the defaults")
         results = evaluate(run_dir, datasets[model], "test", more_protocols=PROTOCOLS[1:], bootstrap=bootstrap)
-        kept = next((r["epoch"] for r in history if r.get("kept")), history[-1]["epoch"])
+        kept = next((r for r in history if r.get("kept")), history[-1])
         print(
             f"  [{model}] trained {trained:.1f} min, {history[-1]['step']} steps, {len(history)} epochs, model.pt "
-            f"from epoch {kept} (lowest free-running validation rhythm loss); curves: {figure}; on the test dances:"
+            f"from epoch {kept['epoch']} (lowest free-running validation rhythm loss among the epochs moving at "
+            f"0.5-2 x the real energy; its validation songs: {_times(kept['val_energy'])}); curves: {figure}; "
+            "on the test dances:"
         )
         print("\n".join("    " + line for line in format_results(results).splitlines()))
         met = goals(results)
@@ -180,7 +188,8 @@ def run(
 
 def curves(history: list[dict[str, Any]], path: Path, title: str) -> Path:
     """Training and validation loss (top), the free-running validation rhythm loss with the kept
-    epoch marked (bottom), per epoch."""
+    epoch marked and, on the right axis, the free runs' energy over the real motion's with the band
+    an epoch must be in to be kept (bottom), per epoch."""
 
     def rhythm(bottom, epochs):
         bottom.plot(epochs, [r["val_rhythm"] for r in history], label="free-running validation rhythm loss")
@@ -188,6 +197,11 @@ def curves(history: list[dict[str, Any]], path: Path, title: str) -> Path:
         if kept:
             value = next(r["val_rhythm"] for r in history if r["epoch"] == kept[0])
             bottom.plot(kept, [value], "o", label=f"kept: epoch {kept[0]}")
+        energy = bottom.twinx()
+        energy.plot(epochs, [r.get("val_energy") or float("nan") for r in history], color="tab:green", alpha=0.7)
+        energy.axhspan(*ALIVE_RANGE, color="tab:green", alpha=0.1)
+        energy.set_yscale("log")
+        energy.set_ylabel("validation songs' energy / real (band: kept)")
 
     labels = ("training loss (teacher + rhythm)", "validation loss (teacher)")
     return loss_figure(history, path, title, labels, rhythm)

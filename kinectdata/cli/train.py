@@ -61,9 +61,16 @@ _LOOP_OPTIONS = (
         "Share of training windows whose music goes silent from a random frame on, the pose held (to stop in silence).",
     ),
     (
+        "context",
+        click.IntRange(min=0),
+        "Frames of real input before each window that no loss counts (the outputs near a window's start then see "
+        "music, not the padding of its edge). Default: the model's own (cdhc: its receptive field; yalta: 0).",
+    ),
+    (
         "keep",
         click.Choice(["last", "best"]),
-        "model.pt: the last epoch, or the one with the best free-running validation rhythm loss.",
+        "model.pt: the last epoch, or the one with the best free-running validation rhythm loss among those whose "
+        "validation songs, run whole, move at 0.5-2 x the real energy.",
     ),  # fmt: skip
 )
 """The training loop's options (:data:`kinectdata.training.config.LOOP_DEFAULTS`): every model's."""
@@ -161,9 +168,13 @@ def make_train_config(model: str | None, data: str | None = None, paper: bool = 
 def _row(row: dict) -> str:
     val = "-" if row["val_loss"] is None else f"{row['val_loss']:.5f}"
     smape = "-" if row["val_smape"] is None else f"{row['val_smape']:.2f} %"
+    free = ""
+    if row.get("val_rhythm") is not None:
+        energy = "-" if row.get("val_energy") is None else f"{row['val_energy']:.2f} x the real"
+        free = f", free runs: rhythm loss {row['val_rhythm']:.4g}, songs' energy {energy}"
     return (
         f"epoch {row['epoch']:>3}: train loss {row['train_loss']:.5f}, validation loss {val}, "
-        f"validation SMAPE {smape} ({row['seconds']:.1f} s, {row['frames_per_second']:.0f} frames/s)"
+        f"validation SMAPE {smape}{free} ({row['seconds']:.1f} s, {row['frames_per_second']:.0f} frames/s)"
         + ("; the time budget ran out: training ends here" if row.get("stopped") else "")
     )
 

@@ -74,7 +74,7 @@ from kinectdata.targets.specs import TargetSpec
 SILENCE_S = 5.0
 
 
-def _recordings(dataset: Path, manifest: dict, split: str) -> list[dict[str, Any]]:
+def split_recordings(dataset: Path, manifest: dict, split: str) -> list[dict[str, Any]]:
     """The split's clean recordings with their rows (input, current, mask) and their shard index
     entry's ``info`` (alignment summary, sources)."""
     out = []
@@ -236,7 +236,7 @@ def evaluate(
             f"{dataset}: its {', '.join(differ)} differ from those {run} was trained on "
             f"({config['dataset']['path']}); scores would be meaningless"
         )
-    recordings = _recordings(dataset, manifest, split)
+    recordings = split_recordings(dataset, manifest, split)
     if not recordings:
         raise KinectDataError(f"{dataset}: the {split} split holds no recording")
     kind = model_kind(model_name(config))
@@ -508,7 +508,7 @@ def split_songs(
     estimated from the music)."""
     dataset = Path(dataset)
     manifest = read_manifest(dataset, checksums=checksums)
-    recordings = _recordings(dataset, manifest, split)
+    recordings = split_recordings(dataset, manifest, split)
     beats = split_beats(recordings, manifest, run_config["dataset"]["fps"])
     return _song_set(net, recordings, beats, manifest, run_config, beats_per_bar)
 

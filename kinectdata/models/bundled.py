@@ -41,12 +41,14 @@ REAL_DANCE_LOOP: dict[str, Any] = {
     "posture_weight": 3.0,
     "silence_share": 0.2,
     "keep": "best",
+    "context": None,
 }
 """The loop for real dance on a CPU (docs/training.md, "Learning real dance"), both models'
 default: windows of 10 s every 2.5 s, many small steps (batches of 8, Adam 1e-3, the gradient's norm
 clipped to 1, no gradient noise), the free-running rhythm loss beside the model's own, a fifth of
-the windows silenced, and the epoch whose free-running validation motion is most like the real
-motion kept."""
+the windows silenced, the epoch whose free-running validation motion is most like the real
+motion kept, and each window preceded by the model's own context (its receptive field) of real
+input that no loss counts."""
 
 
 def _inputs_field(default: str):
@@ -248,13 +250,18 @@ class YaltaKind(ModelKind):
 
 @dataclass(frozen=True)
 class CdhcSettings:
-    """The cdhc model's settings (defaults: the recipe for real dance, 128 channels; the
-    paper's widths with ``--paper``; DC-TTS's dropout)."""
+    """The cdhc model's settings (defaults: the recipe for real dance, 128 channels, no dropout;
+    the paper's widths and DC-TTS's dropout with ``--paper``).
+
+    No dropout by default: with it, the free run the rhythm loss trains on moved by the dropout's
+    noise alone (on tang2018 at 0.46 x the real energy in training mode, 1e-10 x in evaluation
+    mode: docs/benchmarks.md)."""
 
     channels: int = field(default=128, metadata={"help": "width of the audio and skeleton encoders.", "min": 1})
     decoder_channels: int = field(default=128, metadata={"help": "width of the fused code and the decoder.", "min": 1})
     dropout: float = field(
-        default=0.05, metadata={"help": "dropout after each highway block.", "min": 0, "max": 1, "max_open": True}
+        default=0.0,
+        metadata={"help": "dropout after each highway block (the paper's 0.05).", "min": 0, "max": 1, "max_open": True},
     )
     limb_weight: float = field(
         default=1.0, metadata={"help": "weight of the limb-length loss added to the L1 loss.", "min": 0}
@@ -308,6 +315,7 @@ class CdhcKind(ModelKind):
     paper = {
         "channels": 256,
         "decoder_channels": 128,
+        "dropout": 0.05,
         "velocity_weight": 0.0,
         "predicts": "pose",
         "inputs": "music-and-poses",
@@ -391,6 +399,12 @@ class CdhcKind(ModelKind):
         from kinectdata.models.cdhc import CdhcConfig, CdhcNet
 
         return CdhcNet(CdhcConfig.from_dict(config))
+
+    def context_frames(self, config: dict[str, Any]) -> int:
+        """The receptive field but the output's own frame (264 at the default sizes)."""
+        from kinectdata.models.cdhc import CdhcConfig
+
+        return CdhcConfig.from_dict(config).receptive_field - 1
 
     def fill_previous(self, previous, mask, start_pose):
         """Masked previous values (stored as 0, a real coordinate in 0..1) become the mean training

@@ -65,6 +65,7 @@ PAPER_LOOP: dict[str, Any] = {
     "posture_weight": 0.0,
     "silence_share": 0.0,
     "keep": "last",
+    "context": 0,
 }
 """Yalta et al.'s training loop: sequences of 150 (not overlapping), batches of 50, 10 epochs, Adam
 1e-4, annealed gradient noise, the teacher-forced (or fed-back) loss alone, the last epoch kept;
@@ -172,6 +173,14 @@ class ModelKind(Protocol):
     def build(self, config: dict[str, Any]) -> Any:
         """A network (``nn.Module``) from :meth:`network_config`'s dict, at its initial weights."""
         raise NotImplementedError(f"the {self.name} model does not define build")
+
+    def context_frames(self, config: dict[str, Any]) -> int:
+        """Frames before an output that it depends on, for a network of :meth:`network_config`'s
+        ``config`` (default 0: a recurrent network's state carries everything). Training windows
+        get this many frames of real input before the frames their losses count
+        (``TrainConfig.context``): without them every output near a window's start sees the zero
+        padding of its left edge, which a network can read as a clock."""
+        return 0
 
     def fill_previous(self, previous: Any, mask: Any, start_pose: Any) -> Any:
         """What masked previous poses become, ``[..., D]`` tensors or arrays (default: as stored)."""

@@ -31,7 +31,7 @@ def silent_frame(features: dict, fps: float) -> torch.Tensor:
 
 
 def silence_windows(
-    batch: dict[str, torch.Tensor], silent: torch.Tensor, share: float, generator: torch.Generator
+    batch: dict[str, torch.Tensor], silent: torch.Tensor, share: float, generator: torch.Generator, context: int = 0
 ) -> dict[str, torch.Tensor]:
     """A training batch with the music of about ``share`` of its windows silenced from a random frame
     on, and their poses held from there.
@@ -42,6 +42,10 @@ def silence_windows(
         silent: one frame of silence's features [*F] (:func:`silent_frame`).
         share: probability that a window is silenced, 0..1.
         generator: the draws (seeded: a run stays reproducible and resumable).
+        context: the windows' first frames that no loss counts (``TrainConfig.context``): the
+            silence starts after them, in the part the losses see, with the music before it
+            (:data:`MIN_MUSIC_FRACTION` of that part). Silence from inside the context would leave
+            the losses a window of one held pose, whose spectra have nothing to compare with.
 
     Returns:
         A new batch (the given tensors are not changed). In a silenced window from frame s on the
@@ -51,7 +55,7 @@ def silence_windows(
     """
     audio, pose = batch["audio"], batch["pose"]
     B, L = pose.shape[:2]
-    first = max(1, int(np.ceil(MIN_MUSIC_FRACTION * L)))
+    first = context + max(1, int(np.ceil(MIN_MUSIC_FRACTION * (L - context))))
     last = L - MIN_SILENT_FRAMES
     draws = torch.rand(B, generator=generator)
     starts = torch.randint(first, max(first + 1, last + 1), (B,), generator=generator)

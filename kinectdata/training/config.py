@@ -34,6 +34,7 @@ ADDED_OFF = {
     "predicts": "pose",
     "inputs": "music-and-poses",
     "posture_weight": 10.0,
+    "context": 0,
 }
 """Loop (and model) settings added after runs were written: a run's config.json without them trained without
 them, whatever today's defaults are (resuming it goes on as it started)."""
@@ -85,7 +86,14 @@ class TrainConfig:
         silence_share: share of training windows whose music is silenced from a random frame on,
             the pose then held (:mod:`kinectdata.training.augment`): a model learns to stop in silence.
         keep: which epoch ``model.pt`` (and the exports) hold: ``last``, or ``best``, the epoch whose
-            free-running validation rhythm loss (``val_rhythm`` in ``log.csv``) is lowest.
+            free-running validation rhythm loss (``val_rhythm`` in ``log.csv``) is lowest among those
+            whose validation songs, run whole, move at 0.5-2 x the real energy (``val_energy``:
+            :class:`kinectdata.training.whole_songs.WholeSongs`), or among all while none does.
+        context: frames of real input before each training and validation window that no loss
+            counts, so that the window's first outputs see music, not the zero padding of its edge
+            (None: the model's own, ``ModelKind.context_frames``: the cdhc model's receptive field
+            but one, 264 frames; the yalta model's 0). The windows read are ``sequence + context``
+            frames long.
     """
 
     model: str
@@ -105,6 +113,7 @@ class TrainConfig:
     posture_weight: float
     silence_share: float
     keep: str
+    context: int | None
     settings: Any
 
     def __init__(self, model: str | None = None, *, settings: Any = None, paper: bool = False, **given: Any) -> None:
@@ -137,6 +146,8 @@ class TrainConfig:
             raise ConfigError(f"posture_weight must be at least 0, not {self.posture_weight!r}")
         if not 0 <= self.silence_share <= 1:
             raise ConfigError(f"silence_share must be in 0..1, not {self.silence_share!r}")
+        if self.context is not None and not (isinstance(self.context, int) and self.context >= 0):
+            raise ConfigError(f"context must be a number of frames, at least 0, or None, not {self.context!r}")
         if self.keep not in KEEPS:
             raise ConfigError(f"keep must be {' or '.join(KEEPS)}, not {self.keep!r}")
         if self.free_weight > 0 and not model_kind(self.model).runs_free_in_training:

@@ -40,6 +40,7 @@ from torch.utils.data import DataLoader
 from kinectdata.core.atomic import atomic_output
 from kinectdata.core.errors import KinectDataError, KinectDataWarning
 from kinectdata.dataset.windows import WindowDataset
+from kinectdata.evaluation.listening import ALIVE_RANGE
 from kinectdata.evaluation.metrics import smape
 from kinectdata.inference.export import export_network, stream_metadata
 from kinectdata.models.losses import Body, masked_rhythm_loss
@@ -71,6 +72,7 @@ from kinectdata.training.distributed import (
     sum_over_ranks,
 )
 from kinectdata.training.figures import loss_curves
+from kinectdata.training.whole_songs import WholeSongs
 
 LOG_FIELDS = [
     "epoch",
@@ -79,13 +81,16 @@ LOG_FIELDS = [
     "val_loss",
     "val_smape",
     "val_rhythm",
+    "val_energy",
     "seconds",
     "frames_per_second",
     "stopped",
     "kept",
 ]
-"""``log.csv``'s columns; ``stopped`` is ``time budget`` on the epoch that the time budget cut short;
-``kept`` marks the epoch ``model.pt`` holds when the run keeps its best (``TrainConfig.keep``)."""
+"""``log.csv``'s columns; ``val_energy`` is the validation songs' energy run free over the real
+motion's (:class:`~kinectdata.training.whole_songs.WholeSongs`); ``stopped`` is ``time budget`` on
+the epoch that the time budget cut short; ``kept`` marks the epoch ``model.pt`` holds when the run
+keeps its best (``TrainConfig.keep``)."""
 
 
 MIN_STEPS = 300
@@ -326,12 +331,14 @@ def validate(
     start_pose: list[float] | None = None,
     fps: float = 30.0,
     body: Body | None = None,
+    context: int = 0,
 ) -> tuple[float, float, float]:
     """(loss as in training, SMAPE in % free-running, the free-running rhythm loss) over a split's
     windows: the model runs free from each window's first true pose; the rhythm loss
     (:func:`~kinectdata.models.losses.masked_rhythm_loss`) compares how much and how often
     it moves with the real motion, whatever the phase. ``start_pose`` [D] stands in for masked
-    previous values (as the model's ``fill_previous`` says)."""
+    previous values (as the model's ``fill_previous`` says); the first ``context`` frames of each
+    window are input only (``TrainConfig.context``)."""
     if len(windows) == 0:
         return float("nan"), float("nan"), float("nan")
     kind = model_kind(config.model)
@@ -344,9 +351,11 @@ def validate(
             if start_pose is not None:
                 previous = kind.fill_previous(previous, batch["previous_mask"].to(device), start_pose)
             pred = kind.predict(net, audio, previous, config.settings)
+            free = kind.free_batch(net, audio, previous, pred, config.settings)[:, context:]
+            pred, pose, mask = pred[:, context:], pose[:, context:], mask[:, context:]
             losses.append(float(kind.loss(net, pred, pose, mask, config.settings)))
             weights.append(float(mask.sum()))
-            generated.append(kind.free_batch(net, audio, previous, pred, config.settings))
+            generated.append(free)
             real.append(pose.cpu().numpy())
             masks.append(mask.cpu().numpy())
     net.train()
@@ -416,12 +425,34 @@ def _feet(spec) -> np.ndarray | None:
     return rows[:, columns]
 
 
+def _energy(net: torch.nn.Module, kind, songs: WholeSongs | None) -> float:
+    """The validation songs' energy ratio run free (NaN without songs to measure)."""
+    return float("nan") if songs is None else songs.energy_ratio(net, kind)
+
+
+def _alive(row: dict) -> bool:
+    """Whether an epoch's validation songs, run whole, moved within the alive verdict's range of
+    the real energy (:data:`~kinectdata.evaluation.listening.ALIVE_RANGE`)."""
+    energy = row.get("val_energy")
+    return energy is not None and ALIVE_RANGE[0] <= energy <= ALIVE_RANGE[1]
+
+
 def _better(history: list[dict]) -> bool:
-    """Whether the newest epoch's free-running validation rhythm loss is the lowest so far (the
-    first finite one counts)."""
-    values = [r.get("val_rhythm") for r in history]
-    last = values[-1]
-    return last is not None and all(v is None or last < v for v in values[:-1])
+    """Whether the newest epoch is the one to keep so far: its free-running validation rhythm
+    loss is the lowest (the first finite one counts) among the epochs whose validation songs are
+    alive (:func:`_alive`), or among all of them while none is. The rhythm loss alone can prefer a
+    nearly still epoch to one that moves at the wrong moments (the cdhc model on tang2018 kept one
+    at 0.05 x the real energy: docs/benchmarks.md); an epoch that moves always wins over one that
+    does not."""
+    last = history[-1]
+    if last.get("val_rhythm") is None:
+        return False
+    rivals = [r for r in history[:-1] if r.get("val_rhythm") is not None]
+    if _alive(last):
+        rivals = [r for r in rivals if _alive(r)]
+    elif any(_alive(r) for r in rivals):
+        return False
+    return all(last["val_rhythm"] < r["val_rhythm"] for r in rivals)
 
 
 def _write_log(run: Path, history: list[dict]) -> None:
@@ -492,10 +523,13 @@ def train(
     check_fits(kind, manifest, dataset)
     model_config = kind.network_config(config.settings, manifest)
     stride = config.stride or config.sequence
-    train_windows = WindowDataset(dataset, "train", config.sequence, stride, verify=False)  # verified above
-    val_windows = WindowDataset(dataset, "val", config.sequence, config.sequence, verify=False)
+    context = kind.context_frames(model_config) if config.context is None else config.context
+    length = config.sequence + context  # the first `context` frames of a window: input only, no loss
+    train_windows = WindowDataset(dataset, "train", length, stride, verify=False)  # verified above
+    val_windows = WindowDataset(dataset, "val", length, config.sequence, verify=False)
     if len(train_windows) == 0:
-        raise KinectDataError(f"{dataset}: no training window of {config.sequence} frames (recordings too short?)")
+        with_context = f" ({config.sequence} + {context} of context)" if context else ""
+        raise KinectDataError(f"{dataset}: no training window of {length} frames{with_context} (recordings too short?)")
     if config.max_minutes is None:
         _warn_if_too_few_steps(len(train_windows), config, world)
     run_config = {
@@ -547,6 +581,7 @@ def train(
         fps = float(manifest["config"]["fps"])
         silent = silent_frame(manifest["config"]["features"], fps) if config.silence_share > 0 else None
         body = _body(manifest, device)
+        val_songs = WholeSongs.of_split(dataset, manifest, "val", kind, run_config["dataset"], start_pose)
         deadline = None if config.max_minutes is None else time.monotonic() + 60 * config.max_minutes
         out_of_time = False
         for epoch in range(len(history) + 1, config.epochs + 1):
@@ -556,21 +591,23 @@ def train(
                     out_of_time = True  # every rank stops at the same step: the main one decides
                     break
                 if silent is not None:
-                    batch = silence_windows(batch, silent, config.silence_share, augment)
+                    batch = silence_windows(batch, silent, config.silence_share, augment, context)
                 audio, pose, mask = batch["audio"].to(device), batch["pose"].to(device), batch["mask"].to(device)
                 previous = kind.fill_previous(
                     batch["previous"].to(device), batch["previous_mask"].to(device), start_pose
                 )
                 if config.previous_noise > 0:  # torch's generator: seeded, and saved in the checkpoint
                     previous = previous + config.previous_noise * torch.randn(previous.shape).to(device)
+                pose, mask = pose[:, context:], mask[:, context:]
                 if config.free_weight > 0:
                     pred, free = kind.predict_free(model, audio, previous, config.settings)
+                    pred, free = pred[:, context:], free[:, context:]
                     loss = kind.loss(net, pred, pose, mask, config.settings)
                     loss = loss + config.free_weight * masked_rhythm_loss(
                         free, pose, mask, fps, body, config.posture_weight
                     )
                 else:
-                    pred = kind.predict(model, audio, previous, config.settings)
+                    pred = kind.predict(model, audio, previous, config.settings)[:, context:]
                     loss = kind.loss(net, pred, pose, mask, config.settings)
                 valid = float(mask.sum())
                 optimizer.zero_grad(set_to_none=True)
@@ -586,9 +623,14 @@ def train(
             total, weight, frames = sum_over_ranks([total, weight, frames], world)
             check_replicas(params, world, epoch)
             figures = (
-                validate(net, val_windows, config, device, start_pose, fps, body) if world.main else (0.0, 0.0, 0.0)
+                (
+                    *validate(net, val_windows, config, device, start_pose, fps, body, context),
+                    _energy(net, kind, val_songs),
+                )
+                if world.main
+                else (0.0, 0.0, 0.0, 0.0)
             )
-            val_loss, val_smape, val_rhythm = from_main(list(figures), world)
+            val_loss, val_smape, val_rhythm, val_energy = from_main(list(figures), world)
             seconds = time.perf_counter() - started
             row = {
                 "epoch": epoch,
@@ -597,6 +639,7 @@ def train(
                 "val_loss": val_loss if math.isfinite(val_loss) else None,
                 "val_smape": val_smape if math.isfinite(val_smape) else None,
                 "val_rhythm": val_rhythm if math.isfinite(val_rhythm) else None,
+                "val_energy": val_energy if math.isfinite(val_energy) else None,
                 "seconds": round(seconds, 3),
                 "frames_per_second": round(frames / seconds, 1),
                 "stopped": "time budget" if out_of_time else None,
@@ -615,7 +658,7 @@ def train(
             if world.main:  # the others keep no files
                 _write_log(run, history)
                 if writer is not None:
-                    for key in ("train_loss", "val_loss", "val_smape", "val_rhythm"):
+                    for key in ("train_loss", "val_loss", "val_smape", "val_rhythm", "val_energy"):
                         if row[key] is not None:
                             writer.add_scalar(key, row[key], epoch)
                 save_checkpoint(

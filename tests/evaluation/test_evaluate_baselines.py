@@ -72,7 +72,7 @@ def test_the_baselines_are_scored_and_compared_with_the_model(evaluated, sample_
 def test_the_retrieval_baseline_is_the_training_dance_scored_as_a_free_run(evaluated, trained_run, sample_dataset):
     """Independent: synth_003's real motion read from its shard, frames 1.. cut to the test song's
     length, scored by the field's metrics by hand, gives the retrieval baseline's figures."""
-    from kinectdata.evaluation.evaluate import _recordings
+    from kinectdata.evaluation.evaluate import split_recordings
     from kinectdata.evaluation.protocols import PROTOCOLS
     from kinectdata.evaluation.rhythm_eval import split_beats
     from kinectdata.evaluation.run_field import run_field_scores
@@ -89,7 +89,7 @@ def test_the_retrieval_baseline_is_the_training_dance_scored_as_a_free_run(evalu
     with h5py.File(sample_dataset / train["shard"], "r") as f:
         rows = slice(train["start"], train["start"] + train["frames"])
         dance = norm.invert(f["current"][rows], spec, mask=f["mask"][rows])
-    recordings = _recordings(sample_dataset, manifest, "test")
+    recordings = split_recordings(sample_dataset, manifest, "test")
     (test,) = recordings
     real = {"synth_002": (norm.invert(test["current"], spec, mask=test["mask"]), test["mask"])}
     T = len(test["current"])
@@ -110,7 +110,7 @@ def test_the_retrieval_baseline_is_the_training_dance_scored_as_a_free_run(evalu
 
 
 def test_baseline_runs_make_motion_at_the_real_speed_and_the_retrieved_dance(trained_run, sample_dataset):
-    from kinectdata.evaluation.evaluate import _recordings, baseline_runs
+    from kinectdata.evaluation.evaluate import baseline_runs, split_recordings
     from kinectdata.targets.normalization import Normalizer
     from kinectdata.targets.specs import TargetSpec
 
@@ -119,7 +119,7 @@ def test_baseline_runs_make_motion_at_the_real_speed_and_the_retrieved_dance(tra
     norm = Normalizer.from_dict(config["dataset"]["normalisation"])
     spec = TargetSpec.from_dict(config["dataset"]["target"])
     manifest = json.loads((sample_dataset / "manifest.json").read_text())
-    (test,) = recordings = _recordings(sample_dataset, manifest, "test")
+    (test,) = recordings = split_recordings(sample_dataset, manifest, "test")
     values, mask = norm.invert(test["current"], spec, mask=test["mask"]), test["mask"]
     runs, retrieved = baseline_runs(sample_dataset, manifest, recordings, {"synth_002": (values, mask)}, config, norm)
     assert set(runs) == {"mean_pose_noise", "retrieval"} and retrieved == {"synth_002": "synth_003"}

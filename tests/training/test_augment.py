@@ -99,6 +99,15 @@ def test_every_window_is_silenced_from_a_frame_in_range_and_holds_its_pose_from_
     assert min(starts) < lo + 10 and max(starts) > hi - 10 and len(set(starts)) > 20  # drawn over the range
 
 
+def test_with_a_context_the_silence_starts_where_the_losses_look_after_some_music():
+    L, context = 120, 70  # the losses see frames 70..119: music for at least ceil(0.25 * 50) of them
+    original = batch(B=64, L=L)
+    out = silence_windows(original, SILENT, 1.0, torch.Generator().manual_seed(3), context)
+    starts = [silenced_from(original, out, b) for b in range(64)]
+    assert all(s is not None and context + 13 <= s <= L - 30 for s in starts), starts
+    assert min(starts) == context + 13 and max(starts) == L - 30
+
+
 def test_share_zero_changes_nothing_and_a_share_silences_about_that_many():
     original = batch(B=16)
     out = silence_windows(original, SILENT, 0.0, torch.Generator().manual_seed(0))

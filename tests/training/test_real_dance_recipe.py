@@ -4,6 +4,7 @@ keeping the best free-running validation epoch, the papers' settings by name."""
 from __future__ import annotations
 
 import csv
+import json
 import math
 
 import numpy as np
@@ -11,11 +12,11 @@ import pytest
 import torch
 from conftest import TINY_TRAINING
 
-from kinectdata.core.errors import ConfigError
+from kinectdata.core.errors import ConfigError, KinectDataError
 from kinectdata.models.losses import masked_energy_loss, masked_rhythm_loss, masked_rhythm_spectrum_loss
 from kinectdata.models.run import load_checkpoint
 from kinectdata.training.config import TrainConfig
-from kinectdata.training.train import train
+from kinectdata.training.train import _better, train
 
 RECIPE = {**TINY_TRAINING, "sequence": 40, "epochs": 3, "free_weight": 1.0, "silence_share": 0.5, "keep": "best"}
 
@@ -161,8 +162,10 @@ def test_a_run_keeps_its_best_free_running_epoch(sample_dataset, tmp_path):
     with (run / "log.csv").open() as f:
         rows = list(csv.DictReader(f))
     rhythm = [float(r["val_rhythm"]) for r in rows]
-    assert all(math.isfinite(v) for v in rhythm) and len(rows) == 3
-    best = int(np.argmin(rhythm))
+    energy = [float(r["val_energy"]) for r in rows]
+    assert all(math.isfinite(v) for v in rhythm + energy) and len(rows) == 3
+    alive = [i for i in range(3) if 0.5 <= energy[i] <= 2.0] or list(range(3))
+    best = min(alive, key=lambda i: rhythm[i])
     assert [r["kept"] for r in rows] == ["best" if i == best else "" for i in range(3)]
     assert [h.get("kept") for h in history] == ["best" if i == best else None for i in range(3)]
     kept = load_checkpoint(run / "model.pt")["model"]
@@ -172,6 +175,19 @@ def test_a_run_keeps_its_best_free_running_epoch(sample_dataset, tmp_path):
         assert torch.equal(value, stored["best_model"][name]), name
     if best != 2:  # the last epoch's weights are the checkpoint's, not the kept ones
         assert any(not torch.equal(kept[k], stored["model"][k]) for k in kept)
+
+
+def test_an_epoch_that_moves_is_kept_before_a_still_one_with_a_lower_rhythm_loss():
+    def epochs(*figures):
+        return [{"epoch": i + 1, "val_rhythm": r, "val_energy": e} for i, (r, e) in enumerate(figures)]
+
+    assert not _better(epochs((40.0, 0.9), (15.4, 0.05)))  # nearly still: not kept over a moving epoch
+    assert _better(epochs((15.4, 0.05), (40.0, 0.9)))  # the first alive epoch wins whatever its loss
+    assert _better(epochs((15.4, 0.05), (40.0, 0.9), (30.0, 1.8)))  # then the lowest loss among the alive
+    assert not _better(epochs((15.4, 0.05), (30.0, 0.9), (40.0, 1.1)))
+    assert _better(epochs((20.0, 0.05), (15.0, 3.0)))  # none alive yet: the lowest loss, as before
+    assert not _better(epochs((20.0, 0.9), (None, None)))  # an epoch without free runs is never kept
+    assert _better(epochs((20.0, None), (19.0, None)))  # runs written before val_energy: the loss alone
 
 
 def test_a_recipe_run_resumes_to_the_same_weights(sample_dataset, tmp_path):
@@ -211,6 +227,85 @@ def test_the_cdhc_model_trains_free_too(pulse_mel_dataset, tmp_path):
     assert math.isfinite(history[0]["train_loss"]) and history[0]["val_rhythm"] is not None
 
 
+def test_the_cdhc_models_context_is_as_far_back_as_an_output_sees(pulse_mel_dataset):
+    from kinectdata.models.registry import model_kind
+
+    kind = model_kind("cdhc")
+    manifest = json.loads((pulse_mel_dataset / "manifest.json").read_text())
+    config = TrainConfig("cdhc", channels=8, decoder_channels=8)
+    assert config.context is None  # the model's own
+    network = kind.network_config(config.settings, manifest)
+    context = kind.context_frames(network)
+    assert context == kind.context_frames(kind.network_config(TrainConfig("cdhc").settings, manifest)) == 264
+    net = kind.build(network).eval()
+    torch.manual_seed(0)
+    audio = torch.randn(1, 400, manifest["feature_shape"][0])
+    previous = torch.randn(1, 400, manifest["target_dim"])
+    last = 399
+    with torch.no_grad():
+        base = net(audio, previous)[0, last]
+
+        def seen(lag):  # does output `last` change when the inputs `lag` frames before it change?
+            moved_audio, moved_previous = audio.clone(), previous.clone()
+            moved_audio[0, last - lag] += 5.0
+            moved_previous[0, last - lag] += 5.0
+            return not torch.allclose(net(moved_audio, moved_previous)[0, last], base)
+
+        assert seen(context) and not seen(context + 1)
+    assert model_kind("yalta").context_frames({}) == 0
+
+
+def test_the_cdhc_recipe_trains_on_the_free_run_it_will_dance(pulse_mel_dataset):
+    """No dropout by default: the free run the rhythm loss sees in training is the one generation
+    makes (with dropout's noise the training free run moved and the evaluated one stood still)."""
+    from kinectdata.models.registry import model_kind
+
+    kind = model_kind("cdhc")
+    manifest = json.loads((pulse_mel_dataset / "manifest.json").read_text())
+    torch.manual_seed(0)
+    audio = torch.randn(2, 80, manifest["feature_shape"][0])
+    previous = torch.randn(2, 80, manifest["target_dim"])
+    for paper, same in ((False, True), (True, False)):
+        config = TrainConfig.for_model("cdhc", paper=paper, channels=8, decoder_channels=8)
+        net = kind.build(kind.network_config(config.settings, manifest))
+        with torch.no_grad():
+            training = kind.predict_free(net.train(), audio, previous, config.settings)[1]
+            generating = kind.predict_free(net.eval(), audio, previous, config.settings)[1]
+        assert torch.equal(training, generating) is same, paper
+
+
+def test_the_losses_do_not_count_the_context_frames(pulse_mel_dataset):
+    from kinectdata.dataset.windows import WindowDataset
+    from kinectdata.models.registry import model_kind
+    from kinectdata.training.train import validate
+
+    config = TrainConfig("cdhc", channels=8, decoder_channels=8, sequence=40, batch_size=4, context=25)
+    kind = model_kind("cdhc")
+    manifest = json.loads((pulse_mel_dataset / "manifest.json").read_text())
+    torch.manual_seed(0)
+    net = kind.build(kind.network_config(config.settings, manifest))
+    windows = WindowDataset(pulse_mel_dataset, "val", 65, 40, verify=False)
+    clean = validate(net, windows, config, torch.device("cpu"), context=25)
+
+    class Spoiled(WindowDataset):  # other poses in the context frames: what the losses must not see
+        def __getitem__(self, i):
+            item = super().__getitem__(i)
+            item["pose"][:25] = 0.123
+            return item
+
+    spoiled = Spoiled(pulse_mel_dataset, "val", 65, 40, verify=False)
+    assert validate(net, spoiled, config, torch.device("cpu"), context=25) == pytest.approx(clean, rel=1e-6)
+    assert validate(net, spoiled, config, torch.device("cpu"), context=0)[0] != pytest.approx(
+        validate(net, windows, config, torch.device("cpu"), context=0)[0], rel=1e-3
+    )
+
+
+def test_windows_too_short_for_the_context_are_refused_naming_both(pulse_mel_dataset, tmp_path):
+    config = TrainConfig("cdhc", channels=8, decoder_channels=8, sequence=400, epochs=1)
+    with pytest.raises(KinectDataError, match=r"no training window of 664 frames \(400 \+ 264 of context\)"):
+        train(pulse_mel_dataset, tmp_path / "r", config)
+
+
 def test_a_model_that_cannot_run_free_in_training_is_refused():
     from kinectdata.models.kind import ModelKind
     from kinectdata.models.registry import MODELS
@@ -228,7 +323,9 @@ def test_a_model_that_cannot_run_free_in_training_is_refused():
         del MODELS["rigid-test"]
 
 
-@pytest.mark.parametrize(("setting", "value"), [("free_weight", -1.0), ("silence_share", 1.5), ("keep", "first")])
+@pytest.mark.parametrize(
+    ("setting", "value"), [("free_weight", -1.0), ("silence_share", 1.5), ("keep", "first"), ("context", -3)]
+)
 def test_bad_recipe_settings_are_refused(setting, value):
     with pytest.raises(ConfigError, match=setting):
         TrainConfig(**{setting: value})

@@ -1,0 +1,37 @@
+"""The validation energy a run logs (``val_energy``) is the one ``kinectdata evaluate``'s alive
+verdict reads: each validation song run free from its first pose to its end, over the real motion."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from kinectdata.evaluation.evaluate import split_songs
+from kinectdata.models.run import load_model
+
+
+def _energy(positions: np.ndarray, mask: np.ndarray, fps: float) -> float:
+    """Mean squared joint speed by central differences, joint by joint and frame by frame."""
+    total, count = 0.0, 0
+    for t in range(1, len(positions) - 1):
+        for j in range(positions.shape[1]):
+            if mask[t - 1, j] and mask[t + 1, j]:
+                total += float(np.sum(((positions[t + 1, j] - positions[t - 1, j]) * fps / 2) ** 2))
+                count += 1
+    return total / count
+
+
+def test_the_logged_validation_energy_is_the_alive_verdicts_figure_on_the_validation_songs(trained_run, sample_dataset):
+    run, history = trained_run  # keeps its last epoch: model.pt holds the weights of the last row
+    net, config = load_model(run)
+    songs = split_songs(net, config, sample_dataset, "val")
+    assert [s.name for s in songs.songs] == ["synth_001"]
+    ratios = []
+    for song in songs.songs:
+        made = songs.generate(song.features, song.first_pose)  # frames 1..T-1, the target's units
+        ratios.append(
+            _energy(made, np.ones(made.shape[:2], bool), song.fps)
+            / _energy(song.real_positions, song.real_mask, song.fps)
+        )
+    assert history[-1]["val_energy"] == pytest.approx(float(np.mean(ratios)), rel=1e-4)
+    assert all(row["val_energy"] > 0 for row in history)
