@@ -54,7 +54,15 @@ NOT_RUN = {
 TRAIN_SHRINK = ["--epochs", "1", "--sequence", "30", "--stride", "300", "--max-minutes", "1"]
 SHRINK = {
     "kinectdata train-baseline": [*TRAIN_SHRINK, "--units", "16"],
-    "kinectdata train-baseline --data ltd_dataset": [*TRAIN_SHRINK, "--channels", "64", "--decoder-channels", "64"],
+    "kinectdata train-baseline --data ltd_dataset": [
+        *TRAIN_SHRINK,
+        "--channels",
+        "64",
+        "--decoder-channels",
+        "64",
+        "--context",
+        "30",
+    ],
     "kinectdata render": ["--fps", "5", "--size", "160x120"],
     "kinectdata synth ltd": ["--duration", "20"],
 }

@@ -220,7 +220,7 @@ def pulse_mel_dataset(tmp_path_factory):
 
 def test_the_cdhc_model_trains_free_too(pulse_mel_dataset, tmp_path):
     config = TrainConfig(
-        "cdhc", channels=16, decoder_channels=16, sequence=40, stride=None, batch_size=4, epochs=1, lr=1e-3,
+        "cdhc", channels=16, decoder_channels=16, sequence=40, stride=None, batch_size=4, epochs=1, lr=1e-3, context=20,
         free_weight=1.0, silence_share=0.5, keep="best",
     )  # fmt: skip
     history = train(pulse_mel_dataset, tmp_path / "c", config)
