@@ -88,7 +88,7 @@ LOG_FIELDS = [
     "kept",
 ]
 """``log.csv``'s columns; ``val_energy`` is the validation songs' energy run free over the real
-motion's (:class:`~kinectdata.training.whole_songs.WholeSongs`); ``stopped`` is ``time budget`` on
+motion's (:class:`~kinectdata.training.whole_songs.WholeSongs`; with ``keep="best"``); ``stopped`` is ``time budget`` on
 the epoch that the time budget cut short; ``kept`` marks the epoch ``model.pt`` holds when the run
 keeps its best (``TrainConfig.keep``)."""
 
@@ -581,7 +581,11 @@ def train(
         fps = float(manifest["config"]["fps"])
         silent = silent_frame(manifest["config"]["features"], fps) if config.silence_share > 0 else None
         body = _body(manifest, device)
-        val_songs = WholeSongs.of_split(dataset, manifest, "val", kind, run_config["dataset"], start_pose)
+        val_songs = (  # the kept epoch's condition: measured when the run keeps its best
+            WholeSongs.of_split(dataset, manifest, "val", kind, run_config["dataset"], start_pose)
+            if config.keep == "best"
+            else None
+        )
         deadline = None if config.max_minutes is None else time.monotonic() + 60 * config.max_minutes
         out_of_time = False
         for epoch in range(len(history) + 1, config.epochs + 1):

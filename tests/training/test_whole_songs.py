@@ -5,9 +5,12 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from conftest import TINY_TRAINING
 
 from kinectdata.evaluation.evaluate import split_songs
 from kinectdata.models.run import load_model
+from kinectdata.training.config import TrainConfig
+from kinectdata.training.train import train
 
 
 def _energy(positions: np.ndarray, mask: np.ndarray, fps: float) -> float:
@@ -21,9 +24,10 @@ def _energy(positions: np.ndarray, mask: np.ndarray, fps: float) -> float:
     return total / count
 
 
-def test_the_logged_validation_energy_is_the_alive_verdicts_figure_on_the_validation_songs(trained_run, sample_dataset):
-    run, history = trained_run  # keeps its last epoch: model.pt holds the weights of the last row
-    net, config = load_model(run)
+def test_the_logged_validation_energy_is_the_alive_verdicts_figure_on_the_validation_songs(sample_dataset, tmp_path):
+    run = tmp_path / "run"
+    history = train(sample_dataset, run, TrainConfig(**{**TINY_TRAINING, "epochs": 1, "keep": "best"}))
+    net, config = load_model(run)  # the one epoch, kept
     songs = split_songs(net, config, sample_dataset, "val")
     assert [s.name for s in songs.songs] == ["synth_001"]
     ratios = []
@@ -33,5 +37,9 @@ def test_the_logged_validation_energy_is_the_alive_verdicts_figure_on_the_valida
             _energy(made, np.ones(made.shape[:2], bool), song.fps)
             / _energy(song.real_positions, song.real_mask, song.fps)
         )
+    assert history[-1]["kept"] == "best"
     assert history[-1]["val_energy"] == pytest.approx(float(np.mean(ratios)), rel=1e-4)
-    assert all(row["val_energy"] > 0 for row in history)
+
+
+def test_a_run_that_keeps_its_last_epoch_does_not_measure_it(trained_run):
+    assert all(row.get("val_energy") is None for row in trained_run[1])
