@@ -163,7 +163,8 @@ def run(
         print(
             f"  [{model}] trained {trained:.1f} min, {history[-1]['step']} steps, {len(history)} epochs, model.pt "
             f"from epoch {kept['epoch']} (lowest free-running validation rhythm loss among the epochs moving at "
-            f"0.5-2 x the real energy; its validation songs: {_times(kept['val_energy'])}); curves: {figure}; "
+            f"{ALIVE_RANGE[0]:g}-{ALIVE_RANGE[1]:g} x the real energy; its validation songs: "
+            f"{_times(kept['val_energy'])}); curves: {figure}; "
             "on the test dances:"
         )
         print("\n".join("    " + line for line in format_results(results).splitlines()))
