@@ -286,7 +286,14 @@ def main(argv: list[str] | None = None) -> None:
         default=None,
         help="a real corpus instead of the synthetic one: a recipe's name (tang2018) and your local copy",
     )
+    parser.add_argument(
+        "--rescore",
+        action="store_true",
+        help="with --corpus and --out: evaluate the runs an earlier benchmark left in --out again, without training",
+    )
     args = parser.parse_args(argv or [])
+    if args.rescore and (args.corpus is None or args.out is None):
+        parser.error("--rescore evaluates the runs of an earlier real-corpus benchmark: give --corpus and --out")
     models = [m.strip() for m in args.models.split(",") if m.strip()]
     torch.set_num_threads(2)
     if args.corpus is None:
@@ -298,7 +305,7 @@ def main(argv: list[str] | None = None) -> None:
             from .learning_real import run
 
             name, path = args.corpus
-            run(name, Path(path), out, args.minutes, models, args.seed)
+            run(name, Path(path), out, args.minutes, models, args.seed, rescore=args.rescore)
             return
         datasets = make_corpus(out, args.seed, args.corpus_minutes, models)
         summary = {}

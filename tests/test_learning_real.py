@@ -14,7 +14,17 @@ from corpus_copies import make_tang2018_copy
 @pytest.mark.slow
 def test_the_real_corpus_benchmark_prints_every_goal(tmp_path, monkeypatch, capsys):
     monkeypatch.syspath_prepend(str(REPO))
+    import benchmarks.learning_real as bench
     from benchmarks.learning_real import run
+
+    evaluated = {}
+
+    def remembered(run_dir, *args, **kwargs):
+        evaluated[run_dir] = (args, kwargs, real_evaluate(run_dir, *args, **kwargs))
+        return evaluated[run_dir][2]
+
+    real_evaluate = bench.evaluate
+    monkeypatch.setattr(bench, "evaluate", remembered)
 
     corpus = make_tang2018_copy(tmp_path, seconds=8.0)
     small = {"sequence": 60, "stride": 60, "epochs": 1}
@@ -35,6 +45,20 @@ def test_the_real_corpus_benchmark_prints_every_goal(tmp_path, monkeypatch, caps
     saved = json.loads((tmp_path / "out" / "learning_real.json").read_text())
     assert set(saved) == {"yalta", "cdhc"}
     assert "model.pt from epoch 1 (lowest free-running validation rhythm loss among the epochs moving at" in printed
+    assert "the noise at each test song's own speed (an oracle): FID_k" in printed
+
+    # scored again without training: the run's own log read back, its evaluation asked for as before
+    # (evaluate's figures are its tests'; here the answer it gave the first time stands in for it)
+    def again_as_before(run_dir, *args, **kwargs):
+        assert (args, kwargs) == evaluated[run_dir][:2]
+        return evaluated[run_dir][2]
+
+    monkeypatch.setattr(bench, "evaluate", again_as_before)
+    monkeypatch.setattr(bench, "train", lambda *a, **k: pytest.fail("--rescore trained"))
+    again = run("tang2018", corpus, tmp_path / "out", 0.01, ["yalta"], 0, bootstrap=0, rescore=True)
+    printed = capsys.readouterr().out
+    assert "[yalta] the run in" in printed and "model.pt from epoch 1 (lowest free-running" in printed
+    assert again["yalta"]["goals"] == summary["yalta"]["goals"]
 
 
 def test_without_a_corpus_the_real_benchmark_says_why_it_is_not_run(monkeypatch, capsys):

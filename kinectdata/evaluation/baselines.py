@@ -1,8 +1,11 @@
 """Motion a model must beat, made for the same test songs without any learning from their music.
 
-- :func:`mean_pose_noise`: the mean training pose with smooth random motion of the real motion's
-  speed (the same mean squared frame-to-frame change per component, noise low-passed at
-  :data:`NOISE_CUTOFF_HZ`): alive, but listening to nothing;
+- :func:`mean_pose_noise`: the mean training pose with smooth random motion at a given speed per
+  component (its mean squared frame-to-frame change, :func:`mean_square_steps`; noise low-passed
+  at :data:`NOISE_CUTOFF_HZ`): alive, but listening to nothing. The baseline a model must beat
+  moves at the training dances' speed; the same noise at each test song's own real speed is
+  reported beside it as an oracle (it knows how fast the answer moves, which is most of what the
+  kinetic features measure);
 - :func:`retrieval`: the real training motion of the training song whose music is most like the
   test song's (the nearest by :func:`music_descriptor`: the mean and spread of the model's input
   features), as long as the test song (repeated when shorter): real dance, to other music.
@@ -61,36 +64,47 @@ def retrieval(test_descriptor: np.ndarray, frames: int, training: list[TrainingS
     return np.concatenate([motion] * repeats)[: frames - 1], nearest.name
 
 
+def mean_square_steps(motions: list[tuple[np.ndarray, np.ndarray | None]]) -> np.ndarray:
+    """Per component, the mean squared frame-to-frame change [D] (target units per frame, squared)
+    pooled over the frame pairs valid in both frames of every motion: ``(values [T, D], mask [T, D]
+    or None)`` pairs. 0 for a component never valid in two consecutive frames."""
+    if not motions:
+        raise KinectDataError("the speed of no motion was asked for")
+    total = count = 0.0
+    for values, mask in motions:
+        real = np.asarray(values, np.float64)
+        valid = np.ones_like(real, bool) if mask is None else np.asarray(mask, bool)
+        both = valid[1:] & valid[:-1]
+        total = total + np.where(both, np.diff(real, axis=0) ** 2, 0.0).sum(axis=0)
+        count = count + both.sum(axis=0)
+    return total / np.maximum(count, 1)
+
+
 def mean_pose_noise(
     mean_pose: np.ndarray,
-    real_values: np.ndarray,
-    real_mask: np.ndarray | None,
+    mean_square_step: np.ndarray,
+    frames: int,
     fps: float,
     rng: np.random.Generator,
     cutoff_hz: float = NOISE_CUTOFF_HZ,
 ) -> np.ndarray:
-    """The mean pose [D] plus smooth Gaussian noise, [T - 1, D] for a real motion of T frames.
+    """The mean pose [D] plus smooth Gaussian noise, [frames - 1, D] for a song of ``frames`` frames.
 
     Each component's noise is white noise low-passed at ``cutoff_hz`` (a 4th-order Butterworth
-    filter run forwards and backwards), scaled so that its mean squared frame-to-frame change
-    equals that of the real motion's component ``real_values`` [T, D] (over frames valid in both,
-    ``real_mask`` [T, D]): the real motion's speed, none of its rhythm.
+    filter run forwards and backwards), scaled so that its mean squared frame-to-frame change is
+    ``mean_square_step`` [D] (:func:`mean_square_steps` of the real motion it stands for): that
+    motion's speed, none of its rhythm.
     """
     from scipy.signal import butter, sosfiltfilt
 
-    real = np.asarray(real_values, np.float64)
-    mask = np.ones_like(real, bool) if real_mask is None else np.asarray(real_mask, bool)
-    T, D = real.shape
-    if T < 3:
-        raise KinectDataError(f"the mean-pose baseline needs a real motion of at least 3 frames, got {T}")
-    step = np.diff(real, axis=0)
-    both = mask[1:] & mask[:-1]
-    real_speed = np.sqrt(np.where(both, step**2, 0.0).sum(axis=0) / np.maximum(both.sum(axis=0), 1))
+    if frames < 3:
+        raise KinectDataError(f"the mean-pose baseline needs a song of at least 3 frames, got {frames}")
+    wanted = np.asarray(mean_square_step, np.float64)
     sos = butter(4, min(cutoff_hz / (fps / 2), 0.99), output="sos")
     pad = 3 * 4 * 2  # noise beyond both ends, so that sosfiltfilt has room to pad however short the motion
-    noise = sosfiltfilt(sos, rng.normal(size=(T - 1 + 2 * pad, D)), axis=0)[pad : pad + T - 1]
+    noise = sosfiltfilt(sos, rng.normal(size=(frames - 1 + 2 * pad, wanted.size)), axis=0)[pad : pad + frames - 1]
     noise_speed = np.sqrt(np.mean(np.diff(noise, axis=0) ** 2, axis=0))
-    scale = np.where(noise_speed > 0, real_speed / np.maximum(noise_speed, 1e-12), 0.0)
+    scale = np.where(noise_speed > 0, np.sqrt(wanted) / np.maximum(noise_speed, 1e-12), 0.0)
     return np.asarray(mean_pose, np.float64)[None, :] + noise * scale
 
 

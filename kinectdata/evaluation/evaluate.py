@@ -45,6 +45,7 @@ from kinectdata.evaluation.baselines import (
     TrainingSong,
     baseline_comparison,
     mean_pose_noise,
+    mean_square_steps,
     music_descriptor,
     retrieval,
 )
@@ -224,8 +225,9 @@ def evaluate(
     of the songs whose recordings-manifest entry gives none (default: estimated from each song,
     :mod:`~kinectdata.evaluation.metre`). ``more_protocols``: other protocols whose tables are
     made too (``metrics_<name>.json``). ``baselines``: also score the mean training pose with noise
-    at the real speed and the retrieval baseline (:mod:`~kinectdata.evaluation.baselines`) by the
-    same protocols, beside the model."""
+    at the training dances' speed (and, as an oracle, at each song's own real speed) and the
+    retrieval baseline (:mod:`~kinectdata.evaluation.baselines`, :func:`baseline_runs`) by the same
+    protocols, beside the model."""
     protocol = get_protocol(protocol) if isinstance(protocol, str) else protocol
     run, dataset = Path(run), Path(dataset)
     net, config = load_model(run)
@@ -370,29 +372,37 @@ def baseline_runs(
     seed: int = 0,
 ) -> tuple[dict[str, dict[str, np.ndarray]], dict[str, str]]:
     """The baselines' motion for each recording (:mod:`~kinectdata.evaluation.baselines`), as
-    denormalised targets [T-1, D] like a free run: ``{"mean_pose_noise": {...}, "retrieval": {...}}``,
-    and which training recording each retrieval took. The mean pose is the run's mean training
-    pose; retrieval searches the dataset's training split."""
+    denormalised targets [T-1, D] like a free run, and which training recording each retrieval took:
+    ``{"mean_pose_noise": {...}, "mean_pose_noise_own_speed": {...}, "retrieval": {...}}``. The mean
+    pose is the run's mean training pose; the noise moves at the training split's speed (the
+    baseline a model must beat) and, as an oracle, at each song's own real speed; retrieval searches
+    the dataset's training split. Without training recordings only the oracle is made."""
     spec = TargetSpec.from_dict(config["dataset"]["target"])
     fps = config["dataset"]["fps"]
     rng = np.random.default_rng(seed)
     mean_pose = norm.invert(np.asarray(config["dataset"]["start_pose"], np.float32)[None], spec)[0]
-    training = []
+    training, moves = [], []
     for r in manifest["recordings"]:
         if r["split"] != "train" or r.get("snr_db") is not None:
             continue
         with h5py.File(dataset / r["shard"], "r") as f:
             rows = slice(r["start"], r["start"] + r["frames"])
-            values = norm.invert(f["current"][rows], spec, mask=f["mask"][rows])
+            mask = f["mask"][rows]
+            values = norm.invert(f["current"][rows], spec, mask=mask)
             training.append(TrainingSong(r["name"], music_descriptor(f["input"][rows]), values))
-    noise, retrieval_runs, retrieved = {}, {}, {}
+            moves.append((values, mask))
+    speed = mean_square_steps(moves) if moves else None
+    noise, own_speed, retrieval_runs, retrieved = {}, {}, {}, {}
     for rec in recordings:
         values, mask = real[rec["name"]]
-        noise[rec["name"]] = mean_pose_noise(mean_pose, values, mask, fps, rng)
+        if speed is not None:
+            noise[rec["name"]] = mean_pose_noise(mean_pose, speed, len(values), fps, rng)
+        own_speed[rec["name"]] = mean_pose_noise(mean_pose, mean_square_steps([(values, mask)]), len(values), fps, rng)
         if training:
             motion, source = retrieval(music_descriptor(rec["input"]), len(values), training)
             retrieval_runs[rec["name"]], retrieved[rec["name"]] = motion, source
-    runs = {"mean_pose_noise": noise}
+    runs = {"mean_pose_noise": noise} if training else {}
+    runs["mean_pose_noise_own_speed"] = own_speed
     if training:
         runs["retrieval"] = retrieval_runs
     return runs, retrieved
@@ -593,7 +603,33 @@ def format_results(results: dict[str, Any]) -> str:
         lines += [f"    {line}" for line in field["table"].splitlines()]
     elif field:
         lines.append(f"  field metrics  not measured: {field['unavailable']}")
+    for entry in [field, *results.get("field_protocols", {}).values()]:
+        lines += _comparison_lines(entry)
     if rhythm.get("unavailable"):
         lines.append(f"  rhythm         {rhythm['unavailable']} recordings without beats (see results.json)")
     lines.append("  figures        " + ", ".join(results["figures"]))
     return "\n".join(lines)
+
+
+BASELINE_NAMES = {
+    "mean_pose_noise": "the mean training pose + noise at the training dances' speed",
+    "retrieval": "a training dance chosen by its music (retrieval)",
+    "mean_pose_noise_own_speed": "the same noise at each song's own speed (an oracle: it knows the answer's speed)",
+}
+"""How :func:`format_results` names the baselines of :func:`baseline_runs`."""
+
+
+def _comparison_lines(entry: dict[str, Any]) -> list[str]:
+    """One line per baseline: does the model beat it (lower FID_k and FID_g) under the entry's protocol."""
+
+    def number(v: float | None) -> str:
+        return "n/a" if v is None else f"{v:.3g}"
+
+    lines = []
+    for name, row in entry.get("comparison", {}).items():
+        lines.append(
+            f"  beats {BASELINE_NAMES.get(name, name)} ({entry['protocol']}): {'yes' if row['beats'] else 'no'} "
+            f"(FID_k {number(row['FID_k'])} vs {number(row['FID_k_baseline'])}, "
+            f"FID_g {number(row['FID_g'])} vs {number(row['FID_g_baseline'])})"
+        )
+    return lines

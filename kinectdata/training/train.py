@@ -465,6 +465,31 @@ def _write_log(run: Path, history: list[dict]) -> None:
         tmp.write_text(buffer.getvalue())
 
 
+def read_log(run: Path) -> list[dict[str, Any]]:
+    """A finished run's ``log.csv`` as the rows :func:`train` returned: ``epoch`` and ``step`` ints,
+    ``stopped`` and ``kept`` strings or None (``kept`` is ``best`` on the epoch ``model.pt`` holds),
+    the other columns floats (None where empty, as ``val_energy`` of a run that does not keep its
+    best)."""
+    path = Path(run) / LOG
+    try:
+        rows = list(csv.DictReader(io.StringIO(path.read_text(encoding="utf-8"))))
+    except OSError as exc:
+        raise KinectDataError(f"{path}: cannot read the run's log: {exc.strerror or exc}") from None
+    history = []
+    for number, row in enumerate(rows, start=2):
+        try:
+            entry: dict[str, Any] = {"epoch": int(row["epoch"]), "step": int(row["step"])}
+            for key in LOG_FIELDS:
+                if key in ("stopped", "kept"):
+                    entry[key] = row.get(key) or None
+                elif key not in entry:
+                    entry[key] = float(row[key]) if row.get(key) else None
+        except (KeyError, TypeError, ValueError) as exc:
+            raise KinectDataError(f"{path}, line {number}: not a row of a run's log ({exc})") from None
+        history.append(entry)
+    return history
+
+
 def _tensorboard(run: Path):
     try:
         from torch.utils.tensorboard import SummaryWriter

@@ -366,6 +366,24 @@ def test_tang2018_leaves_out_a_dance_whose_config_is_broken_saying_what_is_wrong
     assert not (tmp_path / "r.yaml").exists()
 
 
+def test_a_dance_linked_from_elsewhere_is_listed_under_the_root_and_built_with_outside_paths(tmp_path):
+    dances = {name: TANG2018_DANCES[name] for name in ("W_1", "W_3")}
+    root = make_tang2018_copy(tmp_path / "corpus", seconds=0.5, dances=dances)
+    elsewhere = tmp_path / "other_disk"
+    elsewhere.mkdir()
+    (root / "DANCE_W_3").rename(elsewhere / "DANCE_W_3")
+    (root / "DANCE_W_3").symlink_to(elsewhere / "DANCE_W_3", target_is_directory=True)
+    manifest = prepare_tang2018(root)
+    linked = next(e for e in manifest.recordings if e.name == "W_3")
+    assert (linked.recording, linked.audio) == ("DANCE_W_3/skeletons.json", "DANCE_W_3/audio.mp3")
+    out = tmp_path / "tang.yaml"
+    assert CliRunner().invoke(main, ["prepare", "tang2018", str(root), "-o", str(out)]).exit_code == 0
+    with pytest.raises(SchemaError, match="leads outside"):  # the manifest's root is elsewhere: refused without leave
+        read_recordings(out)
+    found = read_recordings(out, allow_outside_paths=True)[1].recording
+    assert found == str((elsewhere / "DANCE_W_3" / "skeletons.json").resolve())
+
+
 # -- from the command line to a dataset -----------------------------------------------------------------
 
 

@@ -15,6 +15,7 @@ from kinectdata.evaluation.baselines import (
     TrainingSong,
     baseline_comparison,
     mean_pose_noise,
+    mean_square_steps,
     music_descriptor,
     retrieval,
 )
@@ -56,9 +57,10 @@ def reference_mean_square_step(values: np.ndarray, mask: np.ndarray) -> np.ndarr
 def test_mean_pose_noise_moves_at_the_real_speed_around_the_mean_pose(seed):
     values, mask = real_motion(seed=seed)
     mean_pose = np.array([0.1, -0.2, 0.3, 5.0])
-    out = mean_pose_noise(mean_pose, values, mask, FPS, np.random.default_rng(seed))
-    assert out.shape == (len(values) - 1, 4) and np.isfinite(out).all()
     real = reference_mean_square_step(values, mask)
+    np.testing.assert_allclose(mean_square_steps([(values, mask)]), real, rtol=1e-12)
+    out = mean_pose_noise(mean_pose, real, len(values), FPS, np.random.default_rng(seed))
+    assert out.shape == (len(values) - 1, 4) and np.isfinite(out).all()
     np.testing.assert_allclose(np.mean(np.diff(out, axis=0) ** 2, axis=0)[:3], real[:3], rtol=1e-9)
     np.testing.assert_array_equal(out[:, 3], 5.0)  # a still component: no noise at all
     spread = out[:, :3].std(axis=0)
@@ -69,7 +71,8 @@ def test_mean_pose_noise_moves_at_the_real_speed_around_the_mean_pose(seed):
 
 def test_mean_pose_noise_has_no_power_above_its_cutoff():
     values, mask = real_motion(T=1800)
-    out = mean_pose_noise(np.zeros(4), values, mask, FPS, np.random.default_rng(7))
+    speed = mean_square_steps([(values, mask)])
+    out = mean_pose_noise(np.zeros(4), speed, len(values), FPS, np.random.default_rng(7))
     f, power = welch(out[:, :3], fs=FPS, nperseg=256, axis=0)  # [F, 3], Hann windows: little leakage
     passband = power[f < 0.7 * NOISE_CUTOFF_HZ].mean(axis=0)
     # a 4th-order Butterworth run forwards and backwards: |H|^2 = 1 / (1 + (f / fc)^8)^2, 1.5e-5 at 2 fc
@@ -80,25 +83,30 @@ def test_mean_pose_noise_has_no_power_above_its_cutoff():
     f, wpower = welch(white[:, :3], fs=FPS, nperseg=256, axis=0)
     assert not np.all(wpower[f >= 2 * NOISE_CUTOFF_HZ].max(axis=0) < 1e-3 * wpower[f < 2.1].mean(axis=0))
     # a lower cutoff moves the edge
-    low = mean_pose_noise(np.zeros(4), values, mask, FPS, np.random.default_rng(7), cutoff_hz=1.0)
+    low = mean_pose_noise(np.zeros(4), speed, len(values), FPS, np.random.default_rng(7), cutoff_hz=1.0)
     f, lpower = welch(low[:, :3], fs=FPS, nperseg=256, axis=0)
     assert np.all(lpower[f >= 2.0].max(axis=0) < 1e-3 * lpower[f < 0.7].mean(axis=0))
 
 
-def test_mean_pose_noise_without_a_mask_and_too_short():
+def test_mean_square_steps_pool_the_motions_and_skip_what_is_not_valid():
     values, _ = real_motion(T=300)
     values = values[:, [0, 1, 3]]
-    out = mean_pose_noise(np.zeros(3), values, None, FPS, np.random.default_rng(0))
-    full = np.ones_like(values, bool)
-    np.testing.assert_allclose(
-        np.mean(np.diff(out, axis=0) ** 2, axis=0)[:2], reference_mean_square_step(values, full)[:2], rtol=1e-9
-    )
+    other = np.random.default_rng(3).normal(size=(50, 3))
+    full, full_other = np.ones_like(values, bool), np.ones_like(other, bool)
+    pooled = mean_square_steps([(values, None), (other, full_other)])
+    by_hand = (reference_mean_square_step(values, full) * 299 + reference_mean_square_step(other, full_other) * 49) / (
+        299 + 49
+    )  # pairs pooled, not the songs' means averaged
+    np.testing.assert_allclose(pooled, by_hand, rtol=1e-12)
     never = np.zeros_like(values, bool)
     never[:, 0] = True
-    still = mean_pose_noise(np.array([1.0, 2.0, 3.0]), values, never, FPS, np.random.default_rng(0))
-    np.testing.assert_array_equal(still[:, 1:], np.broadcast_to([2.0, 3.0], (299, 2)))  # never valid: no speed
+    np.testing.assert_array_equal(mean_square_steps([(values, never)])[1:], 0.0)  # never valid: no speed
+    still = mean_pose_noise(np.array([1.0, 2.0, 3.0]), np.array([0.01, 0.0, 0.0]), 300, FPS, np.random.default_rng(0))
+    np.testing.assert_array_equal(still[:, 1:], np.broadcast_to([2.0, 3.0], (299, 2)))
     with pytest.raises(KinectDataError, match="at least 3 frames, got 2"):
-        mean_pose_noise(np.zeros(3), values[:2], None, FPS, np.random.default_rng(0))
+        mean_pose_noise(np.zeros(3), np.ones(3), 2, FPS, np.random.default_rng(0))
+    with pytest.raises(KinectDataError, match="no motion"):
+        mean_square_steps([])
 
 
 def test_music_descriptor_by_hand():
@@ -173,9 +181,9 @@ def test_mean_pose_noise_for_short_motions(T):
     """However short the real motion, the noise has its rows and its speed (the filter needs room
     to pad: the noise runs on beyond both ends and is cut)."""
     values = np.random.default_rng(T).normal(size=(T, 3))
-    out = mean_pose_noise(np.zeros(3), values, None, FPS, np.random.default_rng(0))
-    assert out.shape == (T - 1, 3)
     full = np.ones_like(values, bool)
+    out = mean_pose_noise(np.zeros(3), reference_mean_square_step(values, full), T, FPS, np.random.default_rng(0))
+    assert out.shape == (T - 1, 3)
     np.testing.assert_allclose(
         np.mean(np.diff(out, axis=0) ** 2, axis=0), reference_mean_square_step(values, full), rtol=1e-9
     )

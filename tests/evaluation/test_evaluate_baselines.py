@@ -47,7 +47,7 @@ def test_each_protocol_writes_its_table(evaluated):
     assert set(results["field_protocols"]) == {"aist"}
     for entry, record in ((results["field"], first), (other, aist)):
         assert entry["metrics"] == json.loads(json.dumps(record["metrics"]))
-        assert set(entry["baselines"]) == {"mean_pose_noise", "retrieval"}
+        assert set(entry["baselines"]) == {"mean_pose_noise", "mean_pose_noise_own_speed", "retrieval"}
         for metrics in entry["baselines"].values():
             assert set(metrics) == set(entry["metrics"])
 
@@ -60,13 +60,24 @@ def test_the_baselines_are_scored_and_compared_with_the_model(evaluated, sample_
     assert results["field"]["retrieved"] == {"synth_002": "synth_003"}  # the one training song
     for entry in (results["field"], results["field_protocols"]["aist"]):
         comparison = entry["comparison"]
-        assert set(comparison) == {"mean_pose_noise", "retrieval"}
+        assert set(comparison) == {"mean_pose_noise", "mean_pose_noise_own_speed", "retrieval"}
         for name, row in comparison.items():
             for metric in ("FID_k", "FID_g"):
                 assert row[metric] == entry["metrics"][metric]["generated"]
                 assert row[f"{metric}_baseline"] == entry["baselines"][name][metric]["generated"]
             # one test song: no FID (it needs two sequences), so nothing is beaten
             assert row["FID_k"] is None and row["beats"] is False
+    printed = format_results(results)
+    for protocol in ("bailando", "aist"):
+        assert (
+            f"  beats the mean training pose + noise at the training dances' speed ({protocol}): no (FID_k n/a"
+            in printed
+        )
+        assert f"  beats a training dance chosen by its music (retrieval) ({protocol}): no" in printed
+        assert (
+            f"  beats the same noise at each song's own speed (an oracle: it knows the answer's speed) ({protocol})"
+            in printed
+        )
 
 
 def test_the_retrieval_baseline_is_the_training_dance_scored_as_a_free_run(evaluated, trained_run, sample_dataset):
@@ -109,7 +120,15 @@ def test_the_retrieval_baseline_is_the_training_dance_scored_as_a_free_run(evalu
             assert theirs[metric]["generated"] == pytest.approx(mine[metric]["generated"], rel=1e-6, abs=1e-9)
 
 
-def test_baseline_runs_make_motion_at_the_real_speed_and_the_retrieved_dance(trained_run, sample_dataset):
+def speed_by_hand(values: np.ndarray, mask: np.ndarray) -> np.ndarray:
+    both = mask[1:] & mask[:-1]
+    steps = np.where(both, np.diff(np.nan_to_num(values), axis=0) ** 2, 0.0)
+    return steps.sum(axis=0) / np.maximum(both.sum(axis=0), 1)
+
+
+def test_baseline_runs_make_motion_at_the_training_speed_the_own_speed_and_the_retrieved_dance(
+    trained_run, sample_dataset
+):
     from kinectdata.evaluation.evaluate import baseline_runs, split_recordings
     from kinectdata.targets.normalization import Normalizer
     from kinectdata.targets.specs import TargetSpec
@@ -122,21 +141,25 @@ def test_baseline_runs_make_motion_at_the_real_speed_and_the_retrieved_dance(tra
     (test,) = recordings = split_recordings(sample_dataset, manifest, "test")
     values, mask = norm.invert(test["current"], spec, mask=test["mask"]), test["mask"]
     runs, retrieved = baseline_runs(sample_dataset, manifest, recordings, {"synth_002": (values, mask)}, config, norm)
-    assert set(runs) == {"mean_pose_noise", "retrieval"} and retrieved == {"synth_002": "synth_003"}
-    noise = runs["mean_pose_noise"]["synth_002"]
-    assert noise.shape == (len(values) - 1, spec.dim)
-    both = mask[1:] & mask[:-1]
-    steps = np.where(both, np.diff(np.nan_to_num(values), axis=0) ** 2, 0.0)
-    real_speed = steps.sum(axis=0) / np.maximum(both.sum(axis=0), 1)
-    np.testing.assert_allclose(np.mean(np.diff(noise, axis=0) ** 2, axis=0), real_speed, rtol=1e-6, atol=1e-12)
-    mean_pose = norm.invert(np.asarray(config["dataset"]["start_pose"], np.float32)[None], spec)[0]
-    moving = noise.std(axis=0) > 0
-    assert moving.any()
-    assert np.all(np.abs(noise.mean(axis=0) - mean_pose)[moving] < 0.6 * noise.std(axis=0)[moving])
+    assert set(runs) == {"mean_pose_noise", "mean_pose_noise_own_speed", "retrieval"}
+    assert retrieved == {"synth_002": "synth_003"}
     (train,) = [r for r in manifest["recordings"] if r["name"] == "synth_003"]
     with h5py.File(sample_dataset / train["shard"], "r") as f:
         rows = slice(train["start"], train["start"] + train["frames"])
-        dance = norm.invert(f["current"][rows], spec, mask=f["mask"][rows])
+        train_mask = f["mask"][rows]
+        dance = norm.invert(f["current"][rows], spec, mask=train_mask)
+    mean_pose = norm.invert(np.asarray(config["dataset"]["start_pose"], np.float32)[None], spec)[0]
+    # the baseline moves at the one training dance's speed; the oracle at the test song's own
+    for name, speed in (
+        ("mean_pose_noise", speed_by_hand(dance, train_mask)),
+        ("mean_pose_noise_own_speed", speed_by_hand(values, mask)),
+    ):
+        noise = runs[name]["synth_002"]
+        assert noise.shape == (len(values) - 1, spec.dim)
+        np.testing.assert_allclose(np.mean(np.diff(noise, axis=0) ** 2, axis=0), speed, rtol=1e-6, atol=1e-12)
+        moving = noise.std(axis=0) > 0
+        assert moving.any()
+        assert np.all(np.abs(noise.mean(axis=0) - mean_pose)[moving] < 0.6 * noise.std(axis=0)[moving])
     np.testing.assert_array_equal(runs["retrieval"]["synth_002"], dance[1 : len(values)])
 
 

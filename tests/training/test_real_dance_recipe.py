@@ -16,7 +16,7 @@ from kinectdata.core.errors import ConfigError, KinectDataError
 from kinectdata.models.losses import masked_energy_loss, masked_rhythm_loss, masked_rhythm_spectrum_loss
 from kinectdata.models.run import load_checkpoint
 from kinectdata.training.config import TrainConfig
-from kinectdata.training.train import _better, train
+from kinectdata.training.train import LOG_FIELDS, _better, read_log, train
 
 RECIPE = {**TINY_TRAINING, "sequence": 40, "epochs": 3, "free_weight": 1.0, "silence_share": 0.5, "keep": "best"}
 
@@ -168,11 +168,23 @@ def test_a_run_keeps_its_best_free_running_epoch(sample_dataset, tmp_path):
     best = min(alive, key=lambda i: rhythm[i])
     assert [r["kept"] for r in rows] == ["best" if i == best else "" for i in range(3)]
     assert [h.get("kept") for h in history] == ["best" if i == best else None for i in range(3)]
+    assert read_log(run) == [{k: h.get(k) for k in LOG_FIELDS} for h in history]  # the log reads back whole
+    lines = (run / "log.csv").read_text().splitlines()
+    lines[2] = ",".join(["2", "two", *lines[2].split(",")[2:]])  # the second epoch's step
+    (run / "log.csv").write_text("\n".join(lines) + "\n")
+    with pytest.raises(KinectDataError, match=r"log.csv, line 3: not a row of a run's log"):
+        read_log(run)
     kept = load_checkpoint(run / "model.pt")["model"]
     stored = load_checkpoint(run / "checkpoint.pt")
     assert int(stored["best_epoch"]) == best + 1
     for name, value in kept.items():
         assert torch.equal(value, stored["best_model"][name]), name
+    parts = tmp_path / "parts"  # interrupted after its first epoch and resumed: the same kept weights
+    train(sample_dataset, parts, TrainConfig(**RECIPE), stop_after=1)
+    train(sample_dataset, parts, TrainConfig(**RECIPE), resume=True)
+    resumed = load_checkpoint(parts / "model.pt")["model"]
+    for name, value in kept.items():
+        assert torch.equal(value, resumed[name]), name
     if best != 2:  # the last epoch's weights are the checkpoint's, not the kept ones
         assert any(not torch.equal(kept[k], stored["model"][k]) for k in kept)
 
@@ -188,16 +200,6 @@ def test_an_epoch_that_moves_is_kept_before_a_still_one_with_a_lower_rhythm_loss
     assert _better(epochs((20.0, 0.05), (15.0, 3.0)))  # none alive yet: the lowest loss, as before
     assert not _better(epochs((20.0, 0.9), (None, None)))  # an epoch without free runs is never kept
     assert _better(epochs((20.0, None), (19.0, None)))  # runs written before val_energy: the loss alone
-
-
-def test_a_recipe_run_resumes_to_the_same_weights(sample_dataset, tmp_path):
-    whole, parts = tmp_path / "whole", tmp_path / "parts"
-    train(sample_dataset, whole, TrainConfig(**RECIPE))
-    train(sample_dataset, parts, TrainConfig(**RECIPE), stop_after=1)
-    train(sample_dataset, parts, TrainConfig(**RECIPE), resume=True)
-    a, b = load_checkpoint(whole / "model.pt")["model"], load_checkpoint(parts / "model.pt")["model"]
-    for name in a:
-        assert torch.equal(a[name], b[name]), name
 
 
 @pytest.fixture(scope="module")

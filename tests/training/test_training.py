@@ -82,15 +82,15 @@ def test_checkpoints_load_without_unpickling(trained_run, tmp_path):
 def test_a_resumed_run_equals_an_uninterrupted_one(sample_dataset, tmp_path):
     """With gradient noise on and predicted feedback, so every random generator must be restored;
     resumed once after an interruption (with the run's own settings) and once to train longer."""
-    config = TrainConfig(**{**TINY_TRAINING, "units": 16, "epochs": 3, "noise_eta": 1e-4, "clip_norm": 1.0})
+    config = TrainConfig(**{**TINY_TRAINING, "units": 16, "epochs": 2, "noise_eta": 1e-4, "clip_norm": 1.0})
     whole = train(sample_dataset, tmp_path / "whole", config)
     part = train(sample_dataset, tmp_path / "part", config, stop_after=1)
     assert len(part) == 1 and not (tmp_path / "part" / "model.pt").exists()
     resumed = train(sample_dataset, tmp_path / "part", resume=True)
-    shorter = dataclasses.replace(config, epochs=2)
+    shorter = dataclasses.replace(config, epochs=1)
     train(sample_dataset, tmp_path / "longer", shorter)
     longer = train(sample_dataset, tmp_path / "longer", config, resume=True)
-    assert json.loads((tmp_path / "longer" / "config.json").read_text())["train"]["epochs"] == 3
+    assert json.loads((tmp_path / "longer" / "config.json").read_text())["train"]["epochs"] == 2
     a = torch.load(tmp_path / "whole" / "model.pt", weights_only=True)["model"]
     for name, history in (("part", resumed), ("longer", longer)):
         assert [r["train_loss"] for r in history] == [r["train_loss"] for r in whole]

@@ -105,5 +105,7 @@ def recording_name(text: str) -> str:
 
 
 def relative(path: Path, root: Path) -> str:
-    """``path`` relative to ``root``, with forward slashes (manifests travel between systems)."""
-    return path.resolve().relative_to(root.resolve()).as_posix()
+    """``path`` relative to ``root``, with forward slashes (manifests travel between systems). Taken
+    as the folders name it, symbolic links not followed: a corpus whose dances are links to another
+    disk lists them under its root (the build then reads them with ``--allow-outside-paths``)."""
+    return Path(os.path.relpath(os.path.abspath(path), os.path.abspath(root))).as_posix()
