@@ -11,7 +11,6 @@ forward milliseconds per frame) beside the paper's own figures.
 
 from __future__ import annotations
 
-import csv
 import json
 from collections.abc import Callable
 from pathlib import Path
@@ -22,9 +21,9 @@ from kinectdata.core.errors import ConfigError, KinectDataError
 from kinectdata.evaluation.evaluate import evaluate
 from kinectdata.models.kind import ModelKind, Sweep
 from kinectdata.models.registry import MODELS, model_for_dataset, model_kind
-from kinectdata.models.run import CHECKPOINT, LOG, MODEL, read_config, read_manifest
+from kinectdata.models.run import CHECKPOINT, MODEL, read_config, read_manifest
 from kinectdata.training.config import TrainConfig
-from kinectdata.training.train import train
+from kinectdata.training.train import read_log, train
 
 
 def model_sweep(kind: ModelKind) -> Sweep:
@@ -71,8 +70,7 @@ def sweep(
             _check_finished(run, config, manifest)
         else:
             train(dataset, run, config, resume=(run / CHECKPOINT).exists(), checksums=False)  # verified above
-        with open(run / LOG) as f:
-            minutes = sum(float(r["seconds"]) for r in csv.DictReader(f)) / 60
+        minutes = sum(r["seconds"] for r in read_log(run)) / 60
         result = evaluate(run, dataset, "test", engines=[("torch", "float32")], checksums=False)
         timed = result["forward_time"].get("torch float32", {})  # none for a model that does not stream
         row = {
