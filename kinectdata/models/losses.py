@@ -156,6 +156,19 @@ def _metres(x, scale, offset, joints: int, dims: int):
     return (x[..., :width] / scale[:width] + offset[:width]).unflatten(-1, (joints, dims))
 
 
+def _world(x, scale, offset, joints: int, dims: int, root: int | None, centred: bool):
+    """The first ``joints`` joints' positions [..., joints, dims] in metres in the world: as
+    :func:`_metres`, with the root's position added back to the others' when ``centred``."""
+    import torch
+
+    p = _metres(x, scale, offset, joints, dims)
+    if not centred:
+        return p
+    others = torch.ones(joints, 1, dtype=p.dtype, device=p.device)
+    others[root] = 0.0
+    return p + others * p[..., root : root + 1, :]
+
+
 def masked_bone_loss(prediction, target, mask, bones, scale, offset, dims: int = 3):
     """How much a motion's bones stretch: per bone, the mean absolute difference between its length
     in each frame of the prediction and its mean length over the target window, as a fraction of
@@ -188,6 +201,45 @@ def masked_bone_loss(prediction, target, mask, bones, scale, offset, dims: int =
     return (stretch * counted).sum() / counted.sum().clamp(min=1.0)
 
 
+def masked_world_speed_loss(prediction, target, mask, body, chunk: int | None = None):
+    """How far each joint's speed in the world is from the target's, in ratio: the
+    :func:`masked_energy_loss` of the joints' positions in metres along each world axis, with the
+    root's travel added back to root-centred joints (per stretch of ``chunk`` frame-to-frame
+    changes; None: the whole window), over the frames where the joint (and the root) are valid.
+
+    The speed term of :func:`masked_rhythm_loss` on the targets themselves cannot see this: a
+    root-centred foot that cancels the root's sway keeps its target-space speed while it stands
+    still on the floor, and the torso then sways with the root. The field's kinetic features
+    (FID_k, :mod:`kinectdata.evaluation.metrics.kinetic`) measure speeds in the world, and there
+    the cdhc model on tang2018's validation dances moved its feet at 0.03-0.09 x the real speed
+    along the floor and its shoulders and head at 2-3 x (docs/benchmarks.md).
+
+    Args:
+        prediction, target, mask: [B, L, D]; positions first, ``body.dims`` components per joint.
+        body: the :class:`Body` (its bones give the positioned joints; ``root`` is needed when
+            ``centred``).
+        chunk: frame-to-frame changes per stretch.
+
+    Returns:
+        A scalar tensor (0 for a body without bones, or a centred one without a root).
+    """
+    if not body.bones or (body.centred and body.root is None):
+        return prediction.new_zeros(())
+    joints = max(max(pair) for pair in body.bones) + 1
+    if body.root is not None:
+        joints = max(joints, body.root + 1)
+    dims = body.dims
+    valid = mask[..., : joints * dims].unflatten(-1, (joints, dims)).all(dim=-1)  # [B, L, J]
+    if body.centred:
+        valid = valid & valid[..., body.root : body.root + 1]
+    world_mask = valid[..., None].expand(*valid.shape, dims).flatten(-2)
+
+    def world(x):
+        return _world(x, body.scale, body.offset, joints, dims, body.root, body.centred).flatten(-2)
+
+    return masked_energy_loss(world(prediction), world(target), world_mask, chunk)
+
+
 def masked_foot_loss(
     prediction, target, mask, feet, scale, offset, root: int, centred: bool = False, up_axis: int = 1, dims: int = 3
 ):
@@ -215,12 +267,7 @@ def masked_foot_loss(
     width = joints * dims
 
     def world(x):
-        p = _metres(x, scale, offset, joints, dims)
-        if not centred:
-            return p
-        others = torch.ones(joints, 1, dtype=p.dtype, device=p.device)
-        others[root] = 0.0
-        return p + others * p[..., root : root + 1, :]
+        return _world(x, scale, offset, joints, dims, root, centred)
 
     flat = [a for a in range(dims) if a != up_axis]
     used = (feet > 0).any(dim=0).clone()
@@ -259,6 +306,12 @@ term; the stretch in metres at weight 1 left the bones 1.5 times as variable as 
 the validation dances (docs/benchmarks.md)."""
 
 
+WORLD_SPEED_WEIGHT = 1.0
+"""The world speed term's weight in :func:`masked_rhythm_loss`, that of the speed term on the
+targets: with it the cdhc model's feet step and its torso stops swaying on the validation dances
+(docs/benchmarks.md)."""
+
+
 @dataclass(frozen=True)
 class Body:
     """What :func:`masked_rhythm_loss` needs to measure a motion's body in metres.
@@ -294,8 +347,9 @@ def masked_rhythm_loss(prediction, target, mask, fps: float, body=None, posture_
     motion made from the music alone from jittering), its postures' means and spreads
     (:func:`masked_posture_loss`, times ``posture_weight``: ``TrainConfig.posture_weight``) and,
     given a :class:`Body`, how much its bones stretch against the target's (times
-    :data:`BONE_WEIGHT`) and, when the body has feet, how much more they slide (times
-    :data:`FOOT_WEIGHT`). [B, L, D] tensors; a scalar."""
+    :data:`BONE_WEIGHT`), its joints' speeds in the world (:func:`masked_world_speed_loss`, per
+    :data:`ENERGY_CHUNK_S`, times :data:`WORLD_SPEED_WEIGHT`) and, when the body has feet, how
+    much more they slide (times :data:`FOOT_WEIGHT`). [B, L, D] tensors; a scalar."""
     chunk = max(1, round(ENERGY_CHUNK_S * fps))
     loss = masked_rhythm_spectrum_loss(prediction, target, mask, fps) + masked_energy_loss(
         prediction, target, mask, chunk
@@ -306,6 +360,7 @@ def masked_rhythm_loss(prediction, target, mask, fps: float, body=None, posture_
         loss = loss + BONE_WEIGHT * masked_bone_loss(
             prediction, target, mask, body.bones, body.scale, body.offset, body.dims
         )
+        loss = loss + WORLD_SPEED_WEIGHT * masked_world_speed_loss(prediction, target, mask, body, chunk)
         if body.feet is not None:
             loss = loss + FOOT_WEIGHT * masked_foot_loss(
                 prediction, target, mask, body.feet, body.scale, body.offset, body.root, body.centred, dims=body.dims
