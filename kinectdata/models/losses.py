@@ -211,8 +211,8 @@ def masked_world_speed_loss(prediction, target, mask, body, chunk: int | None = 
     root-centred foot that cancels the root's sway keeps its target-space speed while it stands
     still on the floor, and the torso then sways with the root. The field's kinetic features
     (FID_k, :mod:`kinectdata.evaluation.metrics.kinetic`) measure speeds in the world, and there
-    the cdhc model on tang2018's validation dances moved its feet at 0.03-0.09 x the real speed
-    along the floor and its shoulders and head at 2-3 x (docs/benchmarks.md).
+    the cdhc model on tang2018's validation dances moved its feet at 0.03-0.06 x the real speed
+    along the floor and its shoulders and head at 2.3-3 x (docs/benchmarks.md).
 
     Args:
         prediction, target, mask: [B, L, D]; positions first, ``body.dims`` components per joint.
@@ -266,9 +266,6 @@ def masked_foot_loss(
     joints = feet.shape[1]
     width = joints * dims
 
-    def world(x):
-        return _world(x, scale, offset, joints, dims, root, centred)
-
     flat = [a for a in range(dims) if a != up_axis]
     used = (feet > 0).any(dim=0).clone()
     used[root] = True
@@ -276,7 +273,7 @@ def masked_foot_loss(
     frames = (valid[:, 2:] & valid[:, 1:-1] & valid[:, :-2]).to(prediction.dtype)  # [B, L-2]
 
     def score(x):
-        p = world(x)
+        p = _world(x, scale, offset, joints, dims, root, centred)
         acceleration = p[:, 2:, root] - 2 * p[:, 1:-1, root] + p[:, :-2, root]  # [B, L-2, dims]
         upward = acceleration[..., up_axis].clamp(min=0.0)
         level = torch.stack([upward if a == up_axis else acceleration[..., a] for a in range(dims)], dim=-1)
@@ -308,7 +305,7 @@ the validation dances (docs/benchmarks.md)."""
 
 WORLD_SPEED_WEIGHT = 1.0
 """The world speed term's weight in :func:`masked_rhythm_loss`, that of the speed term on the
-targets: with it the cdhc model's feet step and its torso stops swaying on the validation dances
+targets: with it the cdhc model's feet step and its torso sways less on the validation dances
 (docs/benchmarks.md)."""
 
 
