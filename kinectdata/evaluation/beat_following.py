@@ -304,8 +304,11 @@ class BeatFollowing:
             up to 8 songs): with 3 songs even a perfect correlation has p = 1/6.
         tempo_correlation: Spearman rank correlation, across recordings, of the motion's period at
             the level most recordings follow (the autocorrelation peak nearest that level's lag, within
-            a third of it) with the music's beat period (None with fewer than 3 recordings, no such
-            peaks or no spread in either).
+            a third of it) with the music's period at that level in its own metre (the beat period
+            times the level's beats: a bar of a waltz is 3 beats, of a cha-cha 4), None with fewer
+            than 3 recordings, no such peaks or no spread in either. At the beat or two beats this is
+            the rank correlation with the beat period; at the bar it does not rank a waltz's 3-beat bar
+            by its beat.
         beat_align_music, beat_align_motion, f_measure: means over recordings with their chance
             levels from the same motion against the music's beats shifted by random phases.
         beat_align_other_songs: the music-direction Beat Align Score of each motion against the
@@ -344,7 +347,8 @@ class BeatFollowing:
 
     @property
     def follows_tempo(self) -> bool:
-        """The motion's period rises and falls with the beat period: rank correlation >= 0.9, p < 0.05."""
+        """The motion's period rises and falls with the music's period at its level: rank correlation
+        >= 0.9, p < 0.05."""
         return (
             self.tempo_correlation is not None
             and self.tempo_correlation >= 0.9
@@ -385,7 +389,7 @@ class BeatFollowing:
         if self.tempo_correlation is not None:
             lines.append(
                 f"{what} follows the tempo: {_yes(self.follows_tempo)} (rank correlation of the motion's "
-                f"period at {level} with the beat period {self.tempo_correlation:.2f} over {n} songs, "
+                f"period at {level} with the music's {self.tempo_correlation:.2f} over {n} songs, "
                 f"p {_p(self.tempo_p_value)})"
             )
         if self.bar_periodicity is not None:
@@ -586,8 +590,9 @@ def _tempo_correlation(
     rhythms: list[RecordingRhythm], levels: dict[str, int], bars: list[int]
 ) -> tuple[float | None, float | None]:
     """(Spearman correlation, one-sided p-value) of each motion's period at the most common level
-    (its autocorrelation peak nearest that level's lag, within a third of it) with its music's beat
-    period; (None, None) when fewer than 3 songs have such a peak or either side does not vary."""
+    (its autocorrelation peak nearest that level's lag, within a third of it) with its music's period
+    at that level, in the song's metre (``bars``: beats per bar); (None, None) when fewer than 3 songs
+    have such a peak or either side does not vary."""
     from itertools import permutations
 
     from scipy.stats import rankdata, spearmanr
@@ -601,7 +606,7 @@ def _tempo_correlation(
         near = [p for p, _ in r.period.peaks if abs(p / lag - 1) <= 1 / 3]
         if near:
             motion.append(min(near, key=lambda p: abs(p / lag - 1)))
-            music.append(r.beat_period_s)
+            music.append(lag)
     if len(motion) < 3 or np.ptp(motion) == 0 or np.ptp(music) == 0:
         return None, None
     result = spearmanr(motion, music)

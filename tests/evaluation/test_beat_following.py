@@ -153,6 +153,27 @@ def test_motion_at_two_beats_follows_the_metre_and_its_tempo():
     assert "follows the beat: yes (at two beats: period" in result.verdicts()[0]
 
 
+def test_motion_at_the_bar_follows_the_tempo_in_each_songs_metre():
+    """Waltzes in 3 beside songs in 4, every motion repeating once a bar: the bar lengths rank
+    otherwise than the beats (a waltz's slow beat makes a short bar), and the rank correlation
+    compares the motion's period with the bar's, so it is perfect (with the beat periods it is not)."""
+    from scipy.stats import spearmanr
+
+    songs = [(0.70, 3), (0.62, 4), (0.55, 4), (0.48, 4), (0.60, 3)]  # beat period s, beats per bar
+    seconds = 60.0
+    recs = [
+        RecordingBeats(
+            f"r{i}", bouncer(beat * bar, seconds, seed=i), None, FPS, beats(beat, seconds), beats_per_bar=bar
+        )
+        for i, (beat, bar) in enumerate(songs)
+    ]
+    result = beat_following(recs, draws=100)
+    assert result.levels == {"bar": 5}
+    assert result.tempo_correlation == pytest.approx(1.0) and result.follows_tempo
+    bars = [beat * bar for beat, bar in songs]
+    assert spearmanr(bars, [beat for beat, _ in songs]).statistic < 0.5  # what the beat periods would give
+
+
 def test_one_recording_uses_the_tempo_prior_for_the_period_chance():
     result = beat_following(_set([0.5]), draws=100)
     assert result.at_beat.chance == pytest.approx(_prior_match_rate(result.recordings[0].period.period_s), abs=1e-3)
