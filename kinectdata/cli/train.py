@@ -10,6 +10,7 @@ import dataclasses
 import click
 
 from kinectdata.core.errors import KinectDataError
+from kinectdata.dataset.layout import BALANCE_FIELDS
 
 
 def _torch_or_fail() -> None:
@@ -65,6 +66,12 @@ _LOOP_OPTIONS = (
         click.IntRange(min=0),
         "Frames of real input before each window that no loss counts (the outputs near a window's start then see "
         "music, not the padding of its edge). Default: the model's own (cdhc: its receptive field; yalta: 0).",
+    ),
+    (
+        "balance",
+        click.Choice(["none", *BALANCE_FIELDS]),
+        "Draw each epoch's training windows so that every recording, dance style or metre (as the recordings "
+        "manifest gives them) has the same share; none: each window once, shuffled.",
     ),
     (
         "keep",

@@ -21,6 +21,10 @@ WORK = ".work"
 LOCK = ".build.lock"
 LOCK_OWNER = ".build.owner"
 SPLITS = ("train", "val", "test")
+BALANCE_FIELDS = ("recording", "style", "beats_per_bar")
+"""What training windows can be balanced by (``WindowDataset.balanced_weights``): the recording, or
+a fact about its music that a recipe writes into the recordings manifest and the dataset manifest
+keeps in ``inputs`` (its dance style, its metre)."""
 
 
 def shard_name(split: str, index: int) -> str:

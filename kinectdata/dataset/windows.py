@@ -18,11 +18,12 @@ from pathlib import Path
 from typing import Any
 
 import h5py
+import numpy as np
 import torch
 from torch.utils.data import Dataset
 
 from kinectdata.core.errors import KinectDataError
-from kinectdata.dataset.layout import MANIFEST
+from kinectdata.dataset.layout import BALANCE_FIELDS, MANIFEST
 
 
 class WindowDataset(Dataset):
@@ -68,6 +69,30 @@ class WindowDataset(Dataset):
 
     def __len__(self) -> int:
         return len(self.windows)
+
+    def groups(self, field: str) -> list[str | None]:
+        """Each window's recording's ``field`` (:data:`BALANCE_FIELDS`: the recording itself, or a fact
+        its recordings-manifest entry gives, as the dataset manifest's ``inputs`` keep it: ``style``,
+        ``beats_per_bar``), None where the entry has none. [windows]."""
+        if field not in BALANCE_FIELDS:
+            raise KinectDataError(f"cannot group windows by {field!r}: one of {', '.join(BALANCE_FIELDS)}")
+        if field == "recording":
+            return list(self.recordings)
+        facts = {entry.get("name"): entry.get(field) for entry in self.manifest.get("inputs", [])}
+        return [None if facts.get(name) is None else str(facts[name]) for name in self.recordings]
+
+    def balanced_weights(self, field: str) -> np.ndarray | None:
+        """Sampling weights that give each group of windows (:meth:`groups`) the same share of an
+        epoch: ``1 / (groups x the group's windows)`` per window, summing to 1. [windows]. None when
+        the windows form one group (nothing to balance).
+
+        A corpus with 27 waltzes (3 beats to the bar) and 6 dances in 4, balanced by
+        ``beats_per_bar``, draws half of its windows from the six."""
+        groups = self.groups(field)
+        _, index, counts = np.unique([str(g) for g in groups], return_inverse=True, return_counts=True)
+        if len(counts) < 2:
+            return None
+        return 1.0 / (len(counts) * counts[index])
 
     def _file(self, name: str) -> h5py.File:
         if os.getpid() != self._pid:  # a forked DataLoader worker: its own handles

@@ -13,6 +13,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from kinectdata.core.errors import ConfigError, KinectDataError
+from kinectdata.dataset.layout import BALANCE_FIELDS
 from kinectdata.models.kind import PAPER_LOOP
 from kinectdata.models.registry import DEFAULT_MODEL, make_settings, model_kind
 
@@ -22,6 +23,7 @@ LOOP_DEFAULTS: dict[str, Any] = {
     "device": "auto",
     "max_minutes": None,
     "previous_noise": 0.0,
+    "balance": None,
 }
 """The training loop's settings and their base defaults (Yalta et al.'s; a model's
 ``training_defaults`` change them)."""
@@ -35,6 +37,7 @@ ADDED_OFF = {
     "inputs": "music-and-poses",
     "posture_weight": 10.0,
     "context": 0,
+    "balance": None,
 }
 """Loop (and model) settings added after runs were written: a run's config.json without them trained without
 them, whatever today's defaults are (resuming it goes on as it started)."""
@@ -94,6 +97,11 @@ class TrainConfig:
             (None: the model's own, ``ModelKind.context_frames``: the cdhc model's receptive field
             but one, 264 frames; the yalta model's 0). The windows read are ``sequence + context``
             frames long.
+        balance: draw each epoch's training windows so that every group of them has the same share:
+            by ``recording``, or by a fact about the music the recordings manifest gives
+            (``style``, ``beats_per_bar``; :data:`~kinectdata.dataset.layout.BALANCE_FIELDS`). The
+            windows are drawn with replacement, as many as there are; None (or one group): each
+            window once per epoch, shuffled.
     """
 
     model: str
@@ -114,6 +122,7 @@ class TrainConfig:
     silence_share: float
     keep: str
     context: int | None
+    balance: str | None
     settings: Any
 
     def __init__(self, model: str | None = None, *, settings: Any = None, paper: bool = False, **given: Any) -> None:
@@ -148,6 +157,10 @@ class TrainConfig:
             raise ConfigError(f"silence_share must be in 0..1, not {self.silence_share!r}")
         if self.context is not None and not (isinstance(self.context, int) and self.context >= 0):
             raise ConfigError(f"context must be a number of frames, at least 0, or None, not {self.context!r}")
+        if self.balance == "none":  # the command line's word for None
+            object.__setattr__(self, "balance", None)
+        if self.balance is not None and self.balance not in BALANCE_FIELDS:
+            raise ConfigError(f"balance must be one of {', '.join(BALANCE_FIELDS)} or None, not {self.balance!r}")
         if self.keep not in KEEPS:
             raise ConfigError(f"keep must be {' or '.join(KEEPS)}, not {self.keep!r}")
         if self.free_weight > 0 and not model_kind(self.model).runs_free_in_training:

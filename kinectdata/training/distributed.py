@@ -28,6 +28,7 @@ from contextlib import contextmanager
 from dataclasses import dataclass
 from typing import Any
 
+import numpy as np
 import torch
 import torch.distributed as dist
 from torch.nn.parallel import DistributedDataParallel
@@ -136,7 +137,9 @@ class WindowSampler(DistributedSampler):
     Each epoch draws one permutation of the n windows from ``generator`` (the same on every rank:
     same seed, and restored from the checkpoint on resume), pads it to a multiple of the world
     size with ``n + i`` for the first windows i (masked copies in :class:`PaddedWindows`) and gives
-    rank r the entries r, r + size, r + 2 size, ... So the ranks' k-th batches of
+    rank r the entries r, r + size, r + 2 size, ... With ``weights`` ([n], :attr:`TrainConfig.balance
+    <kinectdata.training.config.TrainConfig>`) the n entries are drawn with replacement by them
+    instead of permuted. So the ranks' k-th batches of
     ``batch_size / size`` windows together are the one-process run's k-th batch, and with one
     process the order is exactly a shuffled ``DataLoader``'s with the same generator.
 
@@ -145,16 +148,22 @@ class WindowSampler(DistributedSampler):
     had before distributed training existed, and ``set_epoch`` is not needed.
     """
 
-    def __init__(self, windows: PaddedWindows, world: World, generator: torch.Generator):
+    def __init__(
+        self, windows: PaddedWindows, world: World, generator: torch.Generator, weights: np.ndarray | None = None
+    ):
         super().__init__(windows, num_replicas=world.size, rank=world.rank, shuffle=True, drop_last=False)
         self.generator = generator
+        self.weights = None if weights is None else torch.as_tensor(weights, dtype=torch.float64)
 
     def __iter__(self) -> Iterator[int]:
-        # drawn as torch's RandomSampler draws (a shuffled DataLoader's): when iteration starts,
-        # after the DataLoader's base seed, and then an empty remainder that still advances the generator
         n = len(self.dataset)
-        order = torch.randperm(n, generator=self.generator).tolist()
-        torch.randperm(n, generator=self.generator)
+        if self.weights is not None:  # balanced: n windows drawn with replacement by their weights
+            order = torch.multinomial(self.weights, n, replacement=True, generator=self.generator).tolist()
+        else:
+            # drawn as torch's RandomSampler draws (a shuffled DataLoader's): when iteration starts, after
+            # the DataLoader's base seed, and then an empty remainder that still advances the generator
+            order = torch.randperm(n, generator=self.generator).tolist()
+            torch.randperm(n, generator=self.generator)
         padding = self.total_size - n
         order += [n + i for i in (order * math.ceil(padding / n))[:padding]] if padding else []
         yield from order[self.rank : self.total_size : self.num_replicas]

@@ -300,12 +300,14 @@ def _batches(windows: WindowDataset, config: TrainConfig) -> DataLoader:
 def _training_batches(
     windows: WindowDataset, config: TrainConfig, generator: torch.Generator, world: World
 ) -> DataLoader:
-    """This rank's share of each global batch of ``batch_size`` windows, shuffled by ``generator``."""
+    """This rank's share of each global batch of ``batch_size`` windows, shuffled by ``generator``
+    (drawn by ``config.balance``'s weights when it groups them)."""
     padded = PaddedWindows(windows)
+    weights = None if config.balance is None else windows.balanced_weights(config.balance)
     return DataLoader(
         padded,
         batch_size=per_rank_batch(config.batch_size, world),
-        sampler=WindowSampler(padded, world, generator),
+        sampler=WindowSampler(padded, world, generator, weights),
         generator=generator,
         num_workers=0,
         drop_last=False,
