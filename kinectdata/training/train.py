@@ -182,7 +182,10 @@ def validation_warning(history: list[dict]) -> str | None:
     a row while the training loss fell, or the free-running SMAPE has just become
     :data:`WORSE_SMAPE_POINTS` worse than its best epoch's while the training loss fell to half of
     that epoch's or less (the model fits the training dances frame by frame and runs worse on its
-    own); else None. Said once per streak."""
+    own); else None. Said once per streak. A run that measures its free runs' rhythm
+    (``val_rhythm``) is judged by that figure alone: its free-running loss matches how the real
+    motion moves, not its poses, so its SMAPE may rise while it learns, and ``--keep best`` keeps the
+    epoch by the rhythm figure (the SMAPE's advice to stop earlier would be wrong for it)."""
 
     smape, train = _losses(history, "val_smape"), _losses(history, "train_loss")
 
@@ -204,6 +207,8 @@ def validation_warning(history: list[dict]) -> str | None:
             f"the model dances less like the real dancers; its best epoch is {history[low]['epoch']} "
             f"({rhythm[low]:.4g}), which --keep best keeps"
         )
+    if _ran_free(history):
+        return None
     best = worse(last)
     if best is None or (last > 0 and worse(last - 1) is not None):
         return None

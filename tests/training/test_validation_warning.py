@@ -84,3 +84,16 @@ def test_a_free_running_rhythm_loss_rising_while_training_falls_is_said_once():
         "training loss fell: on its own the model dances less like the real dancers; its best epoch is 2 (2.5), which "
         "--keep best keeps"
     )
+
+
+def test_a_run_judged_by_its_free_runs_rhythm_is_not_warned_of_its_smape():
+    """The real-dance recipe's free-running loss matches how the motion moves, not its poses: its
+    SMAPE rising is no sign of overfitting, and the rhythm figure (its own warning) keeps the epoch."""
+    history = rows((1.0, 20.0), (0.6, 19.0), (0.29, 20.1))
+    assert said_at(history) == [3]
+    rhythm = [dict(row, val_rhythm=r) for row, r in zip(history, (12.0, 10.0, 9.5))]
+    assert said_at(rhythm) == []
+    rising = [
+        dict(row, val_rhythm=r) for row, r in zip(rows(*[(1.0 - 0.1 * i, 19.0) for i in range(5)]), (9, 8, 9, 10, 11))
+    ]
+    assert said_at(rising) == [5] and "which --keep best keeps" in validation_warning(rising)
