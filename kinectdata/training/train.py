@@ -303,12 +303,15 @@ def _batches(windows: WindowDataset, config: TrainConfig) -> DataLoader:
 
 
 def _training_batches(
-    windows: WindowDataset, config: TrainConfig, generator: torch.Generator, world: World
+    windows: WindowDataset,
+    config: TrainConfig,
+    generator: torch.Generator,
+    world: World,
+    weights: np.ndarray | None = None,
 ) -> DataLoader:
     """This rank's share of each global batch of ``batch_size`` windows, shuffled by ``generator``
-    (drawn by ``config.balance``'s weights when it groups them)."""
+    (drawn by ``weights``, [windows], when given: ``config.balance``'s)."""
     padded = PaddedWindows(windows)
-    weights = None if config.balance is None else windows.balanced_weights(config.balance)
     return DataLoader(
         padded,
         batch_size=per_rank_batch(config.batch_size, world),
@@ -558,6 +561,7 @@ def train(
     context = kind.context_frames(model_config) if config.context is None else config.context
     length = config.sequence + context  # the first `context` frames of a window: input only, no loss
     train_windows = WindowDataset(dataset, "train", length, stride, verify=False)  # verified above
+    balance = None if config.balance is None else train_windows.balanced_weights(config.balance)
     val_windows = WindowDataset(dataset, "val", length, config.sequence, verify=False)
     if len(train_windows) == 0:
         with_context = f" ({config.sequence} + {context} of context)" if context else ""
@@ -622,7 +626,7 @@ def train(
         out_of_time = False
         for epoch in range(len(history) + 1, config.epochs + 1):
             started, frames, total, weight = time.perf_counter(), 0, 0.0, 0.0
-            for batch in _training_batches(train_windows, config, order, world):
+            for batch in _training_batches(train_windows, config, order, world, balance):
                 if deadline is not None and frames and from_main([float(time.monotonic() > deadline)], world)[0]:
                     out_of_time = True  # every rank stops at the same step: the main one decides
                     break
