@@ -164,6 +164,12 @@ def _levels(beats_per_bar: int) -> list[tuple[str, float]]:
     return [(n, b if b is not None else (beats_per_bar if n == "bar" else 2 * beats_per_bar)) for n, b in LEVELS]
 
 
+def level_beats(level: str, beats_per_bar: int) -> float:
+    """Beats in a metrical level of a song with ``beats_per_bar`` (``bar``: 3 in a waltz, 4 in a
+    cha-cha); 1 for ``none`` and unknown names."""
+    return float(dict(_levels(beats_per_bar)).get(level, 1.0))
+
+
 @dataclass(frozen=True)
 class ChanceFigure:
     """A rhythm figure beside its chance level.
@@ -602,7 +608,7 @@ def _tempo_correlation(
         return None, None
     motion, music = [], []
     for r, bar in zip(rhythms, bars):
-        lag = dict(_levels(bar))[level] * r.beat_period_s
+        lag = level_beats(level, bar) * r.beat_period_s
         near = [p for p, _ in r.period.peaks if abs(p / lag - 1) <= 1 / 3]
         if near:
             motion.append(min(near, key=lambda p: abs(p / lag - 1)))

@@ -38,6 +38,7 @@ from kinectdata.evaluation.beat_following import (
     BeatFollowing,
     RecordingBeats,
     beat_following,
+    level_beats,
     metrical_level,
 )
 
@@ -61,7 +62,7 @@ class HeldOutSong:
         beats_s: [B] the music's beat times on the motion's clock, seconds.
         fps: motion frames per second.
         rms: the audio's root mean square (full scale 1), for the noise control (None: no noise control).
-        beats_per_bar: the music's metre (:mod:`~kinectdata.evaluation.metre`), which the metrical
+        beats_per_bar: the music's metre (:mod:`~kinectdata.features.metre`), which the metrical
             levels (bar, two bars) are built from.
     """
 
@@ -195,8 +196,8 @@ class Listening:
             )
         else:
             lines.append(
-                "listens to the music: not shown (the swapped-song control needs two test songs whose tempi differ "
-                f"by more than {2 * PERIOD_TOLERANCE:.0%}; noise control: {noise})"
+                "listens to the music: not shown (the swapped-song control needs two test songs whose periods at "
+                f"the motion's level differ by more than {2 * PERIOD_TOLERANCE:.0%}; noise control: {noise})"
             )
         lines.append(
             f"moves with the music's phase: {'yes' if self.in_phase else 'no'} (Beat Align Score "
@@ -314,7 +315,7 @@ def listening_report(
     generated = following([(s.name, generated_positions[s.name], None, s) for s in songs], 1)
 
     swapped = follows_new = follows_old = changes = None
-    partners = _swap_partners(songs, real)
+    partners = _swap_partners(songs, real, generated.dominant_level)
     if partners:
         lengths = [min(len(songs[i].features), len(songs[j].features)) for i, j in partners]
         motions = run_all([(songs[j].features[:n], songs[i].first_pose) for (i, j), n in zip(partners, lengths)])
@@ -412,10 +413,12 @@ def _period(song: HeldOutSong) -> float:
     return beat_period_s(song.beats_s)
 
 
-def _swap_partners(songs: list[HeldOutSong], real: BeatFollowing) -> list[tuple[int, int]]:
-    """(i, j) pairs: each song with the song whose beat period differs most from its own, when that
-    differs by more than twice the period tolerance (so that following either can be told apart)."""
-    periods = np.array([r.beat_period_s for r in real.recordings])
+def _swap_partners(songs: list[HeldOutSong], real: BeatFollowing, level: str) -> list[tuple[int, int]]:
+    """(i, j) pairs: each song with the song whose period at ``level`` (the generated motion's
+    dominant level, in each song's metre; the beat for ``none``) differs most from its own, when that
+    differs by more than twice the period tolerance (so that following either can be told apart: a
+    waltz at 86 BPM and a cha-cha at 120 differ in beat by 40 % and in bar by 3 %)."""
+    periods = np.array([r.beat_period_s * level_beats(level, s.beats_per_bar) for r, s in zip(real.recordings, songs)])
     pairs = []
     for i, p in enumerate(periods):
         ratio = np.abs(np.log(periods / p))

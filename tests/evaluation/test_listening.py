@@ -102,8 +102,9 @@ def test_motion_energy_is_the_mean_squared_speed():
     assert motion_energy_per_s(pos, None, FPS) == pytest.approx(0.25)
 
 
-# the metre of each song: (0, 3), (1, 3), (2, 0) and (3, 0) are the swapped pairs (each song with the
-# song whose tempo differs most), and each pair joins a song in 3 with one in 4
+# the metre of each song: a song is swapped with the song whose period at the generated motion's
+# level differs most; at the beat or in one metre those are (0, 3), (1, 3), (2, 0) and (3, 0), each
+# pair a song in 3 with one in 4; at the bar (2.25, 1.8, 2.0, 1.68 s) (0, 3), (1, 0) and (3, 0)
 METRES = (3, 3, 4, 4)
 
 
@@ -149,8 +150,39 @@ def test_the_swapped_control_measures_the_old_song_in_its_own_metre():
     result = listening_report(metred_songs(METRES), bar_dancer, features_of, draws=30)
     assert result.generated.levels == {"bar": 4}
     assert result.swapped_follows_old == 1.0
-    # of the new songs' metres only one is met: song 1's bar (3 x 0.6 = 1.8 s) is within 10 % of a bar
-    # of song 3 (4 x 0.42 = 1.68 s)
-    assert result.swapped_follows_new == 0.25
-    assert [r.beats_per_bar for r in result.swapped.recordings] == [METRES[j] for j in (3, 3, 0, 0)]  # the new songs'
+    # paired by their bars, which differ by more than 20 %, the new songs' metres are never met
+    assert result.swapped_follows_new == 0.0
+    assert [r.beats_per_bar for r in result.swapped.recordings] == [METRES[j] for j in (3, 0, 0)]  # the new songs'
     assert not result.listens
+
+
+def accented_songs(periods: tuple[float, ...], metres: tuple[int, ...]) -> list[HeldOutSong]:
+    """Songs whose features show each beat as 1.0 and each downbeat as 2.0, with a real dancer lowest
+    on every downbeat (once a bar)."""
+    out = []
+    frames = int(SECONDS * FPS)
+    for i, (period, metre) in enumerate(zip(periods, metres)):
+        beats = np.arange(0.4, SECONDS, period)
+        features = np.zeros((frames, 1))
+        features[np.round(beats * FPS).astype(int), 0] = 1.0
+        features[np.round(beats[::metre] * FPS).astype(int), 0] = 2.0
+        real = bounce(beats[::metre] * FPS, frames)
+        out.append(HeldOutSong(f"song{i}", features, real[0], real, None, beats, FPS, 0.1, metre))
+    return out
+
+
+def bar_listener(features: np.ndarray, first_pose: np.ndarray) -> np.ndarray:
+    """Frames 1..T-1, lowest on every downbeat it hears: once a bar of the music it is given."""
+    return bounce(np.flatnonzero(features[:, 0] > 1.5), len(features))[1:]
+
+
+def test_a_dancer_at_the_bar_is_swapped_between_songs_whose_bars_differ():
+    """A waltz at 86 BPM (bar 2.1 s) and songs in 4 at 120 and 92 BPM (bars 2.0 and 2.6 s): paired by
+    their beats (0.70 against 0.50 s) the waltz and the faster song would make a swap whose bars
+    differ by 5 %, where a dancer at the bar cannot show that it listens; paired at the bar, every
+    swap changes the period and takes the new song's bar."""
+    result = listening_report(accented_songs((0.7, 0.5, 0.65), (3, 4, 4)), bar_listener, features_of, draws=30)
+    assert result.generated.levels == {"bar": 3}
+    assert [r.beats_per_bar for r in result.swapped.recordings] == [4, 4, 4]  # partners 2, 2, 1
+    assert result.swapped_period_changes == 1.0
+    assert result.swapped_follows_new == 1.0 and result.swapped_follows_old == 0.0
