@@ -16,8 +16,9 @@ import numpy as np
 
 from kinectdata.align.audio import load_audio
 from kinectdata.dataset.recipes import prepare_corpus
-from kinectdata.evaluation.rhythm import beat_period_s, music_beats
+from kinectdata.evaluation.rhythm import beat_period_s
 from kinectdata.features import LISTEN_TO_DANCE_PULSE
+from kinectdata.features.beats import music_beats
 from kinectdata.features.rhythm import predominant_beat, rhythm_features
 
 from .summary import record

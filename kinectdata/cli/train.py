@@ -193,6 +193,11 @@ no_checksums_option = click.option(
 )
 
 
+def beats_per_bar_option(help_text: str):
+    """``--beats-per-bar N`` (2-12, default None: estimated from the music), with ``help_text``."""
+    return click.option("--beats-per-bar", default=None, type=click.IntRange(2, 12), help=help_text)
+
+
 @click.command("train-baseline")
 @click.option("--data", required=True, type=click.Path(exists=True, file_okay=False), help="Dataset folder.")
 @click.option("--out", required=True, type=click.Path(file_okay=False), help="Run folder to write.")
@@ -273,12 +278,9 @@ def train_baseline(data, out, resume, paper, no_checksums, **options) -> None:
 )
 @click.option("--bootstrap", default=1000, show_default=True, type=click.IntRange(min=0),
               help="Resamples for the field's metrics' 95 %% intervals (0: none).")  # fmt: skip
-@click.option(
-    "--beats-per-bar",
-    default=None,
-    type=click.IntRange(2, 12),
-    help="The songs' metre (a waltz 3), for those whose recordings-manifest entry gives none; "
-    "default: estimated from each song.",
+@beats_per_bar_option(
+    "The songs' metre (a waltz 3), for those whose recordings-manifest entry gives none; default: estimated "
+    "from each song."
 )
 @no_checksums_option
 def evaluate_command(run_dir, data, split, out, silence, protocol, bootstrap, beats_per_bar, no_checksums) -> None:
@@ -329,7 +331,11 @@ def evaluate_command(run_dir, data, split, out, silence, protocol, bootstrap, be
     type=click.Choice(["float32", "float16"]),
     help="Weights of the torch engine (float16: half the memory traffic, faster on CPUs).",
 )
-def generate_command(run_dir, audio, out, engine, precision) -> None:
+@beats_per_bar_option(
+    "The song's metre (a waltz 3), for a model whose features count bars (listen_to_dance_rhythm_bars); "
+    "default: estimated from the song."
+)
+def generate_command(run_dir, audio, out, engine, precision, beats_per_bar) -> None:
     """Generate dance motion for AUDIO (any file libsndfile reads), streaming frame by frame, and
     write it: 3-D targets (a yalta run's: metres, unit quaternions) as the canonical CSV that align
     reads or, named .bvh, as BVH for animation tools; 2-D ones (a cdhc run's: x, y in 0..1, y down)
@@ -337,11 +343,13 @@ def generate_command(run_dir, audio, out, engine, precision) -> None:
     _torch_or_fail()
     from kinectdata.inference.generate import generate
 
-    motion, timing = generate(run_dir, audio, out, engine=engine, precision=precision)
+    motion, timing = generate(run_dir, audio, out, engine=engine, precision=precision, beats_per_bar=beats_per_bar)
     click.echo(
         f"wrote {out}: {timing['frames']} frames ({motion.duration:.2f} s) in {timing['seconds']:.2f} s "
         f"({_ratio(timing['x_real_time'])}x real time; network step {timing['step_median_ms']:.3f} ms median)"
     )
+    if "metre" in timing:
+        click.echo(f"  metre: {timing['metre']}")
     if motion.joint_set.dimensions == 2:
         fps = 1 / float(motion.times[1] - motion.times[0]) if motion.n_frames > 1 else 30.0
         click.echo(f"  (OpenPose JSON Lines hold no frame rate: read or render it with --video-fps {fps:g})")

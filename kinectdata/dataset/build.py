@@ -492,6 +492,7 @@ def _write_shards(
                     "sources": u.info["sources"],
                     "offset": u.info["offset"],
                     "flipped_orientations": [j for j, f in zip(spec.orientations, flips[u.name]) if f],
+                    **({"metre": u.info["metre"]} if "metre" in u.info else {}),
                 }
             )
             start += u.frames

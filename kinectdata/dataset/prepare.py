@@ -16,7 +16,7 @@ import json
 import os
 import tempfile
 import zlib
-from collections.abc import Iterable, Iterator
+from collections.abc import Callable, Iterable, Iterator
 from contextlib import ExitStack, contextmanager
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
@@ -34,6 +34,8 @@ from kinectdata.core.errors import KinectDataError
 from kinectdata.core.hashing import file_sha256
 from kinectdata.dataset.config import BuildConfig
 from kinectdata.dataset.inputs import RecordingEntry
+from kinectdata.features import FeatureConfig, needs_metre
+from kinectdata.features.metre import Metre, recording_metre
 from kinectdata.features.streaming import StreamingFeatures
 from kinectdata.targets.hemispheres import orientation_stats
 from kinectdata.targets.normalization import NormStats
@@ -77,6 +79,8 @@ def unit_key(entry: RecordingEntry, hashes: dict[str, str], config: BuildConfig,
         "config": config.unit_config(snr_db is not None),
         "snr_db": snr_db,
     }
+    if needs_metre(config.feature_config):  # the features count the song's bars
+        doc["beats_per_bar"] = entry.beats_per_bar
     return hashlib.sha256(json.dumps(doc, sort_keys=True, default=str).encode()).hexdigest()[:32]
 
 
@@ -122,6 +126,18 @@ def _raw_blocks(path: Path, block: int = _BLOCK) -> Iterator[np.ndarray]:
     with open(path, "rb") as f:
         while (chunk := np.fromfile(f, dtype=np.float32, count=block)).size:
             yield chunk
+
+
+def _features_metre(
+    entry: RecordingEntry, features: FeatureConfig, blocks: Callable[[], Iterator[np.ndarray]], sample_rate: int
+) -> Metre | None:
+    """The song's metre when the features count its bars (None otherwise): the entry's
+    ``beats_per_bar``, else estimated from the whole of its audio (``blocks()``), else 4."""
+    if not needs_metre(features):
+        return None
+    if entry.beats_per_bar is not None:
+        return recording_metre(entry.beats_per_bar, None, sample_rate)
+    return recording_metre(None, np.concatenate([np.zeros(0, np.float32), *blocks()]), sample_rate)
 
 
 def _mean_square(blocks: Iterable[np.ndarray]) -> float:
@@ -230,7 +246,10 @@ def _prepare_variants(
     stats = NormStats.from_arrays(values, mask, spec.component_names()).to_dict()
     orientations = orientation_stats(values, mask, spec)
     skeleton = bone_offsets(motion, spec)
+    metre = _features_metre(entry, feats, blocks, sr)
     info = {"sources": hashes, "paths": sources, "offset": offset.to_dict(), "alignment": summary}
+    if metre is not None:
+        info["metre"] = {"beats_per_bar": metre.beats_per_bar, "source": metre.source}
     units = {
         v: Unit(
             name=variant_name(entry.name, v),
@@ -274,7 +293,8 @@ def _prepare_variants(
 
             return sink
 
-        featurizers = {v: StreamingFeatures(starts, feats, sink_for(v)) for v in variants}
+        bar = None if metre is None else metre.beats_per_bar
+        featurizers = {v: StreamingFeatures(starts, feats, sink_for(v), beats_per_bar=bar) for v in variants}
         rngs = {
             v: np.random.default_rng([config.seed, zlib.crc32(entry.name.encode()), int(round(v * 1000)) & 0xFFFFFFFF])
             for v in variants

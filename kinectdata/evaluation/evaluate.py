@@ -52,7 +52,6 @@ from kinectdata.evaluation.baselines import (
 from kinectdata.evaluation.field_scores import write_metrics_json
 from kinectdata.evaluation.figures import rhythm_plot, trajectories
 from kinectdata.evaluation.listening import HeldOutSong, listening_report
-from kinectdata.evaluation.metre import Metre, recording_metre
 from kinectdata.evaluation.metrics import motion_energy, smape
 from kinectdata.evaluation.protocols import Protocol, get_protocol
 from kinectdata.evaluation.rhythm_eval import (
@@ -64,6 +63,7 @@ from kinectdata.evaluation.rhythm_eval import (
 )
 from kinectdata.evaluation.run_field import run_field_scores
 from kinectdata.features import compute_features, feature_config
+from kinectdata.features.metre import Metre, recording_metre
 from kinectdata.inference.engines import engine_pairs, make_engine, onnxruntime_available
 from kinectdata.models.kind import ModelKind
 from kinectdata.models.registry import kind_of, model_kind
@@ -223,7 +223,7 @@ def evaluate(
     resamples for their intervals (:mod:`kinectdata.evaluation.run_field`). The dataset folder is
     verified first (``checksums=False`` skips the shards' SHA-256). ``beats_per_bar``: the metre
     of the songs whose recordings-manifest entry gives none (default: estimated from each song,
-    :mod:`~kinectdata.evaluation.metre`). ``more_protocols``: other protocols whose tables are
+    :mod:`~kinectdata.features.metre`). ``more_protocols``: other protocols whose tables are
     made too (``metrics_<name>.json``). ``baselines``: also score the mean training pose with noise
     at the training dances' speed (and, as an oracle, at each song's own real speed) and the
     retrieval baseline (:mod:`~kinectdata.evaluation.baselines`, :func:`baseline_runs`) by the same
@@ -492,7 +492,11 @@ def _song_set(
             rms = float(np.sqrt(np.mean(np.square(samples, dtype=np.float64)))) if samples.size else None
         except (KinectDataError, OSError):
             samples, rms = None, None
-        metre = recording_metre(inputs[r["recording"]], samples, cfg.sample_rate, music, beats_per_bar)
+        listed, built = inputs[r["recording"]].get("beats_per_bar"), r["info"].get("metre") or {}
+        if listed is None and beats_per_bar is None and built.get("beats_per_bar"):
+            metre = Metre(int(built["beats_per_bar"]), "dataset", {})  # the bars its features counted
+        else:
+            metre = recording_metre(listed, samples, cfg.sample_rate, music, beats_per_bar)
         metres[r["name"]] = metre
         first = r.get("first_pose")
         if first is None:

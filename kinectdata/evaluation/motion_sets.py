@@ -47,7 +47,7 @@ from kinectdata.core.motion import Motion
 from kinectdata.core.safe_pickle import PICKLE_SUFFIXES, load_arrays_pickle
 from kinectdata.evaluation.field_scores import DanceSequence
 from kinectdata.evaluation.protocols import Protocol, get_protocol
-from kinectdata.evaluation.rhythm import music_beats
+from kinectdata.features.beats import music_beats
 from kinectdata.formats.registry import read_motion, readers
 
 ARRAY_SUFFIXES = (".npy", ".npz")

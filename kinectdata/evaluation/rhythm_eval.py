@@ -6,7 +6,7 @@ For each recording of the split, the music's beats on the recording's motion clo
   from, as its provenance names it) has a ``<name>.truth.json`` beside it with ``beat_times_s`` on
   the audio clock (``kinectdata synth`` writes one), shifted by the audio time of the recording's
   first frame (its alignment's ``audio_trimmed_start_s``);
-- else the **beat tracker** (:func:`kinectdata.evaluation.rhythm.music_beats`, librosa) on the recording's
+- else the **beat tracker** (:func:`kinectdata.features.beats.music_beats`, librosa) on the recording's
   audio over the same span;
 - else none, and the report says why (audio moved away, librosa not installed).
 
@@ -30,7 +30,8 @@ import numpy as np
 from kinectdata.align.aligned import audio_blocks
 from kinectdata.align.audio import AudioReader
 from kinectdata.core.errors import KinectDataError
-from kinectdata.evaluation.rhythm import beat_alignment_report, beat_period_s, motion_beats, music_beats, rhythm_report
+from kinectdata.evaluation.rhythm import beat_alignment_report, beat_period_s, motion_beats, rhythm_report
+from kinectdata.features.beats import music_beats
 from kinectdata.targets.specs import TargetSpec
 
 

@@ -12,7 +12,8 @@ An extractor is a callable ``(samples, starts, config, *, chunk_frames=...) -> (
   the music's pulse at 43 tempi, computed causally from its onsets;
 - ``"stack"``: :func:`kinectdata.features.stack.stack_features`, parts stacked on their first
   axis (presets ``"yalta2016_rhythm"``: the STFT and the pulse as two channels [2, 129, 5];
-  ``"listen_to_dance_rhythm"``: log-mel, the saliences of the pulse's tempi and its metrical levels [153]).
+  ``"listen_to_dance_rhythm"``: log-mel, the saliences of the pulse's tempi and its metrical levels [153];
+  ``"listen_to_dance_rhythm_bars"``: the same with the bar and two bars in the song's metre).
 
 All presets are in :data:`PRESETS`. A configuration's dict names its extractor
 (``"extractor"``; a dict without one is an STFT configuration, as datasets before the mel
@@ -23,6 +24,7 @@ Register another extractor with the decorator ``@register_extractor("name")`` or
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Callable
 from typing import Any
 
@@ -47,6 +49,7 @@ __all__ = [
     "feature_config",
     "get_extractor",
     "mel_features",
+    "needs_metre",
     "register_extractor",
     "stft_features",
 ]
@@ -71,15 +74,23 @@ without the tempi's phases (``tempo_phases=False``) the only clocks it is given 
 beat and bar. The beat is picked with the salience at twice each tempo added (``harmonic_weight``):
 without it, at twice the music's beat almost as often as at the beat (docs/benchmarks.md, "How the
 recipe was found"; ``python -m benchmarks.bench_pulse``)."""
+LISTEN_TO_DANCE_BAR_PULSE = dataclasses.replace(LISTEN_TO_DANCE_PULSE, levels=(1, 2), bar_levels=(1, 2))
+"""The same pulse with the bar and two bars counted in the song's metre (``compute_features(...,
+beats_per_bar=)``) instead of bars of 3 and 4 beats: [73]. On Dance with Melody (388 of its 564
+training windows waltzes) the cdhc model given fixed levels danced the training cha-chas at 3
+beats, and given these at their bar; on the test dances it did not do better (docs/benchmarks.md,
+"The bar in each song's metre"), so it is a preset to choose, not the default."""
 PRESETS: dict[str, FeatureConfig] = {
     **STFT_PRESETS,
     "listen_to_dance": MelConfig(),
     "yalta2016_rhythm": StackConfig((STFT_PRESETS["yalta2016"], RhythmConfig(columns=5))),
     "motion_dance_rhythm": StackConfig((STFT_PRESETS["motion_dance"], RhythmConfig(columns=5))),
     "listen_to_dance_rhythm": StackConfig((MelConfig(), LISTEN_TO_DANCE_PULSE)),
+    "listen_to_dance_rhythm_bars": StackConfig((MelConfig(), LISTEN_TO_DANCE_BAR_PULSE)),
 }
 """Feature configurations by name: ``yalta2016``, ``motion_dance`` (STFT), ``listen_to_dance``
-(mel), and each with the music's pulse stacked on (``_rhythm``)."""
+(mel), and each with the music's pulse stacked on (``_rhythm``; ``listen_to_dance_rhythm_bars``:
+its bar levels in the song's metre)."""
 _CONFIG_TYPES = {"stft": StftConfig, "mel": MelConfig, "rhythm": RhythmConfig, "stack": StackConfig}
 
 Extractor = Callable[..., Any]
@@ -129,9 +140,20 @@ def feature_config(d: dict[str, Any]) -> FeatureConfig:
     return _CONFIG_TYPES[name].from_dict(d)
 
 
-def compute_features(samples: np.ndarray, starts: np.ndarray, config: FeatureConfig) -> tuple[np.ndarray, np.ndarray]:
-    """``(features [N, *config.output_shape] float32, padded [N] bool)`` with the config's extractor."""
-    return get_extractor(config.extractor)(samples, starts, config)
+def compute_features(
+    samples: np.ndarray, starts: np.ndarray, config: FeatureConfig, *, beats_per_bar: int | None = None
+) -> tuple[np.ndarray, np.ndarray]:
+    """``(features [N, *config.output_shape] float32, padded [N] bool)`` with the config's extractor.
+
+    ``beats_per_bar``: the song's metre, passed on to an extractor whose configuration
+    :func:`needs_metre` (None there: the extractor's default, 4)."""
+    extra = {"beats_per_bar": beats_per_bar} if needs_metre(config) else {}
+    return get_extractor(config.extractor)(samples, starts, config, **extra)
+
+
+def needs_metre(config: FeatureConfig) -> bool:
+    """True when features of ``config`` depend on the song's beats per bar (the pulse's bar levels)."""
+    return bool(getattr(config, "needs_metre", False))
 
 
 register_extractor("stft", stft_features)

@@ -37,14 +37,18 @@ on that corpus's songs; dB-scaled features 0.7-0.8). So the pulse is computed, c
    finding the right tempo among all of them itself (a convolutional decoder reading the tempi
    kept one tempo's phase, the same period for every song: each tempo's phase turns at that tempo
    whenever there are onsets, a clock whatever the music; ``tempo_phases`` false leaves them out).
-   A level's tempo below ``tempo_range_bpm`` takes the lowest tempo. A level above 1 has the phase
-   of the onsets' own periodicity at its tempo: it tells the bar where the downbeats sound
-   different (louder, or across more of the spectrum); where they do not, it restarts at every
-   beat.
+   ``bar_levels`` are counted in bars of the song's metre (``beats_per_bar``, given by the caller: a
+   dataset build takes the recordings manifest's, else estimates it from the music): a bar is 3
+   beats in a waltz and 4 in a cha-cha, so one output is the bar whatever the metre (with fixed
+   levels of 3 and 4 beats, a network that learned waltzes at the 3-beat level danced cha-chas at 3
+   beats too: docs/benchmarks.md). A level's tempo below ``tempo_range_bpm`` takes the lowest tempo.
+   A level above 1 has the phase of the onsets' own periodicity at its tempo: it tells the bar where
+   the downbeats sound different (louder, or across more of the spectrum); where they do not, it
+   restarts at every beat.
 
-Output per motion frame: ``[3 * n_tempi + 2 * len(levels)]`` values in -1..1 (tempo by tempo:
-salience, cosine, sine; then level by level: cosine, sine; with ``tempo_phases`` false ``[n_tempi +
-2 * len(levels)]``: the saliences, then the levels), or with ``columns`` = c, ``[1, 3 * n_tempi,
+Output per motion frame: ``[3 * n_tempi + 2 * L]`` values in -1..1, L the levels and bar levels
+(tempo by tempo: salience, cosine, sine; then level by level: cosine, sine; with ``tempo_phases``
+false ``[n_tempi + 2 * L]``: the saliences, then the levels), or with ``columns`` = c, ``[1, 3 * n_tempi,
 c]`` (``[1, n_tempi, c]`` without the tempo phases): those values at c instants spread over the
 frame's slice like the STFT features' sub-frames (43 tempi give 129 rows, the STFT's bins: the two
 stack as channels of one [2, 129, 5] input). A frame reads the ``window_s`` before its slice:
@@ -67,7 +71,10 @@ import numpy as np
 from kinectdata.core.errors import ConfigError
 from kinectdata.features.config_dict import config_from_dict, config_to_dict
 
-__all__ = ["RhythmConfig", "predominant_beat", "rhythm_features"]
+__all__ = ["DEFAULT_BEATS_PER_BAR", "RhythmConfig", "predominant_beat", "rhythm_features"]
+
+DEFAULT_BEATS_PER_BAR = 4
+"""The metre a song's bar levels take when nothing says otherwise: most dance music is in 4."""
 
 
 @dataclass(frozen=True)
@@ -85,6 +92,9 @@ class RhythmConfig:
         n_tempi, tempo_range_bpm: the tempi looked at (log-spaced, inclusive).
         levels: metrical levels of the predominant pulse output after the tempi (module
             docstring, step 4), as multiples of the beat's period; () for none.
+        bar_levels: more levels, after ``levels``, as multiples of the bar's period in the song's
+            metre (``beats_per_bar`` of :func:`rhythm_features`): (1, 2) gives a bar and two bars,
+            3 and 6 beats in a waltz, 4 and 8 in a song in 4; () for none.
         beat_range_bpm: the tempi the beat is looked for among (within ``tempo_range_bpm``; None:
             all of them).
         harmonic_weight: the share of the salience at twice a tempo added to its own when the beat
@@ -114,6 +124,7 @@ class RhythmConfig:
     n_tempi: int = 43
     tempo_range_bpm: tuple[float, float] = (40.0, 240.0)
     levels: tuple[int, ...] = ()
+    bar_levels: tuple[int, ...] = ()
     beat_range_bpm: tuple[float, float] | None = None
     harmonic_weight: float = 0.0
     tempo_phases: bool = True
@@ -138,10 +149,11 @@ class RhythmConfig:
                 f"rhythm features: tempo_range_bpm must be (low, high) with 0 < low < high, got {lo}, {hi}"
             )
         object.__setattr__(self, "tempo_range_bpm", (lo, hi))
-        levels = tuple(self.levels)
-        if any(isinstance(m, bool) or int(m) != m or m < 1 for m in levels):
-            raise ConfigError(f"rhythm features: levels must be whole numbers at least 1, got {self.levels!r}")
-        object.__setattr__(self, "levels", tuple(int(m) for m in levels))
+        for name in ("levels", "bar_levels"):
+            levels = tuple(getattr(self, name))
+            if any(isinstance(m, bool) or int(m) != m or m < 1 for m in levels):
+                raise ConfigError(f"rhythm features: {name} must be whole numbers at least 1, got {levels!r}")
+            object.__setattr__(self, name, tuple(int(m) for m in levels))
         if self.beat_range_bpm is not None:
             beat_lo, beat_hi = (float(v) for v in self.beat_range_bpm)
             if not lo <= beat_lo < beat_hi <= hi:
@@ -155,7 +167,7 @@ class RhythmConfig:
         object.__setattr__(self, "harmonic_weight", float(self.harmonic_weight))
         if not isinstance(self.tempo_phases, bool):
             raise ConfigError(f"rhythm features: tempo_phases must be true or false, got {self.tempo_phases!r}")
-        if self.levels and self.columns:
+        if (self.levels or self.bar_levels) and self.columns:
             raise ConfigError("rhythm features: levels are for the vector layout (columns 0)")
         for name in ("detrend_s", "window_s", "decay_s", "fmax"):
             if not float(getattr(self, name)) > 0:
@@ -172,9 +184,18 @@ class RhythmConfig:
 
     @property
     def values_per_instant(self) -> int:
-        """``3 n_tempi + 2 len(levels)`` (``n_tempi + 2 len(levels)`` without the tempo phases): the
-        values taken at each instant of a frame."""
-        return (3 if self.tempo_phases else 1) * self.n_tempi + 2 * len(self.levels)
+        """``3 n_tempi + 2 L`` (``n_tempi + 2 L`` without the tempo phases), L the levels and bar
+        levels: the values taken at each instant of a frame."""
+        return (3 if self.tempo_phases else 1) * self.n_tempi + 2 * (len(self.levels) + len(self.bar_levels))
+
+    @property
+    def needs_metre(self) -> bool:
+        """True when the output depends on the song's beats per bar (``bar_levels``)."""
+        return bool(self.bar_levels)
+
+    def beat_multiples(self, beats_per_bar: int) -> tuple[int, ...]:
+        """Every output level in beats: ``levels``, then ``bar_levels`` x ``beats_per_bar``."""
+        return self.levels + tuple(m * beats_per_bar for m in self.bar_levels)
 
     @property
     def output_shape(self) -> tuple[int, ...]:
@@ -211,8 +232,13 @@ class RhythmConfig:
         return -self.history, self.slice_samples
 
     def to_dict(self) -> dict[str, Any]:
-        """A JSON-able dict of every field, with ``"extractor": "rhythm"``."""
-        return config_to_dict(self)
+        """A JSON-able dict of every field, with ``"extractor": "rhythm"``; without ``bar_levels``
+        when there are none, as before they existed (so a dataset built then keeps its build key,
+        and its runs their features)."""
+        d = config_to_dict(self)
+        if not self.bar_levels:
+            del d["bar_levels"]
+        return d
 
     @classmethod
     def from_dict(cls, d: dict[str, Any]) -> RhythmConfig:
@@ -277,7 +303,9 @@ def onset_envelope(samples: np.ndarray, config: RhythmConfig) -> np.ndarray:
     return np.maximum(flux - local_mean, 0.0)
 
 
-def _pulse_values(x: np.ndarray, starts: np.ndarray, phase: int, config: RhythmConfig) -> np.ndarray:
+def _pulse_values(
+    x: np.ndarray, starts: np.ndarray, phase: int, config: RhythmConfig, beats_per_bar: int
+) -> np.ndarray:
     """[F, c, 3 K] the values of frames ``starts`` whose last instants lie at ``phase`` modulo the hop."""
     hop = config.hop_samples
     need = int(starts.min()) - config.history
@@ -297,22 +325,24 @@ def _pulse_values(x: np.ndarray, starts: np.ndarray, phase: int, config: RhythmC
         values = values.reshape(*values.shape[:2], -1)
     else:
         values = salience
-    if not config.levels:
+    if not (config.levels or config.bar_levels):
         return values
-    return np.concatenate([values, _level_values(salience, angle, config)], axis=-1)
+    return np.concatenate([values, _level_values(salience, angle, config, beats_per_bar)], axis=-1)
 
 
-@functools.lru_cache(maxsize=8)
-def _level_tempi(config: RhythmConfig) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """(the beat candidates' tempo indices [B], their log prior [B], [B, len(levels)] the index of
-    the tempo nearest each candidate's tempo / m for each level m, [B] the index of the tempo nearest
-    twice each candidate's, -1 where twice it lies above the grid by more than half a step)."""
+@functools.lru_cache(maxsize=16)
+def _level_tempi(config: RhythmConfig, beats_per_bar: int = 4) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """(the beat candidates' tempo indices [B], their log prior [B], [B, L] the index of the tempo
+    nearest each candidate's tempo / m for each level m in beats (:meth:`RhythmConfig.beat_multiples`),
+    [B] the index of the tempo nearest twice each candidate's, -1 where twice it lies above the grid
+    by more than half a step)."""
     tempi = config.tempi_bpm
     log_tempi = np.log(tempi)
     lo, hi = config.beat_range_bpm or config.tempo_range_bpm
     candidates = np.flatnonzero((tempi >= lo * (1 - 1e-9)) & (tempi <= hi * (1 + 1e-9)))
     log_prior = -0.5 * np.log2(tempi[candidates] / 120.0) ** 2
-    wanted = tempi[candidates][:, None] / np.asarray(config.levels, np.float64)[None, :]
+    multiples = np.asarray(config.beat_multiples(beats_per_bar), np.float64)
+    wanted = tempi[candidates][:, None] / multiples[None, :]
     nearest = np.abs(log_tempi[None, None, :] - np.log(wanted)[..., None]).argmin(axis=-1)
     doubled = np.log(2 * tempi[candidates])
     double = np.abs(log_tempi[None, :] - doubled[:, None]).argmin(axis=-1)
@@ -337,10 +367,10 @@ def predominant_beat(salience: np.ndarray, config: RhythmConfig) -> np.ndarray:
     return _level_tempi(config)[0][_beat_candidate(salience, config)]
 
 
-def _level_values(salience: np.ndarray, angle: np.ndarray, config: RhythmConfig) -> np.ndarray:
-    """[F, c, 2 len(levels)] the predominant pulse's phasor at each metrical level (module
-    docstring, step 4) from the saliences and phases [F, c, K] of every tempo."""
-    candidates, _, nearest, _ = _level_tempi(config)
+def _level_values(salience: np.ndarray, angle: np.ndarray, config: RhythmConfig, beats_per_bar: int) -> np.ndarray:
+    """[F, c, 2 L] the predominant pulse's phasor at each metrical level (module docstring, step 4)
+    from the saliences and phases [F, c, K] of every tempo."""
+    candidates, _, nearest, _ = _level_tempi(config, beats_per_bar)
     best = _beat_candidate(salience, config)  # [F, c]
     beat_salience = np.take_along_axis(salience, candidates[best][..., None], axis=-1)  # [F, c, 1]
     at = nearest[best]  # [F, c, levels]: the tempo of each level
@@ -350,7 +380,12 @@ def _level_values(salience: np.ndarray, angle: np.ndarray, config: RhythmConfig)
 
 
 def rhythm_features(
-    samples: np.ndarray, starts: np.ndarray, config: RhythmConfig, *, chunk_frames: int = 1024
+    samples: np.ndarray,
+    starts: np.ndarray,
+    config: RhythmConfig,
+    *,
+    chunk_frames: int = 1024,
+    beats_per_bar: int | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Per-frame pulse features of mono audio (module docstring).
 
@@ -359,11 +394,15 @@ def rhythm_features(
         starts: [N] int64 slice starts (may run off either end of the audio: samples there are zeros).
         config: the :class:`RhythmConfig`.
         chunk_frames: frames computed at once (bounds the memory).
+        beats_per_bar: the song's metre, for ``config.bar_levels`` (None: :data:`DEFAULT_BEATS_PER_BAR`).
 
     Returns:
         ``(features float32 [N, *config.output_shape], padded bool [N])``; padded where a frame's own
         slice runs off the audio.
     """
+    metre = DEFAULT_BEATS_PER_BAR if beats_per_bar is None else int(beats_per_bar)
+    if metre < 1:
+        raise ConfigError(f"rhythm features: beats_per_bar must be at least 1, got {beats_per_bar!r}")
     x = np.asarray(samples, np.float32)
     starts = np.asarray(starts, np.int64)
     n = starts.size
@@ -381,7 +420,7 @@ def rhythm_features(
         values = np.empty((block.size, config.instants.size, config.values_per_instant))
         for p in np.unique(phase):
             rows = np.flatnonzero(phase == p)
-            values[rows] = _pulse_values(x, block[rows], int(p), config)
+            values[rows] = _pulse_values(x, block[rows], int(p), config, metre)
         if config.columns:
             out[c0 : c0 + block.size, 0] = np.transpose(values, (0, 2, 1))
         else:

@@ -48,6 +48,11 @@ class StackConfig:
         return self.parts[0].slice_samples
 
     @property
+    def needs_metre(self) -> bool:
+        """True when a part's output depends on the song's beats per bar."""
+        return any(getattr(p, "needs_metre", False) for p in self.parts)
+
+    @property
     def output_shape(self) -> tuple[int, ...]:
         first = tuple(self.parts[0].output_shape)
         return (sum(p.output_shape[0] for p in self.parts), *first[1:])
@@ -69,12 +74,15 @@ class StackConfig:
         return cls(tuple(feature_config(p) for p in d["parts"]))
 
 
-def stack_features(samples: np.ndarray, starts: np.ndarray, config: StackConfig) -> tuple[np.ndarray, np.ndarray]:
+def stack_features(
+    samples: np.ndarray, starts: np.ndarray, config: StackConfig, *, beats_per_bar: int | None = None
+) -> tuple[np.ndarray, np.ndarray]:
     """``(features float32 [N, *config.output_shape], padded bool [N])``: each part's features
-    (:func:`kinectdata.features.compute_features`) concatenated on the first feature axis."""
+    (:func:`kinectdata.features.compute_features`, given the song's ``beats_per_bar``)
+    concatenated on the first feature axis."""
     from kinectdata.features import compute_features
 
-    made = [compute_features(samples, starts, part) for part in config.parts]
+    made = [compute_features(samples, starts, part, beats_per_bar=beats_per_bar) for part in config.parts]
     features = np.concatenate([f for f, _ in made], axis=1)
     padded = np.logical_or.reduce([p for _, p in made])
     return features, padded

@@ -20,11 +20,19 @@ class StreamingFeatures:
 
     ``starts`` [N] are absolute sample indices of the frames' slices; a frame is computed as soon
     as the samples it reads (``config.span`` around its start) have arrived, the rest at
-    :meth:`finish` (zero-padded and flagged past the end).
+    :meth:`finish` (zero-padded and flagged past the end). ``beats_per_bar``: the song's metre, for
+    features that count its bars (:func:`~kinectdata.features.needs_metre`).
     """
 
-    def __init__(self, starts: np.ndarray, config: FeatureConfig, sink: Callable[[int, np.ndarray, np.ndarray], None]):
+    def __init__(
+        self,
+        starts: np.ndarray,
+        config: FeatureConfig,
+        sink: Callable[[int, np.ndarray, np.ndarray], None],
+        beats_per_bar: int | None = None,
+    ):
         self.starts, self.config, self.sink = starts, config, sink
+        self.beats_per_bar = beats_per_bar
         self.lo, hi = config.span
         self.ends = starts + hi
         self.k = 0
@@ -46,6 +54,8 @@ class StreamingFeatures:
             self._emit(self.starts.size)
 
     def _emit(self, upto: int) -> None:
-        feats, padded = compute_features(self.buffer, self.starts[self.k : upto] - self.buffer_start, self.config)
+        feats, padded = compute_features(
+            self.buffer, self.starts[self.k : upto] - self.buffer_start, self.config, beats_per_bar=self.beats_per_bar
+        )
         self.sink(self.k, feats, padded)
         self.k = upto

@@ -33,7 +33,8 @@ import numpy as np
 from kinectdata.align.audio import AudioReader
 from kinectdata.core.errors import ConfigError, KinectDataError
 from kinectdata.core.motion import Motion
-from kinectdata.features import feature_config
+from kinectdata.features import feature_config, needs_metre
+from kinectdata.features.metre import recording_metre
 from kinectdata.features.streaming import StreamingFeatures
 from kinectdata.formats.bvh_writer import write_bvh
 from kinectdata.formats.csv_writer import write_csv
@@ -79,6 +80,7 @@ def generate(
     *,
     engine: str = "torch",
     precision: str = "float32",
+    beats_per_bar: int | None = None,
 ) -> tuple[Motion, dict[str, Any]]:
     """Generate motion for ``audio`` with a trained run; write it to ``out`` if given (canonical
     CSV, or OpenPose JSON Lines for 2-D targets: see the module docstring).
@@ -88,6 +90,10 @@ def generate(
     ONNX Runtime in float32; the cdhc model: torch in float32). Returns the Motion (times k / fps;
     metres and unit quaternions, or the 2-D target's units) and timing figures (per step for a
     model that streams; a model that does not runs once over the song).
+
+    ``beats_per_bar``: the song's metre, for features that count its bars (``listen_to_dance_rhythm_bars``);
+    None: estimated from the whole audio file before the stream starts (a live performer would say
+    it), else 4. ``timing["metre"]`` says which it was.
     """
     net, config = load_model(run)
     kind = model_kind(model_name(config))
@@ -126,7 +132,13 @@ def generate(
             song.append(np.array(features))  # a copy: the featurizer may reuse its buffers
 
     starts = np.round(np.arange(n) * sr / fps).astype(np.int64)
-    featurizer = StreamingFeatures(starts, feature_config(data["features"]), step)
+    features_config = feature_config(data["features"])
+    metre = None
+    if needs_metre(features_config):
+        samples = None if beats_per_bar is not None else np.concatenate([np.zeros(0, np.float32), *reader.blocks()])
+        metre = recording_metre(None, samples, sr, given=beats_per_bar)
+    bar = None if metre is None else metre.beats_per_bar
+    featurizer = StreamingFeatures(starts, features_config, step, beats_per_bar=bar)
     started = time.perf_counter()
     for block in reader.blocks():
         featurizer.push(block)
@@ -166,6 +178,8 @@ def generate(
         "step_median_ms": float(np.median(t)),
         "step_p95_ms": float(np.percentile(t, 95)),
     }
+    if metre is not None:
+        timing["metre"] = metre.describe()
     if spec.limbs:
         timing["limb_lengths"] = {
             name: float(np.median(values[:, spec.columns(j, "limb")]))

@@ -158,6 +158,7 @@ def test_listen_to_dance_rhythm_with_3d_positions_suits_the_cdhc_model(tmp_path)
     )
     manifest = build_dataset(SAMPLES, tmp_path / "ltd_rhythm", config)
     assert manifest["feature_shape"] == [153] and manifest["target_dim"] == 25 * 3
+    assert not any("metre" in r for r in manifest["recordings"])  # its levels count beats, not bars
     kind = model_kind("cdhc")
     kind.check_dataset(manifest)
     net_config = kind.network_config(kind.settings_type(channels=8, decoder_channels=8), manifest)

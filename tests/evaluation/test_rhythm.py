@@ -18,10 +18,10 @@ from kinectdata.evaluation.rhythm import (
     beat_period_s,
     motion_beat_fmeasure,
     motion_beats,
-    music_beats,
     rhythm_report,
     trajectory_autocorrelation,
 )
+from kinectdata.features.beats import music_beats
 
 FPS = 30.0
 

@@ -21,6 +21,7 @@ from kinectdata.features import (
     StftConfig,
     compute_features,
     feature_config,
+    needs_metre,
 )
 from kinectdata.features.rhythm import onset_envelope, rhythm_features
 from kinectdata.features.streaming import StreamingFeatures
@@ -185,10 +186,12 @@ def test_on_a_grid_tempo_salience_is_one_and_the_phase_is_the_time_since_the_cli
 LEVELS = RhythmConfig(tempo_range_bpm=(15.0, 240.0), n_tempi=65, window_s=12.0, decay_s=4.0, levels=(1, 2, 4))
 
 
-def accented_bars(bpm: float, seconds: float = 30.0, first: float = 0.3) -> tuple[np.ndarray, np.ndarray]:
-    """(float32 audio, downbeat times in s): a bar of 4 at ``bpm``, its beats 30 ms 1.5 kHz tone
-    bursts (a few mel bands rise), each downbeat a 30 ms noise burst (all of them rise), over noise
-    at -60 dBFS."""
+def accented_bars(
+    bpm: float, seconds: float = 30.0, first: float = 0.3, beats_per_bar: int = 4
+) -> tuple[np.ndarray, np.ndarray]:
+    """(float32 audio, downbeat times in s): bars of ``beats_per_bar`` at ``bpm``, its beats 30 ms
+    1.5 kHz tone bursts (a few mel bands rise), each downbeat a 30 ms noise burst (all of them
+    rise), over noise at -60 dBFS."""
     n = int(seconds * SR)
     x = np.random.default_rng(0).normal(0, 1e-3, n)
     tone = 0.3 * np.sin(2 * np.pi * 1500 * np.arange(480) / SR) * np.hanning(480)
@@ -196,8 +199,8 @@ def accented_bars(bpm: float, seconds: float = 30.0, first: float = 0.3) -> tupl
     beats = np.arange(first, seconds - 0.1, 60.0 / bpm)
     for k, t in enumerate(beats):
         i = int(round(t * SR))
-        x[i : i + 480] += noise if k % 4 == 0 else tone
-    return x.astype(np.float32), beats[::4]
+        x[i : i + 480] += noise if k % beats_per_bar == 0 else tone
+    return x.astype(np.float32), beats[::beats_per_bar]
 
 
 @pytest.mark.parametrize("bpm", [100.0, 150.0])
@@ -224,6 +227,61 @@ def test_the_predominant_pulse_turns_at_the_beat_and_at_its_bar(bpm):
     since = t - downbeats[np.searchsorted(downbeats, t, side="right") - 1]
     error = np.angle(np.exp(1j * (phase - 2 * np.pi * bpm / 240 * since)))
     assert np.abs(error).max() < 0.4, np.abs(error).max()
+
+
+BAR_LEVELS = dataclasses.replace(LEVELS, levels=(1,), bar_levels=(1, 2))
+
+
+@pytest.mark.parametrize("beats_per_bar", [3, 4])
+def test_bar_levels_turn_at_the_bar_of_the_songs_metre(beats_per_bar):
+    """A waltz (bars of 3) and a song in 4, both at 120 BPM, downbeats louder: given its metre, the
+    bar level turns once a bar (1.5 s in 3, 2 s in 4: the slope of the unwrapped phase, within half
+    the tempo grid's spacing) and its phase is 2 pi (time since the downbeat) / bar to within 0.4 rad
+    (as for the fixed levels above). The values equal fixed levels at (1, m, 2 m) beats (two bars,
+    which this music does not repeat, included), and a song whose metre is not given counts bars of 4."""
+    bpm = 120.0
+    audio, downbeats = accented_bars(bpm, beats_per_bar=beats_per_bar)
+    starts = frame_starts(audio.size)
+    feats, _ = rhythm_features(audio, starts, BAR_LEVELS, beats_per_bar=beats_per_bar)
+    assert feats.shape == (starts.size, 3 * 65 + 2 * 3)
+    late = np.flatnonzero(starts / SR > 14.0)
+    t = (starts[late] + LEVELS.slice_samples) / SR
+    spacing = (240.0 / 15.0) ** (1 / 64) - 1
+    for i, beats in enumerate((1, beats_per_bar)):
+        phase = np.arctan2(feats[late, 196 + 2 * i], feats[late, 195 + 2 * i])
+        turns_per_s = np.polyfit(t, np.unwrap(phase), 1)[0] / (2 * np.pi)
+        assert abs(turns_per_s / (bpm / 60 / beats) - 1) < spacing / 2 + 1e-3, (beats, turns_per_s)
+    bar_phase = np.arctan2(feats[late, 198], feats[late, 197])
+    since = t - downbeats[np.searchsorted(downbeats, t, side="right") - 1]
+    error = np.angle(np.exp(1j * (bar_phase - 2 * np.pi * since / (beats_per_bar * 60 / bpm))))
+    assert np.abs(error).max() < 0.4, np.abs(error).max()
+    fixed = dataclasses.replace(LEVELS, levels=(1, beats_per_bar, 2 * beats_per_bar))
+    np.testing.assert_array_equal(feats, rhythm_features(audio, starts, fixed)[0])
+    unsaid, _ = rhythm_features(audio, starts, BAR_LEVELS)
+    np.testing.assert_array_equal(unsaid, rhythm_features(audio, starts, BAR_LEVELS, beats_per_bar=4)[0])
+    assert BAR_LEVELS.needs_metre and not LEVELS.needs_metre
+
+
+def test_the_metre_reaches_the_pulse_through_stacks_and_streams():
+    """compute_features passes the song's beats per bar to a stacked pulse with bar levels (not to
+    extractors whose features do not count bars), and streaming gives what the whole audio gives."""
+    config = StackConfig((MelConfig(), BAR_LEVELS))
+    assert needs_metre(config) and not needs_metre(PRESETS["yalta2016_rhythm"])
+    audio, _ = accented_bars(120.0, seconds=14.0, beats_per_bar=3)
+    starts = frame_starts(audio.size)
+    waltz, _ = compute_features(audio, starts, config, beats_per_bar=3)
+    np.testing.assert_array_equal(waltz[:, 80:], rhythm_features(audio, starts, BAR_LEVELS, beats_per_bar=3)[0])
+    assert not np.array_equal(waltz, compute_features(audio, starts, config, beats_per_bar=4)[0])
+    got = np.full_like(waltz, np.nan)
+
+    def sink(k0, feats, pad):
+        got[k0 : k0 + len(feats)] = feats
+
+    stream = StreamingFeatures(starts, config, sink, beats_per_bar=3)
+    for i in range(0, audio.size, 16001):
+        stream.push(audio[i : i + 16001])
+    stream.finish()
+    np.testing.assert_allclose(got, waltz, rtol=0, atol=1e-6)
 
 
 def test_the_harmonic_weight_picks_the_beat_where_its_eighth_notes_are_more_salient():
@@ -363,9 +421,11 @@ def test_streaming_equals_the_whole_audio(preset, block):
 
 
 def test_rhythm_config_round_trip_and_dispatch():
-    for config in (VECTOR, PLANE, OTHER):
+    for config in (VECTOR, PLANE, OTHER, BAR_LEVELS):
         d = json.loads(json.dumps(config.to_dict()))
         assert d["extractor"] == "rhythm" and feature_config(d) == config and RhythmConfig.from_dict(d) == config
+    # no bar levels, no key: the dict (and so a dataset's build key) as before bar levels existed
+    assert "bar_levels" not in VECTOR.to_dict() and BAR_LEVELS.to_dict()["bar_levels"] == [1, 2]
     assert VECTOR.output_shape == (129,) and PLANE.output_shape == (1, 129, 5) and OTHER.output_shape == (1, 60, 3)
     np.testing.assert_array_equal(PLANE.instants, [160, 240, 320, 400, 480])  # the STFT sub-frames' ends
     with pytest.raises(ConfigError, match="unknown RhythmConfig keys"):
@@ -389,6 +449,8 @@ def test_rhythm_config_round_trip_and_dispatch():
         ({"columns": 8}, "the columns must lie at or after the slice start"),
         ({"columns": 2, "column_end": 600}, "slice"),
         ({"levels": (1, 0)}, "levels must be whole numbers at least 1"),
+        ({"bar_levels": (0,)}, "bar_levels must be whole numbers at least 1"),
+        ({"bar_levels": (1,), "columns": 5}, "levels are for the vector layout"),
         ({"beat_range_bpm": (30.0, 200.0)}, r"beat_range_bpm \(30, 200\) must be a range within tempo_range_bpm"),
         ({"levels": (1, 2), "columns": 5}, "levels are for the vector layout"),
         ({"harmonic_weight": -0.5}, "harmonic_weight must be at least 0"),

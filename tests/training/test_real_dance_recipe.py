@@ -10,8 +10,10 @@ import math
 import numpy as np
 import pytest
 import torch
-from conftest import TINY_TRAINING
+from click.testing import CliRunner
+from conftest import REPO, TINY_TRAINING
 
+from kinectdata.cli import main
 from kinectdata.core.errors import ConfigError, KinectDataError
 from kinectdata.models.losses import masked_energy_loss, masked_rhythm_loss, masked_rhythm_spectrum_loss
 from kinectdata.models.run import load_checkpoint
@@ -206,8 +208,6 @@ def test_an_epoch_that_moves_is_kept_before_a_still_one_with_a_lower_rhythm_loss
 def pulse_mel_dataset(tmp_path_factory):
     """The sample sessions with log-mel and pulse inputs and maxabs-normalised 3-D positions: what
     the cdhc model learns real dance from."""
-    from conftest import REPO
-
     from kinectdata.dataset.build import build_dataset
     from kinectdata.dataset.config import BuildConfig
 
@@ -227,6 +227,42 @@ def test_the_cdhc_model_trains_free_too(pulse_mel_dataset, tmp_path):
     )  # fmt: skip
     history = train(pulse_mel_dataset, tmp_path / "c", config)
     assert math.isfinite(history[0]["train_loss"]) and history[0]["val_rhythm"] is not None
+
+
+def test_the_songs_metre_reaches_the_features_at_build_and_at_generate(tmp_path):
+    """With the bar levels in the song's metre (``listen_to_dance_rhythm_bars``), the sample songs say
+    no metre: the build estimates each (the synthesized music is in 4) and records it; generate
+    estimates the song's, or takes the one it is given, and the bar levels then differ (3 beats
+    against 4) while the rest of the input does not. Without bar levels nothing is recorded."""
+    from kinectdata.dataset.build import build_dataset
+    from kinectdata.dataset.config import BuildConfig
+    from kinectdata.features import compute_features, feature_config
+    from kinectdata.inference.generate import generate
+
+    build = BuildConfig.from_pipeline(
+        "listen-to-dance", features="listen_to_dance_rhythm_bars", target="kinect_v2_positions",
+        normalisation="maxabs", split_ratios=(1 / 3, 1 / 3, 1 / 3),
+    )  # fmt: skip
+    manifest = build_dataset(REPO / "sample_data", tmp_path / "d", build)
+    assert {json.dumps(r["metre"]) for r in manifest["recordings"]} == {'{"beats_per_bar": 4, "source": "estimated"}'}
+    config = TrainConfig("cdhc", channels=8, decoder_channels=8, sequence=40, stride=None, batch_size=4, epochs=1)
+    train(tmp_path / "d", tmp_path / "r", config)
+    song = REPO / "sample_data" / "synth_001.flac"
+    _, estimated = generate(tmp_path / "r", song)
+    assert estimated["metre"].startswith("4 beats per bar (estimated;")
+    given = CliRunner().invoke(
+        main,
+        ["generate", "--run", str(tmp_path / "r"), str(song), "-o", str(tmp_path / "g.csv"), "--beats-per-bar", "3"],
+    )
+    assert given.exit_code == 0 and "metre: 3 beats per bar (given)" in given.output, given.output
+    features = feature_config(manifest["config"]["features"])
+    audio = np.random.default_rng(0).normal(0, 0.1, 16000 * 14).astype(np.float32)
+    starts = np.arange(0, audio.size - 534, 534)
+    in3, in4 = (compute_features(audio, starts, features, beats_per_bar=b)[0] for b in (3, 4))
+    differs = np.flatnonzero(np.abs(in3 - in4).max(axis=0) > 0)
+    assert differs.size and differs.min() >= 153 - 4  # only the bar and two-bar phasors
+    with pytest.raises(ConfigError, match="beats_per_bar must be at least 1"):
+        compute_features(audio, starts, features, beats_per_bar=0)
 
 
 def test_the_cdhc_models_context_is_as_far_back_as_an_output_sees(pulse_mel_dataset):

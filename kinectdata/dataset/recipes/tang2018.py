@@ -12,7 +12,8 @@ Readme.md, utils/draw.py, and the data, measured as docs/corpora.md tells):
 - Motion and song share one clock: audio_time = motion_time + start_position / 25, the offset
   written for each dance.
 - Metre: a waltz is in 3 (three beats to the bar), cha-cha, rumba and tango in 4; written as each
-  dance's ``beats_per_bar``, which ``evaluate`` builds the metrical levels from.
+  dance's ``beats_per_bar``, which ``evaluate`` builds the metrical levels from and the
+  ``listen_to_dance_rhythm_bars`` features count the bar by.
 
 The corpus publishes no split. ``split="kinectdata"`` (the default) takes kinectdata's acceptance
 split (:data:`KINECTDATA_SPLIT`: issue 25), which keeps each style in the test set;

@@ -9,9 +9,11 @@ repeats best every 3 and 6 beats, music in 4 every 4 and 8 (the method of Gouyon
 descriptors", with log-mel bands as the descriptors). On the Dance with Melody corpus's 43 songs it
 tells the waltzes from the other dances as docs/rhythm.md reports.
 
-:func:`recording_metres` gives each recording of a split its metre: the recordings manifest's
-``beats_per_bar`` when it has one, else the one the caller gives (``evaluate --beats-per-bar``),
-else the estimate.
+:func:`recording_metre` gives a recording its metre: the recordings manifest's ``beats_per_bar``
+when it has one, else the one the caller gives (``evaluate --beats-per-bar``), else the estimate
+(from the beats given, or tracked with :func:`~kinectdata.features.beats.music_beats`). A dataset
+build asks for it when its features count the song's bars (the pulse's ``bar_levels``),
+``evaluate`` for its metrical levels.
 """
 
 from __future__ import annotations
@@ -21,6 +23,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from kinectdata.core.errors import KinectDataError
+from kinectdata.features.beats import music_beats
 
 CANDIDATES = (3, 4)
 """The bar lengths told apart (in beats)."""
@@ -37,7 +40,9 @@ class Metre:
     Attributes:
         beats_per_bar: beats in a bar.
         source: ``manifest`` (the recordings manifest says), ``given`` (the caller says),
-            ``estimated`` (from the music), or ``default`` (4: nothing else was possible).
+            ``estimated`` (from the music), ``dataset`` (the metre a dataset build found for
+            features that count bars, from the whole song) or ``default`` (4: nothing else was
+            possible).
         scores: for an estimate, per candidate bar length, the mean similarity of beats one and two
             bars apart (the larger wins); empty otherwise.
     """
@@ -102,18 +107,24 @@ def estimate_beats_per_bar(samples: np.ndarray, sample_rate: float, beats_s: np.
 
 
 def recording_metre(
-    entry: dict, samples: np.ndarray | None, sample_rate: float, beats_s: np.ndarray, given: int | None = None
+    listed: int | None,
+    samples: np.ndarray | None,
+    sample_rate: float,
+    beats_s: np.ndarray | None = None,
+    given: int | None = None,
 ) -> Metre:
-    """A recording's metre: its recordings-manifest entry's ``beats_per_bar``, else ``given`` (the
-    caller's, e.g. ``evaluate --beats-per-bar``), else estimated from its music ``samples`` [S]
-    (mono, ``sample_rate`` Hz, sample 0 at its first beat time's origin), else 4 (source ``default``:
-    too few beats, no audio or no librosa)."""
-    if entry.get("beats_per_bar") is not None:
-        return Metre(int(entry["beats_per_bar"]), "manifest", {})
+    """A recording's metre: ``listed`` (its recordings-manifest entry's ``beats_per_bar``), else
+    ``given`` (the caller's, e.g. ``evaluate --beats-per-bar``), else estimated from its music
+    ``samples`` [S] (mono, ``sample_rate`` Hz) at its beats ``beats_s`` [B] (seconds from sample 0;
+    None: tracked here), else 4 (source ``default``: too few beats, no audio or no librosa)."""
+    if listed is not None:
+        return Metre(int(listed), "manifest", {})
     if given is not None:
         return Metre(int(given), "given", {})
     if samples is not None:
         try:
+            if beats_s is None:
+                beats_s, _ = music_beats(samples, sample_rate)
             return estimate_beats_per_bar(samples, sample_rate, beats_s)
         except KinectDataError:
             pass

@@ -9,7 +9,7 @@ import pytest
 pytest.importorskip("librosa")
 
 from kinectdata.core.errors import KinectDataError  # noqa: E402
-from kinectdata.evaluation.metre import (  # noqa: E402
+from kinectdata.features.metre import (  # noqa: E402
     MEL_BANDS,
     MIN_BEATS,
     Metre,
@@ -108,10 +108,12 @@ def test_too_few_beats_is_an_error():
 
 def test_a_recordings_metre_comes_from_its_manifest_entry_then_the_caller_then_the_music():
     waltz, beats = music(105.0, 3, bars=10, seed=3)
-    assert recording_metre({"beats_per_bar": 3}, None, RATE, beats, given=4) == Metre(3, "manifest", {})
-    assert recording_metre({"beats_per_bar": None}, waltz, RATE, beats, given=2) == Metre(2, "given", {})
-    estimated = recording_metre({}, waltz, RATE, beats)
+    assert recording_metre(3, None, RATE, beats, given=4) == Metre(3, "manifest", {})
+    assert recording_metre(None, waltz, RATE, beats, given=2) == Metre(2, "given", {})
+    estimated = recording_metre(None, waltz, RATE, beats)
     assert (estimated.beats_per_bar, estimated.source) == (3, "estimated") and estimated.scores
-    assert recording_metre({}, None, RATE, beats) == Metre(4, "default", {})
-    assert recording_metre({}, waltz, RATE, beats[:10]) == Metre(4, "default", {})  # too few beats
+    tracked = recording_metre(None, waltz, RATE)  # the beats tracked from the music itself
+    assert (tracked.beats_per_bar, tracked.source) == (3, "estimated")
+    assert recording_metre(None, None, RATE, beats) == Metre(4, "default", {})
+    assert recording_metre(None, waltz, RATE, beats[:10]) == Metre(4, "default", {})  # too few beats
     assert Metre(4, "default", {}).describe() == "4 beats per bar (default)"
