@@ -5,7 +5,9 @@ standard error and exit status 1, and prints each
 :class:`~kinectdata.core.errors.KinectDataWarning` as one ``warning: ...`` line; click's own usage
 errors exit with 2. An environment fault (:class:`OSError`: a path that cannot be written or read,
 a full disk) is one line naming the path, exit status 1. Anything else is a bug: one line saying so
-and naming the file its traceback was saved to, exit status 70 (``EX_SOFTWARE``).
+and naming the file its traceback was saved to, exit status 70 (``EX_SOFTWARE``). A reader that
+stops reading (``kinectdata info FILE | head``) ends the command quietly, as it ends a shell tool:
+exit status 141 (128 + SIGPIPE), nothing on standard error.
 """
 
 from __future__ import annotations
@@ -42,6 +44,9 @@ class _Group(click.Group):
                 raise click.ClickException(str(exc)) from exc
             except (click.exceptions.Exit, click.ClickException, click.Abort, KeyboardInterrupt, SystemExit):
                 raise
+            except BrokenPipeError:
+                _stop_writing_to_a_closed_pipe()
+                raise SystemExit(141) from None
             except OSError as exc:
                 raise click.ClickException(os_error_line(exc)) from exc
             except Exception as exc:
@@ -60,6 +65,16 @@ class Bug(click.ClickException):
             f"internal error, a bug in kinectdata {__version__} ({type(exc).__name__}: {exc}); {where}: "
             "please report it with that file"
         )
+
+
+def _stop_writing_to_a_closed_pipe() -> None:
+    """Point standard output at the null device, so that the interpreter's last flush at exit does
+    not fail on the closed pipe again (the Python documentation's advice on SIGPIPE)."""
+    try:
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+    except (OSError, ValueError):  # no file descriptor (a test's captured stream): nothing to flush
+        pass
 
 
 def os_error_line(exc: OSError) -> str:

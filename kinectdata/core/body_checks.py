@@ -24,12 +24,24 @@ import numpy as np
 
 from kinectdata.core.motion import Motion
 
+MAX_CHECKED_COORDINATE = 1e150
+"""Coordinates beyond this (and non-finite ones) are left out of the checks: no unit read wrongly
+makes them (a body in micrometres read as metres is 10^6), and squaring them would overflow. The
+checks must still see a body 1000 times too large, so this is not align's 1 km limit."""
 BODY_EXTENT_M = (0.3, 3.5)
 """Plausible range of a body's extent in metres (its bounding box diagonal, median over frames)."""
 MAX_SPEED_M_S = 20.0
 """Joint speeds (99th percentile) above this are no dancer's."""
 _AXES = "xyz"
 _SAMPLE_FRAMES = 2000  # the checks look at this many frames, evenly spread, of a long recording
+
+
+def plausible_mask(motion: Motion) -> np.ndarray:
+    """[T, J] bool: positions marked valid whose coordinates are finite and within
+    :data:`MAX_CHECKED_COORDINATE` (what the checks below use)."""
+    with np.errstate(invalid="ignore"):
+        inside = (np.abs(motion.positions) <= MAX_CHECKED_COORDINATE).all(axis=-1)
+    return motion.position_mask & inside
 
 
 def _sampled(motion: Motion) -> np.ndarray:
@@ -42,9 +54,10 @@ def bone_lengths(motion: Motion) -> dict[str, float]:
     """``{"Parent-Child": metres}``: each bone's median length over the frames where both its joints
     are valid (bones never seen whole are left out)."""
     js = motion.joint_set
+    valid = plausible_mask(motion)
     out = {}
     for parent, child in js.bones():
-        both = motion.position_mask[:, parent] & motion.position_mask[:, child]
+        both = valid[:, parent] & valid[:, child]
         if both.any():
             lengths = np.linalg.norm(motion.positions[both, child] - motion.positions[both, parent], axis=-1)
             out[f"{js.names[parent]}-{js.names[child]}"] = float(np.median(lengths))
@@ -55,8 +68,9 @@ def body_extent(motion: Motion) -> float | None:
     """Metres: the median over frames of the diagonal of the valid joints' bounding box; None when
     no frame has two valid joints."""
     extents = []
+    usable = plausible_mask(motion)
     for t in _sampled(motion):
-        valid = motion.positions[t, motion.position_mask[t]]
+        valid = motion.positions[t, usable[t]]
         if len(valid) >= 2:
             extents.append(float(np.linalg.norm(valid.max(axis=0) - valid.min(axis=0))))
     return float(np.median(extents)) if extents else None
@@ -104,8 +118,9 @@ def up_axis_doubt(motion: Motion) -> str | None:
     js = motion.joint_set
     head, feet = js.role("head"), [j for j in (js.role("left_foot"), js.role("right_foot")) if j is not None]
     frames = _sampled(motion)
+    usable = plausible_mask(motion)
     if head is not None and feet:
-        ok = motion.position_mask[frames, head] & motion.position_mask[frames][:, feet].all(axis=1)
+        ok = usable[frames, head] & usable[frames][:, feet].all(axis=1)
         if not ok.any():
             return None
         rows = frames[ok]
@@ -118,7 +133,7 @@ def up_axis_doubt(motion: Motion) -> str | None:
             f"the head is {where} ({rise[axis]:+.2f}), but the up axis is {_AXES[up]}: the floor is not below the "
             "feet (are the file's axes or the up axis right?)"
         )
-    centred = [motion.positions[t, motion.position_mask[t]] for t in frames]
+    centred = [motion.positions[t, usable[t]] for t in frames]
     centred = [p - p.mean(axis=0) for p in centred if len(p) >= 3]
     if not centred:
         return None
@@ -137,11 +152,13 @@ def speed_doubt(motion: Motion) -> str | None:
     """A sentence when the joints move faster than a dancer can (see the module), else None."""
     if motion.joint_set.dimensions != 3 or motion.n_frames < 2:
         return None
-    both = motion.position_mask[1:] & motion.position_mask[:-1]
+    usable = plausible_mask(motion)
+    both = usable[1:] & usable[:-1]
     if not both.any():
         return None
     dt = np.diff(motion.times)[:, None]
-    speeds = (np.linalg.norm(np.diff(motion.positions, axis=0), axis=-1) / dt)[both]
+    steps = np.diff(np.where(usable[..., None], motion.positions, 0.0), axis=0)  # no step from or to a bad value
+    speeds = (np.linalg.norm(steps, axis=-1) / dt)[both]
     fast = float(np.percentile(speeds, 99))
     if fast <= MAX_SPEED_M_S:
         return None

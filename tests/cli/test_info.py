@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import warnings
+
 import h5py
 import numpy as np
 import pytest
@@ -9,6 +11,7 @@ from click.testing import CliRunner
 from conftest import REPO
 
 from kinectdata.cli import main
+from kinectdata.core import body_checks
 from kinectdata.core.motion import Motion
 from kinectdata.formats import read_motion
 from kinectdata.formats.csv_writer import write_csv
@@ -73,6 +76,25 @@ def test_implausible_positions_are_reported_with_the_first_frame(tmp_path):
     assert f"first at frame 120 ({t:.3f} s): align masks them as tracking loss" in out
 
 
+def test_the_bodys_figures_leave_out_implausible_positions_without_overflowing(tmp_path):
+    """A joint at 1e300 m in every other frame: the bone lengths are those of the frames where it is
+    plausible (as align will mask it), and numpy is never asked to square 1e300."""
+    src = read_motion(REPO / "sample_data" / "synth_001.csv")
+    src.positions[::2, 3, 0] = 1e300
+    write_csv(src, tmp_path / "big.csv", "dumpkinectskeleton")
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        out = info(tmp_path / "big.csv")
+    assert not [w for w in caught if issubclass(w.category, RuntimeWarning)], [str(w.message) for w in caught]
+    src.position_mask[::2, 3] = False
+    bones = body_checks.bone_lengths(src)
+    shortest, longest = min(bones, key=bones.get), max(bones, key=bones.get)
+    assert (
+        f"bones           {len(bones)}, median length {np.median(list(bones.values())):.3g} m (shortest {shortest} "
+        f"{bones[shortest]:.3g} m, longest {longest} {bones[longest]:.3g} m)"
+    ) in out
+
+
 def test_info_on_an_aligned_file_shows_frames_audio_offset_and_each_joints_validity(tmp_path):
     from kinectdata.align.recipe import align_files
 
@@ -105,3 +127,19 @@ def test_info_refuses_a_foreign_h5_in_one_line(tmp_path):
     result = CliRunner().invoke(main, ["info", str(tmp_path / "other.h5")])
     assert result.exit_code == 1 and "other.h5" in result.output and "Traceback" not in result.output
     assert len(result.output.strip().splitlines()) == 1
+
+
+def test_a_reader_that_stops_reading_ends_info_quietly():
+    """``kinectdata info FILE | head -1``: the command ends as a shell tool does when its reader goes
+    (exit status 141, 128 + SIGPIPE), with nothing on standard error (it printed "Error: Broken pipe")."""
+    import subprocess
+    import sys
+
+    command = [sys.executable, "-m", "kinectdata", "info", str(REPO / "sample_data" / "synth_001.csv")]
+    p = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    first = p.stdout.readline()  # the file's name comes before the file is read: the rest follows later
+    p.stdout.close()
+    errors = p.stderr.read()
+    p.wait(timeout=60)
+    assert first.startswith(b"file ")
+    assert (p.returncode, errors) == (141, b"")
