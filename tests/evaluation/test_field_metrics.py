@@ -423,3 +423,17 @@ def test_smpl24_writes_the_joint_array_score_reads_back_alike(tmp_path):
     np.testing.assert_allclose(back.positions, direct.positions, atol=1e-6)
     result = CliRunner().invoke(main, ["smpl24", str(REPO / "sample_data"), "-o", str(tmp_path / "x.npy")])
     assert result.exit_code != 0 and "Traceback" not in result.output
+
+
+def test_a_value_outside_its_own_interval_is_said_and_explained():
+    """A set against itself: FID is 0 exactly, and every pair of sets drawn with replacement from it
+    differs, so all the draws are above 0 and the interval excludes the value: the table says so and
+    why. On the fixture's sets the values lie inside their intervals and nothing is said."""
+    same = score_sets(_sequences("gt"), _sequences("gt"), PROTOCOLS["bailando"], bootstrap=100)
+    fid = same.metric("FID_k")
+    assert fid.generated == pytest.approx(0.0, abs=1e-3) and fid.interval.low > 0.1
+    said = [w for w in same.warnings if w.startswith("FID_k: ") and "outside" in w]
+    assert len(said) == 1 and "lies outside its own 95 % interval" in said[0] and "drawn with replacement" in said[0]
+    assert any(line == f"warning: {said[0]}" for line in same.table().splitlines())
+    apart = score_sets(_sequences("gen"), _sequences("gt"), PROTOCOLS["bailando"], bootstrap=100)
+    assert not [w for w in apart.warnings if "outside its own" in w]
