@@ -215,6 +215,7 @@ def summarize(
         "audio_samples": kept,
         "source_frames": source.n_frames,
         "source_fps": timing["fps"],
+        "source_clock": source.metadata.get("time_source", "the timestamps"),
         "source_jitter_ms": timing["jitter_ms"],
         "dropped_frames": timing["dropped_frames"],
         "motion_trimmed_start_s": tl.start - tl.offset - float(source.times[0]),
@@ -427,7 +428,8 @@ def format_summary(rec: AlignedRecording) -> str:
     lines = [
         f"frames          {s['frames']} at {s['fps']:g} fps = {s['duration_s']:.3f} s; "
         f"audio {s['audio_samples']} samples at {s['sample_rate']} Hz",
-        f"source          {s['source_frames']} frames, {s['source_fps']:.2f} fps (from the timestamps), "
+        f"source          {s['source_frames']} frames, {s['source_fps']:.2f} fps "
+        f"(from {s.get('source_clock', 'the timestamps')}), "
         f"jitter {s['source_jitter_ms']:.2f} ms, {s['dropped_frames']} dropped",
         f"trimmed         motion {s['motion_trimmed_start_s']:.3f} s at start, "
         f"{s['motion_trimmed_end_s']:.3f} s at end; "

@@ -192,7 +192,12 @@ def read_arrays(path: Path, *, schema: str | Path | None = None) -> Motion:
         times=times,
         positions=positions,
         joint_set=js,
-        metadata={"format": "arrays", "schema": spec["name"], "schema_path": str(spec["_path"])},
+        metadata={
+            "format": "arrays",
+            "schema": spec["name"],
+            "schema_path": str(spec["_path"]),
+            **({"time_source": "frame index at the schema's fps"} if "fps" in spec["time"] else {}),
+        },
     )
 
 

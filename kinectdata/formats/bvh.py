@@ -320,6 +320,7 @@ def read_bvh(path: Path, *, unit: str = "cm") -> Motion:
         metadata={
             "format": "bvh",
             "nominal_fps": 1.0 / frame_time,
+            "time_source": "frame index x the header's Frame Time",
             "unit": unit,
             "offsets_m": (np.array([j.offset for j in joints]) * UNITS_TO_M[unit]).tolist(),
         },

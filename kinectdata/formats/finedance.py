@@ -122,7 +122,13 @@ def read_finedance(path: Path, *, rest_joints: str | Path | None = None) -> Moti
         position_mask=valid,
         orientations=make_continuous(quats, valid),
         orientation_mask=valid,
-        metadata={"format": "finedance", "nominal_fps": FPS, "rest_joints": str(rest_joints), "time_origin": None},
+        metadata={
+            "format": "finedance",
+            "nominal_fps": FPS,
+            "time_source": f"frame index at {FPS:g} fps",
+            "rest_joints": str(rest_joints),
+            "time_origin": None,
+        },
     )
 
 

@@ -425,6 +425,7 @@ def read_htr(path: Path) -> Motion:
         metadata={
             "format": "htr",
             "time_origin": {"value": int(frames[0]), "unit": "frame"},
+            "time_source": "frame number / the header's DataFrameRate",
             "nominal_fps": fps,
             "header": raw_header,
             "euler_rotation_order": order,

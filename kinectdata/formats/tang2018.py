@@ -159,6 +159,7 @@ def read_tang2018(path: Path) -> Motion:
         metadata={
             "format": "tang2018",
             "nominal_fps": rate,
+            "time_source": "frames spread evenly over the song frames of config.json",
             "song_start_s": start / SONG_FPS,
             "song_frames": [start, end],
             "time_origin": {"value": start / SONG_FPS, "unit": "s"},

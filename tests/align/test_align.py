@@ -329,3 +329,19 @@ def test_the_dataset_path_through_the_recipe_steps_masks_implausible_positions_t
     assert np.abs(res.motion.positions[valid]).max() < 10
     summary = summarize(motion, tl, res, gaps, offset, audio.samples.size, tl.kept_samples(audio.samples.size))
     assert summary["implausible_positions"] == 4
+
+
+def test_the_summary_says_where_the_source_rate_comes_from(tmp_path):
+    """A file with timestamps is timed by them; an NTU .skeleton has none (its frames are counted at
+    a nominal 30 fps), and align says so instead of "from the timestamps"."""
+    from test_ntu import make_body, skeleton_text
+
+    from kinectdata.align.recipe import format_summary
+
+    rng = np.random.default_rng(0)
+    (tmp_path / "take.skeleton").write_text(skeleton_text([[("1", make_body(rng))] for _ in range(90)]), newline="")
+    song = REPO / "sample_data" / "synth_001.flac"
+    ntu = format_summary(align_files(tmp_path / "take.skeleton", song, offset=0.0))
+    assert "90 frames, 30.00 fps (from frame index at nominal 30 fps)" in ntu, ntu
+    csv = format_summary(align_files(REPO / "sample_data" / "synth_001.csv", song, offset=0.0))
+    assert "fps (from the timestamps)" in csv
