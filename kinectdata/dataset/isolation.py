@@ -28,7 +28,7 @@ import time
 from pathlib import Path
 from typing import Any
 
-from kinectdata.core.errors import FormatError
+from kinectdata.core.errors import FormatError, KinectDataError
 
 _PACKAGE_ROOT = str(Path(__file__).resolve().parents[2])  # the child imports this same kinectdata
 
@@ -58,6 +58,14 @@ def _hung(path: Path, timeout: float) -> FormatError:
     return FormatError(path, message + " (a damaged file?)")
 
 
+def _cannot_start(path: Path, exc: OSError) -> KinectDataError:
+    """The interpreter the check runs in would not start: say what was being done, and why."""
+    return KinectDataError(
+        f"{path}: checking the shard needs a child Python process, and starting {sys.executable} failed "
+        f"({exc.strerror or exc}): run kinectdata with a Python interpreter this user may execute"
+    )
+
+
 def _died(path: Path, returncode: int, stderr: str) -> Exception:
     """What a child's death while checking ``path`` means: a bug (a Python traceback) or damage."""
     if "Traceback" in stderr:  # a Python error in the check itself: a bug, not the file
@@ -83,7 +91,7 @@ class ShardChecker:
             FormatError: the file breaks the layout, or crashed or hung the HDF5 library.
         """
         with self._lock:
-            process = self._running()
+            process = self._running(path)
             try:
                 process.stdin.write((json.dumps(str(Path(path).absolute())) + "\n").encode())  # its folder may differ
                 process.stdin.flush()
@@ -103,19 +111,25 @@ class ShardChecker:
                 raise _died(path, returncode, stderr)
         return _answer(path, json.loads(line))
 
-    def _running(self) -> subprocess.Popen:
+    def _running(self, path: Path) -> subprocess.Popen:
+        """The child, started if none is running (``path``: the shard it is needed for, for errors)."""
         if self._process is not None and self._owner != os.getpid():
             self._process = self._stderr = None  # a forked copy of this object: that child is the parent's
         elif self._process is not None and self._process.poll() is not None:
             self._stop()
         if self._process is None:
             self._stderr = tempfile.TemporaryFile()
-            self._process = subprocess.Popen(
-                [sys.executable, "-c", _SERVE, _PACKAGE_ROOT],
-                stdin=subprocess.PIPE,
-                stdout=subprocess.PIPE,
-                stderr=self._stderr,
-            )
+            try:
+                self._process = subprocess.Popen(
+                    [sys.executable, "-c", _SERVE, _PACKAGE_ROOT],
+                    stdin=subprocess.PIPE,
+                    stdout=subprocess.PIPE,
+                    stderr=self._stderr,
+                )
+            except OSError as exc:
+                self._stderr.close()
+                self._stderr = None
+                raise _cannot_start(path, exc) from exc
             self._owner = os.getpid()
             self._buffer = b""
         return self._process
@@ -174,6 +188,8 @@ def check_once(path: Path, timeout: float) -> dict[str, int]:
         )
     except subprocess.TimeoutExpired:
         raise _hung(path, timeout) from None
+    except OSError as exc:
+        raise _cannot_start(path, exc) from exc
     if child.returncode == 0 and child.stdout.strip():
         return _answer(path, json.loads(child.stdout.splitlines()[-1]))
     raise _died(path, child.returncode, child.stderr)

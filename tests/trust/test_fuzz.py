@@ -762,6 +762,34 @@ def test_one_child_checks_shard_after_shard_and_a_crash_costs_only_that_child(sh
     assert child.poll() is not None  # closing ends it
 
 
+def test_an_interpreter_that_will_not_start_is_named_with_the_check_it_was_for(shard, tmp_path, monkeypatch):
+    """Where the user may not execute the interpreter kinectdata runs in, the shard check's child
+    cannot start: the error names the shard, what was being done and the interpreter, for the
+    reused child and for a child of its own alike, and a later check with a usable one works."""
+    import sys
+
+    from kinectdata.dataset.isolation import ShardChecker, check_once
+
+    good = tmp_path / "train-00000.h5"
+    good.write_bytes(shard.data)
+    blocked = tmp_path / "python3"
+    blocked.write_text("")
+    blocked.chmod(0o644)  # not executable
+    usable = sys.executable
+    monkeypatch.setattr(sys, "executable", str(blocked))
+    checker = ShardChecker()
+    words = f"{re.escape(str(good))}: checking the shard needs a child Python process, and starting {blocked} failed"
+    with pytest.raises(KinectDataError, match=words):
+        checker.check(good, 30.0)
+    with pytest.raises(KinectDataError, match=words):
+        check_once(good, 30.0)
+    monkeypatch.setattr(sys, "executable", usable)
+    try:
+        assert checker.check(good, 30.0) == validate_shard(good, isolated=False)
+    finally:
+        checker.close()
+
+
 # -- aligned recordings
 
 
