@@ -200,7 +200,12 @@ def frame_clock(times: np.ndarray) -> tuple[float, np.ndarray]:
     the timestamps against those frame numbers. The first count uses the median interval; the
     counts are then taken again with the fitted interval until they no longer change (at most three
     rounds), so a recorder whose median is off its mean (33.0, 33.0, 34.0 ms in turn: median 33.0,
-    mean 33.33) still counts a long pause as the frames it lasted.
+    mean 33.33) still counts a long pause as the frames it lasted. A late frame beside an early one
+    is jitter, not a drop: a recorder that stamps frames when they arrive (Lab Streaming Layer) has
+    a frame 52 ms after the one before and the next 15 ms after it, two intervals for two frames;
+    where an interval counted as more than one frame and a neighbour counted as one make fewer
+    intervals together than their counts say, the long one gives up the difference
+    (:func:`_late_frames_are_not_drops`).
 
     Args:
         times: [T] strictly increasing timestamps in seconds, T >= 2.
@@ -218,10 +223,27 @@ def frame_clock(times: np.ndarray) -> tuple[float, np.ndarray]:
     interval = float(np.median(dt))
     steps = number = None
     for _ in range(3):
-        new = np.maximum(1.0, np.round(dt / interval))
+        new = _late_frames_are_not_drops(dt, interval, np.maximum(1.0, np.round(dt / interval)))
         if steps is not None and np.array_equal(new, steps):
             break
         steps = new
         number = np.concatenate([[0.0], np.cumsum(steps)])
         interval = float(np.polyfit(number, times - times[0], 1)[0])  # shifted: slope unchanged, precision kept
     return interval, number
+
+
+def _late_frames_are_not_drops(dt: np.ndarray, interval: float, steps: np.ndarray) -> np.ndarray:
+    """``steps`` [T - 1] (frames each interval ``dt`` spans) with each interval counted as more than
+    one frame reduced where it and a neighbour counted as one span fewer intervals together
+    (``round((dt_i + dt_j) / interval)``) than their counts: a late frame followed (or preceded) by
+    an early one. Each neighbour makes up for one long interval at most."""
+    steps = steps.copy()
+    used = np.zeros(steps.size, bool)
+    for i in np.flatnonzero(steps > 1):
+        for j in (i + 1, i - 1):
+            if 0 <= j < steps.size and steps[j] == 1 and not used[j]:
+                together = max(2.0, float(np.round((dt[i] + dt[j]) / interval)))
+                if together < steps[i] + 1:
+                    steps[i], used[j] = together - 1, True
+                    break
+    return steps

@@ -213,3 +213,22 @@ def test_frozen_runs_give_where_each_stall_starts_and_how_long_it_holds():
     assert m.frozen_runs() == [(5, 4), (15, 1), (19, 1)]
     assert m.frozen_frames() == 6 and m.timing()["frozen_frames"] == 6
     assert Motion(np.zeros(1), p[:1], js).frozen_runs() == []
+
+
+def test_a_late_frame_beside_an_early_one_is_jitter_not_a_drop():
+    """A recorder that stamps frames as they arrive (Lab Streaming Layer): at 30 fps, 40 frames
+    come 52 ms after the one before and the next 14.7 ms after that (or early then late), and one
+    frame is truly missing (66.7 ms, the next on time). The rate is the timestamps' 30.00 fps and
+    one frame is dropped; counting each 52 ms interval as two frames said 40 more drops and ~30.6 fps."""
+    rng = np.random.default_rng(3)
+    t = np.arange(1200) / 30.0
+    late = rng.choice(np.arange(10, 1180, 3), size=40, replace=False)
+    for k in late[:20]:
+        t[k] += 0.0187  # 52.0 ms after the frame before, 14.7 ms before the next
+    for k in late[20:]:
+        t[k] -= 0.0187  # early, then the next one late
+    t = np.delete(t, 1190)  # one frame truly missing
+    m = Motion(t, rng.normal(size=(t.size, 15, 3)), load_joint_set("nite"))
+    timing = m.timing()
+    assert timing["dropped_frames"] == 1
+    assert timing["fps"] == pytest.approx(30.0, abs=0.005)
