@@ -130,10 +130,25 @@ def _array(path: Path, contents: Any, kind: str, key: str | None, what: str) -> 
     return array
 
 
+def names_an_array_schema(options: dict[str, Any]) -> bool:
+    """Whether the reading options' ``schema`` is an array schema (shipped, or a file valid as one):
+    then the file is joint arrays whatever its suffix (a ``.json`` of nested lists included)."""
+    schema = options.get("schema")
+    if schema is None:
+        return False
+    try:
+        _, path = resolve_resource("arrays", schema, "array schema")
+        validate(load_json(path), "array-schema.schema.json", path)
+    except (SchemaError, FormatError):
+        return False
+    return True
+
+
 @register_reader(
     "arrays",
     extensions=(".npy", ".npz", *PICKLE_SUFFIXES),
     description="Joint arrays (.npy, .npz, .pkl, JSON) read as an array schema declares them (--schema NAME|FILE)",
+    claims=names_an_array_schema,
 )
 def read_arrays(path: Path, *, schema: str | Path | None = None) -> Motion:
     """Read joint positions saved as arrays (see the module docstring).

@@ -29,6 +29,7 @@ class Reader:
     extensions: tuple[str, ...]
     sniff: Callable[[Path, bytes], bool] | None
     description: str
+    claims: Callable[[dict[str, Any]], bool] | None = None
 
     @property
     def options(self) -> set[str]:
@@ -46,14 +47,18 @@ def register_reader(
     extensions: tuple[str, ...] = (),
     sniff: Callable[[Path, bytes], bool] | None = None,
     description: str = "",
+    claims: Callable[[dict[str, Any]], bool] | None = None,
 ) -> Callable[[Callable[..., Motion]], Callable[..., Motion]]:
-    """Decorator registering ``read(path, *, options...) -> Motion`` as format ``name``."""
+    """Decorator registering ``read(path, *, options...) -> Motion`` as format ``name``.
+
+    ``claims(options)``: True when the options given (e.g. an array schema as ``schema``) say the
+    file is this reader's whatever its name; ``read_motion`` asks it before the name and content."""
 
     def decorate(read: Callable[..., Motion]) -> Callable[..., Motion]:
         if name in _READERS:
             raise ConfigError(f"a reader named {name!r} is already registered")
         exts = tuple(e.lower() for e in extensions)
-        _READERS[name] = Reader(name, read, exts, sniff, description or (read.__doc__ or "").split("\n")[0])
+        _READERS[name] = Reader(name, read, exts, sniff, description or (read.__doc__ or "").split("\n")[0], claims)
         return read
 
     return decorate
@@ -97,16 +102,18 @@ def read_motion(path: str | Path, format: str | None = None, **options: Any) -> 
 
     Args:
         path: the recording file.
-        format: a registered format name; detected from extension and content when None.
+        format: a registered format name; when None, the reader the options claim the file for
+            (an array schema given as ``schema``: ``arrays``), else detected from extension and content.
         **options: reader options (``schema`` for CSV, ``body`` for multi-body formats...).
             Options left as None are ignored; an option the reader does not take is an error.
     """
     path = Path(path)
-    name = format or detect_format(path)
+    given = {k: v for k, v in options.items() if v is not None}
+    claimed = [r.name for r in _READERS.values() if format is None and r.claims is not None and r.claims(given)]
+    name = format or (claimed[0] if len(claimed) == 1 else detect_format(path))
     if name not in _READERS:
         raise FormatError(path, f"unknown format {name!r} (known: {', '.join(sorted(_READERS))})")
     reader = _READERS[name]
-    given = {k: v for k, v in options.items() if v is not None}
     unknown = set(given) - reader.options
     if unknown:
         raise FormatError(path, f"option(s) {', '.join(sorted(unknown))} do not apply to format {name!r}")

@@ -7,8 +7,10 @@ import json
 
 import numpy as np
 import pytest
+from click.testing import CliRunner
 from conftest import REPO
 
+from kinectdata.cli import main
 from kinectdata.core.errors import FormatError, SchemaError
 from kinectdata.formats import read_motion
 
@@ -66,6 +68,18 @@ def test_a_json_object_and_a_user_joint_set_beside_the_schema(tmp_path, take):
     )
     assert motion.joint_set.names == ("a", "b", "c") and motion.joint_set.parents == (-1, 0, 1)
     np.testing.assert_allclose(motion.positions, frames)
+    # an array schema given says the file is arrays: no --format needed, whatever the suffix
+    plain = read_motion(tmp_path / "take.json", schema=tmp_path / "arrays.json")
+    np.testing.assert_array_equal(plain.positions, motion.positions)
+    (tmp_path / "take.data").write_text((tmp_path / "take.json").read_text())
+    np.testing.assert_array_equal(
+        read_motion(tmp_path / "take.data", schema=tmp_path / "arrays.json").positions, frames
+    )
+    result = CliRunner().invoke(main, ["info", str(tmp_path / "take.json"), "--schema", str(tmp_path / "arrays.json")])
+    assert result.exit_code == 0 and "format          arrays" in result.output, result.output
+    # a CSV schema does not claim a file for the arrays reader
+    csv = read_motion(REPO / "sample_data" / "synth_001.csv", schema="dumpkinectskeleton")
+    assert csv.metadata["format"] == "csv"
 
 
 def test_what_does_not_fit_is_one_line(tmp_path, take):
