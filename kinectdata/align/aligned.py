@@ -332,6 +332,12 @@ def _joint_set(f: h5py.File) -> JointSet:
     return JointSet(name=name, names=names, parents=tuple(parents), dimensions=int(f["joints"].attrs["dimensions"]))
 
 
+def audio_length(path: str | Path) -> int:
+    """Samples of audio an aligned file holds (read without loading them)."""
+    with h5py.File(path, "r") as f:
+        return int(f["audio/samples"].shape[0])
+
+
 def audio_blocks(path: str | Path, block: int = 160_000) -> Iterator[np.ndarray]:
     """The audio of an aligned file as consecutive [<= block] float32 arrays, read in slices."""
     with h5py.File(path, "r") as f:

@@ -336,7 +336,8 @@ def evaluate_command(run_dir, data, split, out, silence, protocol, bootstrap, be
     "default: estimated from the song."
 )
 def generate_command(run_dir, audio, out, engine, precision, beats_per_bar) -> None:
-    """Generate dance motion for AUDIO (any file libsndfile reads), streaming frame by frame, and
+    """Generate dance motion for AUDIO (any file libsndfile reads, or an aligned .h5: its own music,
+    on its timeline), streaming frame by frame, and
     write it: 3-D targets (a yalta run's: metres, unit quaternions) as the canonical CSV that align
     reads or, named .bvh, as BVH for animation tools; 2-D ones (a cdhc run's: x, y in 0..1, y down)
     as OpenPose JSON Lines that the openpose reader reads."""

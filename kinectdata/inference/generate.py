@@ -25,11 +25,13 @@ and written in the form the target's joint set is read back from:
 from __future__ import annotations
 
 import time
+from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from kinectdata.align.aligned import AlignedRecording, audio_blocks, audio_length
 from kinectdata.align.audio import AudioReader
 from kinectdata.core.errors import ConfigError, KinectDataError
 from kinectdata.core.motion import Motion
@@ -73,6 +75,22 @@ def _motion(
     )
 
 
+def _music(audio: str | Path, sample_rate: int) -> tuple[int, Callable[[], Iterator[np.ndarray]]]:
+    """(samples, a function giving them in blocks) of the music to dance to at ``sample_rate`` Hz: an
+    audio file, decoded and resampled, or an aligned recording (``.h5``): its own audio segment,
+    whose sample 0 is its motion's frame 0, at the rate it was aligned at."""
+    if Path(audio).suffix.lower() in (".h5", ".hdf5"):
+        rate = AlignedRecording.load(audio, audio=False).sample_rate
+        if rate != sample_rate:
+            raise KinectDataError(
+                f"{audio}: its audio is at {rate} Hz, and this run's model hears {sample_rate} Hz: align it again "
+                f"with --sample-rate {sample_rate}"
+            )
+        return audio_length(audio), lambda: audio_blocks(audio)
+    reader = AudioReader(audio, sample_rate)
+    return reader.n_samples, reader.blocks
+
+
 def generate(
     run: str | Path,
     audio: str | Path,
@@ -83,7 +101,9 @@ def generate(
     beats_per_bar: int | None = None,
 ) -> tuple[Motion, dict[str, Any]]:
     """Generate motion for ``audio`` with a trained run; write it to ``out`` if given (canonical
-    CSV, or OpenPose JSON Lines for 2-D targets: see the module docstring).
+    CSV, or OpenPose JSON Lines for 2-D targets: see the module docstring). ``audio``: an audio
+    file, or an aligned recording (``.h5``), whose own music is danced to on its timeline: frame k
+    of the result is frame k of the recording, to compare or render side by side.
 
     ``engine``: ``torch`` or ``onnxruntime`` with ``precision`` weights (float32, float16), as the
     run's model offers (its kind's ``engines``; e.g. the yalta model: torch in float32 or float16,
@@ -105,8 +125,8 @@ def generate(
         written = "OpenPose JSON Lines" if spec.dimensions == 2 else "canonical CSV or BVH"
         raise KinectDataError(f"{out}: this run's motion is written as {written}; name the file {wanted[0]}")
     norm = Normalizer.from_dict(data["normalisation"])
-    reader = AudioReader(audio, sr)
-    n = int(np.floor(reader.n_samples / sr * fps + 1e-9))
+    n_samples, blocks = _music(audio, sr)
+    n = int(np.floor(n_samples / sr * fps + 1e-9))
     if n < 1:
         raise KinectDataError(f"{audio}: shorter than one frame ({1 / fps:.3f} s)")
     pose = np.asarray(data["start_pose"], dtype=np.float32)
@@ -135,12 +155,12 @@ def generate(
     features_config = feature_config(data["features"])
     metre = None
     if needs_metre(features_config):
-        samples = None if beats_per_bar is not None else np.concatenate([np.zeros(0, np.float32), *reader.blocks()])
+        samples = None if beats_per_bar is not None else np.concatenate([np.zeros(0, np.float32), *blocks()])
         metre = recording_metre(None, samples, sr, given=beats_per_bar)
     bar = None if metre is None else metre.beats_per_bar
     featurizer = StreamingFeatures(starts, features_config, step, beats_per_bar=bar)
     started = time.perf_counter()
-    for block in reader.blocks():
+    for block in blocks():
         featurizer.push(block)
     featurizer.finish()
     if not kind.streams:  # frames 0..n-1 from the start pose as the pose before frame 0

@@ -11,8 +11,11 @@ from conftest import REPO, TINY_TRAINING
 
 torch = pytest.importorskip("torch")
 
+from click.testing import CliRunner  # noqa: E402
+
 from kinectdata.align.audio import load_audio  # noqa: E402
 from kinectdata.align.recipe import align_files  # noqa: E402
+from kinectdata.cli import main  # noqa: E402
 from kinectdata.core.errors import KinectDataError  # noqa: E402
 from kinectdata.evaluation.evaluate import evaluate, format_results  # noqa: E402
 from kinectdata.evaluation.metrics import motion_energy, smape  # noqa: E402
@@ -263,6 +266,27 @@ def test_generated_csv_reads_back_and_aligns(trained_run, tmp_path):
     np.testing.assert_allclose(np.linalg.norm(q, axis=-1), 1.0, atol=1e-5)
     rec = align_files(tmp_path / "dance.csv", SONG, tmp_path / "dance.h5", offset=0.0)
     assert rec.n_frames == motion.n_frames and (tmp_path / "dance.h5").is_file()
+
+
+def test_generate_dances_to_an_aligned_recordings_own_music(trained_run, tmp_path):
+    """An aligned .h5 gives its audio segment: the motion equals the one generated from that
+    segment written as a WAV file at the run's rate, and has the recording's frames on its clock;
+    a recording aligned at another rate is refused, naming the fix."""
+    run, _ = trained_run
+    take, music = REPO / "sample_data" / "synth_001.csv", REPO / "sample_data" / "synth_001.flac"
+    rec = align_files(take, music, tmp_path / "s1.h5", offset=0.0)
+    from_h5, _ = generate(run, tmp_path / "s1.h5", tmp_path / "from_h5.csv")
+    sf.write(tmp_path / "segment.wav", rec.audio, rec.sample_rate, subtype="FLOAT")
+    from_wav, _ = generate(run, tmp_path / "segment.wav")
+    assert from_h5.n_frames == from_wav.n_frames == int(np.floor(rec.audio.size / rec.sample_rate * 30 + 1e-9))
+    assert abs(from_h5.n_frames - rec.n_frames) <= 1
+    np.testing.assert_allclose(from_h5.positions, from_wav.positions, atol=1e-6, equal_nan=True)
+    command = ["generate", "--run", str(run), str(tmp_path / "s1.h5"), "-o", str(tmp_path / "c.csv")]
+    result = CliRunner().invoke(main, command)
+    assert result.exit_code == 0 and (tmp_path / "c.csv").is_file(), result.output
+    align_files(take, music, tmp_path / "s22.h5", offset=0.0, sample_rate=22050)
+    with pytest.raises(KinectDataError, match=r"s22.h5: its audio is at 22050 Hz, .* --sample-rate 16000"):
+        generate(run, tmp_path / "s22.h5")
 
 
 def test_generate_refuses_audio_shorter_than_a_frame(trained_run, tmp_path):
