@@ -117,3 +117,10 @@ def _fail_a_ci_skip(report) -> None:
     if not reason.removeprefix("Skipped: ").startswith(HARDWARE):
         report.outcome = "failed"
         report.longrepr = f"skipped under CI, where .ci/run installs every dependency: {reason}"
+
+
+def pytest_collection_modifyitems(config, items):
+    """The long tests (marked ``slow``) first, the others in their order: each core's worker takes
+    work from the other when idle (``--dist worksteal``), so the run ends with short tests on both
+    cores instead of one long test begun last on one."""
+    items.sort(key=lambda item: item.get_closest_marker("slow") is None)

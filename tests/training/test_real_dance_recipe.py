@@ -158,6 +158,7 @@ def test_the_rhythm_loss_leaves_out_components_invalid_anywhere_in_the_window():
     assert float(masked_rhythm_spectrum_loss(wrong, real, mask, 30.0)) == pytest.approx(0.0, abs=1e-6)
 
 
+@pytest.mark.slow
 def test_a_run_keeps_its_best_free_running_epoch(sample_dataset, tmp_path):
     run = tmp_path / "r"
     history = train(sample_dataset, run, TrainConfig(**RECIPE))
