@@ -307,15 +307,23 @@ def evaluate_command(run_dir, data, split, out, silence, protocol, bootstrap, be
 
 @click.command("generate")
 @click.option("--run", "run_dir", required=True, type=click.Path(exists=True, file_okay=False), help="Run folder.")
-@click.argument("audio", type=click.Path(dir_okay=False))
+@click.argument("audio", required=False, type=click.Path(dir_okay=False))
 @click.option(
     "-o",
     "--out",
     required=True,
-    type=click.Path(dir_okay=False),
+    type=click.Path(),
     help="File to write: canonical CSV or BVH (3-D targets, e.g. yalta: dance.csv, dance.bvh), OpenPose JSON "
-    "Lines (2-D targets, e.g. cdhc: dance.jsonl).",
+    "Lines (2-D targets, e.g. cdhc: dance.jsonl); with --data, the folder to write each song's into.",
 )
+@click.option(
+    "--data",
+    default=None,
+    type=click.Path(exists=True, file_okay=False),
+    help="Instead of AUDIO: a dataset, whose --split recordings each get a dance from their own music "
+    "(NAME.wav beside NAME.csv in the folder -o, frame k on the recording's frame k).",
+)
+@click.option("--split", default="test", show_default=True, help="The split of --data to generate for.")
 @click.option(
     "--engine",
     default="torch",
@@ -335,13 +343,21 @@ def evaluate_command(run_dir, data, split, out, silence, protocol, bootstrap, be
     "The song's metre (a waltz 3), for a model whose features count bars (listen_to_dance_rhythm_bars); "
     "default: estimated from the song."
 )
-def generate_command(run_dir, audio, out, engine, precision, beats_per_bar) -> None:
+def generate_command(run_dir, audio, out, data, split, engine, precision, beats_per_bar) -> None:
     """Generate dance motion for AUDIO (any file libsndfile reads, or an aligned .h5: its own music,
     on its timeline), streaming frame by frame, and
     write it: 3-D targets (a yalta run's: metres, unit quaternions) as the canonical CSV that align
     reads or, named .bvh, as BVH for animation tools; 2-D ones (a cdhc run's: x, y in 0..1, y down)
-    as OpenPose JSON Lines that the openpose reader reads."""
+    as OpenPose JSON Lines that the openpose reader reads. With --data instead of AUDIO: a dance for
+    every recording of a dataset split, each from its own music."""
     _torch_or_fail()
+    if (audio is None) == (data is None):
+        raise click.UsageError("give AUDIO, or --data DATASET (and --split) to generate for a whole split")
+    if data is not None:
+        if beats_per_bar is not None:
+            raise click.UsageError("--beats-per-bar is for AUDIO: a split's songs keep their own metres")
+        _generate_split(run_dir, data, split, out, engine, precision)
+        return
     from kinectdata.inference.generate import generate
 
     motion, timing = generate(run_dir, audio, out, engine=engine, precision=precision, beats_per_bar=beats_per_bar)
@@ -354,6 +370,17 @@ def generate_command(run_dir, audio, out, engine, precision, beats_per_bar) -> N
     if motion.joint_set.dimensions == 2:
         fps = 1 / float(motion.times[1] - motion.times[0]) if motion.n_frames > 1 else 30.0
         click.echo(f"  (OpenPose JSON Lines hold no frame rate: read or render it with --video-fps {fps:g})")
+
+
+def _generate_split(run_dir, data, split, out, engine, precision) -> None:
+    from kinectdata.apps.split_generation import generate_split
+
+    songs = generate_split(
+        run_dir, data, split, out, engine=engine, precision=precision, progress=lambda name: click.echo(f"  {name} ...")
+    )
+    for song in songs:
+        click.echo(f"wrote {song.motion} ({song.timing['frames']} frames) to its music {song.music.name}")
+    click.echo(f"{len(songs)} dances of the {split} split of {data} in {out}")
 
 
 @click.command("export")
