@@ -339,7 +339,8 @@ def _scan(path: Path, schema: CsvSchema, joint_set: JointSet | None, encoding: s
     if header is not None:
         dup = sorted({c for c in header if header.count(c) > 1})
         if dup:
-            raise FormatError(path, f"the header repeats column(s) {', '.join(map(repr, dup))}", line=header_line)
+            named = ", ".join(map(repr, dup[:5])) + (f" and {len(dup) - 5} more" if len(dup) > 5 else "")
+            raise FormatError(path, f"the header repeats column(s) {named}", line=header_line)
     if not data:
         raise FormatError(path, "no data rows" + (f" after the header (line {header_line})" if header_line else ""))
     return _Table(

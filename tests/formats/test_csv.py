@@ -680,3 +680,21 @@ def test_the_writer_writes_what_the_new_options_describe(tmp_path):
     idx = [js.index(n) for n in held]
     np.testing.assert_allclose(back.positions[:, idx], m.positions[:, idx], atol=5e-7)
     assert back.position_mask[:, idx].all() and back.position_mask.sum() == 5 * len(held)
+
+
+def test_a_header_repeating_many_columns_names_a_few_and_counts_the_rest(tmp_path):
+    """A canonical CSV whose columns all appear twice (a damaged or concatenated export): one short
+    line naming five of the repeated columns and how many more, not a 2 000-character list."""
+    m = random_motion(T=5, seed=11, untracked=0.0)
+    path = tmp_path / "twice.csv"
+    write_csv(m, path)
+    lines = path.read_text().splitlines()
+    path.write_text("\n".join(lines[:2] + [f"{line},{line}" for line in lines[2:]]) + "\n")
+    header = lines[2].split(",")
+    repeated = sorted(set(header))
+    with pytest.raises(FormatError) as caught:
+        read_motion(path)
+    message = str(caught.value)
+    named = ", ".join(map(repr, repeated[:5]))
+    assert f"line 3: the header repeats column(s) {named} and {len(repeated) - 5} more" in message
+    assert len(message) < 300
