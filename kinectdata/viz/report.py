@@ -49,7 +49,7 @@ from kinectdata.dataset.report import (
     scan_dataset,
     span_union,
 )
-from kinectdata.features import PRESETS, MelConfig, feature_config
+from kinectdata.features import PRESETS, MelConfig, StackConfig, StftConfig, feature_config
 from kinectdata.targets.normalization import Normalizer
 from kinectdata.targets.specs import TargetSpec
 from kinectdata.viz import plots
@@ -225,16 +225,25 @@ def _offset(r: RecordingReport) -> dict[str, Any]:
 def _features(r: RecordingReport, manifest: dict[str, Any]) -> dict[str, Any]:
     cfg = feature_config(manifest["config"]["features"])
     fps = float(manifest["config"]["fps"])
-    start, end = r.sample_start / fps, (r.sample_start + r.features.shape[0]) / fps
+    features, after = r.features, ""
+    if isinstance(cfg, StackConfig):  # a spectrum with the music's pulse stacked on: the spectrum is drawn
+        cfg, features = cfg.parts[0], features[:, : cfg.parts[0].output_shape[0]]
+        after = " The pulse stacked after the spectrum is not drawn."
+    start, end = r.sample_start / fps, (r.sample_start + features.shape[0]) / fps
     if isinstance(cfg, MelConfig):
-        values = r.features.reshape(r.features.shape[0], -1).T  # [bands, frames]
+        values = features.reshape(features.shape[0], -1).T  # [bands, frames]
         y_extent, ylabel = (0.0, float(values.shape[0])), f"mel band ({cfg.fmin:g}-{cfg.fmax:g} Hz)"
         note = "One column per frame."
-    else:
+    elif isinstance(cfg, StftConfig):
         # [n, 1, bins, S] -> [bins, n * S]: each frame's S STFT frames side by side
-        values = np.moveaxis(r.features[:, 0], 0, 1).reshape(r.features.shape[2], -1)
+        values = np.moveaxis(features[:, 0], 0, 1).reshape(features.shape[2], -1)
         y_extent, ylabel = (0.0, cfg.sample_rate / 2), "frequency (Hz)"
         note = f"Each frame's {cfg.n_frames} STFT frames side by side (hop {cfg.hop_samples} samples)."
+    else:  # another extractor's values, as stored
+        values = features.reshape(features.shape[0], -1).T
+        y_extent, ylabel = (0.0, float(values.shape[0])), "feature value index"
+        note = "One column per frame."
+    note += after
     uri = _png(
         plots.feature_heatmap,
         values,

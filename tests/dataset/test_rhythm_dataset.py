@@ -172,3 +172,13 @@ def test_listen_to_dance_rhythm_with_3d_positions_suits_the_cdhc_model(tmp_path)
     with torch.no_grad():
         poses = net(audio, previous)
     assert poses.shape == (1, 40, 75) and torch.isfinite(poses).all()
+
+
+def test_the_report_draws_the_spectrum_of_stacked_features(yalta_rhythm, tmp_path):
+    """``kinectdata report`` on a dataset whose inputs are the STFT with the pulse stacked on (the
+    real-dance recipe's) draws the spectrum and says the pulse is not drawn; it failed on them."""
+    out, _ = yalta_rhythm
+    result = CliRunner().invoke(main, ["report", str(out), "-o", str(tmp_path / "report.html")])
+    assert result.exit_code == 0, result.output
+    page = (tmp_path / "report.html").read_text()
+    assert "STFT frames side by side" in page and "The pulse stacked after the spectrum is not drawn." in page
