@@ -492,11 +492,8 @@ def _song_set(
             rms = float(np.sqrt(np.mean(np.square(samples, dtype=np.float64)))) if samples.size else None
         except (KinectDataError, OSError):
             samples, rms = None, None
-        listed, built = inputs[r["recording"]].get("beats_per_bar"), r["info"].get("metre") or {}
-        if listed is None and beats_per_bar is None and built.get("beats_per_bar"):
-            metre = Metre(int(built["beats_per_bar"]), "dataset", {})  # the bars its features counted
-        else:
-            metre = recording_metre(listed, samples, cfg.sample_rate, music, beats_per_bar)
+        listed, found = inputs[r["recording"]].get("beats_per_bar"), (r["info"].get("metre") or {}).get("beats_per_bar")
+        metre = recording_metre(listed, samples, cfg.sample_rate, music, beats_per_bar, found)
         metres[r["name"]] = metre
         first = r.get("first_pose")
         if first is None:

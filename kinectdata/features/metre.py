@@ -112,15 +112,19 @@ def recording_metre(
     sample_rate: float,
     beats_s: np.ndarray | None = None,
     given: int | None = None,
+    found: int | None = None,
 ) -> Metre:
     """A recording's metre: ``listed`` (its recordings-manifest entry's ``beats_per_bar``), else
-    ``given`` (the caller's, e.g. ``evaluate --beats-per-bar``), else estimated from its music
-    ``samples`` [S] (mono, ``sample_rate`` Hz) at its beats ``beats_s`` [B] (seconds from sample 0;
-    None: tracked here), else 4 (source ``default``: too few beats, no audio or no librosa)."""
+    ``given`` (the caller's, e.g. ``evaluate --beats-per-bar``), else ``found`` (the metre a dataset
+    build found for features that count bars: the bars the model heard), else estimated from its
+    music ``samples`` [S] (mono, ``sample_rate`` Hz) at its beats ``beats_s`` [B] (seconds from
+    sample 0; None: tracked here), else 4 (source ``default``: too few beats, no audio or no librosa)."""
     if listed is not None:
         return Metre(int(listed), "manifest", {})
     if given is not None:
         return Metre(int(given), "given", {})
+    if found is not None:
+        return Metre(int(found), "dataset", {})
     if samples is not None:
         try:
             if beats_s is None:

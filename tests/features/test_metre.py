@@ -109,7 +109,8 @@ def test_too_few_beats_is_an_error():
 def test_a_recordings_metre_comes_from_its_manifest_entry_then_the_caller_then_the_music():
     waltz, beats = music(105.0, 3, bars=10, seed=3)
     assert recording_metre(3, None, RATE, beats, given=4) == Metre(3, "manifest", {})
-    assert recording_metre(None, waltz, RATE, beats, given=2) == Metre(2, "given", {})
+    assert recording_metre(None, waltz, RATE, beats, given=2, found=4) == Metre(2, "given", {})
+    assert recording_metre(None, waltz, RATE, beats, found=4) == Metre(4, "dataset", {})  # what the build found
     estimated = recording_metre(None, waltz, RATE, beats)
     assert (estimated.beats_per_bar, estimated.source) == (3, "estimated") and estimated.scores
     tracked = recording_metre(None, waltz, RATE)  # the beats tracked from the music itself
