@@ -60,9 +60,7 @@ _UP_TO_Y = {  # rows: the new (x, y, z) from the file's (x, y, z), a rotation ab
 def load_array_schema(name_or_path: str | Path) -> dict[str, Any]:
     """The array schema shipped under that name or at that path, validated, with ``joint_set``
     loaded (``"_joint_set"``) and ``derived`` checked against it."""
-    _, path = resolve_resource("arrays", name_or_path, "array schema")
-    doc = load_json(path)
-    validate(doc, "array-schema.schema.json", path)
+    path, doc = _schema_document(name_or_path)
     joint_set = load_joint_set_named_in(doc["joint_set"], path)
     if joint_set.dimensions != 3:
         raise SchemaError(
@@ -81,6 +79,15 @@ def load_array_schema(name_or_path: str | Path) -> dict[str, Any]:
         if unknown:
             raise SchemaError(path, f"derived: {name} is made of {', '.join(unknown)}, not joints the file holds")
     return {**doc, "_joint_set": joint_set, "_path": path, "_file_joints": n_file}
+
+
+def _schema_document(name_or_path: str | Path) -> tuple[Path, dict[str, Any]]:
+    """(path, document) of the array schema shipped under that name or at that path, valid against
+    ``array-schema.schema.json`` (SchemaError otherwise)."""
+    _, path = resolve_resource("arrays", name_or_path, "array schema")
+    doc = load_json(path)
+    validate(doc, "array-schema.schema.json", path)
+    return path, doc
 
 
 def _contents(path: Path) -> tuple[Any, str]:
@@ -137,8 +144,7 @@ def names_an_array_schema(options: dict[str, Any]) -> bool:
     if schema is None:
         return False
     try:
-        _, path = resolve_resource("arrays", schema, "array schema")
-        validate(load_json(path), "array-schema.schema.json", path)
+        _schema_document(schema)
     except (SchemaError, FormatError):
         return False
     return True
