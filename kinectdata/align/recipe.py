@@ -375,6 +375,7 @@ def align_files(
     body: str | None = None,
     person: str | None = None,
     video_fps: float | None = None,
+    array_fps: float | None = None,
     unit: str | None = None,
     rest_joints: str | Path | None = None,
     sample_rate: int = DEFAULT_SAMPLE_RATE,
@@ -383,7 +384,8 @@ def align_files(
 ) -> AlignedRecording:
     """Read a recording and an audio file, align them (:func:`align`) and write ``out`` (HDF5).
 
-    ``format``, ``schema``, ``body``, ``person``, ``video_fps``, ``unit`` and ``rest_joints`` go to the reader;
+    ``format``, ``schema``, ``body``, ``person``, ``video_fps``, ``array_fps``, ``unit`` and ``rest_joints`` go
+    to the reader;
     ``timeline``, an ``.oni`` recorded with the skeleton, gives its frames that recording's depth timestamps
     (:func:`kinectdata.oni.skeleton.retime`); other options go to :func:`align`. Nothing is
     written when anything fails.
@@ -395,6 +397,7 @@ def align_files(
         body=body,
         person=person,
         video_fps=video_fps,
+        array_fps=array_fps,
         unit=unit,
         rest_joints=rest_joints,
     )

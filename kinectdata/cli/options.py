@@ -51,12 +51,12 @@ def default_of(cls: type, name: str):
     return {f.name: f.default for f in dataclasses.fields(cls)}[name]
 
 
-READING_OPTIONS = ("format_", "schema", "body", "person", "video_fps", "unit", "rest_joints")
+READING_OPTIONS = ("format_", "schema", "body", "person", "video_fps", "array_fps", "unit", "rest_joints")
 
 
 def reader_options(command):
-    """--format, --schema, --body, --person, --video-fps, --unit and --rest-joints, for commands that read a
-    skeleton recording. The command receives them as one ``reading`` dict of :func:`read_motion`'s
+    """--format, --schema, --body, --person, --video-fps, --array-fps, --unit and --rest-joints, for commands
+    that read a skeleton recording. The command receives them as one ``reading`` dict of :func:`read_motion`'s
     keyword arguments (``format``, ``schema``, ...; None where not given)."""
 
     @functools.wraps(command)
@@ -75,6 +75,12 @@ def reader_options(command):
         default=None,
         type=click.Choice(["cm", "m", "mm", "in"]),
         help="BVH: the unit of its offsets and positions, which the file does not state (default cm).",
+    )(f)
+    f = click.option(
+        "--array-fps",
+        default=None,
+        type=click.FloatRange(min=0, min_open=True),
+        help="Joint arrays: this file's frame rate, instead of its array schema's time.",
     )(f)
     f = click.option(
         "--video-fps",

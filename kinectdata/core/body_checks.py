@@ -15,7 +15,10 @@ checks look at the body itself (`kinectdata info` prints them):
   vector must point most along +up; without them, the body's longest principal axis (a dancer is
   taller than wide) must be the up axis;
 - :func:`speed_doubt`: the 99th percentile of the joints' speeds should stay under 20 m/s (a
-  dancer's hands reach 5-8 m/s): beyond, the frame rate is too low or the unit too large.
+  dancer's hands reach 5-8 m/s): beyond, the stated frame rate is too high (a 30 fps file read at
+  300) or the unit too large; and over a take of 10 s or more it should reach 0.3 m/s (real dance:
+  2.0-4.2 m/s on the tang2018 corpus, 43 ballroom dances): below, if the take is of dance, the stated
+  rate is too low (a 25 fps file read at 2.5) or the unit too small.
 """
 
 from __future__ import annotations
@@ -32,6 +35,9 @@ BODY_EXTENT_M = (0.3, 3.5)
 """Plausible range of a body's extent in metres (its bounding box diagonal, median over frames)."""
 MAX_SPEED_M_S = 20.0
 """Joint speeds (99th percentile) above this are no dancer's."""
+MIN_DANCE_SPEED_M_S = 0.3
+"""Joint speeds (99th percentile) below this, over :data:`MIN_SLOW_TAKE_S` or more, are no dance's."""
+MIN_SLOW_TAKE_S = 10.0
 _AXES = "xyz"
 _SAMPLE_FRAMES = 2000  # the checks look at this many frames, evenly spread, of a long recording
 
@@ -149,7 +155,8 @@ def up_axis_doubt(motion: Motion) -> str | None:
 
 
 def speed_doubt(motion: Motion) -> str | None:
-    """A sentence when the joints move faster than a dancer can (see the module), else None."""
+    """A sentence when the joints move faster than a dancer can, or slower than dance does over a
+    long take (see the module), else None."""
     if motion.joint_set.dimensions != 3 or motion.n_frames < 2:
         return None
     usable = plausible_mask(motion)
@@ -160,9 +167,15 @@ def speed_doubt(motion: Motion) -> str | None:
     steps = np.diff(np.where(usable[..., None], motion.positions, 0.0), axis=0)  # no step from or to a bad value
     speeds = (np.linalg.norm(steps, axis=-1) / dt)[both]
     fast = float(np.percentile(speeds, 99))
-    if fast <= MAX_SPEED_M_S:
-        return None
-    return (
-        f"joints move at {fast:.3g} m/s (99th percentile), no dancer's speed (hands reach 5-8 m/s): is the frame "
-        "rate too low, or the unit too large?"
-    )
+    if fast > MAX_SPEED_M_S:
+        return (
+            f"joints move at {fast:.3g} m/s (99th percentile), no dancer's speed (hands reach 5-8 m/s): is the "
+            "stated frame rate too high (a 30 fps file read at 300?), or the unit too large?"
+        )
+    if fast < MIN_DANCE_SPEED_M_S and motion.duration >= MIN_SLOW_TAKE_S:
+        return (
+            f"joints move at most {fast:.2g} m/s (99th percentile), slower than dance (2-4 m/s in real dances): "
+            "if this is dance, is the stated frame rate too low (a 25 fps file read at 2.5?), or the unit too "
+            "small? (A take of someone standing still reads so too.)"
+        )
+    return None

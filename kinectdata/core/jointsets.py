@@ -214,3 +214,39 @@ def find_joint_set(joint_names: Sequence[str]) -> JointSet | None:
         if wanted <= known and (best is None or len(js) < len(best)):
             best = js
     return best
+
+
+def is_shipped(js: JointSet) -> bool:
+    """True when ``js`` is a shipped joint set (its name, joints and hierarchy), so that a file can
+    name it rather than describe it."""
+    if js.name not in shipped_joint_sets():
+        return False
+    shipped = load_joint_set(js.name)
+    return (shipped.names, shipped.parents) == (js.names, js.parents)
+
+
+def joint_set_text(js: JointSet) -> str:
+    """The joint set as one line of JSON (its document, :meth:`JointSet.to_dict`: joints, bones,
+    roles, aliases, SMPL-24 mapping), for a file to carry a joint set kinectdata does not ship;
+    :func:`joint_set_from_text` reads it back to an equal JointSet."""
+    import json
+
+    return json.dumps(js.to_dict(), separators=(",", ":"), ensure_ascii=True)
+
+
+def joint_set_from_text(text: str, source: str | Path) -> JointSet:
+    """A joint set from the JSON text a file carries (:func:`joint_set_text`), validated like a
+    joint-set file. SchemaError naming ``source`` for text that is not JSON, not a joint-set
+    document, or that takes a shipped joint set's name with other joints."""
+    import json
+
+    try:
+        doc = json.loads(text)
+    except ValueError as exc:
+        raise SchemaError(source, f"its joint set is not JSON ({exc})") from None
+    if not isinstance(doc, dict):
+        raise SchemaError(source, "its joint set is not a joint-set document (a JSON object)")
+    js = joint_set_from_dict(doc, source)
+    if js.name in shipped_joint_sets() and not is_shipped(js):
+        raise SchemaError(source, f"its joint set takes the shipped name {js.name!r} with other joints")
+    return load_joint_set(js.name) if js.name in shipped_joint_sets() else js

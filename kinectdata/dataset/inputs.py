@@ -43,6 +43,7 @@ class RecordingEntry:
     body: str | None = None
     person: str | None = None
     video_fps: float | None = None
+    fps: float | None = None
     unit: str | None = None
     rest_joints: str | None = None
     style: str | None = None
@@ -63,6 +64,7 @@ class RecordingEntry:
             body=self.body,
             person=self.person,
             video_fps=self.video_fps,
+            array_fps=self.fps,
             unit=self.unit,
             rest_joints=self.rest_joints,
         )
@@ -93,6 +95,7 @@ def _is_aligned_file(path: Path) -> bool:
 
 CSV_NUMBERS = (
     ("video_fps", float, "not a number"),
+    ("fps", float, "not a number"),
     ("beats_per_bar", int, "not a whole number"),
     ("offset", float, "neither a number nor auto"),
 )
@@ -295,6 +298,7 @@ def _read_recordings(source: Path, allow_outside: bool) -> list[RecordingEntry]:
                 body=d.get("body"),
                 person=None if d.get("person") is None else str(d["person"]),
                 video_fps=None if d.get("video_fps") is None else float(d["video_fps"]),
+                fps=None if d.get("fps") is None else float(d["fps"]),
                 unit=d.get("unit"),
                 rest_joints=(
                     str(_existing(source, base, d, "rest_joints", where, line, allow_outside))

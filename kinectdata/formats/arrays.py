@@ -21,6 +21,9 @@ file like a CSV dialect's) says it, so that such files read with no code:
   first, which makes the axes right-handed as kinectdata's are;
 - ``add``: the key of a [T, 3] track (a root translation) added to every joint, for files whose
   joints are relative to it;
+- ``root_track``: the key of a [T, 3] track that is the root joint's own position, every joint of
+  the file being relative to it (the tang2018 corpus' ``center``): it is added to them, and the joint
+  set's last joint, its root, is placed on it;
 - ``derived``: joints the file lacks, each a weighted sum of the file's joints (``{"pelvis":
   {"left_hip": 0.5, "right_hip": 0.5}}``), the joint set's last joints in this order: so that
   keypoint layouts with no root (COCO-17) make one tree.
@@ -45,16 +48,10 @@ from kinectdata.core.jointsets import JointSet, load_joint_set_named_in
 from kinectdata.core.motion import Motion
 from kinectdata.core.resources import load_json, resolve_resource, validate
 from kinectdata.core.safe_pickle import PICKLE_SUFFIXES, load_arrays_pickle
-from kinectdata.formats.common import UNITS_TO_M, brief, first_bad_time, load_numpy
+from kinectdata.formats.common import UNITS_TO_M, brief, first_bad_time, load_numpy, to_kinectdata_axes
 from kinectdata.formats.registry import register_reader
 
 TIME_UNITS_TO_S = {"s": 1.0, "ms": 1e-3, "us": 1e-6, "ns": 1e-9}
-_UP_TO_Y = {  # rows: the new (x, y, z) from the file's (x, y, z), a rotation about x
-    "y": np.eye(3),
-    "z": np.array([[1.0, 0, 0], [0, 0, 1], [0, -1, 0]]),
-    "-y": np.array([[1.0, 0, 0], [0, -1, 0], [0, 0, -1]]),
-    "-z": np.array([[1.0, 0, 0], [0, 0, -1], [0, 1, 0]]),
-}
 
 
 def load_array_schema(name_or_path: str | Path) -> dict[str, Any]:
@@ -67,12 +64,24 @@ def load_array_schema(name_or_path: str | Path) -> dict[str, Any]:
             path, f"joint_set: {joint_set.name} is {joint_set.dimensions}-D; joint arrays hold 3-D joints"
         )
     derived = list(doc.get("derived", {}))
-    n_file = len(joint_set) - len(derived)
-    if derived and list(joint_set.names[n_file:]) != derived:
+    tracked = 1 if "root_track" in doc else 0
+    if tracked and "add" in doc:
+        raise SchemaError(
+            path, "root_track and add: give one (root_track adds the track too, and places the root on it)"
+        )
+    if tracked and joint_set.parents[-1] >= 0:
+        last = joint_set.names[-1]
         raise SchemaError(
             path,
-            f"derived: {', '.join(derived)} must be the last joints of {joint_set.name}, in that order "
-            f"(its last {len(derived)}: {', '.join(joint_set.names[n_file:])})",
+            f"root_track: the track is the root's, so {joint_set.name}'s last joint must be its root, not {last!r}",
+        )
+    n_file = len(joint_set) - len(derived) - tracked
+    if derived and list(joint_set.names[n_file : n_file + len(derived)]) != derived:
+        raise SchemaError(
+            path,
+            f"derived: {', '.join(derived)} must be the last joints of {joint_set.name}"
+            + (" before its root" if tracked else "")
+            + f", in that order (there: {', '.join(joint_set.names[n_file : n_file + len(derived)])})",
         )
     for name, weights in doc.get("derived", {}).items():
         unknown = [j for j in weights if j not in joint_set.names[:n_file]]
@@ -156,13 +165,15 @@ def names_an_array_schema(options: dict[str, Any]) -> bool:
     description="Joint arrays (.npy, .npz, .pkl, JSON) read as an array schema declares them (--schema NAME|FILE)",
     claims=names_an_array_schema,
 )
-def read_arrays(path: Path, *, schema: str | Path | None = None) -> Motion:
+def read_arrays(path: Path, *, schema: str | Path | None = None, array_fps: float | None = None) -> Motion:
     """Read joint positions saved as arrays (see the module docstring).
 
     Args:
         path: the ``.npy``, ``.npz``, ``.pkl`` or ``.json`` file.
         schema: the array schema, shipped name or file (required: arrays say nothing of their
             joints, clock or unit).
+        array_fps: this file's frame rate, instead of the schema's ``time`` (a corpus whose files
+            each have their own fixed rate: one schema, the rate in each recordings-manifest entry).
 
     Returns:
         A Motion: ``times`` [T] seconds from the first frame, ``positions`` [T, J, 3] metres, y up,
@@ -179,6 +190,9 @@ def read_arrays(path: Path, *, schema: str | Path | None = None) -> Motion:
             "schemas/array-schema.schema.json)",
         )
     spec = load_array_schema(schema)
+    fps = array_fps
+    if fps is not None and not (np.isfinite(fps) and fps > 0):
+        raise FormatError(path, f"a frame rate must be a positive number of frames per second, not {fps!r}")
     js: JointSet = spec["_joint_set"]
     contents, kind = _contents(path)
     positions = _array(path, contents, kind, spec.get("positions"), "positions")
@@ -190,7 +204,7 @@ def read_arrays(path: Path, *, schema: str | Path | None = None) -> Motion:
             path,
             f"positions of shape {list(positions.shape)}; the {js.name} joint set needs [T, {J}, 3] or [T, {3 * J}]",
         )
-    if J < len(js):
+    if spec.get("derived"):
         made = [
             np.einsum("tkc,k->tc", positions[:, [js.index(j) for j in w]], np.array(list(w.values()), dtype=float))
             for w in spec["derived"].values()
@@ -199,16 +213,17 @@ def read_arrays(path: Path, *, schema: str | Path | None = None) -> Motion:
     T = len(positions)
     if T < 1:
         raise FormatError(path, "no frames")
-    if "add" in spec:
-        track = _array(path, contents, kind, spec["add"], "track to add")
+    key = spec.get("add", spec.get("root_track"))
+    if key is not None:
+        track = _array(path, contents, kind, key, "root track" if "root_track" in spec else "track to add")
         if track.shape != (T, 3):
-            raise FormatError(path, f"{spec['add']!r} has shape {list(track.shape)}, not [{T}, 3] like the positions")
+            raise FormatError(path, f"{key!r} has shape {list(track.shape)}, not [{T}, 3] like the positions")
         positions = positions + track[:, None, :]
-    times = _times(path, contents, kind, spec["time"], T)
+        if "root_track" in spec:  # the root itself, where the track says
+            positions = np.concatenate([positions, track[:, None, :]], axis=1)
+    times = _times(path, contents, kind, spec["time"] if fps is None else {"fps": fps}, T)
     positions = positions * UNITS_TO_M[spec.get("unit", "m")]
-    if spec.get("handedness", "right") == "left":
-        positions = positions * [-1.0, 1.0, 1.0]
-    positions = positions @ _UP_TO_Y[spec.get("up", "y")].T
+    positions, _ = to_kinectdata_axes(positions, up=spec.get("up", "y"), handedness=spec.get("handedness", "right"))
     return Motion(
         times=times,
         positions=positions,

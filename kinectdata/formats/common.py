@@ -99,3 +99,37 @@ def load_numpy(path: Path, what: str = "numpy arrays") -> np.ndarray | dict[str,
         # ValueError: an object array (a pickle), a bad header or too little data; KeyError: a zip
         # member named in the directory but missing
         raise FormatError(path, f"cannot read it as {what} ({brief(exc)})") from None
+
+
+UP_TO_Y = {  # rows: the new (x, y, z) from the file's (x, y, z), a rotation about x
+    "y": np.eye(3),
+    "z": np.array([[1.0, 0, 0], [0, 0, 1], [0, -1, 0]]),
+    "-y": np.array([[1.0, 0, 0], [0, -1, 0], [0, 0, -1]]),
+    "-z": np.array([[1.0, 0, 0], [0, 0, -1], [0, 1, 0]]),
+}
+"""The rotation that turns a file's up axis into kinectdata's y (z up: (x, y, z) -> (x, z, -y))."""
+
+
+def to_kinectdata_axes(
+    positions: np.ndarray, orientations: np.ndarray | None = None, *, up: str = "y", handedness: str = "right"
+) -> tuple[np.ndarray, np.ndarray | None]:
+    """Positions [..., 3] and orientations [..., 4] (unit quaternions x, y, z, w; NaN kept) from a
+    file's axes to kinectdata's: right-handed, y up. ``handedness="left"`` (Unity, Unreal) negates x
+    first: a mirror, so each rotation's axis is mirrored and its angle reversed, (x, y, z, w) ->
+    (x, -y, -z, w); then the up axis is turned onto y by :data:`UP_TO_Y`, which turns each
+    orientation too (R -> U R, the joint's frame seen from the new axes)."""
+    if handedness == "left":
+        positions = positions * np.array([-1.0, 1.0, 1.0])
+        if orientations is not None:
+            orientations = orientations * np.array([1.0, -1.0, -1.0, 1.0])
+    if up != "y":
+        turn = UP_TO_Y[up]
+        positions = positions @ turn.T
+        if orientations is not None:
+            from scipy.spatial.transform import Rotation  # here: scipy.spatial costs 0.2 s at start-up
+
+            valid = np.isfinite(orientations).all(axis=-1)
+            turned = np.full_like(orientations, np.nan)
+            turned[valid] = (Rotation.from_matrix(turn) * Rotation.from_quat(orientations[valid])).as_quat()
+            orientations = turned
+    return positions, orientations

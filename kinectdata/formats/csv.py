@@ -26,11 +26,17 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from kinectdata.core.errors import FormatError, KinectDataError
-from kinectdata.core.jointsets import JointSet, find_joint_set, load_joint_set, shipped_joint_sets
+from kinectdata.core.errors import FormatError, KinectDataError, SchemaError
+from kinectdata.core.jointsets import (
+    JointSet,
+    find_joint_set,
+    joint_set_from_text,
+    load_joint_set,
+    shipped_joint_sets,
+)
 from kinectdata.core.motion import Motion
 from kinectdata.core.quaternions import reorder, split_missing_and_normalise
-from kinectdata.formats.common import choose_body, count_bodies, first_bad_time
+from kinectdata.formats.common import choose_body, count_bodies, first_bad_time, to_kinectdata_axes
 from kinectdata.formats.csv_schema import JOINT, CsvSchema, joint_set_of, load_csv_schema, shipped_csv_schemas
 from kinectdata.formats.registry import register_reader
 
@@ -414,6 +420,11 @@ def _template_regex(template: str) -> re.Pattern[str]:
 
 
 def _resolve_joint_set(schema: CsvSchema, table_names: list[str] | None, meta: dict[str, str], path: Path) -> JointSet:
+    if "joint_set_document" in meta:  # a joint set kinectdata does not ship, carried whole by the file
+        try:
+            return joint_set_from_text(meta["joint_set_document"], path)
+        except SchemaError as exc:
+            raise FormatError(path, f"the '# joint_set_document' line: {exc.reason}") from None
     if "joint_set" in meta:
         # shipped names only (the writer writes no other): a file must not make the reader open other files
         name = meta["joint_set"]
@@ -784,6 +795,12 @@ def _build_motion(path: Path, schema: CsvSchema, joint_set: JointSet, parts: tup
             )
         orientations = unit
         orientation_mask = present & ~q_missing & (position_mask if gated else True)
+    up, handedness = schema.document.get("up", "y"), schema.document.get("handedness", "right")
+    if (up, handedness) != ("y", "right"):  # a dialect of another program's axes (Xsens: z up)
+        shown = None if orientations is None else np.where(orientation_mask[..., None], orientations, np.nan)
+        pos, shown = to_kinectdata_axes(pos, shown, up=up, handedness=handedness)
+        if shown is not None:
+            orientations = np.nan_to_num(shown)
     metadata = {
         "format": "csv",
         "schema": schema.name,

@@ -14,7 +14,7 @@ import pandas as pd
 
 from kinectdata.core.atomic import atomic_output
 from kinectdata.core.errors import ConfigError, KinectDataError
-from kinectdata.core.jointsets import shipped_joint_sets
+from kinectdata.core.jointsets import is_shipped, joint_set_text
 from kinectdata.core.motion import Motion
 from kinectdata.core.quaternions import xyzw_to_wxyz
 from kinectdata.formats.csv_schema import JOINT, CsvSchema, joint_set_of, load_csv_schema
@@ -45,6 +45,7 @@ def write_csv(
     states: np.ndarray | None = None,
     time_origin: float = 0.0,
     comments: dict[str, str] | None = None,
+    decimals: int = 6,
 ) -> None:
     """Write a Motion as a CSV file in a schema's dialect (atomically).
 
@@ -57,6 +58,7 @@ def write_csv(
         time_origin: value of the first timestamp, in the schema's time unit.
         comments: ``# key: value`` lines to write first, for dialects with a comment prefix
             (the reader keeps them as the file's metadata).
+        decimals: digits after the point of positions and orientations (6: micrometres).
 
     Invalid positions are written as the dialect's missing-value text when it has one, else as
     zeros (with a not-tracked state, as the Kinect SDK does); missing orientations likewise, or
@@ -93,7 +95,7 @@ def write_csv(
         cols[doc["body"]["column"]] = np.full(T, str(motion.metadata.get("body", 0)), dtype=object)
     pos = motion.positions / sch.position_scale()
     for d, tmpl in enumerate(doc["position"]["columns"]):
-        cols[tmpl] = fmt(pos[..., d], "%.6f")
+        cols[tmpl] = fmt(pos[..., d], f"%.{decimals}f")
     o = doc.get("orientation")
     if o is not None and (motion.has_orientations or o.get("required", True)):
         q = motion.orientations if motion.has_orientations else np.zeros((T, J, 4))
@@ -101,7 +103,7 @@ def write_csv(
         if o["order"] == "wxyz":
             q = xyzw_to_wxyz(q)
         for c, tmpl in enumerate(o["columns"]):
-            cols[tmpl] = fmt(q[..., c], "%.6f")
+            cols[tmpl] = fmt(q[..., c], f"%.{decimals}f")
     if "tracking" in doc:
         cols[doc["tracking"]["column"]] = _state_column(motion, doc["tracking"], states)
 
@@ -134,8 +136,10 @@ def write_csv(
             {c: (cols[c][:, written].reshape(-1) if cols[c].ndim == 2 else np.repeat(cols[c], n)) for c in names}
         )
     preamble = list(doc.get("preamble", []))
-    if sch.joint_set == "auto" and js.name in shipped_joint_sets():
+    if sch.joint_set == "auto" and is_shipped(js):
         preamble.append(f"# joint_set: {js.name}")
+    elif sch.joint_set == "auto":  # a user's joint set travels with the file: bones, roles, SMPL-24 mapping
+        preamble.append(f"# joint_set_document: {joint_set_text(js)}")
     if comments:
         prefix = sch.get("comment")
         if prefix is None:

@@ -69,8 +69,18 @@ def test_without_roles_the_longest_axis_must_be_up(take):
     assert "longest along x, but the up axis is y" in body_checks.up_axis_doubt(lying)
 
 
-def test_a_rate_far_too_low_shows_as_speed(take):
-    assert "no dancer's speed" in body_checks.speed_doubt(_with(take, times=take.times / 20))
+def test_a_stated_rate_far_from_the_truth_shows_as_speed(take):
+    """The sample take (22 s of dance, hands at about 2 m/s): read 20 times too fast it is no dancer's
+    speed, 10 times too slow it is slower than dance; its own rate, and a short slow take, say nothing."""
+    too_high = body_checks.speed_doubt(_with(take, times=take.times / 20))
+    assert "no dancer's speed" in too_high and "stated frame rate too high" in too_high
+    too_low = body_checks.speed_doubt(_with(take, times=take.times * 10))
+    assert "slower than dance" in too_low and "stated frame rate too low" in too_low
+    assert body_checks.speed_doubt(take) is None
+    short = _with(take, times=take.times * 10)
+    short = _with(short, times=short.times[:30], positions=short.positions[:30], position_mask=short.position_mask[:30],
+                  confidence=short.confidence[:30], orientations=None, orientation_mask=None)  # fmt: skip
+    assert short.duration < body_checks.MIN_SLOW_TAKE_S and body_checks.speed_doubt(short) is None
 
 
 def test_info_prints_the_bones_and_the_doubts(take, tmp_path):

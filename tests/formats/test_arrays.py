@@ -114,3 +114,39 @@ def test_derived_joints_are_weighted_sums_and_must_be_the_sets_last_joints(tmp_p
         read_motion(tmp_path / "take.npy", schema=_schema(tmp_path, joint_set="ab.json", derived={"b": {"a": 1}}))
     with pytest.raises(SchemaError, match="derived: mid is made of z, not joints the file holds"):
         read_motion(tmp_path / "take.npy", schema=_schema(tmp_path, joint_set="ab.json", derived={"mid": {"z": 1}}))
+
+
+def test_a_root_track_places_the_root_and_a_file_may_give_its_own_rate(tmp_path):
+    """tang2018's shape: joints relative to a ``center`` track that is the root's own position. The
+    root (the joint set's last joint) is placed on the track, the others are offset from it; and one
+    schema serves files of different rates, each rate given for its file (manifest ``fps``)."""
+    joints = [{"name": "a", "parent": "root"}, {"name": "b", "parent": "a"}, {"name": "root", "parent": None}]
+    (tmp_path / "abr.json").write_text(json.dumps({"name": "ab_root", "joints": joints}))
+    rng = np.random.default_rng(0)
+    relative, center = rng.normal(size=(6, 2, 3)), rng.normal(size=(6, 3)) + [0, 1, 2]
+    np.savez(tmp_path / "take.npz", skeletons=relative, center=center)
+    schema = _schema(tmp_path, joint_set="abr.json", positions="skeletons", root_track="center", time={"fps": 25})
+    motion = read_motion(tmp_path / "take.npz", schema=schema)
+    assert motion.joint_set.names == ("a", "b", "root")
+    np.testing.assert_allclose(motion.positions[:, 2], center)
+    np.testing.assert_allclose(motion.positions[:, :2], relative + center[:, None])
+    np.testing.assert_allclose(motion.times, np.arange(6) / 25)
+    own = read_motion(tmp_path / "take.npz", schema=schema, array_fps=24.45)
+    np.testing.assert_allclose(own.times, np.arange(6) / 24.45)
+    # a recordings manifest gives each file its rate; the build reads it with that clock
+    from kinectdata.dataset.inputs import read_recordings
+
+    (tmp_path / "recordings.json").write_text(
+        json.dumps([{"recording": "take.npz", "audio": "take.npz", "schema": schema.name, "fps": 24.45}])
+    )
+    (entry,) = read_recordings(tmp_path / "recordings.json")
+    np.testing.assert_allclose(entry.read_motion().times, np.arange(6) / 24.45)
+    result = CliRunner().invoke(
+        main, ["info", str(tmp_path / "take.npz"), "--schema", str(schema), "--array-fps", "50"]
+    )
+    assert result.exit_code == 0 and "50" in result.output, result.output
+    with pytest.raises(SchemaError, match="root_track: the track is the root's, so ab_mid's last joint must be"):
+        (tmp_path / "ab.json").write_text(json.dumps({"name": "ab_mid", "joints": joints[::-1]}))
+        read_motion(tmp_path / "take.npz", schema=_schema(tmp_path, joint_set="ab.json", root_track="center"))
+    with pytest.raises(SchemaError, match="root_track and add: give one"):
+        read_motion(tmp_path / "take.npz", schema=_schema(tmp_path, joint_set="abr.json", root_track="c", add="c"))

@@ -104,6 +104,40 @@ def test_canonical_keeps_any_joint_set_and_missing_orientations(tmp_path):
     np.testing.assert_allclose(r.positions, m.positions, atol=5e-7)
 
 
+def test_canonical_carries_a_joint_set_kinectdata_does_not_ship_whole(tmp_path):
+    """Its joints, bones, roles and SMPL-24 mapping come back from the file's one JSON line; a line
+    that is not a joint set, or takes a shipped name with other joints, is one error naming the file."""
+    from helpers import DANCER19, TO_SMPL24
+
+    from kinectdata.core.jointsets import JointSet, joint_set_from_dict
+    from kinectdata.core.motion import Motion
+
+    joints = [{"name": n, "parent": p} for n, p in DANCER19.items()]
+    js = joint_set_from_dict(
+        {"name": "dancer19", "joints": joints, "roles": {"root": "pelvis"}, "to_smpl24": TO_SMPL24}
+    )
+    m = Motion(np.arange(4) / 30, np.random.default_rng(2).normal(size=(4, len(js), 3)), js)
+    write_csv(m, tmp_path / "d.csv")
+    r = read_motion(tmp_path / "d.csv")
+    assert (r.joint_set.name, r.joint_set.names, r.joint_set.parents) == ("dancer19", js.names, js.parents)
+    assert r.joint_set.to_smpl24 == TO_SMPL24 and r.joint_set.roles == {"root": "pelvis"}
+    assert r.joint_set.bones() == js.bones()
+    text = (tmp_path / "d.csv").read_text()
+    for bad, says in (
+        ('{"name": "dancer19"', "its joint set is not JSON"),
+        ('{"name": "dancer19", "joints": 3}', "joints"),
+        (
+            json.dumps(JointSet.custom("nite", list(js.names)).to_dict()),
+            "takes the shipped name 'nite' with other joints",
+        ),
+    ):
+        broken = tmp_path / "broken.csv"
+        line = next(x for x in text.splitlines() if x.startswith("# joint_set_document: "))
+        broken.write_text(text.replace(line, f"# joint_set_document: {bad}"))
+        with pytest.raises(FormatError, match=re.escape(str(broken)) + ".*joint_set_document.*" + says):
+            read_motion(broken)
+
+
 def test_dumpkinectskeleton_leaf_zero_quaternions_are_missing(tmp_path):
     m = random_motion(seed=5, untracked=0.0)
     write_csv(m, tmp_path / "d.csv", "dumpkinectskeleton")
@@ -698,3 +732,49 @@ def test_a_header_repeating_many_columns_names_a_few_and_counts_the_rest(tmp_pat
     named = ", ".join(map(repr, repeated[:5]))
     assert f"line 3: the header repeats column(s) {named} and {len(repeated) - 5} more" in message
     assert len(message) < 300
+
+
+def test_a_dialect_declares_its_up_axis_and_handedness(tmp_path):
+    """An Xsens-like export: z up, left-handed, with orientations. Read through a schema that says so,
+    the body stands along y, positions are the file's turned by (x, y, z) -> (-x, z, -y), and
+    every orientation still turns each bone as in the file (checked on vectors)."""
+    from click.testing import CliRunner
+    from scipy.spatial.transform import Rotation
+
+    from kinectdata.cli import main
+
+    names = ["pelvis", "head", "foot"]
+    schema = {
+        "name": "zup_left",
+        "joint_set": "auto",
+        "layout": "wide",
+        "header": True,
+        "up": "z",
+        "handedness": "left",
+        "time": {"column": "t", "unit": "s"},
+        "position": {"columns": ["{joint}_x", "{joint}_y", "{joint}_z"], "unit": "m"},
+        "orientation": {"columns": ["{joint}_qx", "{joint}_qy", "{joint}_qz", "{joint}_qw"], "order": "xyzw"},
+    }
+    (tmp_path / "zup.json").write_text(json.dumps(schema))
+    rng = np.random.default_rng(3)
+    T = 40
+    file_pos = np.array([[0.2, 0.1, 0.9], [0.2, 0.15, 1.7], [0.25, 0.1, 0.05]]) + rng.normal(0, 0.01, (T, 3, 3))
+    file_q = Rotation.random(T * 3, random_state=4).as_quat().reshape(T, 3, 4)
+    header = ["t"] + [f"{j}_{a}" for j in names for a in ("x", "y", "z", "qx", "qy", "qz", "qw")]
+    rows = [
+        ",".join([f"{k / 240:.6f}"] + [f"{v:.9f}" for j in range(3) for v in (*file_pos[k, j], *file_q[k, j])])
+        for k in range(T)
+    ]
+    (tmp_path / "take.csv").write_text("\n".join([",".join(header), *rows]) + "\n")
+    m = read_motion(tmp_path / "take.csv", schema=str(tmp_path / "zup.json"))
+    # independent: mirror x, then z up -> y up, as a matrix written out here
+    to_ours = np.array([[1.0, 0, 0], [0, 0, 1], [0, -1, 0]]) @ np.diag([-1.0, 1, 1])
+    np.testing.assert_allclose(m.positions, file_pos @ to_ours.T, atol=1e-9)
+    assert (m.positions[:, 1, 1] > m.positions[:, 2, 1] + 1.5).all()  # the head above the foot, along y
+    v = rng.normal(size=3)
+    for k, j in ((0, 0), (17, 1), (39, 2)):  # a bone v in the joint's frame: where the file puts it, in our axes
+        ours = Rotation.from_quat(m.orientations[k, j]).apply(v)
+        theirs = to_ours @ Rotation.from_quat(file_q[k, j]).apply(np.diag([-1.0, 1, 1]) @ v)
+        np.testing.assert_allclose(ours, theirs, atol=1e-6)
+    info = CliRunner().invoke(main, ["info", str(tmp_path / "take.csv"), "--schema", str(tmp_path / "zup.json")])
+    assert info.exit_code == 0 and "but the up axis is" not in info.output, info.output
