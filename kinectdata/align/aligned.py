@@ -14,6 +14,7 @@ The file (``kinectdata align ... -o OUT.h5``) is self-describing; its layout, ve
 ``/motion/orientation_mask``           [N, J] bool
 ``/motion/orientation_interpolated``   [N, J] bool
 ``/joints/names``, ``/joints/parents`` [J] joint names (UTF-8) and parent indices (-1: root)
+``/joints`` attribute ``document``     JSON: a joint set kinectdata does not ship, whole (bones, roles, SMPL-24 mapping)
 ``/audio/samples``                     [S] float32 mono at ``sample_rate``; sample 0 is at time 0
 ``/`` attribute ``offset``             JSON: seconds, source ("given", "clap", "xcorr"), confidence
 ``/`` attribute ``provenance``         JSON: source files with SHA-256, reader, options
@@ -36,7 +37,14 @@ import numpy as np
 from kinectdata.align.offset import OffsetChoice
 from kinectdata.core.atomic import atomic_hdf5
 from kinectdata.core.errors import ConfigError, FormatError
-from kinectdata.core.jointsets import JointSet, load_joint_set, shipped_joint_sets
+from kinectdata.core.jointsets import (
+    JointSet,
+    is_shipped,
+    joint_set_from_text,
+    joint_set_text,
+    load_joint_set,
+    shipped_joint_sets,
+)
 from kinectdata.core.motion import Motion
 from kinectdata.core.version import __version__
 
@@ -203,6 +211,8 @@ class AlignedRecording:
             j.create_dataset("names", data=np.array(m.joint_set.names, dtype=h5py.string_dtype()))
             j.create_dataset("parents", data=np.array(m.joint_set.parents, dtype=np.int32))
             j.attrs["dimensions"] = m.joint_set.dimensions
+            if not is_shipped(m.joint_set):  # bones, roles and SMPL-24 mapping of a user's joint set
+                j.attrs["document"] = joint_set_text(m.joint_set)
             f.create_group("audio").create_dataset("samples", data=self.audio.astype(np.float32), **kw)
 
     @classmethod
@@ -323,6 +333,12 @@ def _show(value: Any, limit: int = 60) -> str:
 
 def _joint_set(f: h5py.File) -> JointSet:
     names = tuple(n.decode() if isinstance(n, bytes) else str(n) for n in f["joints/names"][()])
+    document = f["joints"].attrs.get("document")
+    if document is not None:
+        js = joint_set_from_text(str(document), f"{f.filename}: joints/document")
+        if js.names != names:
+            raise FormatError(f.filename, "joints/document names other joints than joints/names")
+        return js
     name = str(f.attrs["joint_set"])
     if name in shipped_joint_sets():
         shipped = load_joint_set(name)

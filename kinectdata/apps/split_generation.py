@@ -5,7 +5,9 @@ the dataset was built: :func:`~kinectdata.evaluation.rhythm_eval.recording_audio
 beside the dance as ``<name>.wav`` (at the run's sample rate), and the dance is generated from it
 (:func:`~kinectdata.inference.generate.generate`): frame k of ``<name>.csv`` (or ``.jsonl`` for a
 2-D target) is frame k of the recording in the dataset, to render, score or compare side by side
-(``render <name>.csv --audio <name>.wav``). The song's metre, for features that count bars, is the
+(``render <name>.csv --audio <name>.wav``). Frame 0 is the recording's true first pose, and the model
+runs free from it, as ``evaluate`` runs it; a root-centred run's dance stands where the recording's
+dancer stood (:mod:`~kinectdata.inference.start`). The song's metre, for features that count bars, is the
 recordings manifest's or the one the dataset build found.
 """
 
@@ -24,7 +26,9 @@ from kinectdata.core.errors import KinectDataError
 from kinectdata.evaluation.evaluate import split_recordings
 from kinectdata.evaluation.rhythm_eval import recording_audio
 from kinectdata.inference.generate import generate
-from kinectdata.models.run import load_model, read_manifest
+from kinectdata.inference.start import StartPose
+from kinectdata.models.registry import model_kind
+from kinectdata.models.run import load_model, model_name, read_manifest
 from kinectdata.targets.specs import TargetSpec
 
 
@@ -59,6 +63,7 @@ def generate_split(
     dataset, out_dir = Path(dataset), Path(out_dir)
     manifest = read_manifest(dataset, checksums=checksums)
     _, config = load_model(run)
+    kind = model_kind(model_name(config))
     data = config["dataset"]
     fps, rate = data["fps"], data["sample_rate"]
     suffix = ".jsonl" if TargetSpec.from_dict(data["target"]).dimensions == 2 else ".csv"
@@ -82,6 +87,20 @@ def generate_split(
             soundfile.write(tmp, np.asarray(samples, np.float32), rate, subtype="FLOAT", format="WAV")
         metre = entry.get("beats_per_bar") or built[r["name"]].get("beats_per_bar")
         motion = out_dir / f"{r['name']}{suffix}"
-        _, timing = generate(run, music, motion, engine=engine, precision=precision, beats_per_bar=metre)
+        _, timing = generate(
+            run, music, motion, engine=engine, precision=precision, beats_per_bar=metre, start=_start(r, data, kind)
+        )
         made.append(GeneratedSong(r["name"], motion, music, timing))
     return made
+
+
+def _start(recording: dict[str, Any], dataset: dict[str, Any], kind: Any) -> StartPose:
+    """The recording's true first pose, filled as ``evaluate`` fills it, and its anchor (where a
+    root-centred dancer stood: the build's ``root_anchor``, absent from datasets built before it)."""
+    pose = kind.fill_previous(recording["current"][0], recording["mask"][0], dataset["start_pose"])
+    anchor = recording["info"].get("root_anchor")
+    return StartPose(
+        np.asarray(pose, np.float32),
+        None if anchor is None else np.asarray(anchor, np.float64),
+        "the recording's first pose",
+    )

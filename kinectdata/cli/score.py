@@ -72,13 +72,16 @@ def smpl24(recording, out, fps, mapping, reading) -> None:
         motion = AlignedRecording.load(recording, audio=False).motion
     else:
         motion = read_motion(recording, **reading)
-    joints = smpl24_joints(motion, fps, source=recording, mapping=mapping)
+    sequence = smpl24_joints(motion, fps, source=recording, mapping=mapping)
+    joints = sequence.positions.astype(np.float32)
     with atomic_output(out) as tmp:
         with open(tmp, "wb") as f:
             np.save(f, joints)
     click.echo(
         f"wrote {out}: {joints.shape[0]} frames of SMPL-24 joints at {fps:g} fps ({joints.shape[0] / fps:.2f} s)"
     )
+    for joint, note in ((sequence.mapping or {}).get("stand_ins") or {}).items():
+        click.echo(f"  {joint}: {note}")
 
 
 COMMANDS = [score, smpl24]

@@ -367,6 +367,9 @@ def generate_command(run_dir, audio, out, data, split, engine, precision, beats_
     )
     if "metre" in timing:
         click.echo(f"  metre: {timing['metre']}")
+    click.echo(
+        f"  starts from {timing['start']}" + (f"; placed by {timing['placement']}" if "placement" in timing else "")
+    )
     if motion.joint_set.dimensions == 2:
         fps = 1 / float(motion.times[1] - motion.times[0]) if motion.n_frames > 1 else 30.0
         click.echo(f"  (OpenPose JSON Lines hold no frame rate: read or render it with --video-fps {fps:g})")

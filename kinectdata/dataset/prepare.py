@@ -40,7 +40,7 @@ from kinectdata.features.streaming import StreamingFeatures
 from kinectdata.targets.hemispheres import orientation_stats
 from kinectdata.targets.normalization import NormStats
 from kinectdata.targets.skeleton import bone_offsets
-from kinectdata.targets.specs import GenericTarget, extract_targets
+from kinectdata.targets.specs import GenericTarget, extract_targets, root_anchor
 
 WORK_FORMAT = "kinectdata.work.4"  # 2: units carry orientation statistics; 3: and bone offsets; 4: and the target
 _BLOCK = 160_000  # samples per block when streaming in-memory audio (10 s at 16 kHz)
@@ -250,6 +250,11 @@ def _prepare_variants(
     info = {"sources": hashes, "paths": sources, "offset": offset.to_dict(), "alignment": summary}
     if metre is not None:
         info["metre"] = {"beats_per_bar": metre.beats_per_bar, "source": metre.source}
+    anchor = root_anchor(motion, spec) if config.root_centre else None
+    if (
+        anchor is not None and np.isfinite(anchor).all()
+    ):  # where the dancer stood: generated and scored motion go back there
+        info["root_anchor"] = [float(v) for v in anchor]
     units = {
         v: Unit(
             name=variant_name(entry.name, v),

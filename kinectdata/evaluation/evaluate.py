@@ -318,6 +318,7 @@ def evaluate(
     results["listening"] = listening_controls(
         net, recordings, beats, manifest, config, free=free, beats_per_bar=beats_per_bar
     )
+    anchors = {r["name"]: np.asarray(r["info"]["root_anchor"]) for r in recordings if "root_anchor" in r["info"]}
     runs, retrieved = {"generated": free}, {}
     if baselines:
         made, retrieved = baseline_runs(dataset, manifest, recordings, real, config, norm)
@@ -325,12 +326,24 @@ def evaluate(
     for number, chosen in enumerate([protocol, *(get_protocol(p) for p in more_protocols)]):
         try:
             field = {
-                name: run_field_scores(motions, real, beats, spec, config["dataset"], chosen, bootstrap=bootstrap)
+                name: run_field_scores(
+                    motions,
+                    real,
+                    beats,
+                    spec,
+                    config["dataset"],
+                    chosen,
+                    anchors=anchors,
+                    bootstrap=bootstrap,
+                    write_to=out / "scored" if (name, number) == ("generated", 0) else None,
+                )
                 for name, motions in runs.items()
             }
             scored = field["generated"]
             record = scored.to_dict()
             entry = {
+                "scored_motion": str(out / "scored"),
+                "positions": record["positions"],
                 "metrics_json": str(
                     write_metrics_json(scored, out / ("metrics.json" if number == 0 else f"metrics_{chosen.name}.json"))
                 ),
@@ -602,6 +615,11 @@ def format_results(results: dict[str, Any]) -> str:
     if "table" in field:
         lines.append("  the field's metrics, generated against the real motion of the same songs (metrics.json):")
         lines += [f"    {line}" for line in field["table"].splitlines()]
+        scored = field["scored_motion"]
+        lines.append(
+            f"    the scored motion: {scored} (the same table: kinectdata score {scored}/generated {scored}/real "
+            f"--beats {scored}/beats.json --protocol {field['protocol']})"
+        )
     elif field:
         lines.append(f"  field metrics  not measured: {field['unavailable']}")
     for entry in [field, *results.get("field_protocols", {}).values()]:

@@ -103,6 +103,7 @@ class FieldScores:
     warnings: list[str] = field(default_factory=list)
     per_sequence: dict = field(default_factory=dict)
     mappings: list[dict] = field(default_factory=list)
+    positions: dict = field(default_factory=dict)
 
     def metric(self, name: str) -> MetricRow:
         """The row of a metric by name (``FID_k``, ``BAS``...)."""
@@ -117,6 +118,7 @@ class FieldScores:
             "kinectdata_version": __version__,
             "protocol": self.protocol.to_dict(),
             "joints": "SMPL-24 (smpl24 joint set), metres, y up",
+            "positions": self.positions,
             "joint_mappings": self.mappings,
             "sets": {
                 "generated": {"count": len(self.generated), "sequences": self.generated},
@@ -131,6 +133,7 @@ class FieldScores:
         """The table, one line per metric (generated, its 95 % interval, reference), then notes and warnings."""
         lines = [
             f"protocol {self.protocol.name}: {self.protocol.reproduces}",
+            *([f"positions: {describe_positions(self.positions)}"] if self.positions else []),
             f"{'metric':<9}{'better':<9}{f'generated ({len(self.generated)})':>16}{'95 % interval':>22}"
             f"{f'reference ({len(self.reference)})':>16}  note",
         ]
@@ -149,6 +152,7 @@ def score_sets(
     protocol: Protocol,
     bootstrap: int = 1000,
     seed: int = 0,
+    placement: str = "as the files hold them",
 ) -> FieldScores:
     """Score a generated set against a reference set by a protocol.
 
@@ -158,6 +162,8 @@ def score_sets(
         protocol: the preprocessing and definitions to use.
         bootstrap: resamples for the 95 % intervals (0: none).
         seed: random seed of the bootstrap.
+        placement: which positions these are (world, root-relative...), for the record
+            (:func:`positions_record`).
 
     Returns:
         :class:`FieldScores`. FID and Div use features standardised by the whole reference set;
@@ -268,7 +274,40 @@ def score_sets(
         warnings=warnings,
         per_sequence=per_sequence,
         mappings=mappings,
+        positions=positions_record(generated, reference, protocol, placement),
     )
+
+
+def positions_record(
+    generated: Sequence[DanceSequence], reference: Sequence[DanceSequence], protocol: Protocol, placement: str
+) -> dict:
+    """What positions a table scores, for ``metrics.json`` and its printout: ``placement`` (world,
+    root-relative...), the frame rates the sequences came at and the rate they were scored at, the
+    joint sets mapped to SMPL-24, and the joints stood in for by an ancestor."""
+    sequences = (*generated, *reference)
+    stand_ins: dict[str, str] = {}
+    for seq in sequences:
+        for joint, note in ((seq.mapping or {}).get("stand_ins") or {}).items():
+            stand_ins.setdefault(joint, note)
+    return {
+        "placement": placement,
+        "source_fps": sorted({round(s.native_fps or s.fps, 3) for s in sequences}),
+        "scored_fps": protocol.fps,
+        "joint_sets": sorted({(s.mapping or {}).get("source", "smpl24") for s in sequences}),
+        "stand_ins": stand_ins,
+    }
+
+
+def describe_positions(record: dict) -> str:
+    """One line of :func:`positions_record`'s record."""
+    rates = ", ".join(f"{r:g}" for r in record["source_fps"])
+    line = (
+        f"{record['placement']}; {rates} fps resampled to {record['scored_fps']:g}; "
+        f"joints of {', '.join(record['joint_sets'])} as SMPL-24"
+    )
+    if record["stand_ins"]:
+        line += f"; never placed, an ancestor stands in: {', '.join(record['stand_ins'])}"
+    return line
 
 
 _SET_METRICS = (

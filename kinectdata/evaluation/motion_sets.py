@@ -187,6 +187,7 @@ def motion_as_dance(
     """
     source = Path(source)
     mapping_record = None
+    motion, stand_ins = with_stand_ins(motion)
     if motion.joint_set.name != "smpl24" or len(motion.joint_set) != 24:
         if motion.joint_set.dimensions != 3:
             raise FormatError(
@@ -204,6 +205,11 @@ def motion_as_dance(
                 source, f"its {motion.joint_set.name} joints cannot be mapped to SMPL-24: {exc}"
             ) from None
         mapping_record = joint_map.describe()
+        if stand_ins:
+            mapping_record["stand_ins"] = {
+                joint: f"never placed: {parent}, its nearest placed ancestor, stands in"
+                for joint, parent in stand_ins.items()
+            }
         up = motion.metadata.get("gravity_axis") or "y"
         positions, mask = joint_map.apply(motion.positions, motion.position_mask)
         motion = Motion(
@@ -227,19 +233,41 @@ def motion_as_dance(
     )
 
 
+def with_stand_ins(motion: Motion) -> tuple[Motion, dict[str, str]]:
+    """The motion with every joint that is never placed (a generated target that does not reach it:
+    yalta65 has no ankle orientations, so no feet) given its nearest placed ancestor's positions, and
+    ``{joint: ancestor}`` for each such stand-in (empty: the motion as it is)."""
+    js = motion.joint_set
+    placed = motion.position_mask.any(axis=0)
+    found = {}
+    for j in np.flatnonzero(~placed):
+        a = js.parents[j]
+        while a >= 0 and not placed[a]:
+            a = js.parents[a]
+        if a >= 0:
+            found[j] = a
+    if not found:
+        return motion, {}
+    positions, mask = motion.positions.copy(), motion.position_mask.copy()
+    for j, a in found.items():
+        positions[:, j], mask[:, j] = positions[:, a], mask[:, a]
+    moved = dataclasses.replace(motion, positions=positions, position_mask=mask)
+    return moved, {js.names[j]: js.names[a] for j, a in found.items()}
+
+
 def smpl24_joints(
     motion: Motion, fps: float = 60.0, *, source: str | Path = "the recording", mapping: str | Path | None = None
-) -> np.ndarray:
-    """The recording as the field's joint array: [T, 24, 3] float32 SMPL-24 joints in metres, y up,
-    at ``fps`` (AIST++ and Bailando keep 60), exactly as :func:`motion_as_dance` gives them to the
-    metrics (mapped by the joint set's mapping or ``mapping``, resampled from frame 0, short gaps
-    filled), so that ``score`` reading the array back with ``--fps`` and ``--up y`` scores what it
-    would score reading the recording. FormatError names ``source`` when it cannot be mapped."""
+) -> DanceSequence:
+    """The recording as the field's joint array (``positions``: [T, 24, 3] SMPL-24 joints in metres, y up,
+    at ``fps``; AIST++ and Bailando keep 60) with its mapping's record (``mapping``: joints approximated,
+    stand-ins), exactly as :func:`motion_as_dance` gives them to the metrics (mapped by the joint
+    set's mapping or ``mapping``, never-placed joints stood in for, resampled from frame 0, short
+    gaps filled), so that ``score`` reading the array back with ``--fps`` and ``--up y`` scores what
+    it would score reading the recording. FormatError names ``source`` when it cannot be mapped."""
     if not (np.isfinite(fps) and fps > 0):
         raise KinectDataError(f"{source}: the frame rate must be a positive number of frames per second, not {fps!r}")
     rate = dataclasses.replace(get_protocol("aist"), fps=float(fps))  # of a protocol, only its rate is used here
-    sequence = motion_as_dance(motion, rate, name=Path(str(source)).stem, source=source, mapping=mapping)
-    return sequence.positions.astype(np.float32)
+    return motion_as_dance(motion, rate, name=Path(str(source)).stem, source=source, mapping=mapping)
 
 
 def read_beats_file(path: Path) -> dict[str, np.ndarray]:
@@ -347,7 +375,10 @@ def _on_grid(motion: Motion, fps: float, path: Path) -> tuple[np.ndarray, float]
     if motion.n_frames < 2:
         raise FormatError(path, f"{motion.n_frames} frame(s); the metrics need a sequence")
     times = motion.times
-    grid = times[0] + np.arange(int(np.floor((times[-1] - times[0]) * fps + 1e-9)) + 1) / fps
+    # a grid time within a thousandth of a frame of the last frame is kept: files round their times
+    # (kinectdata's CSV to the microsecond), and a frame lost to that would change every metric
+    grid = times[0] + np.arange(int(np.floor((times[-1] - times[0]) * fps + 1e-3)) + 1) / fps
+    grid = np.minimum(grid, times[-1])
     resampled = resample_motion(motion, grid, max_gap=MAX_GAP_S).motion
     positions, valid = resampled.positions, resampled.position_mask
     share = 1.0 - valid.mean(axis=0)

@@ -6,8 +6,11 @@ and, for a model that streams (its kind's ``streams``), the network steps one fr
 engine of :mod:`~kinectdata.inference.engines`: torch or ONNX Runtime, as the model offers), its
 state carried from frame to frame; nothing waits for the end of the audio but the file written at
 the end. A model that does not stream runs free (its kind's ``free_run``) over the whole song's
-features once they are all computed. The first "previous pose" is the mean training pose. Poses are denormalised
-and written in the form the target's joint set is read back from:
+features once they are all computed. The first "previous pose" is the mean training pose, or frame 0 is a
+recording's true first pose when the dance is made for a recording (an aligned ``.h5``, a dataset split: as
+``evaluate`` runs free), and a root-centred run's motion is put back in the world (:mod:`~kinectdata.inference.start`).
+Poses are denormalised and written in the form the target's joint set is read back from (a joint set
+kinectdata does not ship travels whole in the file: its joints, bones, roles and SMPL-24 mapping):
 
 - 3-D joint sets (e.g. the yalta model's): kinectdata's canonical CSV (metres, unit quaternions), which
   ``align`` reads: the target spec's joints get their orientations, and every joint the
@@ -42,6 +45,7 @@ from kinectdata.formats.bvh_writer import write_bvh
 from kinectdata.formats.csv_writer import write_csv
 from kinectdata.formats.openpose_writer import write_openpose_jsonl
 from kinectdata.inference.engines import make_engine
+from kinectdata.inference.start import StartPose, floor_anchor, recording_start
 from kinectdata.models.registry import model_kind
 from kinectdata.models.run import load_model, model_name
 from kinectdata.targets.normalization import Normalizer
@@ -56,17 +60,26 @@ def _motion(
     metadata: dict[str, Any],
     skeleton: dict | None = None,
     root_centred: bool = False,
+    anchor: np.ndarray | None = None,
 ) -> Motion:
     """A Motion of the spec's joint set from denormalised target vectors [T, D]; with the dataset's
     ``skeleton`` (bone offsets) every joint its orientations reach gets a position
-    (:func:`kinectdata.targets.skeleton.rebuild_positions`), else only the spec's listed joints."""
+    (:func:`kinectdata.targets.skeleton.rebuild_positions`), else only the spec's listed joints.
+    A root-centred 3-D motion is placed in the world at ``anchor``, else by the floor rule
+    (:mod:`kinectdata.inference.start`); ``metadata["placement"]`` says which."""
     js = spec.joints
     T, J = values.shape[0], len(js)
-    positions = np.full((T, J, spec.dimensions), np.nan)
-    for joint in spec.positions:
-        positions[:, js.index(joint)] = values[:, spec.columns(joint, "position")]
-    if skeleton:
-        positions, _ = rebuild_positions(values, spec, skeleton, root_centred=root_centred)
+    if spec.dimensions == 3:
+        positions, _ = rebuild_positions(values, spec, skeleton or {}, root_centred=root_centred)
+        if root_centred and spec.root is not None:
+            placement = "the recording's anchor" if anchor is not None else "the floor rule"
+            anchor = anchor if anchor is not None else floor_anchor(positions)
+            positions, _ = rebuild_positions(values, spec, skeleton or {}, root_centred=True, anchor=anchor)
+            metadata = metadata | {"placement": f"{placement}: root started at {np.round(anchor, 3).tolist()} m"}
+    else:
+        positions = np.full((T, J, spec.dimensions), np.nan)
+        for joint in spec.positions:
+            positions[:, js.index(joint)] = values[:, spec.columns(joint, "position")]
     orientations = np.full((T, J, 4), np.nan)
     for joint in spec.orientations:
         orientations[:, js.index(joint)] = values[:, spec.columns(joint, "orientation")]
@@ -75,20 +88,25 @@ def _motion(
     )
 
 
-def _music(audio: str | Path, sample_rate: int) -> tuple[int, Callable[[], Iterator[np.ndarray]]]:
-    """(samples, a function giving them in blocks) of the music to dance to at ``sample_rate`` Hz: an
-    audio file, decoded and resampled, or an aligned recording (``.h5``): its own audio segment,
-    whose sample 0 is its motion's frame 0, at the rate it was aligned at."""
+def _music(
+    audio: str | Path, sample_rate: int, dataset: dict[str, Any], kind: Any
+) -> tuple[int, Callable[[], Iterator[np.ndarray]], StartPose | None]:
+    """(samples, a function giving them in blocks, the start it gives) of the music to dance to at
+    ``sample_rate`` Hz: an audio file, decoded and resampled (no start), or an aligned recording
+    (``.h5``): its own audio segment, whose sample 0 is its motion's frame 0, at the rate it was
+    aligned at, and its first pose and anchor when its joint set is the run's
+    (:func:`~kinectdata.inference.start.recording_start`)."""
     if Path(audio).suffix.lower() in (".h5", ".hdf5"):
-        rate = AlignedRecording.load(audio, audio=False).sample_rate
-        if rate != sample_rate:
+        recording = AlignedRecording.load(audio, audio=False)
+        if recording.sample_rate != sample_rate:
             raise KinectDataError(
-                f"{audio}: its audio is at {rate} Hz, and this run's model hears {sample_rate} Hz: align it again "
-                f"with --sample-rate {sample_rate}"
+                f"{audio}: its audio is at {recording.sample_rate} Hz, and this run's model hears {sample_rate} Hz: "
+                f"align it again with --sample-rate {sample_rate}"
             )
-        return audio_length(audio), lambda: audio_blocks(audio)
+        start = recording_start(recording.motion, dataset, kind) if recording.motion.n_frames else None
+        return audio_length(audio), lambda: audio_blocks(audio), start
     reader = AudioReader(audio, sample_rate)
-    return reader.n_samples, reader.blocks
+    return reader.n_samples, reader.blocks, None
 
 
 def generate(
@@ -99,6 +117,7 @@ def generate(
     engine: str = "torch",
     precision: str = "float32",
     beats_per_bar: int | None = None,
+    start: StartPose | None = None,
 ) -> tuple[Motion, dict[str, Any]]:
     """Generate motion for ``audio`` with a trained run; write it to ``out`` if given (canonical
     CSV, or OpenPose JSON Lines for 2-D targets: see the module docstring). ``audio``: an audio
@@ -114,6 +133,11 @@ def generate(
     ``beats_per_bar``: the song's metre, for features that count its bars (``listen_to_dance_rhythm_bars``);
     None: estimated from the whole audio file before the stream starts (a live performer would say
     it), else 4. ``timing["metre"]`` says which it was.
+
+    ``start``: the pose frame 0 is and where a root-centred motion stands
+    (:class:`~kinectdata.inference.start.StartPose`); None: an aligned recording's own first pose
+    and anchor, else the mean training pose before frame 0 and the floor rule.
+    ``timing["start"]`` and ``timing["placement"]`` say which.
     """
     net, config = load_model(run)
     kind = model_kind(model_name(config))
@@ -125,12 +149,15 @@ def generate(
         written = "OpenPose JSON Lines" if spec.dimensions == 2 else "canonical CSV or BVH"
         raise KinectDataError(f"{out}: this run's motion is written as {written}; name the file {wanted[0]}")
     norm = Normalizer.from_dict(data["normalisation"])
-    n_samples, blocks = _music(audio, sr)
+    n_samples, blocks, given = _music(audio, sr, data, kind)
+    start = start or given or StartPose()
     n = int(np.floor(n_samples / sr * fps + 1e-9))
     if n < 1:
         raise KinectDataError(f"{audio}: shorter than one frame ({1 / fps:.3f} s)")
-    pose = np.asarray(data["start_pose"], dtype=np.float32)
+    true_first = start.pose is not None  # frame 0 is the true pose; the model makes frames 1..n-1
+    pose = np.asarray(start.pose if true_first else data["start_pose"], dtype=np.float32)
     poses = np.empty((n, spec.dim), np.float32)
+    poses[0] = pose
     step_times: list[float] = []
     if kind.streams:
         stepper = make_engine(net, engine, precision, kind)
@@ -138,6 +165,8 @@ def generate(
         def step(k0: int, features: np.ndarray, padded: np.ndarray) -> None:
             nonlocal pose
             for k in range(features.shape[0]):
+                if true_first and k0 + k == 0:
+                    continue
                 started = time.perf_counter()
                 pose = stepper.step(features[k], pose)
                 step_times.append(time.perf_counter() - started)
@@ -163,15 +192,18 @@ def generate(
     for block in blocks():
         featurizer.push(block)
     featurizer.finish()
-    if not kind.streams:  # frames 0..n-1 from the start pose as the pose before frame 0
+    if not kind.streams:  # frames 1..n-1 from the true first pose, or 0..n-1 from the mean pose before frame 0
         features = np.concatenate(song)
         ran = time.perf_counter()
-        poses[:] = kind.free_run(net, np.concatenate([features[:1], features]), pose)
+        if true_first:
+            poses[1:] = kind.free_run(net, features, pose)
+        else:
+            poses[:] = kind.free_run(net, np.concatenate([features[:1], features]), pose)
         step_times = [(time.perf_counter() - ran) / n] * n
     seconds = time.perf_counter() - started
     values = norm.invert(poses, spec)
     metadata = {"format": "generated", "source": str(audio), "run": str(run)}
-    motion = _motion(values, spec, fps, metadata, data.get("skeleton"), data["root_centre"])
+    motion = _motion(values, spec, fps, metadata, data.get("skeleton"), data["root_centre"], start.anchor)
     if out is not None and spec.dimensions == 2:
         write_openpose_jsonl(motion, out)
     elif out is not None and Path(out).suffix.lower() == ".bvh":
@@ -187,10 +219,13 @@ def generate(
                 "audio": str(Path(audio).resolve()),
                 "target_spec": spec.name,
                 "root_centred": str(data["root_centre"]).lower(),
+                "units": "metres, y up",
+                "start": start.source,
+                **({"placement": motion.metadata["placement"]} if "placement" in motion.metadata else {}),
                 "engine": f"{engine} {precision}",
             },
         )
-    t = np.array(step_times) * 1e3
+    t = np.array(step_times or [0.0]) * 1e3  # one frame from a true first pose: no step
     timing = {
         "frames": n,
         "seconds": seconds,
@@ -200,6 +235,9 @@ def generate(
     }
     if metre is not None:
         timing["metre"] = metre.describe()
+    timing["start"] = start.source
+    if "placement" in motion.metadata:
+        timing["placement"] = motion.metadata["placement"]
     if spec.limbs:
         timing["limb_lengths"] = {
             name: float(np.median(values[:, spec.columns(j, "limb")]))

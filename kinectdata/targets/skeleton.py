@@ -85,14 +85,24 @@ def merge_bone_offsets(per_recording: list[dict[str, dict[str, Any]]]) -> dict[s
 
 
 def rebuild_positions(
-    values: np.ndarray, spec: TargetSpec, skeleton: dict[str, dict[str, Any]], *, root_centred: bool = False
+    values: np.ndarray,
+    spec: TargetSpec,
+    skeleton: dict[str, dict[str, Any]],
+    *,
+    root_centred: bool = False,
+    anchor: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Joint positions [T, J, 3] (NaN where not placed) and their mask [T, J] from target vectors
     [T, D] in target units (metres, unit quaternions), by forward kinematics from the spec's root.
 
     ``root_centred``: the targets were root-centred (:func:`kinectdata.targets.specs.extract_targets`):
     the other listed positions are offsets from the root at the same frame, so the root's position
-    is added back to them (the root itself stays relative to its first second)."""
+    is added back to them (the root itself stays relative to its first second).
+
+    ``anchor``: [3] metres, where the root-centred motion stands in the world
+    (:func:`kinectdata.targets.specs.root_anchor`): added to every position, so that the motion
+    is placed as the recording was; a root the targets do not list is held there. None: positions
+    stay relative to the root (or to its first second, when the root is listed)."""
     from scipy.spatial.transform import Rotation  # here: scipy.spatial costs 0.2 s at start-up
 
     js = spec.joints
@@ -105,6 +115,10 @@ def rebuild_positions(
         for name in spec.positions:
             if name != spec.root:
                 positions[:, js.index(name)] += root
+    if root_centred and anchor is not None and spec.root is not None:
+        if spec.root not in spec.positions:
+            positions[:, js.index(spec.root)] = 0.0  # the root of root-relative positions, held at the anchor
+        positions += np.asarray(anchor, np.float64)
     quats = {name: values[:, spec.columns(name, "orientation")] for name in spec.orientations}
     placed = {js.names[j] for j in range(J) if np.isfinite(positions[:, j]).all()}
     order = _parents_first(js)

@@ -442,11 +442,23 @@ def _root_centred(
     cmask = pmask & root_ok[:, None]
     if spec.root in spec.positions:
         k = spec.positions.index(spec.root)
-        valid = np.flatnonzero(root_ok)
-        n = 1
-        if motion.n_frames > 1:
-            n = max(1, round(1.0 / float(np.median(np.diff(motion.times)))))
-        start = root[valid[:n]].mean(axis=0) if valid.size else np.full(spec.dimensions, np.nan)
-        centred[:, k] = root - start
+        centred[:, k] = root - root_anchor(motion, spec)
         cmask[:, k] = root_ok
     return centred, cmask
+
+
+def root_anchor(motion: Motion, spec: TargetSpec) -> np.ndarray:
+    """[C] where a root-centred recording stands (metres): its root joint's mean position over its
+    first second (the first ``round(fps)`` frames where the root is valid, ``fps = 1 / median(diff(times))``),
+    from which root-centred targets measure the root's travel (:func:`extract_targets`); NaN when
+    the root is never valid. Adding it to positions rebuilt from the targets puts them back in the world."""
+    if spec.root is None:
+        raise KinectDataError(f"target spec {spec.name!r} names no root joint, so it cannot be root-centred")
+    r = motion.joint_set.index(spec.root)
+    valid = np.flatnonzero(motion.position_mask[:, r])
+    n = 1
+    if motion.n_frames > 1:
+        n = max(1, round(1.0 / float(np.median(np.diff(motion.times)))))
+    if not valid.size:
+        return np.full(spec.dimensions, np.nan)
+    return motion.positions[valid[:n], r].mean(axis=0)

@@ -22,6 +22,8 @@ from kinectdata.features.stft import PRESETS, StftConfig, stft_features  # noqa:
 from kinectdata.formats import read_motion  # noqa: E402
 from kinectdata.inference.engines import onnxruntime_available  # noqa: E402
 from kinectdata.inference.generate import generate  # noqa: E402
+from kinectdata.inference.start import recording_start  # noqa: E402
+from kinectdata.models.registry import model_kind  # noqa: E402
 from kinectdata.models.run import load_model  # noqa: E402
 from kinectdata.targets.normalization import Normalizer  # noqa: E402
 from kinectdata.targets.specs import TargetSpec  # noqa: E402
@@ -268,15 +270,22 @@ def test_generated_csv_reads_back_and_aligns(trained_run, tmp_path):
 
 
 def test_generate_dances_to_an_aligned_recordings_own_music(trained_run, tmp_path):
-    """An aligned .h5 gives its audio segment: the motion equals the one generated from that
-    segment written as a WAV file at the run's rate, and has the recording's frames on its clock;
+    """An aligned .h5 gives its audio segment and its first pose: the motion starts from that pose
+    and equals the one generated from that segment written as a WAV file at the run's rate from the
+    same pose, and has the recording's frames on its clock;
     a recording aligned at another rate is refused, naming the fix (the README runs the command)."""
     run, _ = trained_run
     take, music = REPO / "sample_data" / "synth_001.csv", REPO / "sample_data" / "synth_001.flac"
     rec = align_files(take, music, tmp_path / "s1.h5", offset=0.0)
-    from_h5, _ = generate(run, tmp_path / "s1.h5", tmp_path / "from_h5.csv")
+    from_h5, timing = generate(run, tmp_path / "s1.h5", tmp_path / "from_h5.csv")
+    assert timing["start"] == "the recording's first pose"
+    # frame 0 is the recording's own first pose: its listed positions where the recording has them
+    spine = rec.motion.joint_set.index("SpineBase")
+    np.testing.assert_allclose(from_h5.positions[0, spine], rec.motion.positions[0, spine], atol=1e-5)
     sf.write(tmp_path / "segment.wav", rec.audio, rec.sample_rate, subtype="FLOAT")
-    from_wav, _ = generate(run, tmp_path / "segment.wav")
+    config = json.loads((run / "config.json").read_text())["dataset"]
+    start = recording_start(rec.motion, config, model_kind("yalta"))
+    from_wav, _ = generate(run, tmp_path / "segment.wav", start=start)
     assert from_h5.n_frames == from_wav.n_frames == int(np.floor(rec.audio.size / rec.sample_rate * 30 + 1e-9))
     assert abs(from_h5.n_frames - rec.n_frames) <= 1
     np.testing.assert_allclose(from_h5.positions, from_wav.positions, atol=1e-6, equal_nan=True)

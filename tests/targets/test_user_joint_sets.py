@@ -9,6 +9,7 @@ import shutil
 import numpy as np
 import pytest
 from conftest import REPO
+from helpers import DANCER19, write_dancer19_schemas
 
 from kinectdata.core.errors import KinectDataError, SchemaError
 from kinectdata.core.jointsets import joint_set_from_dict, load_joint_set
@@ -18,66 +19,6 @@ from kinectdata.dataset.prepare import BuildConfig
 from kinectdata.features import PRESETS
 from kinectdata.targets.specs import TargetSpec, extract_targets, load_target_spec
 
-# name -> parent: pelvis, a three-bone spine to the head, two arms and two legs of three bones
-DANCER19 = {
-    "pelvis": None,
-    "spine1": "pelvis",
-    "spine2": "spine1",
-    "neck": "spine2",
-    "head": "neck",
-    "l_shoulder": "spine2",
-    "l_elbow": "l_shoulder",
-    "l_wrist": "l_elbow",
-    "r_shoulder": "spine2",
-    "r_elbow": "r_shoulder",
-    "r_wrist": "r_elbow",
-    "l_hip": "pelvis",
-    "l_knee": "l_hip",
-    "l_ankle": "l_knee",
-    "l_toe": "l_ankle",
-    "r_hip": "pelvis",
-    "r_knee": "r_hip",
-    "r_ankle": "r_knee",
-    "r_toe": "r_ankle",
-}
-
-
-def _same(joint: str) -> dict:
-    return {"from": {joint: 1}, "exact": True}
-
-
-def _between(a: str, b: str) -> dict:
-    return {"from": {a: 0.5, b: 0.5}, "exact": False}
-
-
-TO_SMPL24 = {
-    "pelvis": _same("pelvis"),
-    "left_hip": _same("l_hip"),
-    "right_hip": _same("r_hip"),
-    "spine1": _same("spine1"),
-    "left_knee": _same("l_knee"),
-    "right_knee": _same("r_knee"),
-    "spine2": _same("spine2"),
-    "left_ankle": _same("l_ankle"),
-    "right_ankle": _same("r_ankle"),
-    "spine3": _between("spine2", "neck"),
-    "left_foot": _same("l_toe"),
-    "right_foot": _same("r_toe"),
-    "neck": _same("neck"),
-    "left_collar": _between("spine2", "l_shoulder"),
-    "right_collar": _between("spine2", "r_shoulder"),
-    "head": _same("head"),
-    "left_shoulder": _same("l_shoulder"),
-    "right_shoulder": _same("r_shoulder"),
-    "left_elbow": _same("l_elbow"),
-    "right_elbow": _same("r_elbow"),
-    "left_wrist": _same("l_wrist"),
-    "right_wrist": _same("r_wrist"),
-    "left_hand": {"from": {"l_wrist": 1}, "exact": False, "note": "no hand joint: the wrist stands in"},
-    "right_hand": {"from": {"r_wrist": 1}, "exact": False, "note": "no hand joint: the wrist stands in"},
-}
-"""How the made-up dancer's joints make SMPL-24's, in its joint-set file."""
-
 
 @pytest.fixture
 def corpus(tmp_path):
@@ -85,22 +26,7 @@ def corpus(tmp_path):
     recordings of it in ``takes/`` with copies of the bundled songs and a recordings manifest."""
     schemas = tmp_path / "schemas"
     schemas.mkdir()
-    joints = [{"name": n, "parent": p} for n, p in DANCER19.items()]
-    (schemas / "dancer19.json").write_text(
-        json.dumps({"name": "dancer19", "joints": joints, "roles": {"root": "pelvis"}, "to_smpl24": TO_SMPL24})
-    )
-    (schemas / "dancer19_csv.json").write_text(
-        json.dumps(
-            {
-                "name": "dancer19_csv",
-                "joint_set": "dancer19.json",
-                "layout": "wide",
-                "header": True,
-                "time": {"column": "t", "unit": "s"},
-                "position": {"columns": ["{joint}_x", "{joint}_y", "{joint}_z"], "unit": "m"},
-            }
-        )
-    )
+    write_dancer19_schemas(schemas)
     (schemas / "dancer19_positions.json").write_text(
         json.dumps(
             {
