@@ -16,9 +16,10 @@ checks look at the body itself (`kinectdata info` prints them):
   taller than wide) must be the up axis;
 - :func:`speed_doubt`: the 99th percentile of the joints' speeds should stay under 20 m/s (a
   dancer's hands reach 5-8 m/s): beyond, the stated frame rate is too high (a 30 fps file read at
-  300) or the unit too large; and over a take of 10 s or more it should reach 0.3 m/s (real dance:
-  2.0-4.2 m/s on the tang2018 corpus, 43 ballroom dances): below, if the take is of dance, the stated
-  rate is too low (a 25 fps file read at 2.5) or the unit too small.
+  300) or the unit too large; and over a take of 10 s or more it should reach 0.8 m/s (real dance:
+  2.5-7.2 m/s on the tang2018 corpus, 43 ballroom dances, so that a rate 10 times too low falls
+  below it in every one): below, if the take is of dance, the stated rate is too low (a 25 fps file
+  read at 2.5) or the unit too small.
 """
 
 from __future__ import annotations
@@ -35,7 +36,7 @@ BODY_EXTENT_M = (0.3, 3.5)
 """Plausible range of a body's extent in metres (its bounding box diagonal, median over frames)."""
 MAX_SPEED_M_S = 20.0
 """Joint speeds (99th percentile) above this are no dancer's."""
-MIN_DANCE_SPEED_M_S = 0.3
+MIN_DANCE_SPEED_M_S = 0.8
 """Joint speeds (99th percentile) below this, over :data:`MIN_SLOW_TAKE_S` or more, are no dance's."""
 MIN_SLOW_TAKE_S = 10.0
 _AXES = "xyz"
@@ -174,7 +175,7 @@ def speed_doubt(motion: Motion) -> str | None:
         )
     if fast < MIN_DANCE_SPEED_M_S and motion.duration >= MIN_SLOW_TAKE_S:
         return (
-            f"joints move at most {fast:.2g} m/s (99th percentile), slower than dance (2-4 m/s in real dances): "
+            f"joints move at most {fast:.2g} m/s (99th percentile), slower than dance (2.5-7 m/s in real dances): "
             "if this is dance, is the stated frame rate too low (a 25 fps file read at 2.5?), or the unit too "
             "small? (A take of someone standing still reads so too.)"
         )
