@@ -25,8 +25,51 @@ import click
 from kinectdata.core.errors import KinectDataError, KinectDataWarning
 from kinectdata.core.version import __version__
 
+COMMAND_MODULES = {
+    "info": "info",
+    "formats": "info",
+    "oni": "oni",
+    "capture": "capture",
+    "align": "align",
+    "prepare": "prepare",
+    "build-dataset": "dataset",
+    "inspect": "dataset",
+    "verify": "verify",
+    "train-baseline": "train",
+    "evaluate": "train",
+    "generate": "train",
+    "export": "train",
+    "sweep": "train",
+    "score": "score",
+    "smpl24": "score",
+    "synth": "synth",
+    "quickstart": "quickstart",
+    "report": "report",
+    "render": "render",
+}
+"""Each command and the module of ``kinectdata.cli`` that defines it (in its ``COMMANDS``): a
+command's module is imported when the command runs, so that ``kinectdata info`` does not import
+what ``kinectdata train-baseline`` needs (``tests/cli`` checks the table against the modules)."""
+
 
 class _Group(click.Group):
+    def list_commands(self, ctx: click.Context) -> list[str]:
+        return sorted(COMMAND_MODULES)
+
+    def get_command(self, ctx: click.Context, name: str) -> click.Command | None:
+        if name not in self.commands and name in COMMAND_MODULES:
+            import importlib
+
+            module = importlib.import_module(f"{__name__}.{COMMAND_MODULES[name]}")
+            for command in module.COMMANDS:
+                self.add_command(command)
+        return self.commands.get(name)
+
+    def format_commands(self, ctx: click.Context, formatter) -> None:
+        for name in COMMAND_MODULES:  # --help lists every command: import them all
+            self.get_command(ctx, name)
+        super().format_commands(ctx, formatter)
+
     def invoke(self, ctx: click.Context):
         with warnings.catch_warnings():
             python_way = warnings.showwarning
@@ -110,26 +153,6 @@ def main() -> None:
     """
 
 
-def _register() -> None:
-    from . import align, capture, dataset, info, oni, prepare, quickstart, render, report, score, synth, train, verify
-
-    for module in (
-        info,
-        oni,
-        capture,
-        align,
-        prepare,
-        dataset,
-        verify,
-        train,
-        score,
-        synth,
-        quickstart,
-        report,
-        render,
-    ):
-        for command in module.COMMANDS:
-            main.add_command(command)
-
-
-_register()
+def all_commands() -> dict[str, click.Command]:
+    """Every command by name, their modules imported (for tests and documentation tools)."""
+    return {name: main.get_command(None, name) for name in COMMAND_MODULES}

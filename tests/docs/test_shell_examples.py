@@ -308,7 +308,9 @@ def quoted_output(example: Example) -> str | None:
 
 
 def _program(name: str) -> list[str]:
-    found = shutil.which(name)
+    # the environment's own script first (the one this Python installed), then PATH: a version
+    # manager's shim on PATH (pyenv's) finds the same script, 50 ms later per command
+    found = shutil.which(name, path=str(Path(sys.executable).parent)) or shutil.which(name)
     if name == "kinectdata" and found is None:
         return [sys.executable, "-m", "kinectdata"]  # an editable install without scripts on PATH
     assert found, f"{name} is not on PATH"
