@@ -46,6 +46,7 @@ COMMAND_MODULES = {
     "quickstart": "quickstart",
     "report": "report",
     "render": "render",
+    "live": "live",
 }
 """Each command and the module of ``kinectdata.cli`` that defines it (in its ``COMMANDS``): a
 command's module is imported when the command runs, so that ``kinectdata info`` does not import

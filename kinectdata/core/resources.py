@@ -22,7 +22,12 @@ def schemas_dir() -> Path:
 
 def shipped_names(kind: str) -> list[str]:
     """Names (file stems) of the shipped files of one kind (a folder of ``schemas/``: ``jointsets``, ``csv``)."""
-    return sorted(p.stem for p in (schemas_dir() / kind).glob("*.json"))
+    return list(_shipped_names(kind))
+
+
+@cache
+def _shipped_names(kind: str) -> tuple[str, ...]:  # the package's files do not change while it runs
+    return tuple(sorted(p.stem for p in (schemas_dir() / kind).glob("*.json")))
 
 
 def shipped_path(kind: str, name: str) -> Path:

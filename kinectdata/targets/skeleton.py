@@ -121,8 +121,8 @@ def rebuild_positions(
         positions += np.asarray(anchor, np.float64)
     quats = {name: values[:, spec.columns(name, "orientation")] for name in spec.orientations}
     placed = {js.names[j] for j in range(J) if np.isfinite(positions[:, j]).all()}
-    order = _parents_first(js)
-    for j in order:
+    chain = []  # (joint, parent, the joint whose orientation turns its bone, the bone), parents first
+    for j in _parents_first(js):
         name, p = js.names[j], js.parents[j]
         bone = skeleton.get(name)
         if p < 0 or bone is None or name in placed or js.names[p] not in placed:
@@ -130,13 +130,17 @@ def rebuild_positions(
         frame = js.names[p] if bone["frame"] == "parent" else name
         if frame not in quats:
             continue
-        q = quats[frame]
-        ok = np.isfinite(q).all(axis=1) & (np.linalg.norm(np.nan_to_num(q), axis=1) > 0)  # masked: zeros or NaN
-        rotated = np.full((T, 3), np.nan)
-        if ok.any():
-            rotated[ok] = Rotation.from_quat(q[ok]).apply(np.asarray(bone["offset"]))
-        positions[:, j] = positions[:, p] + rotated
+        chain.append((j, p, frame, bone["offset"]))
         placed.add(name)
+    if chain:  # every bone turned in one call (a live frame is one row), then added down the chain
+        q = np.stack([quats[frame] for _, _, frame, _ in chain], axis=1)  # [T, K, 4]
+        bones = np.broadcast_to(np.asarray([b for *_, b in chain], np.float64), (T, len(chain), 3))
+        ok = np.isfinite(q).all(axis=-1) & (np.linalg.norm(np.nan_to_num(q), axis=-1) > 0)  # masked: zeros or NaN
+        rotated = np.full((T, len(chain), 3), np.nan)
+        if ok.any():
+            rotated[ok] = Rotation.from_quat(q[ok]).apply(bones[ok])
+        for k, (j, p, _, _) in enumerate(chain):
+            positions[:, j] = positions[:, p] + rotated[:, k]
     return positions, np.isfinite(positions).all(axis=-1)
 
 

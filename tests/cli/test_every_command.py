@@ -62,6 +62,11 @@ def cases(paths: dict) -> dict[str, dict[str, list]]:
             "foreign": ["--run", run, junk_file.with_suffix(".wav"), "-o", out / "g.csv"],
         },
         "info": {"missing": [missing / "take.csv"], "foreign": [junk_file]},
+        "live": {  # checked before a frame is danced: nothing waits for the song to end to fail
+            "unwritable": ["--run", run, "--input", SONG, "--record", block / "live.h5"],
+            "missing": ["--run", missing / "run", "--input", SONG],
+            "foreign": ["--run", run, "--input", junk_file.with_suffix(".wav")],
+        },
         "inspect": {"missing": [missing], "foreign": [junk_dir]},
         "oni": {
             "unwritable": ["export", ONI, "-o", block / "d.h5"],
