@@ -24,6 +24,18 @@ from kinectdata.core.errors import KinectDataError
 @click.option("--play", is_flag=True, help="Play the --input file on the speakers while dancing to it.")
 @click.option("--osc", multiple=True, metavar="HOST:PORT", help="Send each pose as an OSC bundle there (repeatable).")
 @click.option(
+    "--vmc",
+    multiple=True,
+    metavar="HOST:PORT",
+    help="Send each pose to an avatar tool over the VMC protocol (VSeeFace, Unity: usually port 39539; repeatable).",
+)
+@click.option(
+    "--vmc-map",
+    default=None,
+    type=click.Path(dir_okay=False, path_type=str),
+    help="The run's joints as Unity humanoid bones (docs/live.md); default: the one shipped for its joint set.",
+)
+@click.option(
     "--record",
     default=None,
     type=click.Path(dir_okay=False, path_type=str),
@@ -51,11 +63,14 @@ from kinectdata.core.errors import KinectDataError
 @beats_per_bar_option(
     "The song's metre, for a model whose features count bars; default: estimated from a file, else 4."
 )
-def live(run_dir, given, play, osc, record, duration, stats, block_ms, engine, precision, beats_per_bar) -> None:
+def live(
+    run_dir, given, play, osc, vmc, vmc_map, record, duration, stats, block_ms, engine, precision, beats_per_bar
+) -> None:
     """Listen to a microphone (or a file at real-time pace), step the run's streaming network once per
-    motion frame as the audio arrives, and send each pose at once to OSC receivers (--osc) and into
-    a recording (--record). Runs until the file ends, --duration, or Ctrl-C; then prints the latency
-    from a frame's audio to its pose, the processing time, late and dropped frames and overruns."""
+    motion frame as the audio arrives, and send each pose at once to OSC receivers (--osc), avatar
+    tools (--vmc) and into a recording (--record). Runs until the file ends, --duration, or Ctrl-C;
+    then prints the latency from a frame's audio to its pose, the processing time, late and dropped
+    frames and overruns."""
     _torch_or_fail()
     import torch
 
@@ -73,6 +88,10 @@ def live(run_dir, given, play, osc, record, duration, stats, block_ms, engine, p
     block = max(1, round(dancer.sample_rate * block_ms / 1000))
     source = open_source(given, dancer.sample_rate, block, clock, play=play)
     sinks = [OscSink(address, dancer.joint_set) for address in osc]
+    if vmc:
+        from kinectdata.live.vmc import VmcSink
+
+        sinks += [VmcSink(address, dancer.joint_set, vmc_map) for address in vmc]
     recorder = None
     if record is not None:
         recorder = RecordSink(Path(record), dancer.joint_set, dancer.fps, dancer.sample_rate, source.name)

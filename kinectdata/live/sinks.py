@@ -53,11 +53,13 @@ def parse_address(text: str) -> tuple[str, int]:
     return host, int(port)
 
 
-class OscSink:
-    """Sends each frame as one OSC bundle to ``host:port`` over UDP, as the module docstring says."""
+class UdpSink:
+    """Sends each frame's datagram (its subclass's :meth:`bundle`) to ``host:port`` over UDP, and
+    counts the frames sent and those the network refused."""
 
-    def __init__(self, address: str, joint_set: JointSet):
-        self.encoder = FrameEncoder(joint_set.names)
+    label = "UDP"
+
+    def __init__(self, address: str):
         self.address = address
         host, port = parse_address(address)
         try:
@@ -68,19 +70,35 @@ class OscSink:
         self.sent = 0
         self.failed = 0
 
+    def bundle(self, pose: LivePose) -> bytes:
+        raise NotImplementedError
+
     def send(self, pose: LivePose) -> None:
         try:
-            self.socket.sendto(self.encoder.bundle(pose), self.target[4])
+            self.socket.sendto(self.bundle(pose), self.target[4])
             self.sent += 1
-        except OSError:  # nobody listening (ICMP port unreachable) or the network went away: count, go on
+        except OSError:  # the network went away (or refused): count, go on
             self.failed += 1
 
     def close(self) -> None:
         self.socket.close()
 
     def summary(self) -> str:
-        lost = f", {self.failed} not delivered (no receiver?)" if self.failed else ""
-        return f"OSC {self.address}: {self.sent} frames sent{lost}"
+        lost = f", {self.failed} not delivered" if self.failed else ""
+        return f"{self.label} {self.address}: {self.sent} frames sent{lost}"
+
+
+class OscSink(UdpSink):
+    """Each frame as one OSC bundle, as the module docstring says."""
+
+    label = "OSC"
+
+    def __init__(self, address: str, joint_set: JointSet):
+        self.encoder = FrameEncoder(joint_set.names)
+        super().__init__(address)
+
+    def bundle(self, pose: LivePose) -> bytes:
+        return self.encoder.bundle(pose)
 
 
 class FrameEncoder:

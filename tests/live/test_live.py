@@ -20,7 +20,8 @@ from pythonosc.osc_bundle import OscBundle  # noqa: E402
 
 from kinectdata.align.aligned import AlignedRecording  # noqa: E402
 from kinectdata.cli import main  # noqa: E402
-from kinectdata.core.errors import KinectDataError  # noqa: E402
+from kinectdata.core.errors import KinectDataError, SchemaError  # noqa: E402
+from kinectdata.formats import read_motion  # noqa: E402
 from kinectdata.inference.generate import generate  # noqa: E402
 from kinectdata.live import sources  # noqa: E402
 from kinectdata.live.clock import VirtualClock  # noqa: E402
@@ -208,3 +209,70 @@ def test_what_cannot_dance_live_says_why(tmp_path):
         parse_address("localhost")
     result = CliRunner().invoke(main, ["live", "--run", str(tmp_path / "nowhere"), "--input", str(SONG)])
     assert result.exit_code != 0 and "Traceback" not in result.output
+
+
+def test_vmc_bones_turn_their_rest_directions_onto_the_dancers_bones():
+    """An independent check of the solved rotations: the chain of local rotations, composed from the
+    root, turns each bone's T-pose direction onto the bone's direction in the frame (Unity's axes:
+    x mirrored), for random poses of a Kinect v2 body seen from any side."""
+    from scipy.spatial.transform import Rotation
+
+    from kinectdata.core.jointsets import load_joint_set
+    from kinectdata.live.vmc import HUMAN_BODY_BONES, TO_UNITY, VmcRig
+
+    kinect = load_joint_set("kinect_v2")
+    rig = VmcRig(kinect)
+    rng = np.random.default_rng(4)
+    take = read_motion(REPO / "sample_data" / "synth_001.csv")
+    for k in rng.integers(0, take.n_frames, 6):
+        turned = Rotation.from_euler("y", rng.uniform(0, 360), degrees=True).apply(take.positions[k].reshape(-1, 3))
+        positions = turned.reshape(len(kinect), 3)
+        root, facing, bones = rig.solve(positions)
+        p = positions * TO_UNITY
+        np.testing.assert_allclose(root, p[kinect.index("SpineBase")])
+        globals_ = {}
+        for name, offset, q in bones:
+            bone = next(b for b in rig.bones if b.name == name)
+            assert name in HUMAN_BODY_BONES and np.linalg.norm(q) == pytest.approx(1.0)
+            parent = globals_.get(bone.parent, Rotation.from_quat(facing))
+            own = parent * Rotation.from_quat(q)
+            globals_[name] = own
+            d = p[bone.aim] - p[bone.joint]
+            np.testing.assert_allclose(own.apply(bone.rest), d / np.linalg.norm(d), atol=1e-6)
+            if bone.parent is not None:  # the local position is where the bone starts, in its parent's frame
+                start = next(b.joint for b in rig.bones if b.name == bone.parent)
+                np.testing.assert_allclose(parent.apply(offset), p[bone.joint] - p[start], atol=1e-9)
+        assert len(bones) == len(rig.bones)
+
+
+def test_vmc_frames_reach_a_receiver_and_a_joint_set_without_a_mapping_is_one_line(trained_run, tmp_path):
+    run, _ = trained_run
+    receiver = Receiver()
+    result = CliRunner().invoke(
+        main, ["live", "--run", str(run), "--input", str(SONG), "--vmc", f"127.0.0.1:{receiver.port}",
+               "--duration", "1", "--engine", "torch"],
+    )  # fmt: skip
+    assert result.exit_code == 0, result.output
+    bundles = receiver.frames()
+    assert len(bundles) == 29
+    messages = list(bundles[3])
+    assert [m.address for m in messages[:2]] == ["/VMC/Ext/Root/Pos", "/VMC/Ext/Bone/Pos"]
+    assert messages[0].params[0] == "root" and messages[1].params[0] == "Hips"
+    assert messages[-2].address == "/VMC/Ext/OK" and messages[-1].address == "/VMC/Ext/T"
+    assert messages[-1].params[0] == pytest.approx(3 / 30, abs=1e-6)
+    sent = {m.params[0] for m in messages if m.address == "/VMC/Ext/Bone/Pos"}
+    assert {"Hips", "Spine", "LeftUpperArm", "RightLowerLeg"} <= sent and "LeftFoot" not in sent  # yalta65: no feet
+    for m in messages[:-2]:
+        assert np.linalg.norm(m.params[4:8]) == pytest.approx(1.0, abs=1e-5)
+
+    from kinectdata.core.jointsets import load_joint_set
+    from kinectdata.live.vmc import VmcSink
+
+    with pytest.raises(SchemaError, match="no VMC mapping for joint set 'nite' .* --vmc-map FILE"):
+        VmcSink("127.0.0.1:39539", load_joint_set("nite"))
+    bad = tmp_path / "map.json"
+    bad.write_text(json.dumps({"joint_set": "kinect_v2", "left_hip": "HipLeft", "right_hip": "HipRight",
+                               "bones": [{"bone": "Pelvis", "parent": None, "joint": "SpineBase", "aim": "SpineMid",
+                                          "rest": [0, 1, 0]}]}))  # fmt: skip
+    with pytest.raises(SchemaError, match=r"map.json: bones\[0\]: 'Pelvis' is not a Unity humanoid bone"):
+        VmcSink("127.0.0.1:39539", load_joint_set("kinect_v2"), bad)
