@@ -45,7 +45,9 @@ class LiveDancer:
     """A trained run stepping one frame at a time: features [*F] in, :class:`LivePose` out.
 
     Args:
-        run: the run folder; its model must stream (the yalta model does).
+        run: the run folder; its model must stream (both bundled models do). A 3-D target's pose is
+            placed as ``generate`` places it; a 2-D one (the cdhc model's) is its joints in the
+            target's units (0..1 of the training recordings' range, y down).
         engine, precision: as ``generate``'s (torch float32 / float16, onnxruntime float32);
             ``auto``: ONNX Runtime where it is installed and the model runs on it (a yalta step takes
             about half torch's time at batch 1), else torch.
@@ -57,13 +59,11 @@ class LiveDancer:
         if not self.kind.streams:
             raise KinectDataError(
                 f"{run}: the {self.kind.name} model does not step one frame at a time, so it cannot dance live "
-                "(the yalta model does)"
+                "(the bundled yalta and cdhc models do)"
             )
         self.data = config["dataset"]
         self.fps, self.sample_rate = float(self.data["fps"]), int(self.data["sample_rate"])
         self.spec = TargetSpec.from_dict(self.data["target"])
-        if self.spec.dimensions != 3:
-            raise KinectDataError(f"{run}: its target is 2-D (pixels); live poses are 3-D joints in metres")
         self.features = feature_config(self.data["features"])
         self.norm = Normalizer.from_dict(self.data["normalisation"])
         if engine == "auto":
@@ -91,6 +91,11 @@ class LiveDancer:
         """The pose of frame ``index`` from its features (frames are stepped in order)."""
         self.pose = self.stepper.step(features, self.pose)
         values = self.norm.invert(self.pose[None], self.spec)
+        if self.spec.dimensions == 2:  # the cdhc model's image-plane joints, in its 0..1 units, y down
+            positions = np.full((len(self.joint_set), 2), np.nan)
+            for joint in self.spec.positions:
+                positions[self.joint_set.index(joint)] = values[0, self.spec.columns(joint, "position")]
+            return LivePose(index, index / self.fps, positions)
         centred = bool(self.data["root_centre"]) and self.spec.root is not None
         skeleton = self.data.get("skeleton") or {}
         if centred and self.anchor is None:  # the floor rule, from the first frame, as generate places it

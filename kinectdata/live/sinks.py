@@ -5,7 +5,7 @@ OSC address space (one bundle per frame, its time tag "immediately"; docs/live.m
 - ``/kinectdata/frame``: int32 frame number (0, 1, ...), float32 time of the frame in seconds from
   the start of the audio (``k / fps``);
 - ``/kinectdata/joint/<name>/position``: float32 x, y, z in metres, y up, right-handed, for each
-  joint the run places in that frame;
+  joint the run places in that frame (a 2-D target's x, y in its units: the cdhc model's 0..1, y down);
 - ``/kinectdata/joint/<name>/rotation``: float32 x, y, z, w, a unit quaternion (the joint's
   orientation in the world), for each joint the run's target gives an orientation.
 
@@ -35,7 +35,7 @@ class LivePose:
     Attributes:
         index: frame number from the start (frame k at ``k / fps`` s of the audio).
         time_s: ``k / fps``.
-        positions: [J, 3] metres, y up (NaN for joints not placed).
+        positions: [J, 3] metres, y up, or [J, 2] a 2-D target's units (NaN for joints not placed).
         orientations: [J, 4] unit quaternions x, y, z, w (NaN where the target gives none), or None.
     """
 
@@ -94,7 +94,7 @@ class OscSink(UdpSink):
     label = "OSC"
 
     def __init__(self, address: str, joint_set: JointSet):
-        self.encoder = FrameEncoder(joint_set.names)
+        self.encoder = FrameEncoder(joint_set.names, joint_set.dimensions)
         super().__init__(address)
 
     def bundle(self, pose: LivePose) -> bytes:
@@ -106,14 +106,14 @@ class FrameEncoder:
     message's address and type tags are encoded once, at the start: python-osc's message builder
     parses every message it builds again, a millisecond a frame that a live frame cannot spare."""
 
-    def __init__(self, names: tuple[str, ...]):
+    def __init__(self, names: tuple[str, ...], dimensions: int = 3):
         try:
             from pythonosc.parsing import osc_types
         except ImportError:
             raise KinectDataError("--osc needs python-osc: pip install 'kinectdata[live]'") from None
         self.types = osc_types
         self.frame = osc_types.write_string(f"{PREFIX}/frame") + osc_types.write_string(",if")
-        self.position = [_head(osc_types, f"{PREFIX}/joint/{n}/position", ",fff") for n in names]
+        self.position = [_head(osc_types, f"{PREFIX}/joint/{n}/position", "," + "f" * dimensions) for n in names]
         self.rotation = [_head(osc_types, f"{PREFIX}/joint/{n}/rotation", ",ffff") for n in names]
         self.start = osc_types.write_string("#bundle") + (1).to_bytes(8, "big")  # time tag 1: immediately
 

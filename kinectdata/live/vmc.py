@@ -69,6 +69,11 @@ class VmcRig:
     """
 
     def __init__(self, joint_set: JointSet, mapping: str | Path | None = None):
+        if joint_set.dimensions != 3:
+            raise KinectDataError(
+                f"joint set {joint_set.name} is {joint_set.dimensions}-D (image points): an avatar's bones need "
+                "3-D joints"
+            )
         path = Path(mapping) if mapping is not None else schemas_dir() / "vmc" / f"{joint_set.name}.json"
         if not path.is_file():
             raise SchemaError(

@@ -156,6 +156,35 @@ def test_generate_writes_openpose_json_lines_the_reader_reads(cdhc_run, sessions
     assert result.exit_code == 1 and "the cdhc model has no onnx export (models that have: yalta)" in result.output
 
 
+def test_the_cdhc_model_dances_live_as_it_generates(cdhc_run, sessions):
+    """Its causal convolutions stepped one frame at a time with their caches: on a song played at
+    real-time pace (a virtual clock) the poses are generate's; an avatar (VMC) needs 3-D joints."""
+    pytest.importorskip("pythonosc")
+    from kinectdata.core.errors import KinectDataError
+    from kinectdata.inference.generate import generate
+    from kinectdata.live.clock import VirtualClock
+    from kinectdata.live.session import LiveDancer, run_live
+    from kinectdata.live.sources import FileSource
+    from kinectdata.live.vmc import VmcSink
+
+    run, _ = cdhc_run
+    song = sessions / "dance_11.flac"
+    clock = VirtualClock()
+    dancer = LiveDancer(run, "torch")
+    poses = []
+
+    class Keep:
+        def send(self, pose):
+            poses.append(pose.positions)
+
+    stats = run_live(dancer, FileSource(song, dancer.sample_rate, 80, clock), [Keep()], clock)
+    expected, _ = generate(run, song)
+    assert stats.frames == expected.n_frames
+    np.testing.assert_allclose(np.stack(poses), expected.positions, atol=1e-5)
+    with pytest.raises(KinectDataError, match="openpose_mpi is 2-D .*an avatar's bones need 3-D joints"):
+        VmcSink("127.0.0.1:39539", dancer.joint_set)
+
+
 def test_evaluate_reports_rhythm_with_the_real_motion_peaking_at_the_beat(cdhc_run, ltd_dataset, tmp_path):
     run, _ = cdhc_run
     result = run_cli("evaluate", "--run", run, "--data", ltd_dataset, "--out", tmp_path / "ev")
