@@ -51,10 +51,12 @@ METADATA_KEY = "kinectdata"
 TORCHSCRIPT_METADATA = "kinectdata.json"
 
 
-def stream_names(kind: ModelKind) -> tuple[list[str], list[str]]:
+def stream_names(kind: ModelKind, model_config: dict[str, Any]) -> tuple[list[str], list[str]]:
     """The exported stream's (input names, output names): ``features``, ``previous`` and the
-    state's; ``pose`` and ``NAME_out`` for each state tensor."""
-    return ["features", "previous", *kind.state_names], ["pose", *(f"{n}_out" for n in kind.state_names)]
+    state's (:meth:`~kinectdata.models.kind.ModelKind.stream_state_names` of the network's
+    configuration); ``pose`` and ``NAME_out`` for each state tensor."""
+    names = kind.stream_state_names(model_config)
+    return ["features", "previous", *names], ["pose", *(f"{n}_out" for n in names)]
 
 
 def stream_metadata(
@@ -69,7 +71,7 @@ def stream_metadata(
         "model": kind.name,
         "precision": precision,
         "inputs": inputs,
-        "outputs": stream_names(kind)[1],
+        "outputs": stream_names(kind, run_config["model"])[1],
         "fps": data["fps"],
         "sample_rate": data["sample_rate"],
         "features": data["features"],
@@ -133,7 +135,8 @@ def export_onnx(
         raise KinectDataError("ONNX export needs onnx and onnxscript: pip install 'kinectdata[export]'") from None
     stream = kind.stream(net.eval(), "float32").eval()
     example = (*kind.example_frame(net), *stream.initial_state())
-    inputs, outputs = stream_names(kind)
+    config = net.config.to_dict() if hasattr(getattr(net, "config", None), "to_dict") else {}
+    inputs, outputs = stream_names(kind, config)
     quiet = logging.getLogger("torch.onnx")
     level = quiet.level
     quiet.setLevel(logging.ERROR)

@@ -7,7 +7,7 @@
   Tables 3-5.
 - ``cdhc`` (:class:`CdhcKind`): the CDHC encoder-decoder of Lee et al. (2018) (:mod:`.cdhc`):
   mel inputs [T, F], teacher forcing, L1 + limb-length loss, autoregressive generation; streams
-  (torch, float32), no state to reset, no export.
+  (torch and ONNX Runtime, float32: one cache per highway block), no state to reset, exports ONNX.
 
 Declarations only at import: the networks (and torch) are imported when a kind is used, so the
 registry and the command line's choices load without torch.
@@ -15,6 +15,7 @@ registry and the command line's choices load without torch.
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -336,8 +337,25 @@ class CdhcKind(ModelKind):
     gradient noise, teacher forcing and the paper's widths (256 channels, a 128-channel decoder)."""
     resets = False  # no state to reset: the receptive field is fixed
     streams = True
-    engines = {"torch": ("float32",)}
+    engines = {"torch": ("float32",), "onnxruntime": ("float32",)}
+    exports = ("onnx",)  # its stream carries one cache per block: TorchScript's scripting takes no such list
     runs_free_in_training = True
+
+    def stream_state_names(self, config):
+        """One cache per highway block, [1, channels, (k - 1) x dilation] (its last inputs): the audio
+        encoder's, the skeleton encoder's, the decoder's."""
+        return tuple(name for name, _ in _cdhc_caches(config))
+
+    def export_metadata(self, config: dict[str, Any]) -> dict[str, Any]:
+        from kinectdata.models.cdhc import CdhcConfig
+
+        net = CdhcConfig.from_dict(config)
+        return {
+            "model": "cdhc",
+            "inputs": dict(_cdhc_caches(config)),
+            "receptive_field_frames": net.receptive_field,
+            "output": net.output,
+        }
 
     @property
     def network_type(self) -> type:
@@ -465,3 +483,17 @@ class CdhcKind(ModelKind):
     def loss_name(self, settings: CdhcSettings) -> str:
         velocity = f" + {settings.velocity_weight:g} x velocity L1" if settings.velocity_weight else ""
         return f"L1 + {settings.limb_weight:g} x limb-length L1{velocity} (0..1 targets)"
+
+
+def _cdhc_caches(config: Mapping[str, Any]) -> list[tuple[str, list[int]]]:
+    """(name, shape) of each cache of the cdhc stream, in :class:`~kinectdata.models.cdhc.FrameCdhc`'s order."""
+    from kinectdata.models.cdhc import CdhcConfig
+
+    net = CdhcConfig.from_dict(dict(config))
+    k = net.kernel_size - 1
+    parts = (
+        ("audio", net.channels, net.encoder_dilations),
+        ("skeleton", net.channels, net.encoder_dilations),
+        ("decoder", net.decoder_channels, net.decoder_dilations),
+    )
+    return [(f"{part}{i}", [1, width, k * d]) for part, width, dilations in parts for i, d in enumerate(dilations)]

@@ -234,6 +234,11 @@ class ModelKind(Protocol):
         """Zero features ``[*F]`` and a zero pose ``[D]`` (tensors) to trace the stream with (export)."""
         raise NotImplementedError(f"the {self.name} model does not stream")
 
+    def stream_state_names(self, config: Mapping[str, Any]) -> tuple[str, ...]:
+        """The names of the stream's state tensors for a network configuration (default: the
+        kind's ``state_names``; a model whose state depends on its configuration overrides this)."""
+        return tuple(self.state_names)
+
     def export_metadata(self, config: dict[str, Any]) -> dict[str, Any]:
         """What the model adds to an exported file's metadata, from its network configuration
         (an ``inputs`` entry is merged into the inputs' shapes)."""

@@ -152,8 +152,10 @@ def test_generate_writes_openpose_json_lines_the_reader_reads(cdhc_run, sessions
     assert motion.position_mask.all() and 0 <= np.nanmin(motion.positions) and np.nanmax(motion.positions) <= 1
     result = run_cli("generate", "--run", run, sessions / "dance_11.flac", "-o", tmp_path / "dance.csv")
     assert result.exit_code == 1 and "written as OpenPose JSON Lines; name the file .jsonl" in result.output
-    result = run_cli("export", "--run", run, "-o", tmp_path / "x.onnx")
-    assert result.exit_code == 1 and "the cdhc model has no onnx export (models that have: yalta)" in result.output
+    result = run_cli("export", "--run", run, "-o", tmp_path / "x.ts")
+    assert (
+        result.exit_code == 1 and "the cdhc model has no torchscript export (models that have: yalta)" in result.output
+    )
 
 
 def test_the_cdhc_model_dances_live_as_it_generates(cdhc_run, sessions):
@@ -183,6 +185,43 @@ def test_the_cdhc_model_dances_live_as_it_generates(cdhc_run, sessions):
     np.testing.assert_allclose(np.stack(poses), expected.positions, atol=1e-5)
     with pytest.raises(KinectDataError, match="openpose_mpi is 2-D .*an avatar's bones need 3-D joints"):
         VmcSink("127.0.0.1:39539", dancer.joint_set)
+
+
+def test_the_cdhc_stream_exports_to_onnx_and_runs_in_onnx_runtime_as_in_torch(cdhc_run, sessions, tmp_path):
+    """One cache per highway block, named in the file's metadata; ONNX Runtime steps it as torch does."""
+    pytest.importorskip("onnxruntime")
+    import onnxruntime as ort
+
+    run, _ = cdhc_run
+    result = run_cli("export", "--run", run, "-o", tmp_path / "cdhc.onnx")
+    assert result.exit_code == 0, result.output
+    session = ort.InferenceSession(str(tmp_path / "cdhc.onnx"), providers=["CPUExecutionProvider"])
+    meta = json.loads(session.get_modelmeta().custom_metadata_map["kinectdata"])
+    config = json.loads((run / "config.json").read_text())["model"]
+    blocks = 2 * len(config["encoder_dilations"]) + len(config["decoder_dilations"])
+    names = [i.name for i in session.get_inputs()]
+    assert names[:3] == ["features", "previous", "audio0"] and len(names) == 2 + blocks
+    assert meta["model"] == "cdhc" and meta["inputs"]["decoder0"] == [1, config["decoder_channels"], 2]
+
+    # the file steps as the torch stream does, caches carried from frame to frame (ONNX Runtime's
+    # engine for generate and live exports the same way)
+    import torch
+
+    from kinectdata.models.cdhc import FrameCdhc
+    from kinectdata.models.run import load_model
+
+    net, _ = load_model(run)
+    stream = FrameCdhc(net)
+    torch_state, onnx_state = list(stream.initial_state()), [t.numpy() for t in stream.initial_state()]
+    pose = onnx_pose = np.asarray(json.loads((run / "config.json").read_text())["dataset"]["start_pose"], np.float32)
+    rng = np.random.default_rng(3)
+    for _ in range(40):
+        features = rng.normal(size=session.get_inputs()[0].shape).astype(np.float32)
+        onnx_pose, *onnx_state = session.run(None, dict(zip(names, [features, onnx_pose, *onnx_state])))
+        with torch.inference_mode():
+            pose, *torch_state = stream(torch.from_numpy(features), torch.as_tensor(pose), *torch_state)
+        pose = pose.numpy()
+    np.testing.assert_allclose(onnx_pose, pose, atol=1e-5)
 
 
 def test_evaluate_reports_rhythm_with_the_real_motion_peaking_at_the_beat(cdhc_run, ltd_dataset, tmp_path):
