@@ -25,7 +25,7 @@ import numpy as np
 import torch
 
 from kinectdata.core.errors import ConfigError, KinectDataError
-from kinectdata.inference.export import export_onnx
+from kinectdata.inference.export import export_onnx, stream_names
 from kinectdata.models.kind import ModelKind
 from kinectdata.models.registry import kind_of
 
@@ -64,12 +64,14 @@ class OnnxRuntimeEngine:
         kind = kind or kind_of(net)
         with tempfile.TemporaryDirectory() as tmp:
             path = Path(tmp) / "stream.onnx"
-            export_onnx(net, path, kind=kind)
+            export_onnx(net, path, kind=kind, traced=True)
             options = ort.SessionOptions()
             options.intra_op_num_threads = threads
             options.inter_op_num_threads = 1
             self.session = ort.InferenceSession(str(path), options, providers=["CPUExecutionProvider"])
-        self.inputs = [i.name for i in self.session.get_inputs()]
+        config = net.config.to_dict() if hasattr(getattr(net, "config", None), "to_dict") else {}
+        self.inputs = stream_names(kind, config)[0]  # by name: an exporter may leave out an input the graph ignores
+        self.kept = {i.name for i in self.session.get_inputs()}
         self.initial = [s.detach().cpu().numpy() for s in kind.stream(net, "float32").initial_state()]
         self.name = "onnxruntime float32"
         self.reset()
@@ -78,7 +80,8 @@ class OnnxRuntimeEngine:
         self.state = [s.copy() for s in self.initial]
 
     def step(self, features: np.ndarray, previous: np.ndarray) -> np.ndarray:
-        feeds = dict(zip(self.inputs, [features, np.asarray(previous, np.float32), *self.state]))
+        values = [features, np.asarray(previous, np.float32), *self.state]
+        feeds = {name: value for name, value in zip(self.inputs, values) if name in self.kept}
         pose, *self.state = self.session.run(None, feeds)
         return pose
 
