@@ -25,7 +25,7 @@ import numpy as np
 import torch
 
 from kinectdata.core.errors import ConfigError, KinectDataError
-from kinectdata.inference.export import export_onnx, stream_names
+from kinectdata.inference.export import export_onnx, network_config, stream_names
 from kinectdata.models.kind import ModelKind
 from kinectdata.models.registry import kind_of
 
@@ -69,8 +69,7 @@ class OnnxRuntimeEngine:
             options.intra_op_num_threads = threads
             options.inter_op_num_threads = 1
             self.session = ort.InferenceSession(str(path), options, providers=["CPUExecutionProvider"])
-        config = net.config.to_dict() if hasattr(getattr(net, "config", None), "to_dict") else {}
-        self.inputs = stream_names(kind, config)[0]  # by name: an exporter may leave out an input the graph ignores
+        self.inputs = stream_names(kind, network_config(net))[0]  # by name: an exporter may drop an input it ignores
         self.kept = {i.name for i in self.session.get_inputs()}
         self.initial = [s.detach().cpu().numpy() for s in kind.stream(net, "float32").initial_state()]
         self.name = "onnxruntime float32"

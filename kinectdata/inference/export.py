@@ -59,6 +59,13 @@ def stream_names(kind: ModelKind, model_config: dict[str, Any]) -> tuple[list[st
     return ["features", "previous", *names], ["pose", *(f"{n}_out" for n in names)]
 
 
+def network_config(net: torch.nn.Module) -> dict[str, Any]:
+    """A network's configuration as its run's ``config.json`` ``model`` record holds it (its
+    ``config.to_dict()``; empty for a network without one), for the stream's state names."""
+    config = getattr(net, "config", None)
+    return config.to_dict() if hasattr(config, "to_dict") else {}
+
+
 def stream_metadata(
     run_config: dict[str, Any], precision: str = "float32", kind: ModelKind | None = None
 ) -> dict[str, Any]:
@@ -145,8 +152,7 @@ def export_onnx(
         raise KinectDataError("ONNX export needs onnx and onnxscript: pip install 'kinectdata[export]'") from None
     stream = kind.stream(net.eval(), "float32").eval()
     example = (*kind.example_frame(net), *stream.initial_state())
-    config = net.config.to_dict() if hasattr(getattr(net, "config", None), "to_dict") else {}
-    inputs, outputs = stream_names(kind, config)
+    inputs, outputs = stream_names(kind, network_config(net))
     quiet = logging.getLogger("torch.onnx")
     level = quiet.level
     quiet.setLevel(logging.ERROR)

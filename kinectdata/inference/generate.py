@@ -45,11 +45,10 @@ from kinectdata.formats.bvh_writer import write_bvh
 from kinectdata.formats.csv_writer import write_csv
 from kinectdata.formats.openpose_writer import write_openpose_jsonl
 from kinectdata.inference.engines import make_engine
-from kinectdata.inference.start import StartPose, floor_anchor, recording_start
+from kinectdata.inference.start import StartPose, recording_start, target_poses
 from kinectdata.models.registry import model_kind
 from kinectdata.models.run import load_model, model_name
 from kinectdata.targets.normalization import Normalizer
-from kinectdata.targets.skeleton import rebuild_positions
 from kinectdata.targets.specs import TargetSpec
 
 
@@ -67,25 +66,11 @@ def _motion(
     (:func:`kinectdata.targets.skeleton.rebuild_positions`), else only the spec's listed joints.
     A root-centred 3-D motion is placed in the world at ``anchor``, else by the floor rule
     (:mod:`kinectdata.inference.start`); ``metadata["placement"]`` says which."""
-    js = spec.joints
-    T, J = values.shape[0], len(js)
-    if spec.dimensions == 3:
-        positions, _ = rebuild_positions(values, spec, skeleton or {}, root_centred=root_centred)
-        if root_centred and spec.root is not None:
-            placement = "the recording's anchor" if anchor is not None else "the floor rule"
-            anchor = anchor if anchor is not None else floor_anchor(positions)
-            positions, _ = rebuild_positions(values, spec, skeleton or {}, root_centred=True, anchor=anchor)
-            metadata = metadata | {"placement": f"{placement}: root started at {np.round(anchor, 3).tolist()} m"}
-    else:
-        positions = np.full((T, J, spec.dimensions), np.nan)
-        for joint in spec.positions:
-            positions[:, js.index(joint)] = values[:, spec.columns(joint, "position")]
-    orientations = np.full((T, J, 4), np.nan)
-    for joint in spec.orientations:
-        orientations[:, js.index(joint)] = values[:, spec.columns(joint, "orientation")]
-    return Motion(
-        np.arange(T) / fps, positions, js, orientations=orientations if spec.orientations else None, metadata=metadata
-    )
+    placement = "the recording's anchor" if anchor is not None else "the floor rule"
+    positions, orientations, anchor = target_poses(values, spec, skeleton or {}, root_centred, anchor)
+    if anchor is not None:
+        metadata = metadata | {"placement": f"{placement}: root started at {np.round(anchor, 3).tolist()} m"}
+    return Motion(np.arange(len(values)) / fps, positions, spec.joints, orientations=orientations, metadata=metadata)
 
 
 def _music(

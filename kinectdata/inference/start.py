@@ -26,6 +26,7 @@ import numpy as np
 
 from kinectdata.core.motion import Motion
 from kinectdata.targets.normalization import Normalizer
+from kinectdata.targets.skeleton import rebuild_positions
 from kinectdata.targets.specs import TargetSpec, extract_targets, root_anchor
 
 
@@ -72,6 +73,40 @@ def recording_start(motion: Motion, dataset: dict[str, Any], kind: Any) -> Start
     if anchor is not None and not np.isfinite(anchor).all():
         anchor = None
     return StartPose(pose, anchor, "the recording's first pose")
+
+
+def target_poses(
+    values: np.ndarray,
+    spec: TargetSpec,
+    skeleton: dict,
+    root_centred: bool,
+    anchor: np.ndarray | None = None,
+) -> tuple[np.ndarray, np.ndarray | None, np.ndarray | None]:
+    """The joints of denormalised target vectors [T, D], as ``generate`` writes them and ``live``
+    sends them: positions [T, J, C] (NaN where not placed: 3-D ones by forward kinematics over the
+    dataset's rest ``skeleton``, :func:`~kinectdata.targets.skeleton.rebuild_positions`; a 2-D
+    target's as it gives them), orientations [T, J, 4] where the target has any (else None), and
+    the anchor a root-centred 3-D motion stands at: ``anchor``, else the floor rule's from its first
+    frame (None when the motion is not root-centred)."""
+    js = spec.joints
+    T, J = values.shape[0], len(js)
+    orientations = None
+    if spec.orientations:
+        orientations = np.full((T, J, 4), np.nan)
+        for joint in spec.orientations:
+            orientations[:, js.index(joint)] = values[:, spec.columns(joint, "orientation")]
+    if spec.dimensions != 3:
+        positions = np.full((T, J, spec.dimensions), np.nan)
+        for joint in spec.positions:
+            positions[:, js.index(joint)] = values[:, spec.columns(joint, "position")]
+        return positions, orientations, None
+    if not (root_centred and spec.root is not None):
+        return rebuild_positions(values, spec, skeleton, root_centred=root_centred)[0], orientations, None
+    if anchor is None:
+        first, _ = rebuild_positions(values[:1], spec, skeleton, root_centred=True)
+        anchor = floor_anchor(first)
+    positions, _ = rebuild_positions(values, spec, skeleton, root_centred=True, anchor=anchor)
+    return positions, orientations, anchor
 
 
 def floor_anchor(positions: np.ndarray) -> np.ndarray:

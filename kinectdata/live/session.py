@@ -27,12 +27,11 @@ from kinectdata.features import feature_config, needs_metre
 from kinectdata.features.metre import recording_metre
 from kinectdata.features.streaming import StreamingFeatures
 from kinectdata.inference.engines import make_engine, onnxruntime_available
-from kinectdata.inference.start import floor_anchor
+from kinectdata.inference.start import target_poses
 from kinectdata.live.sinks import LivePose
 from kinectdata.models.registry import model_kind
 from kinectdata.models.run import load_model, model_name
 from kinectdata.targets.normalization import Normalizer
-from kinectdata.targets.skeleton import rebuild_positions
 from kinectdata.targets.specs import TargetSpec
 
 LATENCY_GOAL_MS = (10.0, 25.0)
@@ -91,23 +90,12 @@ class LiveDancer:
         """The pose of frame ``index`` from its features (frames are stepped in order)."""
         self.pose = self.stepper.step(features, self.pose)
         values = self.norm.invert(self.pose[None], self.spec)
-        if self.spec.dimensions == 2:  # the cdhc model's image-plane joints, in its 0..1 units, y down
-            positions = np.full((len(self.joint_set), 2), np.nan)
-            for joint in self.spec.positions:
-                positions[self.joint_set.index(joint)] = values[0, self.spec.columns(joint, "position")]
-            return LivePose(index, index / self.fps, positions)
-        centred = bool(self.data["root_centre"]) and self.spec.root is not None
         skeleton = self.data.get("skeleton") or {}
-        if centred and self.anchor is None:  # the floor rule, from the first frame, as generate places it
-            first, _ = rebuild_positions(values, self.spec, skeleton, root_centred=True)
-            self.anchor = floor_anchor(first)
-        positions, _ = rebuild_positions(values, self.spec, skeleton, root_centred=centred, anchor=self.anchor)
-        orientations = None
-        if self.spec.orientations:
-            orientations = np.full((len(self.joint_set), 4), np.nan)
-            for joint in self.spec.orientations:
-                orientations[self.joint_set.index(joint)] = values[0, self.spec.columns(joint, "orientation")]
-        return LivePose(index, index / self.fps, positions[0], orientations)
+        # placed as generate places it: the floor rule's anchor from the first frame, then held
+        positions, orientations, self.anchor = target_poses(
+            values, self.spec, skeleton, bool(self.data["root_centre"]), self.anchor
+        )
+        return LivePose(index, index / self.fps, positions[0], None if orientations is None else orientations[0])
 
 
 @dataclass
