@@ -7,6 +7,8 @@ in ``kinectdata/dataset/recipes``), with the bundled synthetic music.
 
 from __future__ import annotations
 
+import functools
+import io
 import json
 import pickle
 import shutil
@@ -322,8 +324,17 @@ def write_tang2018_dance(folder: Path, dance: MadeDance, frames: int, seed: int)
 
 
 def _write_mp3(path: Path, sample: str, seconds: float) -> None:
+    path.write_bytes(_mp3_bytes(sample, seconds))
+
+
+@functools.cache
+def _mp3_bytes(sample: str, seconds: float) -> bytes:
+    """The sample's music cut to ``seconds``, as MP3 (encoded once per test process: LAME takes
+    about 0.4 s a song, and the copies repeat their songs)."""
     audio, rate = soundfile.read(SAMPLES / f"{sample}.flac")
-    soundfile.write(path, audio[: int(seconds * rate)], rate, format="MP3", subtype="MPEG_LAYER_III")
+    encoded = io.BytesIO()
+    soundfile.write(encoded, audio[: int(seconds * rate)], rate, format="MP3", subtype="MPEG_LAYER_III")
+    return encoded.getvalue()
 
 
 def make_tang2018_copy(where: Path, seconds: float = 4.0, dances: dict[str, MadeDance] | None = None) -> Path:

@@ -17,6 +17,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 
 import numpy as np
+from scipy.fft import next_fast_len
 
 from kinectdata.core.errors import KinectDataError
 from kinectdata.evaluation.metrics.beat_alignment import DIRECTIONS as BAS_DIRECTIONS
@@ -29,6 +30,9 @@ MIN_VALID_FRACTION = 0.5
 """A joint enters the autocorrelation only if its position is valid in at least this fraction of frames."""
 MIN_PAIRS = 10
 """Valid (t, t + lag) pairs a joint needs for its correlation at that lag to count."""
+STILL_FRACTION = 1e-9
+"""A joint whose trajectory, drift removed, varies by less than this share of its coordinates'
+size does not move (a constant's round-off): its autocorrelation is not counted."""
 PEAK_PROMINENCE = 0.1
 """Minimum prominence of an autocorrelation peak (see :func:`autocorrelation_peaks`)."""
 PERIOD_TOLERANCE = 0.10
@@ -90,13 +94,12 @@ def trajectory_autocorrelation(
             f"no joint is valid in at least {MIN_VALID_FRACTION:.0%} of the {frames} frames: nothing to autocorrelate"
         )
     x = _remove_drift(pos[:, used], valid[:, used], drift_window_frames).reshape(frames, -1)  # NaN where invalid
-    result = np.full((max_lag_frames + 1, axes), np.nan)
-    for lag in range(max_lag_frames + 1):
-        r = _pearson(x[: frames - lag], x[lag:]).reshape(-1, axes)  # [joints used, C]
-        counted = np.isfinite(r).sum(axis=0)
-        total = np.where(np.isfinite(r), r, 0.0).sum(axis=0)
-        result[lag] = np.where(counted > 0, total / np.maximum(counted, 1), np.nan)
-    return result
+    size = np.nanmax(np.abs(np.where(valid[:, used, None], pos[:, used], np.nan)), axis=0).reshape(-1)
+    still = STILL_FRACTION * np.where(np.isfinite(size) & (size > 0), size, 1.0)
+    r = _lagged_pearson(x, max_lag_frames, still).reshape(max_lag_frames + 1, -1, axes)  # [L + 1, joints used, C]
+    counted = np.isfinite(r).sum(axis=1)
+    total = np.where(np.isfinite(r), r, 0.0).sum(axis=1)
+    return np.where(counted > 0, total / np.maximum(counted, 1), np.nan)
 
 
 def autocorrelation_peaks(
@@ -403,19 +406,41 @@ def _remove_drift(x: np.ndarray, valid: np.ndarray, window: int | None) -> np.nd
     return np.where(weights > 0, values - drift, np.nan)
 
 
-def _pearson(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """[N] Pearson correlation per column of [P, N] series over rows where both are finite; NaN when
-    fewer than MIN_PAIRS rows or a zero variance."""
-    both = np.isfinite(a) & np.isfinite(b)
-    n = both.sum(axis=0)
-    a = np.where(both, a, 0.0)
-    b = np.where(both, b, 0.0)
-    safe_n = np.maximum(n, 1)
-    a = np.where(both, a - a.sum(axis=0) / safe_n, 0.0)
-    b = np.where(both, b - b.sum(axis=0) / safe_n, 0.0)
-    denominator = np.sqrt((a**2).sum(axis=0) * (b**2).sum(axis=0))
-    ok = (n >= MIN_PAIRS) & (denominator > 0)
-    return np.where(ok, (a * b).sum(axis=0) / np.where(ok, denominator, 1.0), np.nan)
+def _lagged_pearson(x: np.ndarray, max_lag: int, still: np.ndarray) -> np.ndarray:
+    """[L + 1, N] Pearson correlation of the pairs (x[t], x[t + k]) of each column of [T, N] ``x``
+    at lags k = 0..L, over the pairs where both are finite, as ``numpy.corrcoef`` of those pairs
+    gives it lag by lag.
+
+    Every sum the correlations need (pairs, each side's sum and sum of squares, the products) is a
+    cross-correlation of ``x`` (0 where not finite) and its validity, for all lags at once by FFT.
+    NaN where fewer than MIN_PAIRS pairs, or where a side does not move: its standard deviation
+    below the column's ``still`` [N] (round-off of a constant), or its variance below 1e-9 of its
+    sum of squares (what FFT round-off leaves of a zero variance).
+    """
+    valid = np.isfinite(x)
+    weight = valid.astype(np.float64)
+    value = np.where(valid, x, 0.0)
+    size = next_fast_len(2 * len(x))
+    spectra = [np.fft.rfft(a, size, axis=0) for a in (weight, value, value * value)]
+
+    def lagged(first: int, second: int) -> np.ndarray:  # sum over t of a[t] b[t + k], k = 0..L
+        return np.fft.irfft(np.conj(spectra[first]) * spectra[second], size, axis=0)[: max_lag + 1]
+
+    pairs = np.rint(lagged(0, 0))
+    sum_a, sum_b = lagged(1, 0), lagged(0, 1)
+    squares_a, squares_b = lagged(2, 0), lagged(0, 2)
+    products = lagged(1, 1)
+    safe = np.maximum(pairs, 1)
+    var_a = squares_a - sum_a * sum_a / safe
+    var_b = squares_b - sum_b * sum_b / safe
+    covariance = products - sum_a * sum_b / safe
+    least = np.maximum(safe * still**2, 0.0)
+    spread = (var_a > np.maximum(1e-9 * np.abs(squares_a), least)) & (
+        var_b > np.maximum(1e-9 * np.abs(squares_b), least)
+    )
+    ok = (pairs >= MIN_PAIRS) & spread
+    correlation = covariance / np.sqrt(np.where(ok, var_a * var_b, 1.0))
+    return np.where(ok, np.clip(correlation, -1.0, 1.0), np.nan)
 
 
 def _parabolic_vertex(y: np.ndarray, i: int) -> tuple[float, float]:

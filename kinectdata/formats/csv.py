@@ -15,6 +15,7 @@ Writing is :mod:`.csv_writer`, over the same schemas.
 from __future__ import annotations
 
 import csv
+import functools
 import itertools
 import math
 import re
@@ -372,7 +373,7 @@ def _check_header_is_the_dialects(
     of it (a wrong ``--schema``), rather than a complaint about the columns it does have."""
     templates = schema.per_joint_columns() if schema.layout == "wide" else schema.document["position"]["columns"]
     if schema.layout == "wide":
-        matches = [m for t in templates for c in header if (m := _template_regex(t).match(c))]
+        matches = [m for rx in map(_template_regex, templates) for c in header if (m := rx.match(c))]
         if any(not re.search(r"[,;\t]", m.group("joint")) for m in matches):  # not a whole row split wrongly
             return
     elif any(t in header for t in templates):
@@ -415,7 +416,9 @@ def _delimiter_hint(fields: list[str], row: str, schema: CsvSchema) -> str:
 # ---------------------------------------------------------------------------------------------
 # Interpreting the table
 # ---------------------------------------------------------------------------------------------
+@functools.lru_cache(maxsize=4096)
 def _template_regex(template: str) -> re.Pattern[str]:
+    """The pattern of a column template (``{joint}_x``): the joint's name as the group ``joint``."""
     return re.compile("^" + re.escape(template).replace(re.escape(JOINT), "(?P<joint>.+)") + "$")
 
 

@@ -70,24 +70,53 @@ def sweep(
             _check_finished(run, config, manifest)
         else:
             train(dataset, run, config, resume=(run / CHECKPOINT).exists(), checksums=False)  # verified above
-        minutes = sum(r["seconds"] for r in read_log(run)) / 60
-        result = evaluate(run, dataset, "test", engines=[("torch", "float32")], checksums=False)
-        timed = result["forward_time"].get("torch float32", {})  # none for a model that does not stream
-        row = {
-            "setting": name,
-            "run": str(run),
-            "smape_without_reset": result["smape"]["without_reset"]["smape_normalised"],
-            "smape_with_reset": result["smape"].get("with_reset", {}).get("smape_normalised"),
-            "training_minutes": minutes,
-            "forward_ms": timed.get("median_ms"),
-            "device": timed.get("device"),
-            "config": config.to_dict(),
-        }
+        row = _scored_before(run, config) or _score(run, dataset, name, config)
         rows.append(row)
         if progress:
             progress(name, row)
     _write_tables(out, rows, base, table, kind)
     return rows
+
+
+ROW = "sweep_row.json"
+"""A scored variant's row of the table, kept in its run folder with the model file it scored."""
+
+
+def _score(run: Path, dataset: str | Path, name: str, config: TrainConfig) -> dict[str, Any]:
+    """Evaluate a variant's run on the test split: its row of the table (also written to ``run/ROW``)."""
+    minutes = sum(r["seconds"] for r in read_log(run)) / 60
+    result = evaluate(run, dataset, "test", engines=[("torch", "float32")], checksums=False)
+    timed = result["forward_time"].get("torch float32", {})  # none for a model that does not stream
+    row = {
+        "setting": name,
+        "run": str(run),
+        "smape_without_reset": result["smape"]["without_reset"]["smape_normalised"],
+        "smape_with_reset": result["smape"].get("with_reset", {}).get("smape_normalised"),
+        "training_minutes": minutes,
+        "forward_ms": timed.get("median_ms"),
+        "device": timed.get("device"),
+        "config": config.to_dict(),
+    }
+    with atomic_output(run / ROW) as tmp:
+        tmp.write_text(json.dumps({"model": _model_stamp(run), "row": row}, indent=1), encoding="utf-8")
+    return row
+
+
+def _scored_before(run: Path, config: TrainConfig) -> dict[str, Any] | None:
+    """The row an earlier sweep scored for this very model file and configuration, or None (a
+    resumed sweep does not evaluate its finished variants again)."""
+    try:
+        kept = json.loads((run / ROW).read_text(encoding="utf-8"))
+        same = kept["model"] == _model_stamp(run) and kept["row"]["config"] == json.loads(json.dumps(config.to_dict()))
+    except (OSError, ValueError, KeyError, TypeError):
+        return None
+    return kept["row"] if same else None
+
+
+def _model_stamp(run: Path) -> list[int]:
+    """The model file's size and modification time (ns): a retrained model is scored again."""
+    stat = (run / MODEL).stat()
+    return [stat.st_size, stat.st_mtime_ns]
 
 
 def _check_finished(run: Path, config: TrainConfig, manifest: dict[str, Any]) -> None:

@@ -25,6 +25,7 @@ import csv
 import io
 import json
 import math
+import sys
 import time
 import warnings
 from collections.abc import Callable
@@ -250,12 +251,22 @@ def ending_warning(history: list[dict], lr: float) -> str | None:
 
 @contextmanager
 def _deterministic():
-    previous = torch.are_deterministic_algorithms_enabled()
-    torch.use_deterministic_algorithms(True, warn_only=True)
+    previous = torch.are_deterministic_algorithms_enabled(), torch.is_deterministic_algorithms_warn_only_enabled()
+    _set_deterministic(True, warn_only=True)
     try:
         yield
     finally:
-        torch.use_deterministic_algorithms(previous)
+        _set_deterministic(*previous)
+
+
+def _set_deterministic(mode: bool, warn_only: bool) -> None:
+    """``torch.use_deterministic_algorithms``, without importing TorchInductor's configuration
+    (1.4 s of each training process's start) when nothing imported it: the flag it sets there is
+    read only by ``torch.compile``, which kinectdata does not use."""
+    if "torch._inductor.config" in sys.modules or not hasattr(torch._C, "_set_deterministic_algorithms"):
+        torch.use_deterministic_algorithms(mode, warn_only=warn_only)
+    else:
+        torch._C._set_deterministic_algorithms(mode, warn_only=warn_only)
 
 
 def _start_pose(dataset: Path, manifest: dict[str, Any]) -> list[float]:

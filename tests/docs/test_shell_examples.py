@@ -1,7 +1,8 @@
 """Every shell example in README.md and docs/*.md runs, as written, and succeeds.
 
-Each document's examples run in order in a folder of their own, with ``kinectdata`` (and
-``torchrun``) from PATH, as a reader would paste them. The files an example names but does not
+Each document's examples run in order in a folder of their own, as a reader would paste them:
+``kinectdata`` commands each in a process of their own forked by command_server.py (the console
+script's ``main``, its imports made once), other programs from PATH. The files an example names but does not
 make (``take.csv``, ``song.wav``, ``take.oni``...) are made first, by :data:`STAGE`, from the
 bundled samples and generated data, so that each command runs as the document prints it.
 
@@ -14,6 +15,8 @@ commands must be marked ``sh`` (or ``bash``, ``console``); an unmarked block hol
 
 from __future__ import annotations
 
+import atexit
+import functools
 import os
 import re
 import shlex
@@ -25,6 +28,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
+import command_server
 import numpy as np
 import pytest
 import soundfile
@@ -129,7 +133,8 @@ SAMPLES = REPO / "sample_data"
 
 
 def _kinectdata(*args, cwd: Path) -> None:
-    subprocess.run([*_program("kinectdata"), *map(str, args)], cwd=cwd, check=True, capture_output=True)
+    done = run_program(["kinectdata", *map(str, args)], cwd)
+    assert done.returncode == 0, f"staging: kinectdata {' '.join(map(str, args))}\n{done.stderr[-3000:]}"
 
 
 def _synth_csv(name: str, dialect: str) -> Callable[[Path], None]:
@@ -318,13 +323,33 @@ def _program(name: str) -> list[str]:
     return [found]
 
 
-def run(example: Example, work: Path) -> subprocess.CompletedProcess:
-    starts = [start for start in SHRINK if example.text.startswith(start)]
-    argv = example.argv + (SHRINK[max(starts, key=len)] if starts else [])
-    env = dict(os.environ, MPLBACKEND="Agg", OMP_NUM_THREADS="1")
+COMMAND_ENV = {"MPLBACKEND": "Agg", "OMP_NUM_THREADS": "1"}
+"""What every example runs with: no display, one thread (two workers share the two cores)."""
+
+
+@functools.cache
+def _command_server() -> command_server.CommandServer | None:
+    server = command_server.start(dict(os.environ, **COMMAND_ENV))
+    if server is not None:
+        atexit.register(server.close)
+    return server
+
+
+def run_program(argv: list[str], work: Path) -> subprocess.CompletedProcess:
+    """``argv`` run in ``work`` as a shell would, kinectdata's commands by the command server
+    (command_server.py: a process of their own, the imports already made)."""
+    env = dict(os.environ, **COMMAND_ENV)
+    server = _command_server() if argv[0] == "kinectdata" else None
+    if server is not None:
+        return server.run(argv[1:], work, env, timeout=900)
     return subprocess.run(
         [*_program(argv[0]), *argv[1:]], cwd=work, env=env, capture_output=True, text=True, timeout=900
     )
+
+
+def run(example: Example, work: Path) -> subprocess.CompletedProcess:
+    starts = [start for start in SHRINK if example.text.startswith(start)]
+    return run_program(example.argv + (SHRINK[max(starts, key=len)] if starts else []), work)
 
 
 def _examples_by_document() -> list:

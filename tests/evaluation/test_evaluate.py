@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import os
 
 import numpy as np
 import pytest
@@ -338,8 +339,19 @@ def test_sweep_writes_the_papers_table_and_reuses_finished_variants(sample_datas
     assert f"| {paper['TanH'][0]:.2f} | {paper['TanH'][1]:.2f} |" in table
     model = tmp_path / "sweep" / "tanh" / "model.pt"
     before = model.stat().st_mtime_ns
-    again = sweep(sample_dataset, tmp_path / "sweep", base, ["TanH"])
-    assert model.stat().st_mtime_ns == before and again[0]["smape_without_reset"] == rows[0]["smape_without_reset"]
+    import kinectdata.training.sweep as sweeping
+
+    scored = sweeping.evaluate
+    sweeping.evaluate = lambda *a, **k: pytest.fail("a finished, scored variant was evaluated again")
+    try:
+        again = sweep(sample_dataset, tmp_path / "sweep", base, ["TanH"])
+    finally:
+        sweeping.evaluate = scored
+    assert model.stat().st_mtime_ns == before and again[0] == rows[0]
+    tanh = base.replace(**sweeping.model_sweep(model_kind("yalta")).variants["TanH"])
+    assert sweeping._scored_before(model.parent, tanh) == rows[0]
+    os.utime(model, ns=(before, before + 1))  # a model file written since it was scored: scored again
+    assert sweeping._scored_before(model.parent, tanh) is None
     with pytest.raises(KinectDataError, match="unknown variant"):
         sweep(sample_dataset, tmp_path / "sweep", base, ["Sigmoid"])
     with pytest.raises(KinectDataError, match="tanh: holds a finished run whose units differ"):

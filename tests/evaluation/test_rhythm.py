@@ -112,9 +112,15 @@ def test_autocorrelation_equals_direct_corrcoef():
     pos = np.stack([a, b], axis=1)[:, :, None] + 0.02 * t[:, None, None]  # plus a linear drift
     ac = trajectory_autocorrelation(pos, valid, 30, 25)
     residual = [moving_average_removed(pos[:, j, 0], valid[:, j], 25) for j in range(2)]
-    for lag in (3, 12, 30):
+    for lag in range(31):
         expected = np.mean([pairs_corrcoef(residual[j], valid[:, j], lag) for j in range(2)])
         assert ac[lag, 0] == pytest.approx(expected, abs=1e-10)
+
+    # a joint that never moves counts at no lag (no variance), as numpy's corrcoef has none for it
+    still = np.concatenate([pos, np.full_like(pos[:, :1], 0.7)], axis=1)
+    np.testing.assert_allclose(
+        trajectory_autocorrelation(still, None, 30, 25), trajectory_autocorrelation(pos, None, 30, 25), atol=1e-12
+    )
 
 
 def test_autocorrelation_peaks():

@@ -82,12 +82,19 @@ def frechet_distance(generated: np.ndarray, reference: np.ndarray) -> float:
     if g.shape[1] != r.shape[1]:
         raise KinectDataError(f"generated features have {g.shape[1]} dimensions, reference {r.shape[1]}")
     mu_g, mu_r = g.mean(axis=0), r.mean(axis=0)
-    cov_g, cov_r = np.atleast_2d(np.cov(g, rowvar=False)), np.atleast_2d(np.cov(r, rowvar=False))
-    root_r = _psd_sqrt(cov_r)
-    product = np.linalg.eigvalsh(root_r @ cov_g @ root_r)
-    trace_root = float(np.sum(np.sqrt(np.clip(product, 0.0, None))))
+    # the covariances as A^T A and B^T B of the centred rows: tr(sqrt(root_r cov_g root_r)) is then
+    # the sum of the singular values of A B^T, an [N, M] matrix, where sets smaller than the features
+    # (evaluate's songs, its bootstrap's draws) need no D x D eigenproblem
+    a = (g - mu_g) / np.sqrt(len(g) - 1)
+    b = (r - mu_r) / np.sqrt(len(r) - 1)
+    if len(g) * len(r) <= g.shape[1] ** 2:
+        trace_root = float(np.sum(np.linalg.svd(a @ b.T, compute_uv=False)))
+    else:
+        root_r = _psd_sqrt(b.T @ b)
+        product = np.linalg.eigvalsh(root_r @ (a.T @ a) @ root_r)
+        trace_root = float(np.sum(np.sqrt(np.clip(product, 0.0, None))))
     diff = mu_g - mu_r
-    return float(diff @ diff + np.trace(cov_g) + np.trace(cov_r) - 2.0 * trace_root)
+    return float(diff @ diff + np.sum(a * a) + np.sum(b * b) - 2.0 * trace_root)
 
 
 def diversity(features: np.ndarray, draw: np.ndarray | None = None) -> float:
