@@ -10,7 +10,8 @@ module on first use, so the import itself stays cheap (no torch, h5py or pandas)
 - features: :class:`StftConfig`, :class:`MelConfig`, :data:`FEATURE_PRESETS`,
   :func:`recording_features` (per motion frame, rates checked), :func:`compute_features`;
 - targets: :class:`TargetSpec`, :func:`load_target_spec`, :func:`extract_targets`, :class:`Normalizer`;
-- dataset: :func:`prepare_corpus` (a corpus recipe), :class:`BuildConfig`
+- dataset: :func:`prepare_corpus` (a corpus recipe), :func:`write_folds` (cross-validation
+  manifests), :class:`BuildConfig`
   (``.from_pipeline(name, **overrides)``), :func:`build_dataset`, :func:`verify_dataset`,
   :class:`WindowDataset`;
 - models, training, evaluation, generation: :func:`register_model`, :class:`TrainConfig`,
@@ -50,6 +51,7 @@ _API = {
     "Normalizer": ("kinectdata.targets.normalization", "Normalizer"),
     # dataset
     "prepare_corpus": ("kinectdata.dataset.recipes", "prepare_corpus"),
+    "write_folds": ("kinectdata.dataset.folds", "write_folds"),
     "BuildConfig": ("kinectdata.dataset.config", "BuildConfig"),
     "PIPELINES": ("kinectdata.dataset.pipelines", "PIPELINES"),
     "build_dataset": ("kinectdata.dataset.build", "build_dataset"),

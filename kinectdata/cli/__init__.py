@@ -32,6 +32,7 @@ COMMAND_MODULES = {
     "capture": "capture",
     "align": "align",
     "prepare": "prepare",
+    "folds": "prepare",
     "build-dataset": "dataset",
     "inspect": "dataset",
     "verify": "verify",

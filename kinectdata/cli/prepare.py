@@ -5,6 +5,7 @@ from __future__ import annotations
 import click
 
 from kinectdata.cli.options import OffsetType
+from kinectdata.dataset.folds import GROUPINGS, write_folds
 from kinectdata.dataset.recipes import RECIPES, prepare_corpus
 
 _SHOWN_SKIPPED = 5
@@ -74,4 +75,32 @@ def prepare(corpus, path, out, **options) -> None:
     )
 
 
-COMMANDS = [prepare]
+@click.command("folds")
+@click.argument("manifest", type=click.Path(dir_okay=False, path_type=str))
+@click.option("-k", "--count", type=click.IntRange(min=2), default=3, show_default=True, help="how many folds")
+@click.option(
+    "--by",
+    type=click.Choice(GROUPINGS),
+    default="style",
+    show_default=True,
+    help="give every fold its share of each style (or metre) of the manifest",
+)
+@click.option("--seed", type=int, default=0, show_default=True, help="the order recordings are dealt in")
+def folds(manifest, count, by, seed) -> None:
+    """Write K cross-validation manifests beside MANIFEST (NAME.fold1ofK.yaml ...), to choose a
+    training recipe on a small corpus: fold i validates on its share of the recordings and trains on
+    the rest; the test split's recordings are in no fold. Build, train and evaluate --split val on
+    each, and compare recipes over all the folds' validation recordings."""
+    made = write_folds(manifest, count, by=by, seed=seed)
+    for fold in made:
+        click.echo(
+            f"wrote {fold.path}: validates on {len(fold.validation)} ({', '.join(fold.validation)}), "
+            f"trains on {len(fold.training)}"
+        )
+    click.echo(
+        f"next: build each fold with the options you build {manifest} with (kinectdata build-dataset "
+        f"{made[0].path} -o DATASET_1 ...), train each recipe on every fold, and compare their evaluate --split val"
+    )
+
+
+COMMANDS = [prepare, folds]
