@@ -112,6 +112,10 @@ def _read_manifest(path: Path) -> tuple[list[dict[str, Any]], list[int] | None, 
         text = path.read_text(encoding="utf-8-sig")
     except OSError as exc:
         raise SchemaError(path, f"cannot read file: {exc.strerror or exc}") from exc
+    except UnicodeDecodeError as exc:
+        raise SchemaError(
+            path, f"not a recordings manifest: byte {exc.start} is not UTF-8 text (a manifest is CSV, JSON or YAML)"
+        ) from None
     if suffix == ".csv":
         reader = csv.DictReader(text.splitlines())
         docs, lines = [], []

@@ -45,6 +45,7 @@ def cases(paths: dict) -> dict[str, dict[str, list]]:
             "unwritable": [REPO / "sample_data", "-o", block / "ds"],
             "missing": [missing, "-o", out / "ds"],
             "foreign": [junk_dir, "-o", out / "ds"],
+            "a binary manifest": [junk_file, "-o", out / "ds"],
         },
         "evaluate": {
             "unwritable": ["--run", run, "--data", ds, "--out", block / "ev"],
@@ -89,6 +90,7 @@ def cases(paths: dict) -> dict[str, dict[str, list]]:
             "missing": [missing / "gen", RECORDING, "-o", out / "m.json"],
             "foreign": [junk_file.with_suffix(".npy"), RECORDING, "-o", out / "m.json"],
         },
+        "folds": {"missing": [missing / "recordings.yaml"], "foreign": [junk_file]},
         "prepare": {
             "unwritable": ["bvh-folder", paths["bvh_corpus"], "-o", block / "r.yaml"],
             "missing": ["aistpp", missing, "-o", out / "r.yaml"],
