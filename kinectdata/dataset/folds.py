@@ -16,6 +16,7 @@ that the paths they list, relative to the manifest's folder or its ``root``, sta
 from __future__ import annotations
 
 import random
+import re
 from collections import defaultdict
 from dataclasses import dataclass
 from pathlib import Path
@@ -108,8 +109,13 @@ def write_folds(source: str | Path, count: int, by: str = "style", seed: int = 0
         with atomic_output(path) as tmp:
             tmp.write_text(text, encoding="utf-8")
         training = [e["name"] for e in entries if e.get("split") != "test" and e["name"] not in chosen]
-        folds.append(Fold(index, count, path, sorted(validation), training))
+        folds.append(Fold(index, count, path, sorted(validation, key=_natural), training))
     return folds
+
+
+def _natural(name: str) -> list:
+    """Sort key putting W_5 before W_10."""
+    return [int(part) if part.isdigit() else part for part in re.split(r"(\d+)", name)]
 
 
 def _document(source: Path) -> dict[str, Any]:

@@ -66,7 +66,7 @@ def test_fold_manifests_sit_beside_the_source_and_build_as_it_does(tmp_path):
         }
         splits = {r["name"]: r["split"] for r in written["recordings"]}
         assert set(splits) == outside_test and Counter(splits.values()).keys() <= {"train", "val"}
-        assert sorted(n for n, s in splits.items() if s == "val") == fold.validation
+        assert sorted(n for n, s in splits.items() if s == "val") == sorted(fold.validation)
         assert sorted(n for n, s in splits.items() if s == "train") == sorted(fold.training)
         entries = read_recordings(fold.path, allow_outside_paths=True)  # the same files, found from beside it
         assert {e.name: e.recording for e in entries} == {
