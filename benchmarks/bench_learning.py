@@ -291,9 +291,19 @@ def main(argv: list[str] | None = None) -> None:
         action="store_true",
         help="with --corpus and --out: evaluate the runs an earlier benchmark left in --out again, without training",
     )
+    parser.add_argument(
+        "--folds",
+        type=int,
+        default=None,
+        metavar="K",
+        help="with --corpus: train and score on K cross-validation folds of the dances outside the test split "
+        "(--minutes per fold), to compare a recipe without the test split",
+    )
     args = parser.parse_args(argv or [])
     if args.rescore and (args.corpus is None or args.out is None):
         parser.error("--rescore evaluates the runs of an earlier real-corpus benchmark: give --corpus and --out")
+    if args.folds is not None and (args.corpus is None or args.rescore):
+        parser.error("--folds cross-validates on a real corpus: give --corpus (and not --rescore)")
     models = [m.strip() for m in args.models.split(",") if m.strip()]
     torch.set_num_threads(2)
     if args.corpus is None:
@@ -302,9 +312,14 @@ def main(argv: list[str] | None = None) -> None:
         out = args.out or Path(tmp)
         out.mkdir(parents=True, exist_ok=True)
         if args.corpus is not None:
+            name, path = args.corpus
+            if args.folds is not None:
+                from .learning_folds import run_folds
+
+                run_folds(name, Path(path), out, args.minutes, models, args.seed, args.folds)
+                return
             from .learning_real import run
 
-            name, path = args.corpus
             run(name, Path(path), out, args.minutes, models, args.seed, rescore=args.rescore)
             return
         datasets = make_corpus(out, args.seed, args.corpus_minutes, models)

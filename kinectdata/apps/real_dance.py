@@ -27,6 +27,7 @@ from kinectdata.dataset.build import build_dataset
 from kinectdata.dataset.config import BuildConfig
 from kinectdata.dataset.pipelines import PIPELINES
 from kinectdata.dataset.recipes import prepare_corpus
+from kinectdata.dataset.recipes.manifest import CorpusManifest
 
 REAL_DANCE_BUILDS: dict[str, dict[str, Any]] = {
     "yalta2016": {"features": "yalta2016_rhythm", "normalisation": None},
@@ -76,24 +77,37 @@ def build_corpus_datasets(
          f"{len(manifest.skipped)} left out (the reasons are in the file)")  # fmt: skip
     folders, built = {}, {}
     for model in models:
-        pipeline = pipeline_of(model)
-        how = REAL_DANCE_BUILDS[pipeline]
-        config = BuildConfig.from_pipeline(
-            pipeline,
-            features=how["features"],
-            target=manifest.target,
-            normalisation=how["normalisation"],
-            root_centre="--root-centre" in manifest.build_options,
-        )
-        folder = out / f"{model}_dataset"
-        echo(f"[build-dataset] {listed} -> {folder} (--pipeline {pipeline} --features {how['features']}"
-             f" --target {manifest.target}{' --root-centre' if config.root_centre else ''})")  # fmt: skip
-        started = time.perf_counter()
-        built[model] = build_dataset(listed, folder, config, jobs=2, allow_outside_paths=True)
-        rows = {s: built[model]["splits"][s]["rows"] for s in built[model]["splits"]}
-        echo(f"  {rows} rows ({time.perf_counter() - started:.0f} s)")
-        folders[model] = folder
+        folders[model] = out / f"{model}_dataset"
+        built[model] = build_model_dataset(listed, folders[model], model, manifest, echo)
     return folders, built
+
+
+def build_model_dataset(
+    listed: str | Path,
+    folder: str | Path,
+    model: str,
+    manifest: CorpusManifest,
+    echo: Callable[[str], Any] = print,
+) -> dict[str, Any]:
+    """Build the recordings manifest file ``listed`` (the corpus's, or one of its folds) into
+    ``folder`` as ``model`` trains on the corpus (:data:`REAL_DANCE_BUILDS`, the recipe's target and
+    build options); the dataset's manifest (a finished build is reused)."""
+    pipeline = pipeline_of(model)
+    how = REAL_DANCE_BUILDS[pipeline]
+    config = BuildConfig.from_pipeline(
+        pipeline,
+        features=how["features"],
+        target=manifest.target,
+        normalisation=how["normalisation"],
+        root_centre="--root-centre" in manifest.build_options,
+    )
+    echo(f"[build-dataset] {listed} -> {folder} (--pipeline {pipeline} --features {how['features']}"
+         f" --target {manifest.target}{' --root-centre' if config.root_centre else ''})")  # fmt: skip
+    started = time.perf_counter()
+    built = build_dataset(listed, folder, config, jobs=2, allow_outside_paths=True)
+    rows = {s: built["splits"][s]["rows"] for s in built["splits"]}
+    echo(f"  {rows} rows ({time.perf_counter() - started:.0f} s)")
+    return built
 
 
 def run_real_quickstart(
