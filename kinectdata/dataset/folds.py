@@ -96,7 +96,7 @@ def write_folds(source: str | Path, count: int, by: str = "style", seed: int = 0
     docs = _read_manifest(source)[0]
     entries = [{**doc, "name": entry.name} for doc, entry in zip(docs, listed)]
     document = _document(source)
-    folds = []
+    folds, texts = [], []
     for index, validation in enumerate(deal_folds(entries, count, by, seed), start=1):
         chosen = set(validation)
         recordings = [
@@ -104,12 +104,19 @@ def write_folds(source: str | Path, count: int, by: str = "style", seed: int = 0
             for doc, e in zip(docs, entries)
             if e.get("split") != "test"
         ]
-        text = yaml.safe_dump({**document, "recordings": recordings}, sort_keys=False, allow_unicode=True)
-        path = fold_path(source, index, count)
-        with atomic_output(path) as tmp:
-            tmp.write_text(text, encoding="utf-8")
+        texts.append(yaml.safe_dump({**document, "recordings": recordings}, sort_keys=False, allow_unicode=True))
         training = [e["name"] for e in entries if e.get("split") != "test" and e["name"] not in chosen]
-        folds.append(Fold(index, count, path, sorted(validation, key=_natural), training))
+        folds.append(Fold(index, count, fold_path(source, index, count), sorted(validation, key=_natural), training))
+    written = []
+    try:
+        for fold, text in zip(folds, texts):
+            with atomic_output(fold.path) as tmp:
+                tmp.write_text(text, encoding="utf-8")
+            written.append(fold.path)
+    except BaseException:  # all the folds or none: a set missing one would be compared as if whole
+        for path in written:
+            path.unlink(missing_ok=True)
+        raise
     return folds
 
 

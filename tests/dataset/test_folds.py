@@ -90,3 +90,16 @@ def test_the_command_prints_each_fold_and_a_bad_count_is_one_line(tmp_path):
     assert result.exit_code == 1 and result.output.count("\n") == 1
     assert "99 folds of 7 recordings (not in the test split): give 2 to 7" in result.output
     assert not (tmp_path / "tang.fold1of99.yaml").exists()
+
+
+def test_a_fold_that_cannot_be_written_leaves_none(tmp_path, monkeypatch):
+    import kinectdata.dataset.folds as folds
+
+    make_tang2018_copy(tmp_path, seconds=0.5)
+    CliRunner().invoke(main, ["prepare", "tang2018", str(tmp_path / "Music-to-Dance-Motion-Synthesis"), "-o",
+                              str(tmp_path / "tang.yaml")])  # fmt: skip
+    (tmp_path / "tang.fold3of3.yaml").mkdir()  # the third fold's name is taken by a folder
+    result = CliRunner().invoke(main, ["folds", str(tmp_path / "tang.yaml"), "-k", "3"])
+    assert result.exit_code == 1 and "tang.fold3of3.yaml" in result.output
+    assert not (tmp_path / "tang.fold1of3.yaml").exists() and not (tmp_path / "tang.fold2of3.yaml").exists()
+    assert folds.fold_path(tmp_path / "tang.yaml", 3, 3).is_dir()  # what was there is left as it was
