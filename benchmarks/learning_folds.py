@@ -14,9 +14,6 @@ songs. The test dances are in no fold: nothing here trains, tunes or picks on th
 from __future__ import annotations
 
 import json
-import shutil
-import time
-import warnings
 from pathlib import Path
 from typing import Any
 
@@ -27,10 +24,8 @@ from kinectdata.dataset.folds import write_folds
 from kinectdata.dataset.recipes import prepare_corpus
 from kinectdata.evaluation.evaluate import evaluate
 from kinectdata.evaluation.pooled import held_out_following
-from kinectdata.training.config import TrainConfig
-from kinectdata.training.train import train
 
-from .learning_real import goals
+from .learning_real import goals, train_defaults
 from .summary import record
 
 
@@ -59,16 +54,9 @@ def run_folds(
             dataset = out / f"fold{fold.index}" / f"{model}_dataset"
             build_model_dataset(fold.path, dataset, model, manifest, echo=lambda line: print("  " + line, flush=True))
             run_dir = out / f"fold{fold.index}" / model
-            shutil.rmtree(run_dir, ignore_errors=True)
-            config = TrainConfig.for_model(
-                model, **{"max_minutes": minutes, "seed": seed, **(changes or {}).get(model, {})}
-            )
-            started = time.perf_counter()
-            with warnings.catch_warnings():  # one line each, as the CLI prints them
-                warnings.showwarning = lambda message, *_a, **_k: print(f"    warning: {message}", flush=True)
-                history = train(dataset, run_dir, config)
+            history, trained = train_defaults(model, dataset, run_dir, minutes, seed, changes)
             results = evaluate(run_dir, dataset, "val", bootstrap=0, engines=[("torch", "float32")], baselines=False)
-            print(f"  [{model}] fold {fold.index}: trained {(time.perf_counter() - started) / 60:.1f} min, "
+            print(f"  [{model}] fold {fold.index}: trained {trained:.1f} min, "
                   f"{history[-1]['step']} steps; on its {len(fold.validation)} held-out dances:")  # fmt: skip
             for goal, ok, figures in goals(results)[:3]:
                 print(f"    {goal}: {'yes' if ok else 'no'} ({figures})")

@@ -24,6 +24,7 @@ import json
 import shutil
 import time
 import warnings
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -146,31 +147,42 @@ def run(
             print(f"  [{model}] the run in {run_dir}, not trained again", flush=True)
             summary[model] = _score(model, corpus, run_dir, datasets[model], history, trained, out, bootstrap)
             continue
-        shutil.rmtree(run_dir, ignore_errors=True)
-        # train-baseline's defaults, their epochs included (the cdhc model's kept epochs were 13-38 on
-        # the validation dances; trained on to 80 epochs, the epoch its validation figures kept stood
-        # nearly still), the budget a limit on top
-        config = TrainConfig.for_model(
-            model, **{"max_minutes": minutes, "seed": seed, **(changes or {}).get(model, {})}
-        )
-        print(
-            f"  [{model}] the defaults of train-baseline ({config.epochs} epochs at most); budget {minutes:g} min",
-            flush=True,
-        )
-
-        def progress(row: dict[str, Any]) -> None:
-            print(f"    epoch {row['epoch']:3d} step {row['step']:5d}: train {row['train_loss']:.4f} "
-                  f"val {row['val_loss']:.4f}, SMAPE {row['val_smape']:.2f} %, free-running rhythm loss "
-                  f"{row['val_rhythm']:.3f}, songs' energy {_times(row['val_energy'])}", flush=True)  # fmt: skip
-
-        started = time.perf_counter()
-        with warnings.catch_warnings():  # one line, as the CLI prints them, not Python's two with a source line
-            warnings.showwarning = lambda message, *_a, **_k: print(f"    warning: {message}", flush=True)
-            history = train(datasets[model], run_dir, config, progress=progress)
-        trained = (time.perf_counter() - started) / 60
+        history, trained = train_defaults(model, datasets[model], run_dir, minutes, seed, changes, progress=_progress)
         summary[model] = _score(model, corpus, run_dir, datasets[model], history, trained, out, bootstrap)
     (out / "learning_real.json").write_text(json.dumps(summary, indent=1, default=str))
     return summary
+
+
+def train_defaults(
+    model: str,
+    dataset: Path,
+    run_dir: Path,
+    minutes: float,
+    seed: int,
+    changes: dict[str, dict[str, Any]] | None = None,
+    progress: Callable[[dict[str, Any]], None] | None = None,
+) -> tuple[list[dict[str, Any]], float]:
+    """Train ``model`` afresh into ``run_dir`` with train-baseline's defaults (and ``changes[model]``,
+    for the tests' small runs) within ``minutes``; its history and the minutes it took. Warnings
+    print as one line each, as the CLI prints them, not as Python's two with a source line."""
+    shutil.rmtree(run_dir, ignore_errors=True)
+    # train-baseline's defaults, their epochs included (the cdhc model's kept epochs were 13-38 on
+    # the validation dances; trained on to 80 epochs, the epoch its validation figures kept stood
+    # nearly still), the budget a limit on top
+    config = TrainConfig.for_model(model, **{"max_minutes": minutes, "seed": seed, **(changes or {}).get(model, {})})
+    print(f"  [{model}] the defaults of train-baseline ({config.epochs} epochs at most); budget {minutes:g} min",
+          flush=True)  # fmt: skip
+    started = time.perf_counter()
+    with warnings.catch_warnings():
+        warnings.showwarning = lambda message, *_a, **_k: print(f"    warning: {message}", flush=True)
+        history = train(dataset, run_dir, config, progress=progress)
+    return history, (time.perf_counter() - started) / 60
+
+
+def _progress(row: dict[str, Any]) -> None:
+    print(f"    epoch {row['epoch']:3d} step {row['step']:5d}: train {row['train_loss']:.4f} "
+          f"val {row['val_loss']:.4f}, SMAPE {row['val_smape']:.2f} %, free-running rhythm loss "
+          f"{row['val_rhythm']:.3f}, songs' energy {_times(row['val_energy'])}", flush=True)  # fmt: skip
 
 
 def _score(
