@@ -29,6 +29,7 @@ COMMAND_MODULES = {
     "info": "info",
     "formats": "info",
     "oni": "oni",
+    "mkv": "mkv",
     "capture": "capture",
     "align": "align",
     "prepare": "prepare",

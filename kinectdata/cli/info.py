@@ -20,11 +20,16 @@ def info(
     reading: dict,
 ) -> None:
     """Show what a skeleton RECORDING holds: format, joints, frames, timing, tracking. An aligned
-    .h5 written by `kinectdata align` shows its motion, audio and offset."""
+    .h5 written by `kinectdata align` shows its motion, audio and offset; an .oni or .mkv sensor
+    recording, what `kinectdata oni info` or `kinectdata mkv info` shows."""
     if recording.lower().endswith((".h5", ".hdf5")):
         from kinectdata.align.aligned import AlignedRecording
 
         click.echo(aligned_lines(recording, AlignedRecording.load(recording)))
+        return
+    sensor = None if reading.get("format") else _sensor_recording(recording)
+    if sensor is not None:
+        click.echo(sensor)
         return
     m = read_motion(recording, **reading)
     t = m.timing()
@@ -68,6 +73,25 @@ def info(
         click.echo(line)
 
 
+def _sensor_recording(path: str) -> str | None:
+    """What ``oni info`` or ``mkv info`` prints, for a depth sensor's own recording (frames, not a
+    skeleton: it has its own commands), known by its first bytes; None for anything else."""
+    try:
+        with open(path, "rb") as f:
+            head = f.read(4)
+    except OSError:
+        return None  # the reader says what is wrong with it
+    if head == b"\x1a\x45\xdf\xa3":
+        from kinectdata.mkv.export import describe, format_description
+
+        return format_description(describe(path)) + "\n(depth, colour and IMU frames, not a skeleton: kinectdata mkv)"
+    if head == b"NI10":
+        from kinectdata.oni.export import describe, format_description
+
+        return format_description(describe(path)) + "\n(depth and colour frames, not a skeleton: kinectdata oni)"
+    return None
+
+
 def _body_lines(motion) -> list[str]:
     """The bone lengths and the unit, up-axis and speed doubts of a 3-D recording
     (:mod:`kinectdata.core.body_checks`)."""
@@ -95,11 +119,15 @@ def _body_lines(motion) -> list[str]:
 
 @click.command()
 def formats() -> None:
-    """List the readers, shipped CSV dialects, array schemas and joint sets."""
+    """List the readers, the sensor recordings read by their own commands, shipped CSV dialects,
+    array schemas and joint sets."""
     click.echo("readers (--format):")
     for name, r in sorted(readers().items()):
         exts = ", ".join(r.extensions) or ("by content" if r.sniff else "--format only")
         click.echo(f"  {name:<14} {exts:<13} {r.description}")
+    click.echo("sensor recordings (depth, colour, IMU frames; their own commands):")
+    click.echo(f"  {'oni':<14} {'.oni':<13} OpenNI 1.x and OpenNI2 recordings (Kinect v1, Xtion): kinectdata oni")
+    click.echo(f"  {'mkv':<14} {'.mkv':<13} Azure Kinect and Orbbec Femto k4arecorder recordings: kinectdata mkv")
     click.echo("CSV dialects (--schema):")
     for name in shipped_csv_schemas():
         click.echo(f"  {name:<20} {_headline(load_csv_schema(name).get('description', ''))}")

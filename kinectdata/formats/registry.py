@@ -64,6 +64,16 @@ def register_reader(
     return decorate
 
 
+SENSOR_RECORDINGS = {
+    b"\x1a\x45\xdf\xa3": "a Matroska file (an Azure Kinect or Orbbec Femto .mkv recording holds depth, colour and "
+    "IMU frames, not a skeleton): see `kinectdata mkv info`; its body-tracking JSON is read as azure_json",
+    b"NI10": "an OpenNI .oni recording (depth and colour frames, not a skeleton): see `kinectdata oni info`, or "
+    "`kinectdata oni skeleton` to track the dancer with NiTE2",
+}
+"""Files of the depth sensors' own recordings by their first bytes: they hold frames, not a skeleton
+(the EBML header's ID, RFC 8794; the .oni file header's magic)."""
+
+
 def readers() -> dict[str, Reader]:
     """The registered readers by format name."""
     return dict(_READERS)
@@ -90,6 +100,9 @@ def detect_format(path: str | Path) -> str:
     if len(sniffed) == 1:
         return sniffed[0]
     if not sniffed:
+        for magic, what in SENSOR_RECORDINGS.items():
+            if head.startswith(magic):
+                raise FormatError(path, what)
         known = ", ".join(sorted(_READERS))
         raise FormatError(
             path, f"cannot tell the recording format from the name or content; pass --format (one of {known})"

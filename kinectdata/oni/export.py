@@ -30,12 +30,12 @@ import numpy as np
 
 from kinectdata.core.atomic import atomic_hdf5
 from kinectdata.core.errors import KinectDataError
+from kinectdata.core.frame_export import check_span, frames_between, hdf5_filter
 from kinectdata.core.hashing import file_sha256
 from kinectdata.oni.reader import OniFile, OniStream
 
 FORMAT = "kinectdata.oni-frames"
 FORMAT_VERSION = 1
-COMPRESSIONS = ("gzip", "lzf", "none")
 
 
 def _jsonable(value: Any) -> Any:
@@ -118,13 +118,8 @@ def format_description(info: dict[str, Any]) -> str:
 def _selection(stream: OniStream, start_s: float | None, end_s: float | None) -> np.ndarray:
     if not stream.n_frames:
         return np.zeros(0, np.int64)
-    t = (stream.timestamps_us.astype(np.float64) - float(stream.timestamps_us[0])) / 1e6
-    keep = np.ones(t.size, bool)
-    if start_s is not None:
-        keep &= t >= start_s
-    if end_s is not None:
-        keep &= t < end_s
-    return np.flatnonzero(keep)
+    seconds = (stream.timestamps_us.astype(np.float64) - float(stream.timestamps_us[0])) / 1e6
+    return frames_between(seconds, start_s, end_s)
 
 
 def export_stream(
@@ -140,10 +135,8 @@ def export_stream(
     """Decode one stream's frames into an HDF5 file (written atomically; layout in the module
     docstring). ``start_s`` / ``end_s`` select frames by seconds from the stream's first frame
     (start included, end excluded). Returns the file's attributes."""
-    if compression not in COMPRESSIONS:
-        raise KinectDataError(f"compression must be one of {', '.join(COMPRESSIONS)}, not {compression!r}")
-    if start_s is not None and end_s is not None and end_s <= start_s:
-        raise KinectDataError(f"--end ({end_s:g} s) must be after --start ({start_s:g} s)")
+    options = hdf5_filter(compression)
+    check_span(start_s, end_s)
     with OniFile(path) as oni:
         s = oni.stream(stream)
         picked = _selection(s, start_s, end_s)
@@ -175,9 +168,6 @@ def export_stream(
             "truncated": oni.truncated,
             "problems": json.dumps(oni.problems),
         }
-        options = {} if compression == "none" else {"compression": compression}
-        if compression == "gzip":
-            options["compression_opts"] = 4
         with atomic_hdf5(out) as f:  # no chunk cache: a full disk is an error, not a crash
             frames = f.create_dataset(
                 "frames", shape=(picked.size, *shape), dtype=first.data.dtype, chunks=(1, *shape), **options

@@ -23,6 +23,16 @@ SONG = REPO / "sample_data" / "synth_001.flac"
 RECORDING = REPO / "sample_data" / "synth_001.csv"
 ONI = DATA / "oni" / "openni2_dummy_depth.oni"
 
+
+def _mkv_take(path):
+    """A small k4arecorder-layout recording (depth only)."""
+    from reference.k4a_writer import depth_track, write_k4a
+
+    depth = np.full((3, 6, 8), 1500, np.uint16)
+    write_k4a(path, [depth_track("DEPTH", depth, [10**9 + i * 33_333_333 for i in range(3)], "NFOV_UNBINNED")])
+    return path
+
+
 NOT_APPLICABLE = {
     "formats": "reads and writes nothing (lists the shipped readers)",
     "capture": "records from a camera; without one it stops before it writes (tested in tests/capture)",
@@ -74,6 +84,12 @@ def cases(paths: dict) -> dict[str, dict[str, list]]:
             "missing": ["info", missing / "take.oni"],
             "foreign": ["info", junk_file.with_suffix(".oni")],
         },
+        "mkv": {
+            "unwritable": ["export", paths["mkv_take"], "-o", block / "d.h5"],
+            "missing": ["info", missing / "take.mkv"],
+            "foreign": ["info", junk_file.with_suffix(".mkv")],
+            "a take without calibration, for points": ["export", paths["mkv_take"], "--points", "-o", out / "d.h5"],
+        },
         "quickstart": {"unwritable": ["--out", block / "q"]},
         "render": {
             "unwritable": [RECORDING, "-o", block / "r.gif"],
@@ -123,7 +139,7 @@ def paths(tmp_path_factory, sample_dataset, trained_run):
     junk = rng.integers(0, 256, 4000, dtype=np.uint8).tobytes()
     junk_dir = root / "foreign"
     junk_dir.mkdir()
-    for name in ("foreign.csv", "foreign.wav", "foreign.oni", "foreign.npy"):
+    for name in ("foreign.csv", "foreign.wav", "foreign.oni", "foreign.mkv", "foreign.npy"):
         (root / name).write_bytes(junk)
     for name in ("manifest.json", "config.json", "model.pt", "photo.png"):
         (junk_dir / name).write_bytes(junk)
@@ -138,6 +154,7 @@ def paths(tmp_path_factory, sample_dataset, trained_run):
         "dataset": sample_dataset,
         "run": trained_run[0],
         "bvh_corpus": make_bvh_folder(root, seconds=1.0),
+        "mkv_take": _mkv_take(root / "take.mkv"),
     }
 
 
@@ -159,7 +176,9 @@ def test_the_table_of_commands_is_the_modules_own():
     assert found == cli.COMMAND_MODULES
 
 
-PLACEHOLDERS = dict.fromkeys(["out", "block", "missing", "junk_file", "junk_dir", "dataset", "run", "bvh_corpus"], REPO)
+PLACEHOLDERS = dict.fromkeys(
+    ["out", "block", "missing", "junk_file", "junk_dir", "dataset", "run", "bvh_corpus", "mkv_take"], REPO
+)
 ALL = [(command, fault) for command, faults in cases(PLACEHOLDERS).items() for fault in faults]
 
 

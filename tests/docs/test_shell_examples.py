@@ -179,6 +179,46 @@ def _oni_take(work: Path) -> None:
     write_oni(work / "take.oni", [StreamSpec("Depth", "depth", "16zT", depth)])
 
 
+def _k4a_take(work: Path) -> None:
+    """A 2-s Azure Kinect recording as k4arecorder lays it out: NFOV 2x2-binned depth, the IMU,
+    and a calibration in the device's shape."""
+    from reference.k4a_writer import depth_track, imu_samples, write_k4a
+
+    n, h, w = 60, 288, 320
+    depth = (1500 + 10 * np.arange(n)[:, None, None] % 900 + np.zeros((n, h, w), int)).astype(np.uint16)
+    times = [9_000_000_000 + i * 33_333_333 for i in range(n)]
+    imu_times = np.arange(times[0] - 1_000_000, times[-1], 625_000)
+    motion = np.zeros((len(imu_times), 3))
+    camera = {
+        "Location": "CALIBRATION_CameraLocationD0",
+        "Intrinsics": {"ModelType": "CALIBRATION_LensDistortionModelBrownConrady", "ModelParameterCount": 14,
+                       "ModelParameters": [0.5, 0.5, 0.49, 0.49, 0.6, -0.06, 0, 0.9, 0.03, -0.01, 0, 0, 0, 0]},
+        "MetricRadius": 1.74, "SensorWidth": 1024, "SensorHeight": 1024,
+        "Rt": {"Rotation": [1, 0, 0, 0, 1, 0, 0, 0, 1], "Translation": [0, 0, 0]},
+    }  # fmt: skip
+    write_k4a(
+        work / "take.mkv",
+        [depth_track("DEPTH", depth, times, "NFOV_2X2BINNED")],
+        imu_samples(imu_times, motion, motion),
+        calibration={"CalibrationInformation": {"Cameras": [camera]}},
+        global_tags={"K4A_DEVICE_SERIAL_NUMBER": "000123456712"},
+    )
+
+
+def _k4a_body(work: Path) -> None:
+    """The body tracker's JSON of take.mkv: one body per depth frame, stamped with its device time."""
+    from test_azure_json import make_body, make_doc, write
+
+    from kinectdata.mkv import K4aRecording
+
+    if not (work / "take.mkv").exists():
+        _k4a_take(work)
+    with K4aRecording(work / "take.mkv") as take:
+        stamps = take.device_times_us(take.track("DEPTH"))
+    rng = np.random.default_rng(0)
+    write(work, make_doc([(int(t), [make_body(rng, 1)[0]]) for t in stamps]), "take_body.json")
+
+
 def _synth_openpose(work: Path, dest: Path) -> None:
     """An OpenPose --write_json folder of a dancer and a passer-by (person "1"), at ``dest``."""
     _kinectdata("synth", work / ".synth", "--format", "openpose", "--duration", 10, "--seed", 2, cwd=work)
@@ -251,6 +291,8 @@ STAGE: dict[str, Callable[[Path], None]] = {
     "song.wav": _named_wav("song.wav", "synth_003"),
     "take.skeleton": _ntu_take,
     "take.oni": _oni_take,
+    "take.mkv": _k4a_take,
+    "take_body.json": _k4a_body,
     "video_openpose/": _openpose_take,
     "dance.jsonl": _openpose_jsonl,
     "videos/": _openpose_videos,
