@@ -57,6 +57,12 @@ _LOOP_OPTIONS = (
         "the real motion's.",
     ),
     (
+        "jitter_weight",
+        click.FloatRange(min=0),
+        "Weight of the jitter term in the free-running loss: the motion's accelerations and jerks against the real "
+        "motion's, more costing in proportion and less only in log ratio; 0: none.",
+    ),
+    (
         "silence_share",
         click.FloatRange(0, 1),
         "Share of training windows whose music goes silent from a random frame on, the pose held (to stop in silence).",

@@ -63,6 +63,7 @@ PAPER_LOOP: dict[str, Any] = {
     "clip_norm": None,
     "free_weight": 0.0,
     "posture_weight": 0.0,
+    "jitter_weight": 0.0,
     "silence_share": 0.0,
     "keep": "last",
     "context": 0,

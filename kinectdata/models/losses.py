@@ -94,7 +94,7 @@ model on tang2018's validation dances moved 2-18 x the real energy in its first 
 after (docs/benchmarks.md)."""
 
 
-def masked_energy_loss(prediction, target, mask, chunk: int | None = None):
+def masked_energy_loss(prediction, target, mask, chunk: int | None = None, excess: bool = False):
     """How far a motion's speed is from the target's, in ratio: per component of [B, L, D] windows
     and per stretch of ``chunk`` frame-to-frame changes (None: the whole window; a last shorter
     stretch counts as one), twice the Itakura-Saito divergence ``r/m - log(r/m) - 1`` of the mean
@@ -106,7 +106,8 @@ def masked_energy_loss(prediction, target, mask, chunk: int | None = None):
     moves it is least at the target's mean speed, not at its geometric mean: on tang2018's
     training windows that mean is 0.56 x the real energy, where the squared log ratio left the
     models (docs/benchmarks.md). A stretch where the target holds still asks the motion to hold
-    still too."""
+    still too. With ``excess`` the divergence is turned round (the made energy's from the target's):
+    too much then costs in proportion and too little only in log ratio (:func:`masked_jitter_loss`)."""
     import torch
 
     both = (mask[:, 1:] & mask[:, :-1]).to(prediction.dtype)  # [B, L-1, D]
@@ -122,9 +123,24 @@ def masked_energy_loss(prediction, target, mask, chunk: int | None = None):
     made, real = energy(prediction), energy(target)
     floor = 1e-2 * (real * (pairs > 0)).sum().detach() / (pairs > 0).sum().clamp(min=1) + 1e-12
     counted = (pairs > 0).to(prediction.dtype)
-    ratio = (real + floor) / (made + floor)
+    ratio = (made + floor) / (real + floor) if excess else (real + floor) / (made + floor)
     divergence = 2.0 * (ratio - torch.log(ratio) - 1.0)
     return (divergence * counted).sum() / counted.sum().clamp(min=1.0)
+
+
+def masked_jitter_loss(prediction, target, mask, chunk: int | None = None):
+    """How much more a motion jitters than the target: per component of [B, L, D] windows and per
+    stretch of ``chunk`` frames, the mean squared accelerations and jerks (second and third
+    frame-to-frame differences) made against the target's, by the Itakura-Saito divergence turned
+    round (:func:`masked_energy_loss` with ``excess``): twice the target's costs 0.61, ten times
+    13.4, half of it 0.39. The speed term of :func:`masked_rhythm_loss` on the changes forgives the
+    other way (ten times the target's acceleration costs 2.8): without this term the cdhc model,
+    making its motion from the music alone, jittered on held-out dances at 4-12 x the real dancers'
+    mean squared acceleration and 8-36 x their jerk's, most of the excess above the rhythm
+    spectra's 6 Hz (docs/benchmarks.md). Torch tensors; a scalar."""
+    made, real, both = _changes(prediction, target, mask)
+    loss = masked_energy_loss(made, real, both, chunk, excess=True)
+    return loss + masked_energy_loss(*_changes(made, real, both), chunk, excess=True)
 
 
 def masked_posture_loss(prediction, target, mask):
@@ -336,13 +352,16 @@ class Body:
         return replace(self, scale=self.scale.to(device), offset=self.offset.to(device), feet=feet)
 
 
-def masked_rhythm_loss(prediction, target, mask, fps: float, body=None, posture_weight: float = 3.0):
+def masked_rhythm_loss(
+    prediction, target, mask, fps: float, body=None, posture_weight: float = 3.0, jitter_weight: float = 0.0
+):
     """The free-running loss of training (``TrainConfig.free_weight``): the spectra of the motion's
     changes (:func:`masked_rhythm_spectrum_loss`: how often and how much at each tempo, whatever the
     phase), its speed and the size of its speed's changes in every :data:`ENERGY_CHUNK_S` seconds
     (:func:`masked_energy_loss` of the motion and of its frame-to-frame changes: the second keeps a
     motion made from the music alone from jittering), its postures' means and spreads
-    (:func:`masked_posture_loss`, times ``posture_weight``: ``TrainConfig.posture_weight``) and,
+    (:func:`masked_posture_loss`, times ``posture_weight``: ``TrainConfig.posture_weight``), how much
+    more it jitters (:func:`masked_jitter_loss`, times ``jitter_weight``: ``TrainConfig.jitter_weight``) and,
     given a :class:`Body`, how much its bones stretch against the target's (times
     :data:`BONE_WEIGHT`), its joints' speeds in the world (:func:`masked_world_speed_loss`, per
     :data:`ENERGY_CHUNK_S`, times :data:`WORLD_SPEED_WEIGHT`) and, when the body has feet, how
@@ -353,6 +372,8 @@ def masked_rhythm_loss(prediction, target, mask, fps: float, body=None, posture_
     )
     loss = loss + masked_energy_loss(*_changes(prediction, target, mask), chunk)
     loss = loss + posture_weight * masked_posture_loss(prediction, target, mask)
+    if jitter_weight > 0:
+        loss = loss + jitter_weight * masked_jitter_loss(prediction, target, mask, chunk)
     if body is not None:
         loss = loss + BONE_WEIGHT * masked_bone_loss(
             prediction, target, mask, body.bones, body.scale, body.offset, body.dims

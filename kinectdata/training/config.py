@@ -36,6 +36,7 @@ ADDED_OFF = {
     "predicts": "pose",
     "inputs": "music-and-poses",
     "posture_weight": 10.0,
+    "jitter_weight": 0.0,
     "context": 0,
     "balance": None,
 }
@@ -86,6 +87,9 @@ class TrainConfig:
             over the window against the real one's). The yalta model follows the songs at 3 and
             played one period for all at 10 (2 seeds of 3); the cdhc model from the music alone
             moves at 10 and stands still at 3 (docs/benchmarks.md). Runs written before it had 10.
+        jitter_weight: weight of the jitter term in the free-running loss
+            (:func:`~kinectdata.models.losses.masked_jitter_loss`: the motion's accelerations and jerks
+            against the real ones', an excess costing in proportion). Runs written before it had none.
         silence_share: share of training windows whose music is silenced from a random frame on,
             the pose then held (:mod:`kinectdata.training.augment`): a model learns to stop in silence.
         keep: which epoch ``model.pt`` (and the exports) hold: ``last``, or ``best``, the epoch whose
@@ -119,6 +123,7 @@ class TrainConfig:
     previous_noise: float
     free_weight: float
     posture_weight: float
+    jitter_weight: float
     silence_share: float
     keep: str
     context: int | None
@@ -153,6 +158,8 @@ class TrainConfig:
             raise ConfigError(f"free_weight must be at least 0, not {self.free_weight!r}")
         if not self.posture_weight >= 0:
             raise ConfigError(f"posture_weight must be at least 0, not {self.posture_weight!r}")
+        if not self.jitter_weight >= 0:
+            raise ConfigError(f"jitter_weight must be at least 0, not {self.jitter_weight!r}")
         if not 0 <= self.silence_share <= 1:
             raise ConfigError(f"silence_share must be in 0..1, not {self.silence_share!r}")
         if self.context is not None and not (isinstance(self.context, int) and self.context >= 0):

@@ -392,6 +392,7 @@ def validate(
             fps,
             body,
             config.posture_weight,
+            config.jitter_weight,
         )
     )
     return loss, smape(generated, real, masks), rhythm
@@ -655,7 +656,7 @@ def train(
                     pred, free = pred[:, context:], free[:, context:]
                     loss = kind.loss(net, pred, pose, mask, config.settings)
                     loss = loss + config.free_weight * masked_rhythm_loss(
-                        free, pose, mask, fps, body, config.posture_weight
+                        free, pose, mask, fps, body, config.posture_weight, config.jitter_weight
                     )
                 else:
                     pred = kind.predict(model, audio, previous, config.settings)[:, context:]
