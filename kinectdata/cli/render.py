@@ -71,13 +71,25 @@ class SizeType(click.ParamType):
     type=SizeType(),
     help="Pixels of each panel (a comparison is twice as wide); even numbers for MP4.",
 )
+@click.option(
+    "--over",
+    default=None,
+    type=click.Path(dir_okay=False, path_type=str),
+    metavar="TAKE.mkv",
+    help="Draw MOTION, the body tracker's JSON of an Azure Kinect take, over that take's depth frames (each body "
+    "frame on the depth frame it was made from, joints projected through the take's calibration), at the depth "
+    "track's rate and size, no sound.",
+)
 @reader_options
-def render(motion, out, audio, compare, start, end, fps, size, reading) -> None:
+def render(motion, out, audio, compare, start, end, fps, size, over, reading) -> None:
     """Draw MOTION as a skeleton animation: any readable recording, an aligned .h5 or generated motion
     (CSV, OpenPose JSON Lines). 3-D skeletons (metres) are seen by a fixed raised camera looking the way
     the sensor looks, over a floor grid; 2-D ones (pixels) on image axes, y down. --format applies to
     MOTION, the other reader options to MOTION and OTHER where their format takes them."""
 
+    if over is not None:
+        _render_over(motion, over, out, audio, compare, start, end, fps, reading)
+        return
     from kinectdata.viz.render import load_inputs, render_animation
 
     paths = [motion] if compare is None else [motion, compare]
@@ -93,6 +105,20 @@ def render(motion, out, audio, compare, start, end, fps, size, reading) -> None:
     )
     for source in result["ended"]:
         click.echo(f"{source} ends before the clip: shown frozen on its last frame after that")
+
+
+def _render_over(motion, over, out, audio, compare, start, end, fps, reading) -> None:
+    from kinectdata.formats import read_motion
+    from kinectdata.viz.overlay import render_overlay
+
+    for given, name in ((compare, "--compare"), (audio, "--audio"), (fps, "--fps")):
+        if given is not None:
+            raise click.UsageError(f"{name} does not go with --over: the depth frames set the clip's rate and size")
+    with progress_bar("rendering", "frame") as progress:
+        result = render_overlay(read_motion(motion, **reading), over, out, start=start, end=end, progress=progress)
+    width, height = result["size"]
+    click.echo(f"wrote {out}: {result['frames']} depth frames at {result['fps']:g} fps, {width}x{height}, no sound")
+    click.echo(result["placement"])
 
 
 COMMANDS = [render]

@@ -52,23 +52,6 @@ def _mode(track: MkvTrack) -> str | None:
     return next((v for k, v in track.tags.items() if k.endswith("_MODE")), None)
 
 
-def _depth_mode(take: K4aRecording, depth: MkvTrack) -> str:
-    """The depth mode: the track's tag, the file's (PASSIVE_IR has no depth track to aim at), or the
-    one mode of the track's resolution (WFOV unbinned when 1 024 x 1 024)."""
-    from .calibration import DEPTH_MODES
-
-    mode = depth.tags.get("K4A_DEPTH_MODE") or take.tags.get("K4A_DEPTH_MODE")
-    if mode:
-        return mode
-    by_size = [m for m, (_, _, size) in DEPTH_MODES.items() if size == (depth.width, depth.height)]
-    if not by_size:
-        raise KinectDataError(
-            f"{take.path}: no K4A_DEPTH_MODE tag, and no depth mode is {depth.width} x {depth.height}: "
-            "points cannot be made"
-        )
-    return by_size[0]
-
-
 def _device(take: K4aRecording, file_us) -> float | None:
     return None if take.start_offset_us is None else float(file_us + take.start_offset_us)
 
@@ -197,7 +180,7 @@ def export_tracks(
     file (written atomically; layout in the module docstring). ``start_s`` / ``end_s`` select by
     seconds from the file's time 0 (start included, end excluded); ``points`` adds the depth
     frames as points through the recording's calibration. Returns the file's attributes."""
-    from .calibration import depth_to_points, read_calibration
+    from .calibration import depth_to_points
 
     options = hdf5_filter(compression)
     check_span(start_s, end_s)
@@ -213,12 +196,7 @@ def export_tracks(
         if empty:
             raise KinectDataError(f"{path}: the {', '.join(empty)} track has no frames in the selection")
         raw_calibration = take.attachments.get(take.tags.get("K4A_CALIBRATION_FILE", "calibration.json"), b"")
-        intrinsics = None
-        if points:
-            if not raw_calibration:
-                raise KinectDataError(f"{path}: no calibration.json attached: points cannot be made")
-            mode = _depth_mode(take, chosen["depth"])
-            intrinsics = read_calibration(raw_calibration, source=f"{path}: calibration.json").depth_intrinsics(mode)
+        intrinsics = take.calibration().depth_intrinsics(take.depth_mode()) if points else None
         total = sum(p.size for p in picks.values())
         done = 0
         attrs = {

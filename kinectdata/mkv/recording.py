@@ -179,6 +179,30 @@ class K4aRecording:
             )
         return track.times_us + self.start_offset_us
 
+    def depth_mode(self) -> str:
+        """The depth mode (``NFOV_UNBINNED``...): the DEPTH track's ``K4A_DEPTH_MODE`` tag, the file's
+        (PASSIVE_IR has no depth track to aim it at), or the one mode of the track's resolution."""
+        from .calibration import DEPTH_MODES
+
+        depth = self.track("DEPTH")
+        mode = depth.tags.get("K4A_DEPTH_MODE") or self.tags.get("K4A_DEPTH_MODE")
+        if mode:
+            return mode
+        by_size = [m for m, (_, _, size) in DEPTH_MODES.items() if size == (depth.width, depth.height)]
+        if not by_size:
+            raise MkvError(f"{self.path}: no K4A_DEPTH_MODE tag, and no depth mode is {depth.width} x {depth.height}")
+        return by_size[0]
+
+    def calibration(self):
+        """The device calibration attached to the recording
+        (:class:`~kinectdata.mkv.calibration.DeviceCalibration`)."""
+        from .calibration import read_calibration
+
+        raw = self.attachments.get(self.tags.get("K4A_CALIBRATION_FILE", "calibration.json"))
+        if not raw:
+            raise MkvError(f"{self.path}: no calibration.json attached")
+        return read_calibration(raw, source=f"{self.path}: calibration.json")
+
     def frame_bytes(self, track: MkvTrack, index: int) -> bytes:
         """The bytes of frame ``index`` (of the IMU track: one block's samples)."""
         if self._map is None:

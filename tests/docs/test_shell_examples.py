@@ -69,6 +69,7 @@ SHRINK = {
         "30",
     ],
     "kinectdata render": ["--fps", "5", "--size", "160x120"],
+    "kinectdata render take_body.json --over": [],  # the take's 60 depth frames at their own rate and size
     "kinectdata synth ltd": ["--duration", "20"],
 }
 """Options appended to commands that start so (the last value of an option wins), to keep the

@@ -1,0 +1,155 @@
+"""A body tracker's skeleton drawn over the depth frames it was made from (``render --over take.mkv``).
+
+The Azure Kinect body tracker's JSON (read as ``azure_json``: kinectdata's camera axes, x to the
+sensor's left, y up, metres) holds each joint in the depth camera's frame, and each body frame's
+device time is its depth frame's (:mod:`kinectdata.mkv.body`). So each body frame is placed on its
+depth frame and each joint projected into it through the recording's calibration: the depth
+camera's lens model (:meth:`kinectdata.mkv.calibration.Intrinsics.project`) at the point
+(-x, -y, z), the SDK's axes (x right, y down). Depth is shown grey, near light and far dark
+(:data:`DEPTH_RANGE_MM`), no depth black; bones in :mod:`.render`'s colours (the person's right
+red, left blue), joints as white dots ringed in black. One output frame per depth frame a body
+frame falls on, at the depth track's rate.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from dataclasses import dataclass
+
+import numpy as np
+
+from kinectdata.core.errors import KinectDataError
+from kinectdata.core.motion import Motion
+
+DEPTH_RANGE_MM = (500.0, 5000.0)
+"""Depth shown from light (near) to dark (far), millimetres."""
+JOINT_RADIUS_PX = 3
+_SIDE_COLOURS = {"right": (214, 39, 40), "left": (31, 119, 180), "centre": (220, 220, 220)}
+
+
+def project_joints(positions: np.ndarray, intrinsics) -> tuple[np.ndarray, np.ndarray]:
+    """Pixels [..., J, 2] of joints [..., J, 3] (kinectdata's camera axes, metres) in the depth
+    image, and whether each is seen (in front of the camera, within the lens model's radius, inside
+    the image)."""
+    camera = np.asarray(positions, dtype=np.float64) * np.array([-1.0, -1.0, 1.0])
+    z = camera[..., 2]
+    ahead = z > 0
+    xy = camera[..., :2] / np.where(ahead, z, 1.0)[..., None]
+    uv, inside = intrinsics.project(xy)
+    width, height = intrinsics.size
+    u, v = uv[..., 0], uv[..., 1]
+    seen = ahead & inside & np.isfinite(uv).all(axis=-1)
+    return uv, seen & (u >= -0.5) & (u < width - 0.5) & (v >= -0.5) & (v < height - 0.5)
+
+
+def depth_image(depth_mm: np.ndarray) -> np.ndarray:
+    """uint8 RGB [H, W, 3] of a depth frame [H, W] (mm): near light, far dark, no depth black."""
+    near, far = DEPTH_RANGE_MM
+    level = 1.0 - np.clip((depth_mm.astype(np.float32) - near) / (far - near), 0.0, 1.0)
+    grey = np.where(depth_mm > 0, 40 + 200 * level, 0).astype(np.uint8)
+    return np.repeat(grey[..., None], 3, axis=-1)
+
+
+@dataclass(frozen=True)
+class Overlay:
+    """What :func:`plan_overlay` matched: the depth frames to draw [N] (indices into the DEPTH
+    track), the body frame on each [N], the joints' pixels [N, J, 2] and whether each is seen
+    [N, J]; the depth track's rate and size; the placement's one-line summary."""
+
+    depth_frames: np.ndarray
+    body_frames: np.ndarray
+    pixels: np.ndarray
+    seen: np.ndarray
+    fps: float
+    size: tuple[int, int]
+    summary: str
+
+
+def plan_overlay(motion: Motion, take, *, start: float = 0.0, end: float | None = None) -> Overlay:
+    """Place the body frames of ``motion`` (an ``azure_json`` recording of the take ``take``) on
+    its depth frames and project their joints; only body frames from ``start`` to ``end`` seconds
+    of the motion."""
+    from kinectdata.mkv.body import place_body_frames
+
+    if motion.metadata.get("format") != "azure_json" or motion.joint_set.dimensions != 3:
+        raise KinectDataError(
+            f"{motion.metadata.get('source', 'the motion')}: only the body tracker's JSON of the take (azure_json, "
+            "joints in the depth camera's frame) can be drawn over its depth frames"
+        )
+    origin = motion.metadata["time_origin"]["value"]
+    placement = place_body_frames(origin + np.round(np.asarray(motion.times) * 1e6), take)
+    chosen = placement.frame >= 0
+    chosen &= motion.times >= start
+    if end is not None:
+        chosen &= motion.times < end
+    if not chosen.any():
+        raise KinectDataError(f"{take.path}: {placement.describe()}; nothing to draw")
+    intrinsics = take.calibration().depth_intrinsics(take.depth_mode())
+    bodies = np.flatnonzero(chosen)
+    pixels, seen = project_joints(motion.positions[bodies], intrinsics)
+    seen &= motion.position_mask[bodies]
+    depth = take.track("DEPTH")
+    fps = 1e9 / depth.frame_period_ns if depth.frame_period_ns else 30.0
+    return Overlay(placement.frame[bodies], bodies, pixels, seen, fps, intrinsics.size, placement.describe())
+
+
+def draw_overlays(motion: Motion, take, plan: Overlay) -> Iterator[np.ndarray]:
+    """Each planned depth frame with its body drawn: uint8 RGB [H, W, 3]."""
+    from PIL import Image, ImageDraw
+
+    from .render import body_side
+
+    names = motion.joint_set.names
+    bones = motion.joint_set.bones()  # (parent, child)
+    colours = [_SIDE_COLOURS[body_side(names[child])] for _, child in bones]
+    depth = take.track("DEPTH")
+    for k, index in enumerate(plan.depth_frames.tolist()):
+        image = Image.fromarray(depth_image(take.frame(depth, index)))
+        draw = ImageDraw.Draw(image)
+        uv, seen = plan.pixels[k], plan.seen[k]
+        for (parent, child), colour in zip(bones, colours):
+            if seen[child] and seen[parent]:
+                draw.line([tuple(uv[parent]), tuple(uv[child])], fill=colour, width=2)
+        r = JOINT_RADIUS_PX
+        for j in np.flatnonzero(seen):
+            u, v = uv[j]
+            draw.ellipse([u - r, v - r, u + r, v + r], fill=(255, 255, 255), outline=(0, 0, 0))
+        yield np.asarray(image)
+
+
+def render_overlay(
+    motion: Motion,
+    take_path,
+    out,
+    *,
+    start: float = 0.0,
+    end: float | None = None,
+    progress=None,
+) -> dict:
+    """Write ``motion`` (the take's body-tracking JSON, read) drawn over the depth frames of the
+    recording ``take_path`` to ``out`` (.mp4 or .gif, atomically), at the depth track's rate and
+    size, no sound. Returns what was written: frames, fps, size, the placement's summary."""
+    import warnings
+
+    from kinectdata.mkv import K4aRecording
+
+    from .render import write_gif, write_mp4
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # a cut-short take still has its frames; `mkv info` says why
+        take = K4aRecording(take_path)
+    with take:
+        plan = plan_overlay(motion, take, start=start, end=end)
+        total = len(plan.depth_frames)
+
+        def frames():
+            for k, frame in enumerate(draw_overlays(motion, take, plan)):
+                if progress:
+                    progress(k + 1, total)
+                yield frame
+
+        if str(out).lower().endswith(".gif"):
+            count = write_gif(frames(), out, plan.fps)
+        else:
+            count = write_mp4(frames(), out, plan.fps, plan.size)
+    return {"frames": count, "fps": plan.fps, "size": plan.size, "placement": plan.summary}
