@@ -80,15 +80,23 @@ class SizeType(click.ParamType):
     "frame on the depth frame it was made from, joints projected through the take's calibration), at the depth "
     "track's rate and size, no sound.",
 )
+@click.option(
+    "--on",
+    "over_track",
+    default="depth",
+    show_default=True,
+    type=click.Choice(["depth", "color"]),
+    help="With --over: draw over the take's depth frames or its colour frames.",
+)
 @reader_options
-def render(motion, out, audio, compare, start, end, fps, size, over, reading) -> None:
+def render(motion, out, audio, compare, start, end, fps, size, over, over_track, reading) -> None:
     """Draw MOTION as a skeleton animation: any readable recording, an aligned .h5 or generated motion
     (CSV, OpenPose JSON Lines). 3-D skeletons (metres) are seen by a fixed raised camera looking the way
     the sensor looks, over a floor grid; 2-D ones (pixels) on image axes, y down. --format applies to
     MOTION, the other reader options to MOTION and OTHER where their format takes them."""
 
     if over is not None:
-        _render_over(motion, over, out, audio, compare, start, end, fps, reading)
+        _render_over(motion, over, over_track, out, audio, compare, start, end, fps, reading)
         return
     from kinectdata.viz.render import load_inputs, render_animation
 
@@ -107,7 +115,7 @@ def render(motion, out, audio, compare, start, end, fps, size, over, reading) ->
         click.echo(f"{source} ends before the clip: shown frozen on its last frame after that")
 
 
-def _render_over(motion, over, out, audio, compare, start, end, fps, reading) -> None:
+def _render_over(motion, over, over_track, out, audio, compare, start, end, fps, reading) -> None:
     from kinectdata.formats import read_motion
     from kinectdata.viz.overlay import render_overlay
 
@@ -115,9 +123,13 @@ def _render_over(motion, over, out, audio, compare, start, end, fps, reading) ->
         if given is not None:
             raise click.UsageError(f"{name} does not go with --over: the depth frames set the clip's rate and size")
     with progress_bar("rendering", "frame") as progress:
-        result = render_overlay(read_motion(motion, **reading), over, out, start=start, end=end, progress=progress)
+        result = render_overlay(
+            read_motion(motion, **reading), over, out, start=start, end=end, on=over_track.upper(), progress=progress
+        )
     width, height = result["size"]
-    click.echo(f"wrote {out}: {result['frames']} depth frames at {result['fps']:g} fps, {width}x{height}, no sound")
+    click.echo(
+        f"wrote {out}: {result['frames']} {over_track} frames at {result['fps']:g} fps, {width}x{height}, no sound"
+    )
     click.echo(result["placement"])
 
 

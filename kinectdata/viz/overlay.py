@@ -1,4 +1,4 @@
-"""A body tracker's skeleton drawn over the depth frames it was made from (``render --over take.mkv``).
+"""A body tracker's skeleton drawn over the depth (or colour) frames of its take (``render --over take.mkv``).
 
 The Azure Kinect body tracker's JSON (read as ``azure_json``: kinectdata's camera axes, x to the
 sensor's left, y up, metres) holds each joint in the depth camera's frame, and each body frame's
@@ -8,7 +8,11 @@ camera's lens model (:meth:`kinectdata.mkv.calibration.Intrinsics.project`) at t
 (-x, -y, z), the SDK's axes (x right, y down). Depth is shown grey, near light and far dark
 (:data:`DEPTH_RANGE_MM`), no depth black; bones in :mod:`.render`'s colours (the person's right
 red, left blue), joints as white dots ringed in black. One output frame per depth frame a body
-frame falls on, at the depth track's rate.
+frame falls on, at the depth track's rate. Over the colour frames instead, each joint is taken into
+the colour camera's frame by the calibration's ``Rt`` (from the depth camera's frame; translation
+in metres) and projected through the colour camera's lens model in the colour mode's pixels; each
+depth frame's colour frame is the one nearest its device time (a capture's colour and depth
+differ by the recorder's ``K4A_DEPTH_DELAY_NS``).
 """
 
 from __future__ import annotations
@@ -27,11 +31,17 @@ JOINT_RADIUS_PX = 3
 _SIDE_COLOURS = {"right": (214, 39, 40), "left": (31, 119, 180), "centre": (220, 220, 220)}
 
 
-def project_joints(positions: np.ndarray, intrinsics) -> tuple[np.ndarray, np.ndarray]:
-    """Pixels [..., J, 2] of joints [..., J, 3] (kinectdata's camera axes, metres) in the depth
-    image, and whether each is seen (in front of the camera, within the lens model's radius, inside
-    the image)."""
-    camera = np.asarray(positions, dtype=np.float64) * np.array([-1.0, -1.0, 1.0])
+def project_joints(
+    positions: np.ndarray, intrinsics, rotation=None, translation_mm=None
+) -> tuple[np.ndarray, np.ndarray]:
+    """Pixels [..., J, 2] of joints [..., J, 3] (kinectdata's camera axes, metres, in the depth
+    camera's frame) in a camera's image, and whether each is seen (in front of the camera, within
+    the lens model's radius, inside the image). ``rotation`` [3, 3] and ``translation_mm`` [3] take
+    a point from the depth camera's frame (the SDK's axes, mm) to the camera's (a calibration's
+    ``Rt``); None: the depth camera itself."""
+    camera = np.asarray(positions, dtype=np.float64) * np.array([-1000.0, -1000.0, 1000.0])  # SDK axes, mm
+    if rotation is not None:
+        camera = camera @ np.asarray(rotation, dtype=np.float64).T + np.asarray(translation_mm, dtype=np.float64)
     z = camera[..., 2]
     ahead = z > 0
     xy = camera[..., :2] / np.where(ahead, z, 1.0)[..., None]
@@ -52,11 +62,12 @@ def depth_image(depth_mm: np.ndarray) -> np.ndarray:
 
 @dataclass(frozen=True)
 class Overlay:
-    """What :func:`plan_overlay` matched: the depth frames to draw [N] (indices into the DEPTH
-    track), the body frame on each [N], the joints' pixels [N, J, 2] and whether each is seen
-    [N, J]; the depth track's rate and size; the placement's one-line summary."""
+    """What :func:`plan_overlay` matched: the track drawn on (``DEPTH`` or ``COLOR``), its frames
+    to draw [N], the body frame on each [N], the joints' pixels [N, J, 2] and whether each is seen
+    [N, J]; the track's rate and size; the placement's one-line summary."""
 
-    depth_frames: np.ndarray
+    track: str
+    frames: np.ndarray
     body_frames: np.ndarray
     pixels: np.ndarray
     seen: np.ndarray
@@ -65,16 +76,18 @@ class Overlay:
     summary: str
 
 
-def plan_overlay(motion: Motion, take, *, start: float = 0.0, end: float | None = None) -> Overlay:
+def plan_overlay(motion: Motion, take, *, start: float = 0.0, end: float | None = None, on: str = "DEPTH") -> Overlay:
     """Place the body frames of ``motion`` (an ``azure_json`` recording of the take ``take``) on
-    its depth frames and project their joints; only body frames from ``start`` to ``end`` seconds
-    of the motion."""
+    its depth frames and project their joints into the frames of ``on``: ``DEPTH``, or ``COLOR``
+    (the colour frame nearest each depth frame's device time, within half a colour frame period;
+    the joints taken into the colour camera's frame by the calibration's ``Rt``); only body
+    frames from ``start`` to ``end`` seconds of the motion."""
     from kinectdata.mkv.body import place_body_frames
 
     if motion.metadata.get("format") != "azure_json" or motion.joint_set.dimensions != 3:
         raise KinectDataError(
             f"{motion.metadata.get('source', 'the motion')}: only the body tracker's JSON of the take (azure_json, "
-            "joints in the depth camera's frame) can be drawn over its depth frames"
+            "joints in the depth camera's frame) can be drawn over its frames"
         )
     origin = motion.metadata["time_origin"]["value"]
     placement = place_body_frames(origin + np.round(np.asarray(motion.times) * 1e6), take)
@@ -84,17 +97,44 @@ def plan_overlay(motion: Motion, take, *, start: float = 0.0, end: float | None 
         chosen &= motion.times < end
     if not chosen.any():
         raise KinectDataError(f"{take.path}: {placement.describe()}; nothing to draw")
-    intrinsics = take.calibration().depth_intrinsics(take.depth_mode())
     bodies = np.flatnonzero(chosen)
-    pixels, seen = project_joints(motion.positions[bodies], intrinsics)
+    frames = placement.frame[bodies]
+    calibration = take.calibration()
+    track = take.track(on)
+    if on == "DEPTH":
+        pixels, seen = project_joints(motion.positions[bodies], calibration.depth_intrinsics(take.depth_mode()))
+        size = (track.width, track.height)
+    else:
+        depth_times = take.track("DEPTH").times_us[frames]
+        frames, near = _nearest_frames(track.times_us, depth_times, (track.frame_period_ns or 33_333_333) / 2000)
+        bodies, frames = bodies[near], frames[near]
+        if not len(frames):
+            raise KinectDataError(f"{take.path}: no {on} frame near the depth frames the body frames fall on")
+        camera = calibration.cameras.get("color")
+        if camera is None:
+            raise KinectDataError(f"{take.path}: the calibration has no colour camera")
+        intrinsics = calibration.color_intrinsics(track.height)
+        pixels, seen = project_joints(
+            motion.positions[bodies], intrinsics, camera.rotation, camera.translation_m * 1000.0
+        )
+        size = intrinsics.size
     seen &= motion.position_mask[bodies]
-    depth = take.track("DEPTH")
-    fps = 1e9 / depth.frame_period_ns if depth.frame_period_ns else 30.0
-    return Overlay(placement.frame[bodies], bodies, pixels, seen, fps, intrinsics.size, placement.describe())
+    fps = 1e9 / track.frame_period_ns if track.frame_period_ns else 30.0
+    return Overlay(on, frames, bodies, pixels, seen, fps, tuple(size), placement.describe())
+
+
+def _nearest_frames(times: np.ndarray, wanted: np.ndarray, tolerance: float) -> tuple[np.ndarray, np.ndarray]:
+    """Index of the frame nearest each wanted time [N] and whether it is within ``tolerance`` (us)."""
+    if len(times) == 0:
+        return np.zeros(len(wanted), np.int64), np.zeros(len(wanted), bool)
+    right = np.clip(np.searchsorted(times, wanted), 0, len(times) - 1)
+    left = np.maximum(right - 1, 0)
+    pick = np.where(np.abs(wanted - times[left]) <= np.abs(wanted - times[right]), left, right)
+    return pick, np.abs(times[pick] - wanted) <= tolerance
 
 
 def draw_overlays(motion: Motion, take, plan: Overlay) -> Iterator[np.ndarray]:
-    """Each planned depth frame with its body drawn: uint8 RGB [H, W, 3]."""
+    """Each planned frame (depth, or colour) with its body drawn: uint8 RGB [H, W, 3]."""
     from PIL import Image, ImageDraw
 
     from .render import body_side
@@ -102,9 +142,10 @@ def draw_overlays(motion: Motion, take, plan: Overlay) -> Iterator[np.ndarray]:
     names = motion.joint_set.names
     bones = motion.joint_set.bones()  # (parent, child)
     colours = [_SIDE_COLOURS[body_side(names[child])] for _, child in bones]
-    depth = take.track("DEPTH")
-    for k, index in enumerate(plan.depth_frames.tolist()):
-        image = Image.fromarray(depth_image(take.frame(depth, index)))
+    track = take.track(plan.track)
+    for k, index in enumerate(plan.frames.tolist()):
+        raw = take.frame(track, index)
+        image = Image.fromarray(depth_image(raw) if plan.track == "DEPTH" else raw)
         draw = ImageDraw.Draw(image)
         uv, seen = plan.pixels[k], plan.seen[k]
         for (parent, child), colour in zip(bones, colours):
@@ -124,11 +165,13 @@ def render_overlay(
     *,
     start: float = 0.0,
     end: float | None = None,
+    on: str = "DEPTH",
     progress=None,
 ) -> dict:
-    """Write ``motion`` (the take's body-tracking JSON, read) drawn over the depth frames of the
-    recording ``take_path`` to ``out`` (.mp4 or .gif, atomically), at the depth track's rate and
-    size, no sound. Returns what was written: frames, fps, size, the placement's summary."""
+    """Write ``motion`` (the take's body-tracking JSON, read) drawn over the frames of the
+    recording ``take_path`` (``on``: its ``DEPTH`` or ``COLOR`` track) to ``out`` (.mp4 or .gif,
+    atomically), at that track's rate and size, no sound. Returns what was written: frames, fps,
+    size, the placement's summary."""
     import warnings
 
     from kinectdata.mkv import K4aRecording
@@ -139,8 +182,8 @@ def render_overlay(
         warnings.simplefilter("ignore")  # a cut-short take still has its frames; `mkv info` says why
         take = K4aRecording(take_path)
     with take:
-        plan = plan_overlay(motion, take, start=start, end=end)
-        total = len(plan.depth_frames)
+        plan = plan_overlay(motion, take, start=start, end=end, on=on)
+        total = len(plan.frames)
 
         def frames():
             for k, frame in enumerate(draw_overlays(motion, take, plan)):
