@@ -4,14 +4,17 @@ with kinectdata's reader: EBML header (DocType matroska, version 2), Segment wit
 (TimestampScale 1 000 ns, title "Azure Kinect"), Tracks (COLOR, DEPTH, IR as V_MS/VFW/FOURCC with a
 40-byte BITMAPINFOHEADER; IMU as S_K4A/IMU subtitles), the calibration.json attachment, one Tag
 per K4A_* fact, then clusters of at most 32 ms: each video frame a keyframe SimpleBlock, each run
-of IMU samples one BlockGroup of fixed-laced 40-byte samples with a BlockDuration. Block times are
-device times less K4A_START_OFFSET_NS; depth and IR pixels big-endian.
+of IMU samples one BlockGroup of fixed-laced 40-byte samples with a BlockDuration; a SeekHead first,
+a 1 024-byte Void before the clusters, Cues after them, CRC-32s in the Clusters and Tags, as the
+recorder lays them out. Block times are device times less K4A_START_OFFSET_NS; depth and IR pixels
+big-endian.
 """
 
 from __future__ import annotations
 
 import json
 import struct
+import zlib
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -65,6 +68,45 @@ def imu_samples(times_ns, acc, gyro) -> list[tuple[int, bytes]]:
     ]
 
 
+def with_crc(ident: int, body: bytes) -> bytes:
+    """A master element whose first child is a CRC-32 of the rest of its payload (RFC 8794, 11.3.1:
+    the IEEE CRC, stored little-endian), as libmatroska writes the recorder's Clusters and Tags."""
+    return element(ident, element(0xBF, struct.pack("<I", zlib.crc32(body))) + body)
+
+
+def _closed_segment(info: bytes, entries: bytes, attachments: bytes, tags: bytes, clusters: list) -> bytes:
+    """The payload of a Segment the recorder closed: SeekHead (to Info, Tracks, Attachments, Tags,
+    Cues), Info, Tracks, Attachments, Tags, a Void of 1 024 bytes, the Clusters, then Cues for track
+    1 (a point per cluster at least 1 s after the last), as record.cpp lays them out."""
+    tracks, tags_element = element(0x1654AE6B, entries), with_crc(0x1254C367, tags)
+    cluster_bytes = [c for _, c in clusters]
+
+    def seek_head(positions: list[int]) -> bytes:  # 8-byte positions: its size does not depend on them
+        ids = (0x1549A966, 0x1654AE6B, 0x1941A469, 0x1254C367, 0x1C53BB6B)
+        return element(0x114D9B74, b"".join(
+            element(0x4DBB, element(0x53AB, i.to_bytes(4, "big")) + element(0x53AC, p.to_bytes(8, "big")))
+            for i, p in zip(ids, positions)))  # fmt: skip
+
+    head_size = len(seek_head([0] * 5))
+    front = [info, tracks, attachments, tags_element, element(0xEC, bytes(1021))]
+    offsets, at = [], head_size
+    for part in front:
+        offsets.append(at)
+        at += len(part)
+    cues_at = at + sum(len(c) for c in cluster_bytes)
+    points, last, position = b"", None, at
+    for (time_us, _), cluster in zip(clusters, cluster_bytes):
+        if last is None or time_us - last >= 1_000_000:
+            points += element(
+                0xBB, unsigned(0xB3, time_us) + element(0xB7, unsigned(0xF7, 1) + unsigned(0xF1, position))
+            )
+            last = time_us
+        position += len(cluster)
+    cues = element(0x1C53BB6B, points)
+    head = seek_head([offsets[0], offsets[1], offsets[2], offsets[3], cues_at])
+    return head + b"".join(front) + b"".join(cluster_bytes) + cues
+
+
 def write_k4a(
     path,
     videos: list[VideoTrack],
@@ -90,6 +132,7 @@ def write_k4a(
     imu_number = len(videos) + 1
     items += [(t, imu_number, payload) for t, payload in (imu or [])]
     items.sort(key=lambda x: x[0])
+    all_items = list(items)
     start_ns = items[0][0]
 
     entries = b""
@@ -133,7 +176,7 @@ def write_k4a(
     if not killed:
         tags += tag("K4A_START_OFFSET_NS", str(start_ns))
 
-    clusters = b""
+    clusters: list[tuple[int, bytes]] = []  # (cluster time in us, element)
     while items:
         first = items[0][0]
         batch = [x for x in items if x[0] < first + 32_000_000]
@@ -156,13 +199,19 @@ def write_k4a(
             else:
                 body += element(0xA3, bytes([0x80 | number]) + relative + b"\x80" + payload)
                 i += 1
-        clusters += element(0x1F43B675, body)
+        clusters.append(((first - start_ns) // 1000, with_crc(0x1F43B675, body)))
+    duration_us = max(t for t, _, _ in all_items) - start_ns
     info = element(0x1549A966, unsigned(0x2AD7B1, 1000) + string(0x4D80, "libmatroska-1.4.9")
-                   + string(0x5741, "k4arecord-test") + string(0x7BA9, "Azure Kinect"))  # fmt: skip
-    if killed:
-        info = element(0xEC, bytes(256 - 3))  # a Void of 256 bytes in all
-    body = info + element(0x1654AE6B, entries) + attachments + element(0x1254C367, tags) + clusters
-    segment = (b"\x18\x53\x80\x67\x01" + b"\xff" * 7 + body) if killed else element(0x18538067, body)
+                   + string(0x5741, "k4arecord-test") + string(0x7BA9, "Azure Kinect")
+                   + element(0x4489, struct.pack(">d", duration_us / 1000))
+                   + element(0x4461, struct.pack(">q", 912_345_678_000_000_000)))  # fmt: skip
+    if killed:  # a Void of 1 024 where the SeekHead goes and one of 256 where Info goes
+        head_part = element(0xEC, bytes(1024 - 3)) + element(0xEC, bytes(256 - 3))
+        front = element(0x1654AE6B, entries) + attachments + with_crc(0x1254C367, tags) + element(0xEC, bytes(1021))
+        body = head_part + front + b"".join(c for _, c in clusters)
+        segment = b"\x18\x53\x80\x67\x01" + b"\xff" * 7 + body
+    else:
+        segment = element(0x18538067, _closed_segment(info, entries, attachments, tags, clusters))
     head = element(0x1A45DFA3, string(0x4282, "matroska") + unsigned(0x4287, 2) + unsigned(0x4285, 2))
     data = head + segment
     with open(path, "wb") as f:

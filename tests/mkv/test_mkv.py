@@ -185,6 +185,7 @@ def test_mkvinfo_reads_the_writers_layout(take):
     text = subprocess.run(["mkvinfo", "-v", str(take["path"])], capture_output=True, text=True, check=True).stdout
     assert 'FourCC: 0x62313667 "b16g"' in text and "Codec ID: S_K4A/IMU" in text
     assert "Timestamp scale: 1000" in text and "frame(s)" in text
+    assert "Seek head" in text and "Cues" in text and "EBML void: size 1021" in text
 
 
 def test_a_file_cut_short_keeps_the_frames_before_the_cut_and_says_where(take, tmp_path):
