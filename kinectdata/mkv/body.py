@@ -76,14 +76,16 @@ def place_body_frames(body_device_us: np.ndarray, take: K4aRecording, track: str
         wrapped = (round(take.start_offset_us) % 2**32) + file_us  # the SDK keeps the offset as uint32 us
         clocks = [("device", file_us + take.start_offset_us), *clocks, ("device_uint32", wrapped)]
     for clock, times in clocks:
-        frame, error = _nearest(stamps, np.asarray(times, dtype=np.float64), period / 2)
+        frame, error = nearest_frames(stamps, np.asarray(times, dtype=np.float64), period / 2)
         placement = BodyPlacement(frame, error, clock, track)
         if best is None or placement.placed > best.placed:
             best = placement
     return best
 
 
-def _nearest(stamps: np.ndarray, times: np.ndarray, tolerance: float) -> tuple[np.ndarray, np.ndarray]:
+def nearest_frames(stamps: np.ndarray, times: np.ndarray, tolerance: float) -> tuple[np.ndarray, np.ndarray]:
+    """For each time in ``stamps`` [N] the index of the nearest of ``times`` [M] (sorted; -1 when
+    none is within ``tolerance``, same units) and the difference (NaN where none)."""
     if len(times) == 0:
         return np.full(len(stamps), -1, np.int64), np.full(len(stamps), np.nan)
     right = np.clip(np.searchsorted(times, stamps), 0, len(times) - 1)

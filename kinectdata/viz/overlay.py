@@ -82,7 +82,7 @@ def plan_overlay(motion: Motion, take, *, start: float = 0.0, end: float | None 
     (the colour frame nearest each depth frame's device time, within half a colour frame period;
     the joints taken into the colour camera's frame by the calibration's ``Rt``); only body
     frames from ``start`` to ``end`` seconds of the motion."""
-    from kinectdata.mkv.body import place_body_frames
+    from kinectdata.mkv.body import nearest_frames, place_body_frames
 
     if motion.metadata.get("format") != "azure_json" or motion.joint_set.dimensions != 3:
         raise KinectDataError(
@@ -106,8 +106,8 @@ def plan_overlay(motion: Motion, take, *, start: float = 0.0, end: float | None 
         size = (track.width, track.height)
     else:
         depth_times = take.track("DEPTH").times_us[frames]
-        frames, near = _nearest_frames(track.times_us, depth_times, (track.frame_period_ns or 33_333_333) / 2000)
-        bodies, frames = bodies[near], frames[near]
+        frames, _ = nearest_frames(depth_times, track.times_us, (track.frame_period_ns or 33_333_333) / 2000)
+        bodies, frames = bodies[frames >= 0], frames[frames >= 0]
         if not len(frames):
             raise KinectDataError(f"{take.path}: no {on} frame near the depth frames the body frames fall on")
         camera = calibration.cameras.get("color")
@@ -121,16 +121,6 @@ def plan_overlay(motion: Motion, take, *, start: float = 0.0, end: float | None 
     seen &= motion.position_mask[bodies]
     fps = 1e9 / track.frame_period_ns if track.frame_period_ns else 30.0
     return Overlay(on, frames, bodies, pixels, seen, fps, tuple(size), placement.describe())
-
-
-def _nearest_frames(times: np.ndarray, wanted: np.ndarray, tolerance: float) -> tuple[np.ndarray, np.ndarray]:
-    """Index of the frame nearest each wanted time [N] and whether it is within ``tolerance`` (us)."""
-    if len(times) == 0:
-        return np.zeros(len(wanted), np.int64), np.zeros(len(wanted), bool)
-    right = np.clip(np.searchsorted(times, wanted), 0, len(times) - 1)
-    left = np.maximum(right - 1, 0)
-    pick = np.where(np.abs(wanted - times[left]) <= np.abs(wanted - times[right]), left, right)
-    return pick, np.abs(times[pick] - wanted) <= tolerance
 
 
 def draw_overlays(motion: Motion, take, plan: Overlay) -> Iterator[np.ndarray]:
