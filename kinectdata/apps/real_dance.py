@@ -31,11 +31,14 @@ from kinectdata.dataset.recipes.manifest import CorpusManifest
 
 REAL_DANCE_BUILDS: dict[str, dict[str, Any]] = {
     "yalta2016": {"features": "yalta2016_rhythm", "normalisation": None},
-    "listen-to-dance": {"features": "listen_to_dance_rhythm", "normalisation": "maxabs"},
+    "listen-to-dance": {"features": "listen_to_dance_rhythm_bars", "normalisation": "maxabs"},
 }
 """How a real corpus's dataset is built for each pipeline's model: the pipeline's features with the
 music's pulse, the corpus's generic target normalised into -0.9..0.9 (the listen-to-dance
-pipeline's per-video min-max is for 2-D OpenPose poses; ``maxabs`` keeps each coordinate's zero)."""
+pipeline's per-video min-max is for 2-D OpenPose poses; ``maxabs`` keeps each coordinate's zero).
+The cdhc model's pulse counts the levels in each song's own metre (beat, two beats, bar, two bars):
+with its jitter term, over three cross-validation folds its periods then ranked with the songs'
+tempi at 0.91 against 0.43 with bars of 3 and 4 beats (docs/benchmarks.md)."""
 
 REAL_QUICK_MINUTES = 25.0
 """The real-corpus quickstart's training budget, minutes: what docs/benchmarks.md's validation runs

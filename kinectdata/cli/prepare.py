@@ -70,8 +70,8 @@ def prepare(corpus, path, out, **options) -> None:
         f"--features yalta2016_rhythm{flag}"
     )
     click.echo(
-        "  (for the cdhc model: --pipeline listen-to-dance --features listen_to_dance_rhythm --normalisation maxabs; "
-        "then kinectdata train-baseline --data DATASET --out RUN)"
+        "  (for the cdhc model: --pipeline listen-to-dance --features listen_to_dance_rhythm_bars "
+        "--normalisation maxabs; then kinectdata train-baseline --data DATASET --out RUN)"
     )
 
 

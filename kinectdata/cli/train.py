@@ -226,7 +226,7 @@ def train_baseline(data, out, resume, paper, no_checksums, **options) -> None:
     papers' settings (yalta: Adam 1e-4, MSE, its own outputs fed back, sequences of 150, batches
     of 50, 10 epochs, annealed gradient noise; cdhc: teacher forcing, L1 + limb-length loss, Adam
     2e-4, sequences of 300, batches of 16, 20 epochs). On real dance build the dataset with the
-    music's pulse (build-dataset --features yalta2016_rhythm or listen_to_dance_rhythm).
+    music's pulse (build-dataset --features yalta2016_rhythm, or listen_to_dance_rhythm_bars for cdhc).
 
     Writes into --out: config.json, checkpoint.pt (each epoch, atomically), log.csv, loss.png,
     and at the end model.pt and what the model adds (yalta: stream.ts, TorchScript of the
