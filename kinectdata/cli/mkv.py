@@ -44,14 +44,11 @@ def info_command(file, as_json, body) -> None:
 def _body_placement(file, body) -> dict:
     import warnings
 
-    import numpy as np
-
     from kinectdata.formats import read_motion
     from kinectdata.mkv import K4aRecording
-    from kinectdata.mkv.body import place_body_frames
+    from kinectdata.mkv.body import place_body_frames, tracker_stamps_us
 
-    motion = read_motion(body, format="azure_json")
-    stamps = motion.metadata["time_origin"]["value"] + np.round(np.asarray(motion.times) * 1e6)
+    stamps = tracker_stamps_us(read_motion(body, format="azure_json"))
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # describe() has reported the recording's problems
         take = K4aRecording(file)

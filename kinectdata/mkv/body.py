@@ -62,6 +62,12 @@ class BodyPlacement:
         )
 
 
+def tracker_stamps_us(motion) -> np.ndarray:
+    """The ``timestamp_usec`` [T] of each frame of a body-tracking JSON read as ``azure_json``
+    (its first frame's stamp, ``time_origin``, plus its times), float64 microseconds."""
+    return motion.metadata["time_origin"]["value"] + np.round(np.asarray(motion.times, dtype=np.float64) * 1e6)
+
+
 def place_body_frames(body_device_us: np.ndarray, take: K4aRecording, track: str = "DEPTH") -> BodyPlacement:
     """Match body frames (their ``timestamp_usec``, [N]) to ``track``'s frames of ``take``: each to
     the frame nearest in time, within half the track's frame period (or 1 ms when it has none), on

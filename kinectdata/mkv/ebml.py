@@ -167,6 +167,13 @@ def children(data, parent: Element) -> dict[int, list[Element]]:
     return found
 
 
+def first(data, kids: dict[int, list[Element]], name: str, read, default=None):
+    """``read`` (:func:`uint`, :func:`text`...) of the first child named ``name`` among ``kids``
+    (:func:`children`), or ``default`` when there is none."""
+    found = kids.get(IDS[name])
+    return read(data, found[0]) if found else default
+
+
 def uint(data, e: Element) -> int:
     if e.size > 8:
         raise EbmlError(f"byte {e.start}: {e.name} is an unsigned integer of {e.size} bytes (at most 8)")

@@ -195,7 +195,6 @@ def export_tracks(
         empty = [n for n, p in picks.items() if p.size == 0]
         if empty:
             raise KinectDataError(f"{path}: the {', '.join(empty)} track has no frames in the selection")
-        raw_calibration = take.attachments.get(take.tags.get("K4A_CALIBRATION_FILE", "calibration.json"), b"")
         intrinsics = take.calibration().depth_intrinsics(take.depth_mode()) if points else None
         total = sum(p.size for p in picks.values())
         done = 0
@@ -206,7 +205,7 @@ def export_tracks(
             "source_sha256": file_sha256(path),
             "tags": json.dumps(take.tags),
             "start_offset_us": take.start_offset_us if take.start_offset_us is not None else float("nan"),
-            "calibration_json": raw_calibration.rstrip(b"\0").decode("utf-8", "replace"),
+            "calibration_json": take.calibration_json.rstrip(b"\0").decode("utf-8", "replace"),
             "start_s": start_s if start_s is not None else 0.0,
             "end_s": end_s if end_s is not None else float("inf"),
             "truncated": bool(take.problems),

@@ -198,10 +198,15 @@ class K4aRecording:
         (:class:`~kinectdata.mkv.calibration.DeviceCalibration`)."""
         from .calibration import read_calibration
 
-        raw = self.attachments.get(self.tags.get("K4A_CALIBRATION_FILE", "calibration.json"))
-        if not raw:
+        if not self.calibration_json:
             raise MkvError(f"{self.path}: no calibration.json attached")
-        return read_calibration(raw, source=f"{self.path}: calibration.json")
+        return read_calibration(self.calibration_json, source=f"{self.path}: calibration.json")
+
+    @property
+    def calibration_json(self) -> bytes:
+        """The attached calibration as recorded (the attachment ``K4A_CALIBRATION_FILE`` names,
+        else ``calibration.json``; empty when there is none)."""
+        return self.attachments.get(self.tags.get("K4A_CALIBRATION_FILE", "calibration.json"), b"")
 
     def frame_bytes(self, track: MkvTrack, index: int) -> bytes:
         """The bytes of frame ``index`` (of the IMU track: one block's samples)."""
@@ -267,7 +272,7 @@ class K4aRecording:
             )
         uids_by_number: dict[int, MkvTrack] = {}
         clusters: list[Element] = []
-        raw_tags: list[tuple[str, int, int, str]] = []
+        raw_tags: list[tuple[str, int, str]] = []
         info = False
         walk = ebml.elements(data, segment.data, segment.end)
         while True:
@@ -294,7 +299,7 @@ class K4aRecording:
             elif e.id == IDS["Cluster"]:
                 clusters.append(e)
         by_uid = {t.uid: t for t in uids_by_number.values()}
-        for name, track_uid, _attachment_uid, value in raw_tags:
+        for name, track_uid, value in raw_tags:
             target = by_uid.get(track_uid) if track_uid else None
             (target.tags if target is not None else self.tags)[name] = value
         self.tracks = {t.name: t for t in uids_by_number.values()}
@@ -330,20 +335,17 @@ class K4aRecording:
 
     def _read_info(self, info: Element) -> None:
         data, kids = self._map, ebml.children(self._map, info)
-        if IDS["TimestampScale"] in kids:
-            self.timestamp_scale_ns = ebml.uint(data, kids[IDS["TimestampScale"]][0])
-            if self.timestamp_scale_ns == 0:
-                raise MkvError(f"{self.path}: byte {kids[IDS['TimestampScale']][0].start}: a TimestampScale of 0")
-        if IDS["Title"] in kids:
-            self.title = ebml.text(data, kids[IDS["Title"]][0])
-        if IDS["WritingApp"] in kids:
-            self.writing_app = ebml.text(data, kids[IDS["WritingApp"]][0])
+        self.timestamp_scale_ns = ebml.first(data, kids, "TimestampScale", ebml.uint, self.timestamp_scale_ns)
+        if self.timestamp_scale_ns == 0:
+            raise MkvError(f"{self.path}: byte {kids[IDS['TimestampScale']][0].start}: a TimestampScale of 0")
+        self.title = ebml.first(data, kids, "Title", ebml.text, self.title)
+        self.writing_app = ebml.first(data, kids, "WritingApp", ebml.text, self.writing_app)
 
     def _read_track(self, entry: Element) -> MkvTrack:
         data, kids = self._map, ebml.children(self._map, entry)
 
         def one(name, read, default=None):
-            return read(data, kids[IDS[name]][0]) if IDS[name] in kids else default
+            return ebml.first(data, kids, name, read, default)
 
         number = one("TrackNumber", ebml.uint)
         if not number:
@@ -359,8 +361,8 @@ class K4aRecording:
         )
         if IDS["Video"] in kids:
             video = ebml.children(data, kids[IDS["Video"]][0])
-            track.width = ebml.uint(data, video[IDS["PixelWidth"]][0]) if IDS["PixelWidth"] in video else 0
-            track.height = ebml.uint(data, video[IDS["PixelHeight"]][0]) if IDS["PixelHeight"] in video else 0
+            track.width = ebml.first(data, video, "PixelWidth", ebml.uint, 0)
+            track.height = ebml.first(data, video, "PixelHeight", ebml.uint, 0)
         private = one("CodecPrivate", ebml.payload)
         if track.codec == "V_MS/VFW/FOURCC":
             if private is None or len(private) < 40:
@@ -383,23 +385,21 @@ class K4aRecording:
                     data, kids[IDS["FileData"]][0]
                 )
 
-    def _read_tags(self, element: Element) -> list[tuple[str, int, int, str]]:
-        """(name, track UID or 0, attachment UID or 0, value) of every SimpleTag."""
+    def _read_tags(self, element: Element) -> list[tuple[str, int, str]]:
+        """(name, the UID of the track it targets or 0, value) of every SimpleTag (a tag aimed at an
+        attachment, as K4A_CALIBRATION_FILE is, counts as aimed at no track)."""
         data, found = self._map, []
         for tag in ebml.children(data, element).get(IDS["Tag"], []):
             kids = ebml.children(data, tag)
-            track_uid = attachment_uid = 0
+            track_uid = 0
             if IDS["Targets"] in kids:
                 targets = ebml.children(data, kids[IDS["Targets"]][0])
-                if IDS["TagTrackUID"] in targets:
-                    track_uid = ebml.uint(data, targets[IDS["TagTrackUID"]][0])
-                if IDS["TagAttachmentUID"] in targets:
-                    attachment_uid = ebml.uint(data, targets[IDS["TagAttachmentUID"]][0])
+                track_uid = ebml.first(data, targets, "TagTrackUID", ebml.uint, 0)
             for simple in kids.get(IDS["SimpleTag"], []):
                 fields = ebml.children(data, simple)
                 if IDS["TagName"] in fields:
-                    value = ebml.text(data, fields[IDS["TagString"]][0]) if IDS["TagString"] in fields else ""
-                    found.append((ebml.text(data, fields[IDS["TagName"]][0]), track_uid, attachment_uid, value))
+                    value = ebml.first(data, fields, "TagString", ebml.text, "")
+                    found.append((ebml.text(data, fields[IDS["TagName"]][0]), track_uid, value))
         return found
 
     def _index(self, clusters: list[Element], tracks: dict[int, MkvTrack]) -> None:

@@ -82,15 +82,14 @@ def plan_overlay(motion: Motion, take, *, start: float = 0.0, end: float | None 
     (the colour frame nearest each depth frame's device time, within half a colour frame period;
     the joints taken into the colour camera's frame by the calibration's ``Rt``); only body
     frames from ``start`` to ``end`` seconds of the motion."""
-    from kinectdata.mkv.body import nearest_frames, place_body_frames
+    from kinectdata.mkv.body import nearest_frames, place_body_frames, tracker_stamps_us
 
     if motion.metadata.get("format") != "azure_json" or motion.joint_set.dimensions != 3:
         raise KinectDataError(
             f"{motion.metadata.get('source', 'the motion')}: only the body tracker's JSON of the take (azure_json, "
             "joints in the depth camera's frame) can be drawn over its frames"
         )
-    origin = motion.metadata["time_origin"]["value"]
-    placement = place_body_frames(origin + np.round(np.asarray(motion.times) * 1e6), take)
+    placement = place_body_frames(tracker_stamps_us(motion), take)
     chosen = placement.frame >= 0
     chosen &= motion.times >= start
     if end is not None:
@@ -166,8 +165,9 @@ def render_overlay(
 
     from kinectdata.mkv import K4aRecording
 
-    from .render import write_gif, write_mp4
+    from .render import animation_kind, write_animation
 
+    kind = animation_kind(out)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # a cut-short take still has its frames; `mkv info` says why
         take = K4aRecording(take_path)
@@ -181,8 +181,5 @@ def render_overlay(
                     progress(k + 1, total)
                 yield frame
 
-        if str(out).lower().endswith(".gif"):
-            count = write_gif(frames(), out, plan.fps)
-        else:
-            count = write_mp4(frames(), out, plan.fps, plan.size)
+        count = write_animation(kind, frames(), out, plan.fps, plan.size)
     return {"frames": count, "fps": plan.fps, "size": plan.size, "placement": plan.summary}

@@ -457,6 +457,33 @@ def write_gif(frames: Iterable[np.ndarray], path: str | Path, fps: float) -> int
     return len(images)
 
 
+def animation_kind(out: str | Path) -> str:
+    """``.mp4`` or ``.gif`` from the output's name, checked before anything is drawn: another
+    suffix, or an MP4 without an ffmpeg binary, is a KinectDataError naming ``out``."""
+    out = Path(out)
+    kind = out.suffix.lower()
+    if kind not in OUTPUT_SUFFIXES:
+        raise KinectDataError(f"{out}: unknown animation type {out.suffix!r}; name the output .mp4 or .gif")
+    if kind == ".mp4":
+        ffmpeg_executable(out)
+    return kind
+
+
+def write_animation(
+    kind: str,
+    frames: Iterable[np.ndarray],
+    out: str | Path,
+    fps: float,
+    size: tuple[int, int],
+    sound: tuple[np.ndarray, int] | None = None,
+) -> int:
+    """Write the frames as ``kind`` (:func:`animation_kind`): a GIF, or an MP4 with ``sound``
+    ((samples, sample rate), or None); the frame count."""
+    if kind == ".gif":
+        return write_gif(frames, out, fps)
+    return write_mp4(frames, out, fps, size, *(sound or (None, None)))
+
+
 def render_animation(
     inputs: Sequence[RenderInput],
     out: str | Path,
@@ -487,13 +514,9 @@ def render_animation(
         shown frozen on their last frame before the clip ends).
     """
     out = Path(out)
-    kind = out.suffix.lower()
-    if kind not in OUTPUT_SUFFIXES:
-        raise KinectDataError(f"{out}: unknown animation type {out.suffix!r}; name the output .mp4 or .gif")
+    kind = animation_kind(out)
     if kind == ".gif" and audio is not None:
         raise KinectDataError(f"{out}: a GIF has no sound; write an .mp4 to hear {audio}")
-    if kind == ".mp4":
-        ffmpeg_executable(out)
     width, height = size
     if min(width, height) < 32:
         raise KinectDataError(f"{out}: panels of {width}x{height} pixels are too small to draw in (at least 32x32)")
@@ -518,10 +541,7 @@ def render_animation(
             if progress is not None:
                 progress(k + 1, len(times))
 
-    if kind == ".gif":
-        count = write_gif(frames(), out, fps)
-    else:
-        count = write_mp4(frames(), out, fps, renderer.size, *(sound or (None, None)))
+    count = write_animation(kind, frames(), out, fps, renderer.size, sound)
     return {
         "frames": count,
         "fps": float(fps),

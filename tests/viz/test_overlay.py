@@ -98,6 +98,10 @@ def test_only_the_take_s_own_body_tracking_is_drawn_over_it(tmp_path):
                                        str(tmp_path / "o.gif")])  # fmt: skip
     assert result.exit_code == 1 and "none of its 1 frames falls on a DEPTH frame" in result.output
     assert not (tmp_path / "o.gif").exists()
+    result = CliRunner().invoke(main, ["render", str(other), "--over", str(tmp_path / "take.mkv"), "-o",
+                                       str(tmp_path / "o.avi")])  # fmt: skip
+    assert result.exit_code == 1 and "unknown animation type '.avi'" in result.output
+    assert not (tmp_path / "o.avi").exists()
     csv = tmp_path / "skeleton.csv"
     result = CliRunner().invoke(main, ["render", str(tmp_path / "take.mkv"), "--over", str(tmp_path / "take.mkv"),
                                        "-o", str(tmp_path / "o.gif")])  # fmt: skip
