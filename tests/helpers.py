@@ -2,6 +2,10 @@
 
 from __future__ import annotations
 
+import threading
+import time
+from types import SimpleNamespace
+
 import numpy as np
 from scipy.spatial.transform import Rotation
 
@@ -135,3 +139,38 @@ def write_dancer19_schemas(folder) -> None:
         "position": {"columns": ["{joint}_x", "{joint}_y", "{joint}_z"], "unit": "m"},
     }
     (folder / "dancer19_csv.json").write_text(json.dumps(dialect))
+
+
+class FakeInput:
+    """Stands in for sounddevice.InputStream: delivers a 440 Hz tone in real time, with the
+    stream clock 1000 s ahead of the monotonic clock, as PortAudio's may be."""
+
+    def __init__(self, device, samplerate, channels, dtype, callback):
+        self.rate, self.channels, self.callback = samplerate, channels, callback
+        self.running = False
+
+    def start(self):
+        self.running = True
+        self.t0 = time.monotonic()
+        self.thread = threading.Thread(target=self._run, daemon=True)
+        self.thread.start()
+
+    def _run(self):
+        block, n = 480, 0
+        while self.running:
+            due = self.t0 + (n + 1) * block / self.rate
+            time.sleep(max(0.0, due - time.monotonic()))
+            t = (n * block + np.arange(block)) / self.rate
+            data = np.repeat((0.1 * np.sin(2 * np.pi * 440 * t)).astype(np.float32)[:, None], self.channels, 1)
+            info = SimpleNamespace(
+                inputBufferAdcTime=1000 + n * block / self.rate, currentTime=1000 + time.monotonic() - self.t0
+            )
+            self.callback(data, block, info, None)
+            n += 1
+
+    def stop(self):
+        self.running = False
+        self.thread.join()
+
+    def close(self):
+        pass

@@ -7,20 +7,17 @@ It opens the device, records depth (and colour) to the ``.oni`` with OpenNI2's r
 every depth frame to note when it arrived on the monotonic clock, runs NiTE2's user tracker
 when asked and available, and writes a status JSON: the frames it saw (device timestamps and
 arrival times), the skeleton's tracked frames, and what went wrong. The parent
-(:mod:`.take`) turns that into ``take.json``.
+(:mod:`.openni`) turns that into the take's ``oni`` entry; :mod:`.child` runs it.
 """
 
 from __future__ import annotations
 
-import json
-import os
 import sys
 import threading
 import time
-from pathlib import Path
 from typing import Any
 
-import numpy as np
+from kinectdata.capture.child import session_main
 
 # OpenNI2 2.2's recorder can deadlock when destroyed right after being stopped (2 of 40 dummy
 # recordings on a loaded 2-core machine); a pause between the two avoided it in every later trial.
@@ -97,19 +94,9 @@ def run(settings: dict[str, Any]) -> dict[str, Any]:
 
 
 def main(argv: list[str]) -> None:
-    settings = json.loads(Path(argv[0]).read_text())
-    try:
-        status = run(settings)
-    except Exception as exc:  # reported to the parent, which names the device and the take
-        status = {"error": f"{type(exc).__name__}: {exc}"}
-    out = Path(settings["status"])
-    tmp = out.with_suffix(".partial")
-    tmp.write_text(json.dumps(status, default=lambda o: o.tolist() if isinstance(o, np.ndarray) else str(o)))
-    tmp.replace(out)
-    print("captured", flush=True)
-    # everything is written: exit without unloading OpenNI2, whose drivers can crash or hang there
-    # (a hang would keep the capture command waiting, then lose a complete take)
-    os._exit(0)
+    # everything is written when run returns: exit without unloading OpenNI2, whose drivers can
+    # crash or hang there (a hang would keep the capture command waiting, then lose a complete take)
+    session_main(argv, run, hard_exit=True)
 
 
 if __name__ == "__main__":

@@ -12,11 +12,10 @@
 
 from __future__ import annotations
 
-import io
-
 import numpy as np
 
 from kinectdata.core.errors import KinectDataError
+from kinectdata.core.jpeg import decode_jpeg
 
 FOURCCS = ("b16g", "MJPG", "NV12", "YUY2", "BGRA")
 
@@ -59,7 +58,7 @@ def decode_frame(payload: bytes, track, *, what: str) -> np.ndarray:
         v = np.repeat(raw[..., 3], 2, axis=1)
         return yuv_to_rgb(y, u, v)
     if fourcc == "MJPG":
-        return _jpeg(payload, (w, h), what)
+        return decode_jpeg(payload, (w, h), what, PixelError, rgb=True)
     raise PixelError(f"{what}: pixel format {fourcc!r} is not one the recorder writes ({', '.join(FOURCCS)})")
 
 
@@ -70,21 +69,3 @@ def yuv_to_rgb(y: np.ndarray, u: np.ndarray, v: np.ndarray) -> np.ndarray:
     e = (v.astype(np.float32) - 128.0) * (255.0 / 224.0)
     rgb = np.stack([c + 1.402 * e, c - 0.344136 * d - 0.714136 * e, c + 1.772 * d], axis=-1)
     return np.clip(np.rint(rgb), 0, 255).astype(np.uint8)
-
-
-def _jpeg(payload: bytes, size: tuple[int, int], what: str) -> np.ndarray:
-    """A JPEG decoded by Pillow, once its header says it is the track's size (nothing larger is
-    decoded)."""
-    try:
-        from PIL import Image
-    except ImportError:
-        raise PixelError(f"{what}: MJPG colour needs Pillow: pip install 'kinectdata[jpeg]'") from None
-    try:
-        with Image.open(io.BytesIO(payload)) as image:
-            if image.size != size:
-                raise PixelError(f"{what}: a {image.size[0]} x {image.size[1]} JPEG in a {size[0]} x {size[1]} track")
-            return np.asarray(image.convert("RGB"))
-    except PixelError:
-        raise
-    except Exception as exc:  # Pillow raises OSError, SyntaxError, DecompressionBombError...
-        raise PixelError(f"{what}: not a readable JPEG image ({exc})") from exc

@@ -31,7 +31,6 @@ refuses is handed to the numpy decoder for its message). ``_decode_16z_numpy`` a
 
 from __future__ import annotations
 
-import io
 import os
 
 import numpy as np
@@ -385,20 +384,6 @@ def _decode_8z_numpy(payload: bytes, count: int, *, what: str = "Im8z frame") ->
 
 
 # -- JPEG and raw -------------------------------------------------------------------------------
-
-
-def decode_jpeg(payload: bytes, *, what: str = "JPEG frame") -> np.ndarray:
-    """A JPEG frame as uint8 [H, W, 3] (or [H, W] for greyscale), decoded by Pillow."""
-    try:
-        from PIL import Image
-    except ImportError:
-        raise CodecError(f"{what}: JPEG frames need Pillow: pip install 'kinectdata[jpeg]'") from None
-    try:
-        with Image.open(io.BytesIO(payload)) as im:
-            im.load()
-            return np.asarray(im)
-    except Exception as exc:  # Pillow raises OSError, SyntaxError, DecompressionBombError...
-        raise CodecError(f"{what}: not a readable JPEG image ({exc})") from exc
 
 
 def decode_raw(payload: bytes, dtype: np.dtype, count: int, *, what: str = "raw frame") -> np.ndarray:

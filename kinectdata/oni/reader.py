@@ -26,7 +26,8 @@ from typing import Any
 import numpy as np
 
 from kinectdata.core.errors import KinectDataWarning
-from kinectdata.oni.codecs import CodecError, decode_8z, decode_16z, decode_jpeg, decode_raw, fourcc
+from kinectdata.core.jpeg import decode_jpeg
+from kinectdata.oni.codecs import CodecError, decode_8z, decode_16z, decode_raw, fourcc
 from kinectdata.oni.records import OniError
 
 from . import records as R
@@ -464,10 +465,7 @@ def decode_frame(stream: OniStream, payload, what: str) -> np.ndarray:
     elif codec == "NONE":
         values = decode_raw(payload, dtype, count, what=what)
     elif codec == "JPEG":
-        image = decode_jpeg(bytes(payload), what=what)
-        if image.shape[:2] != shape[:2]:
-            raise CodecError(f"{what}: JPEG image is {image.shape[1]}x{image.shape[0]}, not {shape[1]}x{shape[0]}")
-        return image
+        return decode_jpeg(bytes(payload), (shape[1], shape[0]), what, CodecError, rgb=False)
     else:
         raise CodecError(f"{what}: codec {codec!r} is not one kinectdata decodes (16zT, 16zP, Im8z, JPEG, NONE)")
     return values.reshape(shape)

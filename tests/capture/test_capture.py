@@ -12,10 +12,11 @@ import numpy as np
 import pytest
 import soundfile as sf
 from click.testing import CliRunner
-from helpers import skip_unless_installed
+from helpers import FakeInput, skip_unless_installed
 
 from kinectdata.align.take import align_take
-from kinectdata.capture.take import _oni_zero_clock, capture_take, read_take
+from kinectdata.capture.openni import OpenNI2Sensor, _oni_zero_clock
+from kinectdata.capture.take import CaptureWarning, capture_take, read_take
 from kinectdata.cli import main
 from kinectdata.core.errors import KinectDataError
 from kinectdata.formats.csv_writer import write_csv
@@ -27,41 +28,6 @@ from reference import openni as openni_ref
 @pytest.fixture(scope="module")
 def openni2():
     skip_unless_installed(openni_ref.openni2_missing(), "OpenNI2")
-
-
-class FakeInput:
-    """Stands in for sounddevice.InputStream: delivers a 440 Hz tone in real time, with the
-    stream clock 1000 s ahead of the monotonic clock, as PortAudio's may be."""
-
-    def __init__(self, device, samplerate, channels, dtype, callback):
-        self.rate, self.channels, self.callback = samplerate, channels, callback
-        self.running = False
-
-    def start(self):
-        self.running = True
-        self.t0 = time.monotonic()
-        self.thread = threading.Thread(target=self._run, daemon=True)
-        self.thread.start()
-
-    def _run(self):
-        block, n = 480, 0
-        while self.running:
-            due = self.t0 + (n + 1) * block / self.rate
-            time.sleep(max(0.0, due - time.monotonic()))
-            t = (n * block + np.arange(block)) / self.rate
-            data = np.repeat((0.1 * np.sin(2 * np.pi * 440 * t)).astype(np.float32)[:, None], self.channels, 1)
-            info = SimpleNamespace(
-                inputBufferAdcTime=1000 + n * block / self.rate, currentTime=1000 + time.monotonic() - self.t0
-            )
-            self.callback(data, block, info, None)
-            n += 1
-
-    def stop(self):
-        self.running = False
-        self.thread.join()
-
-    def close(self):
-        pass
 
 
 def test_the_oni_time_zero_is_placed_by_the_least_delayed_frame():
@@ -82,7 +48,7 @@ def test_capture_from_the_dummy_device(openni2, tmp_path):
     before = time.monotonic()
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        doc = capture_take(tmp_path / "take", device="Dummy", duration_s=0.8)
+        doc = capture_take(tmp_path / "take", OpenNI2Sensor(device="Dummy"), duration_s=0.8)
     after = time.monotonic()
     assert read_take(tmp_path / "take") == doc
     assert doc["device"]["uri"] == "Dummy" and doc["audio"] is None and doc["offset_s"] is None
@@ -95,7 +61,7 @@ def test_capture_from_the_dummy_device(openni2, tmp_path):
         with pytest.raises(KinectDataError, match="this take has no skeleton .* `kinectdata oni skeleton"):
             align_take(tmp_path / "take", tmp_path / "a.h5")
     with pytest.raises(KinectDataError, match="already holds a take"):
-        capture_take(tmp_path / "take", device="Dummy", duration_s=0.5)
+        capture_take(tmp_path / "take", OpenNI2Sensor(device="Dummy"), duration_s=0.5)
 
 
 def test_a_take_with_audio_aligns_without_an_offset_guess(openni2, tmp_path):
@@ -105,7 +71,7 @@ def test_a_take_with_audio_aligns_without_an_offset_guess(openni2, tmp_path):
         streams = []
         doc = capture_take(
             take,
-            device="Dummy",
+            OpenNI2Sensor(device="Dummy"),
             duration_s=1.5,
             audio_device="fake",
             audio_stream_factory=lambda **kw: streams.append(FakeInput(**kw)) or streams[-1],
@@ -153,7 +119,7 @@ def test_a_failed_capture_leaves_nothing(openni2, tmp_path):
     with pytest.raises(KinectDataError, match="OpenNI2 device NoSuchSensor"):
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
-            capture_take(tmp_path / "take", device="NoSuchSensor", duration_s=0.5)
+            capture_take(tmp_path / "take", OpenNI2Sensor(device="NoSuchSensor"), duration_s=0.5)
     assert list((tmp_path / "take").iterdir()) == []
 
 
@@ -199,12 +165,12 @@ def fake_session(tracked_users_by_frame):
 
 
 def test_a_live_skeleton_is_put_on_the_oni_timeline(openni2, tmp_path, monkeypatch):
-    import kinectdata.capture.take as take_module
+    import kinectdata.capture.openni as take_module
 
     rows = np.c_[np.zeros((15, 3)) + [0, 0, 2500], np.ones(15), np.tile([0, 0, 0, 1.0], (15, 1)), np.ones(15)]
     monkeypatch.setattr(take_module, "_run_session", fake_session(lambda i: {3: rows.tolist()} if i >= 4 else {}))
     monkeypatch.setattr(take_module, "find_nite", lambda nite_dir=None: tmp_path)
-    doc = capture_take(tmp_path / "take", device="Dummy", duration_s=0.6)
+    doc = capture_take(tmp_path / "take", OpenNI2Sensor(device="Dummy"), duration_s=0.6)
     with OniFile(tmp_path / "take" / "take.oni") as oni:
         stamps = oni.stream("depth").timestamps_us
     from kinectdata.formats import read_motion
@@ -216,11 +182,12 @@ def test_a_live_skeleton_is_put_on_the_oni_timeline(openni2, tmp_path, monkeypat
 
 
 def test_nobody_tracked_keeps_the_recording(openni2, tmp_path, monkeypatch):
-    import kinectdata.capture.take as take_module
+    import kinectdata.capture.openni as take_module
 
     monkeypatch.setattr(take_module, "_run_session", fake_session(lambda i: {}))
     monkeypatch.setattr(take_module, "find_nite", lambda nite_dir=None: tmp_path)
-    doc = capture_take(tmp_path / "take", device="Dummy", duration_s=0.4)
+    with pytest.warns(CaptureWarning, match="tracked no skeleton"):
+        doc = capture_take(tmp_path / "take", OpenNI2Sensor(device="Dummy"), duration_s=0.4)
     assert doc["skeleton"] is None and any("tracked no skeleton" in p for p in doc["problems"])
     assert (tmp_path / "take" / "take.oni").is_file() and (tmp_path / "take" / "take.json").is_file()
 
