@@ -28,11 +28,18 @@ def info_command(file, as_json, body) -> None:
     mode, frames, duration on the device's clock, nominal and measured fps, dropped frames and
     gaps, the IMU's samples, the attached calibration, and whether the file is cut short. With
     --body, how the body tracker's frames line up with the depth frames."""
+    import warnings
+
+    from kinectdata.mkv import K4aRecording
     from kinectdata.mkv.export import describe, format_description
 
-    summary = describe(file)
-    if body is not None:
-        summary["body_tracking"] = _body_placement(file, body)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # the problems are part of the description
+        take = K4aRecording(file)
+    with take:
+        summary = describe(take)
+        if body is not None:
+            summary["body_tracking"] = _body_placement(take, body)
     if as_json:
         click.echo(json.dumps(summary, indent=2))
         return
@@ -41,19 +48,11 @@ def info_command(file, as_json, body) -> None:
         click.echo(f"  {summary['body_tracking']['summary']}")
 
 
-def _body_placement(file, body) -> dict:
-    import warnings
-
+def _body_placement(take, body) -> dict:
     from kinectdata.formats import read_motion
-    from kinectdata.mkv import K4aRecording
     from kinectdata.mkv.body import place_body_frames, tracker_stamps_us
 
-    stamps = tracker_stamps_us(read_motion(body, format="azure_json"))
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")  # describe() has reported the recording's problems
-        take = K4aRecording(file)
-    with take:
-        placement = place_body_frames(stamps, take)
+    placement = place_body_frames(tracker_stamps_us(read_motion(body, format="azure_json")), take)
     return {
         "file": str(body),
         "frames": len(placement.frame),

@@ -94,25 +94,32 @@ def track_summary(take: K4aRecording, track: MkvTrack) -> dict[str, Any]:
     return summary
 
 
-def describe(path: str | os.PathLike) -> dict[str, Any]:
-    """Everything ``kinectdata mkv info`` prints, as a dict."""
+def describe(source: str | os.PathLike | K4aRecording) -> dict[str, Any]:
+    """Everything ``kinectdata mkv info`` prints, as a dict, of a file or of an open recording
+    (which stays open)."""
+    if isinstance(source, K4aRecording):
+        return _description(source)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # the problems are part of the description
-        take = K4aRecording(path)
+        take = K4aRecording(source)
     with take:
-        return {
-            "file": str(take.path),
-            "bytes": os.path.getsize(take.path),
-            "title": take.title,
-            "writing_app": take.writing_app,
-            "timestamp_scale_ns": take.timestamp_scale_ns,
-            "start_offset_us": take.start_offset_us,
-            "tags": dict(take.tags),
-            "attachments": {name: len(data) for name, data in take.attachments.items()},
-            "truncated": bool(take.problems),
-            "problems": list(take.problems),
-            "tracks": [track_summary(take, t) for t in take.tracks.values()],
-        }
+        return _description(take)
+
+
+def _description(take: K4aRecording) -> dict[str, Any]:
+    return {
+        "file": str(take.path),
+        "bytes": os.path.getsize(take.path),
+        "title": take.title,
+        "writing_app": take.writing_app,
+        "timestamp_scale_ns": take.timestamp_scale_ns,
+        "start_offset_us": take.start_offset_us,
+        "tags": dict(take.tags),
+        "attachments": {name: len(data) for name, data in take.attachments.items()},
+        "truncated": bool(take.problems),
+        "problems": list(take.problems),
+        "tracks": [track_summary(take, t) for t in take.tracks.values()],
+    }
 
 
 def format_description(info: dict[str, Any]) -> str:
