@@ -23,6 +23,7 @@ from kinectdata.evaluation.metrics import (
     bone_length_variation,
     bootstrap_interval,
     constant_reference_features,
+    describe_feature,
     diversity,
     foot_contact_score,
     frechet_distance,
@@ -202,9 +203,10 @@ def score_sets(
         gen, ref = features["generated"][index], features["reference"][index]
         constant = constant_reference_features(gen, ref)
         if constant:
+            named = f" ({'; '.join(f'{i}: {describe_feature(i)}' for i in constant)})" if label == "g" else ""
             warnings.append(
-                f"FID_{label}: feature(s) {constant} are constant over the reference set but vary in the generated "
-                "one; standardising by the reference (as the peers do) multiplies them by 1e10"
+                f"FID_{label}: feature(s) {constant}{named} are constant over the reference set but vary in the "
+                "generated one; standardising by the reference (as the peers do) multiplies them by 1e10"
             )
         g_std, r_std = standardise_by_reference(gen, ref)
         far = far_from_reference_features(g_std, constant)

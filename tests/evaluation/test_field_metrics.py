@@ -437,3 +437,15 @@ def test_a_value_outside_its_own_interval_is_said_and_explained():
     assert any(line == f"warning: {said[0]}" for line in same.table().splitlines())
     apart = score_sets(_sequences("gen"), _sequences("gt"), PROTOCOLS["bailando"], bootstrap=100)
     assert not [w for w in apart.warnings if "outside its own" in w]
+
+
+def test_a_geometric_feature_is_described_by_what_sets_it():
+    """Stretching the spine fast sets exactly the features whose description says so."""
+    pose = INPUTS["joints_gt"][0][:1].repeat(60, axis=0)  # one real pose held still
+    still = M.geometric_features(pose)
+    stretched = pose.copy()
+    spine = stretched[:, 9] - stretched[:, 3]  # chest (spine3) from belly (spine1)
+    stretched[1::2, 9] += 0.5 * spine[1::2]  # the chest jumps along the spine every other frame
+    changed = np.flatnonzero(M.geometric_features(stretched) != still)
+    described = [i for i in range(32) if M.describe_feature(i).startswith("chest moving along belly->chest")]
+    assert described == [4, 5] and set(described) <= set(changed.tolist())

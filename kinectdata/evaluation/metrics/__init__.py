@@ -23,7 +23,7 @@ from kinectdata.evaluation.metrics.distribution import (
     standardise_by_reference,
 )
 from kinectdata.evaluation.metrics.foot_contact import foot_contact_score, physical_foot_contact
-from kinectdata.evaluation.metrics.geometric import geometric_features
+from kinectdata.evaluation.metrics.geometric import describe_feature, geometric_features
 from kinectdata.evaluation.metrics.kinetic import kinetic_features
 from kinectdata.evaluation.metrics.pose_error import motion_energy, smape
 from kinectdata.evaluation.metrics.quality import bone_length_variation, mean_jerk
@@ -35,6 +35,7 @@ __all__ = [
     "diversity",
     "foot_contact_score",
     "frechet_distance",
+    "describe_feature",
     "geometric_features",
     "kinetic_features",
     "mean_jerk",

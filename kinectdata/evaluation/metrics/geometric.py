@@ -117,6 +117,29 @@ def geometric_features(positions: np.ndarray, fps: float = 60.0, peer_velocity: 
     return np.mean(np.stack(holds, axis=1), axis=0).astype(np.float32)
 
 
+_UNITS = {"hl": "humerus lengths", "sw": "shoulder widths", "hw": "hip widths"}
+
+
+def describe_feature(index: int) -> str:
+    """What geometric feature ``index`` (0-based, the order of :data:`RELATIONS`) counts, in words:
+    the share of frames where the relation holds (velocities on the peers' scale, per frame x 120)."""
+    relation, joints, *rest = RELATIONS[index]
+    if relation == "angle":
+        low, high = rest[0]
+        return f"the angle between {joints[0]}->{joints[1]} and {joints[2]}->{joints[3]} within {low}-{high} degrees"
+    threshold, unit = rest[0], _UNITS[rest[1]]
+    if relation == "fast":
+        return f"{joints[0]} faster than {threshold} {unit}/s"
+    a, b, c, *d = joints
+    if relation == "move":
+        return f"{c} moving along {a}->{b}, relative to {a}, faster than {threshold} {unit}/s"
+    if relation == "nmove":
+        return f"{d[0]} moving across the plane of {a}, {b}, {c}, relative to {a}, faster than {threshold} {unit}/s"
+    if relation == "nplane":
+        return f"{d[0]} more than {threshold} {unit} beyond {c} along {a}->{b}"
+    return f"{d[0]} more than {threshold} {unit} in front of the plane of {a}, {b}, {c}"
+
+
 class _Frames:
     """Named points of [F, 24, 3] frames, with the peers' constant points."""
 
