@@ -94,6 +94,14 @@ from kinectdata.targets.specs import shipped_target_specs
     help="Add a copy of each training recording with white noise at each SNR (dB), e.g. 5,10.",
 )
 @click.option(
+    "--augment-tempo",
+    default="",
+    type=FloatList(),
+    metavar="R,R",
+    help="Add a copy of each training recording played R times as fast, song and dance (tempo and pitch, "
+    "as a turntable), e.g. 0.9,1.1.",
+)
+@click.option(
     "--shard-size",
     default=default_of(BuildConfig, "shard_size_mb"),
     show_default=True,
@@ -182,6 +190,7 @@ def build_dataset_command(
     split_ratios,
     seed,
     augment_snr,
+    augment_tempo,
     shard_size,
     compression,
     fps,
@@ -223,6 +232,7 @@ def build_dataset_command(
         split_ratios=split_ratios,
         seed=seed,
         augment_snr=augment_snr,
+        augment_tempo=augment_tempo,
         shard_size_mb=shard_size,
         compression=None if compression == "none" else compression,
         max_gap=max_gap,

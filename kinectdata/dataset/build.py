@@ -55,9 +55,9 @@ DATASET_FORMAT_VERSION = 2  # 2: one quaternion hemisphere per joint across reco
 
 def _prepare(task: tuple) -> list[dict[str, Any]]:
     """Prepare one recording (perhaps in a worker process or on a Dask worker); errors name the recording."""
-    entry, config, work, snrs, hashes, source = task
+    entry, config, work, snrs, hashes, tempos, source = task
     try:
-        return [u.to_dict() for u in prepare_recording(entry, config, work, snrs, hashes)]
+        return [u.to_dict() for u in prepare_recording(entry, config, work, snrs, hashes, tempos)]
     except KinectDataError as exc:
         raise KinectDataError(f"recording {entry.name!r} of {source}: {exc}") from exc
 
@@ -326,14 +326,25 @@ def _build_locked(
     work.mkdir(parents=True, exist_ok=True)
     for partial in work.glob(".*.partial"):
         partial.unlink()
-    snrs = {e.name: config.augment_snr if splits[e.name] == "train" else () for e in entries}
-    tasks = [(e, config, str(work.resolve()), snrs[e.name], hashes[e.name], str(source)) for e in entries]
+    copies = {e.name: splits[e.name] == "train" for e in entries}  # augmented copies of training dances only
+    tasks = [
+        (
+            e,
+            config,
+            str(work.resolve()),
+            config.augment_snr if copies[e.name] else (),
+            hashes[e.name],
+            config.augment_tempo if copies[e.name] else (),
+            str(source),
+        )
+        for e in entries
+    ]
     units = _prepare_all(tasks, work, executor or LocalExecutor(jobs), progress)
     if isinstance(config.target, GenericTarget):
         config = dataclasses.replace(config, target=_one_target(units, config.target, source))
 
     spec = config.target
-    train_units = [u for u in units if splits[u.recording] == "train" and u.snr_db is None]
+    train_units = [u for u in units if splits[u.recording] == "train" and u.snr_db is None and u.tempo is None]
     reference = reference_orientations((u.orientations for u in train_units), spec)
     flips = {u.name: track_flips(u.orientations, reference) for u in units}
     train_stats = NormStats.merge_all(
@@ -489,6 +500,7 @@ def _write_shards(
                     "start": start,
                     "frames": u.frames,
                     "snr_db": u.snr_db,
+                    **({"tempo": u.tempo} if u.tempo is not None else {}),
                     "sources": u.info["sources"],
                     "offset": u.info["offset"],
                     "flipped_orientations": [j for j, f in zip(spec.orientations, flips[u.name]) if f],

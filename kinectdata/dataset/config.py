@@ -34,6 +34,10 @@ class BuildConfig:
         split_ratios: (train, val, test) shares for recordings without an explicit split.
         seed: for drawn splits and augmentation noise.
         augment_snr: SNRs in dB of the noisy copies added to the training split (none: no copies).
+        augment_tempo: tempo factors of the stretched copies added to the training split (none: no
+            copies): each training dance with its song played r times as fast, as a turntable plays
+            it (tempo and pitch both by r; the song read at ``sample_rate / r`` Hz and taken as
+            ``sample_rate``), the motion's times divided by r, the offset too; 0.5-2, not 1.
         shard_size_mb: a new shard starts before one would exceed this (uncompressed MB).
         compression: None, "gzip" or "lzf" for the shard datasets.
         max_gap, min_coverage: alignment options (see :func:`kinectdata.align.recipe.align`).
@@ -48,6 +52,7 @@ class BuildConfig:
     split_ratios: tuple[float, float, float] = (0.8, 0.1, 0.1)
     seed: int = 0
     augment_snr: tuple[float, ...] = ()
+    augment_tempo: tuple[float, ...] = ()
     shard_size_mb: float = 256.0
     compression: str | None = None
     max_gap: float = 0.2
@@ -65,6 +70,10 @@ class BuildConfig:
             object.__setattr__(self, "target", target)
         object.__setattr__(self, "split_ratios", tuple(self.split_ratios))
         object.__setattr__(self, "augment_snr", tuple(self.augment_snr))
+        object.__setattr__(self, "augment_tempo", tuple(float(r) for r in self.augment_tempo))
+        wrong = [r for r in self.augment_tempo if not 0.5 <= r <= 2 or r == 1]
+        if wrong:
+            raise ConfigError(f"augment_tempo: {wrong[0]:g} is not a tempo factor from 0.5 to 2 other than 1")
         if self.normalisation not in METHODS:
             raise ConfigError(f"normalisation must be one of {', '.join(METHODS)}, not {self.normalisation!r}")
         if self.compression not in (None, "gzip", "lzf"):
@@ -126,6 +135,9 @@ class BuildConfig:
         d = {f.name: getattr(self, f.name) for f in dataclasses.fields(self)}
         d["features"], d["target"] = self.features.to_dict(), self.target.to_dict()
         d["split_ratios"], d["augment_snr"] = list(self.split_ratios), list(self.augment_snr)
+        d["augment_tempo"] = list(self.augment_tempo)
+        if not d["augment_tempo"]:  # the configuration of every dataset built before tempo copies existed
+            del d["augment_tempo"]
         return d
 
     def unit_config(self, noisy: bool) -> dict[str, Any]:
@@ -135,6 +147,7 @@ class BuildConfig:
 
     def __repr__(self) -> str:
         snr = f", augment_snr={list(self.augment_snr)}" if self.augment_snr else ""
+        snr += f", augment_tempo={list(self.augment_tempo)}" if self.augment_tempo else ""
         return (
             f"BuildConfig({self.features.extractor} features {list(self.feature_shape)}, target {self.target.name} "
             f"[{getattr(self.target, 'dim', 'for the recordings joint set')}], {self.normalisation}, {self.fps:g} fps, "

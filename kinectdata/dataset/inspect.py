@@ -149,9 +149,9 @@ def inspect(path: str | Path, *, components: int | None = 12) -> str:
             + (f", {len(spec['limbs'])} limbs)" if spec.get("limbs") else ")")
             + (", root-centred" if cfg["root_centre"] else ""),
             f"normalised {_norm_line(manifest['normalisation'])}, fitted on the train split "
-            f"({int(max(manifest['normalisation']['count']))} rows, noisy copies excluded)",
+            f"({int(max(manifest['normalisation']['count']))} rows, augmented copies excluded)",
             f"timeline   {cfg['fps']:g} fps, audio {cfg['sample_rate']} Hz; seed {cfg['seed']}, "
-            f"augmentation SNR {cfg['augment_snr'] or 'none'}",
+            f"augmentation SNR {cfg['augment_snr'] or 'none'}, tempo {cfg.get('augment_tempo') or 'none'}",
         ]
         for s in ("train", "val", "test"):
             info = manifest["splits"].get(s, {"recordings": [], "rows": 0, "shards": []})

@@ -27,6 +27,12 @@ a fact about its music that a recipe writes into the recordings manifest and the
 keeps in ``inputs`` (its dance style, its metre)."""
 
 
+def is_copy(record: dict) -> bool:
+    """A manifest record of an augmented copy of a training recording (noisy: ``snr_db``; stretched:
+    ``tempo``), not a recording of its own."""
+    return record.get("snr_db") is not None or record.get("tempo") is not None
+
+
 def shard_name(split: str, index: int) -> str:
     """The file name of a split's ``index``-th shard, e.g. ``train-00003.h5``."""
     return f"{split}-{index:05d}.h5"

@@ -11,6 +11,7 @@ on, so an interrupted build resumes by skipping the work files already there.
 
 from __future__ import annotations
 
+import dataclasses
 import hashlib
 import json
 import os
@@ -61,23 +62,29 @@ class Unit:
     info: dict[str, Any] = field(default_factory=dict)
     skeleton: dict[str, Any] = field(default_factory=dict)  # kinectdata.targets.skeleton.bone_offsets of the motion
     target: dict[str, Any] = field(default_factory=dict)  # the TargetSpec.to_dict() its targets follow
+    tempo: float | None = None  # a stretched copy's tempo factor (BuildConfig.augment_tempo)
 
     def to_dict(self) -> dict[str, Any]:
         return asdict(self)
 
 
-def variant_name(recording: str, snr_db: float | None) -> str:
+def variant_name(recording: str, snr_db: float | None, tempo: float | None = None) -> str:
+    if tempo is not None:
+        return f"{recording}~tempo{tempo:g}"
     return recording if snr_db is None else f"{recording}~snr{snr_db:g}dB"
 
 
-def unit_key(entry: RecordingEntry, hashes: dict[str, str], config: BuildConfig, snr_db: float | None) -> str:
+def unit_key(
+    entry: RecordingEntry, hashes: dict[str, str], config: BuildConfig, snr_db: float | None, tempo: float | None = None
+) -> str:
     """A work file's key: the recording's name, options and contents (not its paths), the
-    configuration it depends on and the SNR."""
+    configuration it depends on, the SNR and the tempo factor."""
     doc = {
         "entry": entry.options(),
         "sources": hashes,
         "config": config.unit_config(snr_db is not None),
         "snr_db": snr_db,
+        **({"tempo": tempo} if tempo is not None else {}),
     }
     if needs_metre(config.feature_config):  # the features count the song's bars
         doc["beats_per_bar"] = entry.beats_per_bar
@@ -164,8 +171,10 @@ def prepare_recording(
     work_dir: str | Path,
     snrs: tuple[float, ...] = (),
     hashes: dict[str, str] | None = None,
+    tempos: tuple[float, ...] = (),
 ) -> list[Unit]:
-    """Prepare a recording's variants (clean, then one per SNR) into ``work_dir``; skips finished ones.
+    """Prepare a recording's variants (clean, then one per SNR, then one per tempo factor) into
+    ``work_dir``; skips finished ones.
 
     ``hashes`` are the recording's :func:`source_hashes`, when the caller has them already.
     Returns the :class:`Unit` of each variant, clean first.
@@ -176,10 +185,19 @@ def prepare_recording(
     keys = {v: unit_key(entry, hashes, config, v) for v in variants}
     done = {v: _read_unit(work_dir / f"{variant_name(entry.name, v)}.h5") for v in variants}
     if all(u is not None and u.key == keys[v] for v, u in done.items()):
-        return [done[v] for v in variants]
-    with ExitStack() as scratch:
-        units = _prepare_variants(entry, config, work_dir, keys, hashes, scratch)
-    return [units[v] for v in variants]
+        units = [done[v] for v in variants]
+    else:
+        with ExitStack() as scratch:
+            made = _prepare_variants(entry, config, work_dir, keys, hashes, scratch)
+        units = [made[v] for v in variants]
+    for tempo in tempos:
+        key = unit_key(entry, hashes, config, None, tempo)
+        unit = _read_unit(work_dir / f"{variant_name(entry.name, None, tempo)}.h5")
+        if unit is None or unit.key != key:
+            with ExitStack() as scratch:
+                unit = _prepare_variants(entry, config, work_dir, {None: key}, hashes, scratch, tempo)[None]
+        units.append(unit)
+    return units
 
 
 def _prepare_variants(
@@ -189,9 +207,11 @@ def _prepare_variants(
     keys: dict[float | None, str],
     hashes: dict[str, str],
     scratch: ExitStack,
+    tempo: float | None = None,
 ) -> dict[float | None, Unit]:
     """Compute and write the work file of every variant in ``keys`` (SNR in dB, None for the clean
-    audio, to its unit key); temporary files are entered in ``scratch``, which removes them."""
+    audio, to its unit key); temporary files are entered in ``scratch``, which removes them.
+    ``tempo``: the recording stretched by that factor (``BuildConfig.augment_tempo``; one variant)."""
     variants = list(keys)
     snrs = tuple(v for v in variants if v is not None)
     sources = [entry.recording] + ([] if entry.audio is None else [entry.audio])
@@ -199,6 +219,11 @@ def _prepare_variants(
     feats = config.feature_config
     sr = config.sample_rate
     cache: Path | None = None  # the resampled audio of the first pass, so the second need not decode again
+    if tempo is not None and entry.aligned:
+        raise KinectDataError(
+            f"{entry.recording}: a tempo copy is made from the recording and its song, not from an aligned file: "
+            "list the raw recording and its audio"
+        )
     if entry.aligned:
         rec = AlignedRecording.load(entry.recording, audio=False)
         if rec.sample_rate != sr or abs(rec.fps - config.fps) > 1e-9:
@@ -216,12 +241,17 @@ def _prepare_variants(
         mean_square = _mean_square(blocks()) if snrs else 0.0
     else:
         source = entry.read_motion()
-        reader = AudioReader(entry.audio, sr)
+        reader = AudioReader(entry.audio, sr if tempo is None else round(sr / tempo))
+        given = entry.offset
+        if tempo is not None:  # the song read at sr / r and taken as sr: r times as fast (the rate rounded)
+            stretch = sr / reader.sample_rate
+            source = dataclasses.replace(source, times=source.times / stretch)
+            given = given if given in (None, "auto") else float(given) / stretch
         env = None
-        if entry.offset == "auto" or snrs:
+        if given == "auto" or snrs:
             cache = scratch.enter_context(_scratch(work_dir, f"{entry.name}.audio-f32"))
             env = audio_envelopes(_tee(reader.blocks(), cache), sr)
-        offset = resolve_offset(source, env, entry.offset)
+        offset = resolve_offset(source, env, given)
         tl = plan_timeline(
             source,
             reader.n_samples,
@@ -255,19 +285,22 @@ def _prepare_variants(
         anchor is not None and np.isfinite(anchor).all()
     ):  # where the dancer stood: generated and scored motion go back there
         info["root_anchor"] = [float(v) for v in anchor]
+    if tempo is not None:
+        info["augmentation"] = {"tempo": tempo, "exact_factor": stretch}
     units = {
         v: Unit(
-            name=variant_name(entry.name, v),
+            name=variant_name(entry.name, v, tempo),
             recording=entry.name,
             snr_db=v,
-            file=f"{variant_name(entry.name, v)}.h5",
+            file=f"{variant_name(entry.name, v, tempo)}.h5",
             key=keys[v],
             frames=n,
             stats=stats,
             orientations=orientations,
-            info={**info, "augmentation": None if v is None else {"white_noise_snr_db": v}},
+            info={**info, "augmentation": info.get("augmentation") if v is None else {"white_noise_snr_db": v}},
             skeleton=skeleton,
             target=spec.to_dict(),
+            tempo=tempo,
         )
         for v in variants
     }

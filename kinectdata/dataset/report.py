@@ -39,6 +39,7 @@ from kinectdata.align.recipe import DEFAULT_MAX_GAP, DEFAULT_MIN_COVERAGE, plan_
 from kinectdata.core.errors import KinectDataError
 from kinectdata.core.jointsets import JointSet
 from kinectdata.dataset.inputs import RecordingEntry
+from kinectdata.dataset.layout import is_copy
 from kinectdata.dataset.prepare import source_hashes
 from kinectdata.dataset.shards import read_index
 from kinectdata.dataset.verify import verified_manifest
@@ -88,7 +89,7 @@ class RecordingReport:
     mask: np.ndarray  # [N, D] bool, True where valid
     features: np.ndarray  # [n, ...] float32: the rows of the feature sample
     sample_start: int  # frame of the sample's first row
-    copies: list[dict[str, Any]] = field(default_factory=list)  # manifest records of its noisy copies
+    copies: list[dict[str, Any]] = field(default_factory=list)  # manifest records of its copies (noisy, stretched)
     evidence: SourceEvidence | None = None
     warnings: list[ReportWarning] = field(default_factory=list)
 
@@ -134,7 +135,7 @@ def _recordings(root: Path, manifest: dict[str, Any], totals: dict[str, np.ndarr
     fps = float(manifest["config"]["fps"])
     copies: dict[str, list[dict[str, Any]]] = {}
     for record in manifest["recordings"]:
-        if record.get("snr_db") is not None:
+        if is_copy(record):
             copies.setdefault(record["recording"], []).append(record)
     for shard in manifest["shards"]:
         listed = [r for r in manifest["recordings"] if r["shard"] == shard["file"]]
@@ -144,7 +145,7 @@ def _recordings(root: Path, manifest: dict[str, Any], totals: dict[str, np.ndarr
                 current, mask = f["current"][rows], f["mask"][rows]
                 outside = int(count_out_of_range(current, mask, bounds).sum())
                 totals.setdefault(shard["split"], np.zeros(3, np.int64))[:] += (mask.sum(), mask.size, outside)
-                if record.get("snr_db") is not None:
+                if is_copy(record):
                     continue
                 n = min(record["frames"], max(1, round(FEATURE_SAMPLE_S * fps)))
                 k0 = (record["frames"] - n) // 2
@@ -304,7 +305,7 @@ class DatasetScan:
     @property
     def clean_recordings(self) -> int:
         """How many recordings :meth:`recordings` yields (the noisy copies are not reported apart)."""
-        return sum(1 for r in self.manifest["recordings"] if r.get("snr_db") is None)
+        return sum(1 for r in self.manifest["recordings"] if not is_copy(r))
 
     def recordings(self) -> Iterator[RecordingReport]:
         """Each clean recording with its evidence (when ``sources``) and its warnings."""

@@ -40,6 +40,7 @@ import numpy as np
 import torch
 
 from kinectdata.core.errors import KinectDataError
+from kinectdata.dataset.layout import is_copy
 from kinectdata.dataset.shards import read_index
 from kinectdata.evaluation.baselines import (
     TrainingSong,
@@ -80,7 +81,7 @@ def split_recordings(dataset: Path, manifest: dict, split: str) -> list[dict[str
     entry's ``info`` (alignment summary, sources)."""
     out = []
     for r in manifest["recordings"]:
-        if r["split"] != split or r.get("snr_db") is not None:
+        if r["split"] != split or is_copy(r):
             continue
         with h5py.File(dataset / r["shard"], "r") as f:
             rows = slice(r["start"], r["start"] + r["frames"])
@@ -396,7 +397,7 @@ def baseline_runs(
     mean_pose = norm.invert(np.asarray(config["dataset"]["start_pose"], np.float32)[None], spec)[0]
     training, moves = [], []
     for r in manifest["recordings"]:
-        if r["split"] != "train" or r.get("snr_db") is not None:
+        if r["split"] != "train" or is_copy(r):
             continue
         with h5py.File(dataset / r["shard"], "r") as f:
             rows = slice(r["start"], r["start"] + r["frames"])

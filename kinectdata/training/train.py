@@ -40,6 +40,7 @@ from torch.utils.data import DataLoader
 
 from kinectdata.core.atomic import atomic_output
 from kinectdata.core.errors import KinectDataError, KinectDataWarning
+from kinectdata.dataset.layout import is_copy
 from kinectdata.dataset.windows import WindowDataset
 from kinectdata.evaluation.listening import ALIVE_RANGE
 from kinectdata.evaluation.metrics import smape
@@ -275,7 +276,7 @@ def _start_pose(dataset: Path, manifest: dict[str, Any]) -> list[float]:
     total = np.zeros(manifest["target_dim"])
     count = np.zeros(manifest["target_dim"])
     for r in manifest["recordings"]:
-        if r["split"] != "train" or r.get("snr_db") is not None:
+        if r["split"] != "train" or is_copy(r):
             continue
         with h5py.File(dataset / r["shard"], "r") as f:
             rows = slice(r["start"], r["start"] + r["frames"])

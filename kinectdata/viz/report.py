@@ -37,7 +37,7 @@ from kinectdata.align.recipe import DEFAULT_MAX_GAP
 from kinectdata.core.atomic import atomic_output
 from kinectdata.core.errors import KinectDataError
 from kinectdata.core.version import __version__
-from kinectdata.dataset.layout import SPLITS
+from kinectdata.dataset.layout import SPLITS, is_copy
 from kinectdata.dataset.pipelines import PIPELINES
 from kinectdata.dataset.report import (
     LOW_CONFIDENCE,
@@ -118,7 +118,7 @@ def _summary(root: Path, manifest: dict[str, Any], totals: dict[str, np.ndarray]
         (
             "normalisation",
             f"{norm.method}, bounds {norm.bounds[0]:g}..{norm.bounds[1]:g}, fitted on the train split "
-            f"({int(norm.count.max(initial=0))} rows, noisy copies excluded)",
+            f"({int(norm.count.max(initial=0))} rows, augmented copies excluded)",
         ),
         (
             "timeline",
@@ -128,13 +128,13 @@ def _summary(root: Path, manifest: dict[str, Any], totals: dict[str, np.ndarray]
     rows = []
     for s in SPLITS:
         info = manifest["splits"].get(s, {"recordings": [], "rows": 0, "shards": []})
-        copies = sum(1 for r in manifest["recordings"] if r["split"] == s and r.get("snr_db") is not None)
+        copies = sum(1 for r in manifest["recordings"] if r["split"] == s and is_copy(r))
         valid, values, outside = (int(v) for v in totals.get(s, (0, 0, 0)))
         share = f"{100 * valid / values:.2f}" if values else "-"
         rows.append(
             (s, len(info["recordings"]), info["rows"], copies, ", ".join(info["shards"]) or "-", share, outside)
         )
-    header = ("split", "recordings", "rows", "noisy copies", "shards", "valid target values (%)", "outside bounds")
+    header = ("split", "recordings", "rows", "augmented copies", "shards", "valid target values (%)", "outside bounds")
     return {"facts": facts, "splits": rows, "header": header}
 
 
@@ -277,9 +277,9 @@ def _where(r: RecordingReport, entry: dict[str, Any] | None) -> list[tuple[str, 
         ("shard", rec["shard"]),
         ("rows", f"{rec['start']}..{rec['start'] + rec['frames'] - 1} ({rec['frames']} frames)"),
     ]
-    rows += [
-        (f"noisy copy {c['name']}", f"{c['shard']} rows {c['start']}..{c['start'] + c['frames'] - 1}") for c in r.copies
-    ]
+    for c in r.copies:
+        kind = "tempo" if c.get("tempo") is not None else "noisy"
+        rows.append((f"{kind} copy {c['name']}", f"{c['shard']} rows {c['start']}..{c['start'] + c['frames'] - 1}"))
     if entry is not None:
         rows += [("recording", entry["recording"])] + ([("audio", entry["audio"])] if entry.get("audio") else [])
     if rec.get("flipped_orientations"):

@@ -692,3 +692,47 @@ def test_an_empty_split_is_warned_about_on_the_command_line(tmp_path):
     warned = [line for line in result.stderr.splitlines() if line.startswith("warning: ")]
     assert len(warned) == 1 and "leave the val split empty (training has no validation loss)" in warned[0]
     assert "--split-ratios" in warned[0]
+
+
+def test_tempo_copies_are_the_dance_and_its_song_played_faster(tmp_path):
+    """A copy at tempo 0.8 is the clean recording slowed: its targets are the clean ones read at 0.8
+    of the time (after the best shift, within interpolation), its music's features too, and only
+    training recordings get copies."""
+    manifest = build_dataset(SAMPLES, tmp_path / "tempo", config(augment_tempo=(0.8,)))
+    names = {r["name"]: r for r in manifest["recordings"]}
+    train = manifest["splits"]["train"]["recordings"]
+    assert all(f"{rec}~tempo0.8" in names for rec in train)
+    assert not any(f"{rec}~tempo0.8" in names for s in ("val", "test") for rec in manifest["splits"][s]["recordings"])
+    assert manifest["config"]["augment_tempo"] == [0.8]
+    clean, copy = names[train[0]], names[f"{train[0]}~tempo0.8"]
+    assert copy["tempo"] == 0.8 and copy["snr_db"] is None and copy["recording"] == train[0]
+    assert copy["frames"] == pytest.approx(clean["frames"] / 0.8, abs=3)
+    # the offset (given or estimated) scales with the times
+    assert copy["offset"]["seconds"] == pytest.approx(clean["offset"]["seconds"] / 0.8, abs=1.5 / 30)
+
+    def rows(record, name):
+        with h5py.File(tmp_path / "tempo" / record["shard"], "r") as f:
+            return f[name][record["start"] : record["start"] + record["frames"]].astype(np.float64)
+
+    def best_misfit(slow: np.ndarray, fast: np.ndarray, factor: float = 0.8) -> float:
+        """The least mean |slow[k] - fast read at factor k + s| over shifts s (frames), in units of
+        fast's mean change from one frame to the next (interpolating twice costs a fraction of it)."""
+        k = np.arange(len(slow))
+        misfits = []
+        for s in np.arange(-4, 4, 0.05):
+            at = factor * k + s
+            inside = (at >= 0) & (at <= len(fast) - 1)
+            read = np.stack([np.interp(at[inside], np.arange(len(fast)), col) for col in fast.T], axis=1)
+            misfits.append(np.abs(slow[inside] - read).mean())
+        return min(misfits) / np.abs(np.diff(fast, axis=0)).mean()
+
+    slow, fast = rows(copy, "current"), rows(clean, "current")
+    assert best_misfit(slow, fast) < 0.5 < 2 < best_misfit(slow, fast, 0.78)  # read 2.5 % off, it drifts away
+    loudness = lambda r: rows(r, "input").reshape(r["frames"], -1).mean(axis=1, keepdims=True)  # noqa: E731
+    # the song's loudness per frame: each frame's spectrum comes from a window of the slowed audio,
+    # not an interpolation, so less exactly; read 2.5 % off it is three times as far
+    assert (
+        best_misfit(loudness(copy), loudness(clean)) < 0.65 < 1.5 < best_misfit(loudness(copy), loudness(clean), 0.78)
+    )
+    with pytest.raises(ValueError, match="augment_tempo: 1 is not a tempo factor"):
+        config(augment_tempo=(1.0,))
