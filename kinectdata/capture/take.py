@@ -143,5 +143,48 @@ def read_take(take_dir: str | os.PathLike) -> dict[str, Any]:
     return doc
 
 
+def describe_take(take_dir: str | os.PathLike) -> list[str]:
+    """The lines ``kinectdata info TAKE/`` prints: the sensor and its recording, the audio, the offset
+    between them, the skeleton (or how to make one) and the take's doubts."""
+    take = Path(take_dir)
+    doc = read_take(take)
+    lines = [f"take            {take} ({doc['sensor']}, started {doc.get('started', '?')})"]
+    if doc["sensor"] == "k4a":
+        mkv = doc["mkv"]
+        lines.append(
+            f"recording       {mkv['file']}: {mkv['frames']} {mkv['clock_track'].lower()} frames "
+            f"({', '.join(mkv['tracks'])}) from Azure Kinect {doc['device'].get('serial', '?')}; placed on the clock "
+            f"by {'the SDK host timestamps' if mkv['placed_by'] == 'host' else 'arrival times'}"
+        )
+        skeleton = "take_body.json"
+        make = f"the Azure Kinect Body Tracking SDK's offline processor on {mkv['file']}, its JSON saved as {skeleton}"
+    else:
+        oni = doc["oni"]
+        lines.append(
+            f"recording       {oni['file']}: {oni['depth_frames']} depth frames ({', '.join(oni['streams'])}) "
+            f"from {doc['device'].get('uri', '?')}"
+        )
+        skeleton = doc["skeleton"]["file"] if doc.get("skeleton") else "take.csv"
+        make = f"kinectdata oni skeleton {take / oni['file']} -o {take / skeleton}"
+    if (take / skeleton).is_file():
+        lines.append(f"skeleton        {skeleton}")
+    else:
+        lines.append(f"skeleton        none yet ({make})")
+    audio = doc.get("audio")
+    if audio:
+        seconds = audio["frames"] / audio["sample_rate"]
+        lines.append(
+            f"audio           {audio['file']}: {seconds:.2f} s at {audio['sample_rate']} Hz from input "
+            f"{audio['device']}, {audio.get('overflows', 0)} overflows"
+        )
+        lines.append(f"offset          {doc['offset_s']:+.4f} s (audio_time = recording_time + offset), from the clock")
+    else:
+        lines.append("audio           none (captured without --audio-device)")
+    lines += [f"doubt           {problem}" for problem in doc.get("problems", [])]
+    if audio and (take / skeleton).is_file():
+        lines.append(f"next            kinectdata align {take} -o take.h5")
+    return lines
+
+
 def is_take(path: str | os.PathLike) -> bool:
     return Path(path).is_dir() and (Path(path) / TAKE).is_file()

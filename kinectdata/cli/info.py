@@ -21,7 +21,13 @@ def info(
 ) -> None:
     """Show what a skeleton RECORDING holds: format, joints, frames, timing, tracking. An aligned
     .h5 written by `kinectdata align` shows its motion, audio and offset; an .oni or .mkv sensor
-    recording, what `kinectdata oni info` or `kinectdata mkv info` shows."""
+    recording, what `kinectdata oni info` or `kinectdata mkv info` shows; a take folder from
+    `kinectdata capture`, its recording, audio, offset and skeleton."""
+    from kinectdata.capture.take import describe_take, is_take
+
+    if is_take(recording):
+        click.echo("\n".join(describe_take(recording)))
+        return
     if recording.lower().endswith((".h5", ".hdf5")):
         from kinectdata.align.aligned import AlignedRecording
 

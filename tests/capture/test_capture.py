@@ -128,6 +128,8 @@ def test_capture_command(openni2, tmp_path):
     assert result.exit_code == 0, result.output
     assert "depth frames (depth) from Dummy" in result.output and "take.json" in result.output
     assert json.loads((tmp_path / "t" / "take.json").read_text())["format"] == "kinectdata.take"
+    shown = CliRunner().invoke(main, ["info", str(tmp_path / "t")])
+    assert shown.exit_code == 0 and "depth frames (depth) from Dummy" in shown.output, shown.output
     assert CliRunner().invoke(main, ["capture", "--list"]).exit_code == 0
 
 

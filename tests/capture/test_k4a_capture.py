@@ -130,7 +130,12 @@ def test_align_places_the_body_tracking_of_a_k4a_take_by_its_device_times(pyk4a_
     with K4aRecording(take / "take.mkv") as recording:
         device_us = recording.device_times_us(recording.track("DEPTH"))
         file_us = recording.track("DEPTH").times_us
+    shown = runner.invoke(main, ["info", str(take)])
+    assert shown.exit_code == 0 and "skeleton        none yet (the Azure Kinect Body Tracking SDK" in shown.output
+    assert f"offset          {doc['offset_s']:+.4f} s" in shown.output and "next" not in shown.output
     _body_json(take / "take_body.json", device_us, skip=3)  # the tracker found the dancer from frame 3
+    shown = runner.invoke(main, ["info", str(take)])
+    assert "skeleton        take_body.json" in shown.output and f"kinectdata align {take} -o" in shown.output
     result = runner.invoke(main, ["align", str(take), "-o", str(tmp_path / "a.h5")])
     assert result.exit_code == 0, result.output
     from kinectdata.align.aligned import AlignedRecording
