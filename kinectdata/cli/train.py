@@ -63,6 +63,12 @@ _LOOP_OPTIONS = (
         "motion's, more costing in proportion and less only in log ratio; 0: none.",
     ),
     (
+        "periodogram_weight",
+        click.FloatRange(min=0),
+        "Weight of the whole-window periodogram in the free-running loss: where the motion's periods lie against "
+        "the real motion's, finer than the multi-resolution spectra tell (a waltz's bar from a cha-cha's); 0: none.",
+    ),
+    (
         "silence_share",
         click.FloatRange(0, 1),
         "Share of training windows whose music goes silent from a random frame on, the pose held (to stop in silence).",

@@ -332,6 +332,7 @@ class CdhcKind(ModelKind):
         "free_weight": 0.0,
         "posture_weight": 0.0,
         "jitter_weight": 0.0,
+        "periodogram_weight": 0.0,
         "silence_share": 0.0,
         "keep": "last",
     }

@@ -64,6 +64,7 @@ PAPER_LOOP: dict[str, Any] = {
     "free_weight": 0.0,
     "posture_weight": 0.0,
     "jitter_weight": 0.0,
+    "periodogram_weight": 0.0,
     "silence_share": 0.0,
     "keep": "last",
     "context": 0,

@@ -37,6 +37,7 @@ ADDED_OFF = {
     "inputs": "music-and-poses",
     "posture_weight": 10.0,
     "jitter_weight": 0.0,
+    "periodogram_weight": 0.0,
     "context": 0,
     "balance": None,
 }
@@ -90,6 +91,9 @@ class TrainConfig:
         jitter_weight: weight of the jitter term in the free-running loss
             (:func:`~kinectdata.models.losses.masked_jitter_loss`: the motion's accelerations and jerks
             against the real ones', an excess costing in proportion). Runs written before it had none.
+        periodogram_weight: weight of the whole-window periodogram in the free-running loss
+            (:func:`~kinectdata.models.losses.masked_periodogram_loss`: where the motion's periods lie,
+            resolved to a fraction of the multi-resolution spectra's bins). Runs written before it had none.
         silence_share: share of training windows whose music is silenced from a random frame on,
             the pose then held (:mod:`kinectdata.training.augment`): a model learns to stop in silence.
         keep: which epoch ``model.pt`` (and the exports) hold: ``last``, or ``best``, the epoch whose
@@ -124,6 +128,7 @@ class TrainConfig:
     free_weight: float
     posture_weight: float
     jitter_weight: float
+    periodogram_weight: float
     silence_share: float
     keep: str
     context: int | None
@@ -160,6 +165,8 @@ class TrainConfig:
             raise ConfigError(f"posture_weight must be at least 0, not {self.posture_weight!r}")
         if not self.jitter_weight >= 0:
             raise ConfigError(f"jitter_weight must be at least 0, not {self.jitter_weight!r}")
+        if not self.periodogram_weight >= 0:
+            raise ConfigError(f"periodogram_weight must be at least 0, not {self.periodogram_weight!r}")
         if not 0 <= self.silence_share <= 1:
             raise ConfigError(f"silence_share must be in 0..1, not {self.silence_share!r}")
         if self.context is not None and not (isinstance(self.context, int) and self.context >= 0):

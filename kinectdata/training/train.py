@@ -394,6 +394,7 @@ def validate(
             body,
             config.posture_weight,
             config.jitter_weight,
+            config.periodogram_weight,
         )
     )
     return loss, smape(generated, real, masks), rhythm
@@ -657,7 +658,14 @@ def train(
                     pred, free = pred[:, context:], free[:, context:]
                     loss = kind.loss(net, pred, pose, mask, config.settings)
                     loss = loss + config.free_weight * masked_rhythm_loss(
-                        free, pose, mask, fps, body, config.posture_weight, config.jitter_weight
+                        free,
+                        pose,
+                        mask,
+                        fps,
+                        body,
+                        config.posture_weight,
+                        config.jitter_weight,
+                        config.periodogram_weight,
                     )
                 else:
                     pred = kind.predict(model, audio, previous, config.settings)[:, context:]
