@@ -24,6 +24,7 @@ from typing import Any, ClassVar
 import numpy as np
 
 from kinectdata.capture.child import run_session
+from kinectdata.capture.k4a_session import KINDS
 from kinectdata.capture.sensor import SensorTake
 from kinectdata.core.errors import KinectDataError
 from kinectdata.mkv.calibration import COLOR_MODES, DEPTH_MODES
@@ -33,7 +34,6 @@ MKV, BODY = "take.mkv", "take_body.json"
 FPS_CHOICES = (5, 15, 30)
 HOST_LEAD_S = 1.0  # a host stamp is on the take's clock when its capture arrives within this after it
 HOST_SHARE = 0.9  # ... for at least this share of the captures
-KINDS = ("depth", "ir", "color")
 
 
 @dataclass(frozen=True)
@@ -97,7 +97,7 @@ class K4aSensor:
             "duration": duration_s,
         }
         status = run_session("kinectdata.capture.k4a_session", settings, self.what, duration_s + 60, take / MKV)
-        track = {"depth": "DEPTH", "ir": "IR", "color": "COLOR"}[self.clock_image]
+        track = self.clock_image.upper()  # the SDK's track names: DEPTH, IR, COLOR
         try:
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore", MkvWarning)

@@ -23,6 +23,8 @@ from typing import Any
 
 from kinectdata.capture.child import session_main
 
+KINDS = ("depth", "ir", "color")
+"""The images noted per capture, in the order of each row of the status's ``frames``."""
 TIMEOUT_MS = 1000  # one capture waited for at most this long (a 5 fps camera delivers every 200 ms)
 MAX_TIMEOUTS = 3  # in a row: the camera stopped delivering
 
@@ -82,7 +84,7 @@ def run(settings: dict[str, Any], k4a: Any = None) -> dict[str, Any]:
             arrived = time.monotonic()
             in_a_row = 0
             record.write_capture(capture)
-            status["frames"].append([_stamps(capture, kind) for kind in ("depth", "ir", "color")] + [arrived])
+            status["frames"].append([_stamps(capture, kind) for kind in KINDS] + [arrived])
         record.flush()
     except k4a.K4AException as exc:
         return {"error": f"stopped after {len(status['frames'])} captures: {str(exc) or 'the device was lost'}"}

@@ -49,7 +49,7 @@ class OpenNI2Sensor:
 
     @property
     def what(self) -> str:
-        return f"OpenNI2 device {self.device or '(first)'}"
+        return _device_name(self.device)
 
     def record(self, take: Path, duration_s: float, problems: list[str]) -> SensorTake:
         """Record ``duration_s`` seconds into ``take``; ``problems`` gathers what is doubtful."""
@@ -140,8 +140,13 @@ def _run_session(take: Path, device, duration_s, color, lossy, nite_folder) -> d
         "lossy": lossy,
         "nite_dir": nite_folder,
     }
-    what = f"OpenNI2 device {device or '(first)'}"
-    return run_session("kinectdata.capture.openni_session", settings, what, duration_s + 120, take / ONI)
+    name = _device_name(device)
+    return run_session("kinectdata.capture.openni_session", settings, name, duration_s + 120, take / ONI)
+
+
+def _device_name(device: str | None) -> str:
+    """How messages name an OpenNI2 device (by its URI; None: the first)."""
+    return f"OpenNI2 device {device or '(first)'}"
 
 
 def _write_skeleton(take: Path, tracked: list, shift_us: float) -> dict[str, Any]:
