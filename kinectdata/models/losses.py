@@ -39,6 +39,35 @@ RHYTHM_MAX_HZ = 6.0
 """The rhythm spectra stop here: dance moves are slower; sensor jitter is faster."""
 
 
+def _component_changes(prediction, target, mask):
+    """The frame-to-frame changes of each component of [B, L, D] windows as rows [B * D, L - 1]
+    (made, real: zero where the target is invalid) and [B * D] 1.0 where a component is valid
+    throughout."""
+    import torch
+
+    change = prediction[:, 1:] - prediction[:, :-1]
+    real = target[:, 1:] - target[:, :-1]
+    B, L, D = real.shape
+    both = mask[:, 1:] & mask[:, :-1]
+    valid = both.all(dim=1).reshape(B * D).to(prediction.dtype)
+    x = change.permute(0, 2, 1).reshape(B * D, L)
+    y = torch.where(both, real, torch.zeros_like(real)).permute(0, 2, 1).reshape(B * D, L)
+    return x, y, valid
+
+
+def _spectral_distance(X, Y, valid):
+    """Made magnitudes ``X`` against real ``Y`` ([rows, ...], one row per component): the spectral
+    convergence ``||Y - X|| / ||Y||`` plus the mean absolute difference of the log magnitudes
+    (floored at 1 % of the real mean magnitude), averaged over the rows ``valid`` marks."""
+    import torch
+
+    dims = tuple(range(1, X.dim()))
+    floor = 1e-2 * Y.mean().detach() + 1e-8
+    convergence = torch.linalg.vector_norm(X - Y, dim=dims) / torch.linalg.vector_norm(Y, dim=dims).clamp(min=1e-8)
+    log_distance = (torch.log(X + floor) - torch.log(Y + floor)).abs().mean(dim=dims)
+    return ((convergence + log_distance) * valid).sum() / valid.sum().clamp(min=1.0)
+
+
 def masked_rhythm_spectrum_loss(prediction, target, mask, fps: float, ffts=RHYTHM_FFTS, max_hz: float = RHYTHM_MAX_HZ):
     """How differently two motions move, whatever their phase: the multi-resolution spectra of their
     frame-to-frame changes compared (torch tensors; differentiable).
@@ -63,12 +92,8 @@ def masked_rhythm_spectrum_loss(prediction, target, mask, fps: float, ffts=RHYTH
     """
     import torch
 
-    change = prediction[:, 1:] - prediction[:, :-1]
-    real = target[:, 1:] - target[:, :-1]
-    B, L, D = real.shape
-    valid = (mask[:, 1:] & mask[:, :-1]).all(dim=1).reshape(B * D).to(prediction.dtype)
-    x = change.permute(0, 2, 1).reshape(B * D, L)
-    y = torch.where(mask[:, 1:] & mask[:, :-1], real, torch.zeros_like(real)).permute(0, 2, 1).reshape(B * D, L)
+    x, y, valid = _component_changes(prediction, target, mask)
+    L = x.shape[1]
     total, used = prediction.new_zeros(()), 0
     for n in ffts:
         if L < n:
@@ -77,12 +102,7 @@ def masked_rhythm_spectrum_loss(prediction, target, mask, fps: float, ffts=RHYTH
         top = max(2, int(max_hz * n / fps) + 1)
         X = torch.stft(x, n, hop_length=n // 4, window=window, center=False, return_complex=True).abs()[:, 1:top]
         Y = torch.stft(y, n, hop_length=n // 4, window=window, center=False, return_complex=True).abs()[:, 1:top]
-        floor = 1e-2 * Y.mean().detach() + 1e-8
-        convergence = torch.linalg.vector_norm(X - Y, dim=(1, 2)) / torch.linalg.vector_norm(Y, dim=(1, 2)).clamp(
-            min=1e-8
-        )
-        log_distance = (torch.log(X + floor) - torch.log(Y + floor)).abs().mean(dim=(1, 2))
-        total = total + ((convergence + log_distance) * valid).sum() / valid.sum().clamp(min=1.0)
+        total = total + _spectral_distance(X, Y, valid)
         used += 1
     return total / max(used, 1)
 
@@ -110,21 +130,12 @@ def masked_periodogram_loss(
     Torch tensors; a scalar (0 when no component is valid throughout)."""
     import torch
 
-    change = prediction[:, 1:] - prediction[:, :-1]
-    real = target[:, 1:] - target[:, :-1]
-    B, n, D = real.shape
-    both = mask[:, 1:] & mask[:, :-1]
-    valid = both.all(dim=1).reshape(B * D).to(prediction.dtype)
-    x = change.permute(0, 2, 1).reshape(B * D, n)
-    y = torch.where(both, real, torch.zeros_like(real)).permute(0, 2, 1).reshape(B * D, n)
-    window = torch.hann_window(n, periodic=True, device=prediction.device, dtype=prediction.dtype)
+    x, y, valid = _component_changes(prediction, target, mask)
+    window = torch.hann_window(x.shape[1], periodic=True, device=prediction.device, dtype=prediction.dtype)
     low, high = int(band_hz[0] * n_fft / fps) + 1, int(band_hz[1] * n_fft / fps) + 1
     X = torch.fft.rfft(x * window, n=n_fft).abs()[:, low:high]
     Y = torch.fft.rfft(y * window, n=n_fft).abs()[:, low:high]
-    floor = 1e-2 * Y.mean().detach() + 1e-8
-    convergence = torch.linalg.vector_norm(X - Y, dim=1) / torch.linalg.vector_norm(Y, dim=1).clamp(min=1e-8)
-    log_distance = (torch.log(X + floor) - torch.log(Y + floor)).abs().mean(dim=1)
-    return ((convergence + log_distance) * valid).sum() / valid.sum().clamp(min=1.0)
+    return _spectral_distance(X, Y, valid)
 
 
 ENERGY_CHUNK_S = 2.0
