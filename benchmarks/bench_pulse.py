@@ -3,7 +3,11 @@ the training and validation songs of a local corpus copy (never its test songs),
 ``listen_to_dance_rhythm`` pulse picks as the beat (:func:`~kinectdata.features.rhythm.predominant_beat`)
 frame by frame, against librosa's beat tracker (``evaluate``'s beat, whose metrical levels the
 verdicts are built on), for each ``harmonic_weight``: the share of frames at the beat (within 5 %),
-at twice it and at half of it. Skipped, with the reason, without ``--corpus``.
+at twice it and at half of it. Then the clocks of the levels above the beat (two beats, the bar and
+two bars in each song's metre, ``listen_to_dance_rhythm_bars``), from the tempogram's phase at their
+tempi and counted from the beat (``listen_to_dance_rhythm_counted``): how many times each turns per
+such span of librosa's beats (1: once a level). Skipped, with the reason, without
+``--corpus``.
 """
 
 from __future__ import annotations
@@ -17,7 +21,7 @@ import numpy as np
 from kinectdata.align.audio import load_audio
 from kinectdata.dataset.recipes import prepare_corpus
 from kinectdata.evaluation.rhythm import beat_period_s
-from kinectdata.features import LISTEN_TO_DANCE_PULSE
+from kinectdata.features import LISTEN_TO_DANCE_BAR_PULSE, LISTEN_TO_DANCE_COUNTED_PULSE, LISTEN_TO_DANCE_PULSE
 from kinectdata.features.beats import music_beats
 from kinectdata.features.rhythm import predominant_beat, rhythm_features
 
@@ -45,6 +49,57 @@ def song_shares(samples: np.ndarray, weights: tuple[float, ...]) -> tuple[float,
         octave = np.log2(picked / bpm)
         shares[weight] = np.array([np.mean(np.abs(octave - k) < TOLERANCE) for k in (0, 1, -1)])
     return bpm, shares
+
+
+CLOCK_SETTLE_S = 12.0
+"""The levels' clocks are read after the pulse's window (12 s) has filled."""
+CLOCKS = {"tempogram": LISTEN_TO_DANCE_BAR_PULSE, "counted": LISTEN_TO_DANCE_COUNTED_PULSE}
+
+
+def level_clocks(samples: np.ndarray, beats_per_bar: int) -> dict[str, np.ndarray]:
+    """Per way of making the levels (:data:`CLOCKS`), [4] how many times the beat's, two beats', the
+    bar's and two bars' clocks turn per such span of librosa's beats (``evaluate``'s beat: the slope
+    of each unwrapped phase against time, fitted by numpy, times the level's beats times the beat
+    period): 1 when a level turns once a level, 0 when its phase restarts at every beat, 2 or 0.5
+    where the pick is at twice or half librosa's beat. ``samples``: [S] mono 16-kHz audio."""
+    beat = beat_period_s(music_beats(samples, 16000)[0])
+    starts = (np.arange(int(CLOCK_SETTLE_S * 30), int(samples.size / 16000 * 30) - 1) * 16000 // 30).astype(np.int64)
+    t = starts / 16000.0
+    out = {}
+    for name, config in CLOCKS.items():
+        config = dataclasses.replace(config, tempo_phases=False)
+        feats, _ = rhythm_features(samples, starts, config, beats_per_bar=beats_per_bar)
+        levels = feats[:, config.n_tempi :].reshape(len(feats), -1, 2).transpose(1, 0, 2)
+        rates = np.array([np.polyfit(t, np.unwrap(np.arctan2(lv[:, 1], lv[:, 0])), 1)[0] for lv in levels])
+        out[name] = rates / (2 * np.pi) * np.asarray(config.beat_multiples(beats_per_bar)) * beat
+    return out
+
+
+def run_clocks(manifest, songs) -> dict[str, np.ndarray]:
+    """The levels' clocks of every song (:func:`level_clocks`), printed, with each way's medians and
+    shares within 5 % of turning once a level."""
+    print("  the levels' clocks: turns per level of librosa's beat (1: once a beat, two beats, bar, two bars)")
+    print("  song     metre  " + "  ".join(f"{name}: beat / 2 beats / bar / 2 bars" for name in CLOCKS))
+    per_song = {name: [] for name in CLOCKS}
+    for entry in songs:
+        audio = load_audio(manifest.root / entry.audio).samples
+        first = int(round(float(entry.offset) * 16000))
+        metre = int(entry.beats_per_bar or 4)
+        clocks = level_clocks(audio[first : first + int(SECONDS * 16000)], metre)
+        for name in CLOCKS:
+            per_song[name].append(clocks[name])
+        cells = "  ".join(f"{'':10s}{' / '.join(f'{v:.2f}' for v in c)}" for c in clocks.values())
+        print(f"  {entry.name:8s} {metre} beats {cells}", flush=True)
+    result = {name: np.asarray(v) for name, v in per_song.items()}
+    for name, r in result.items():
+        median = np.median(r, axis=0)
+        within = np.mean(np.abs(r - 1) < 0.05, axis=0)
+        print(
+            f"  {name}: medians {' / '.join(f'{m:.2f}' for m in median)} turns per level; within 5 % of once a "
+            f"level in {' / '.join(f'{w:.0%}' for w in within)} of the songs"
+        )
+        record("pulse", f"bar clock, {name}", f"{median[2]:.2f} turns per bar (median), {within[2]:.0%} within 5 %")
+    return result
 
 
 def run(corpus: str, path: Path, weights: tuple[float, ...]) -> dict[float, np.ndarray]:
@@ -76,6 +131,7 @@ def run(corpus: str, path: Path, weights: tuple[float, ...]) -> dict[float, np.n
             f"beat picked at librosa's, harmonic weight {w:g}",
             f"{m[0]:.0%} of frames (at twice it {m[1]:.0%})",
         )
+    run_clocks(manifest, songs)
     return means
 
 

@@ -52,7 +52,9 @@ from kinectdata.targets.specs import shipped_target_specs
     "(dB mapped from -120..5 dB to -0.9..0.9) or listen_to_dance (80-band log-mel in 0..1); each with _rhythm: "
     "and the music's pulse, computed causally (yalta2016_rhythm [2, 129, 5]: 43 tempi; listen_to_dance_rhythm "
     "[153]: the saliences of 65 tempi and the beat's and bar's phase; listen_to_dance_rhythm_bars: the bar in each "
-    "song's metre, from the recordings manifest's beats_per_bar or estimated). Default: the pipeline's.",
+    "song's metre, from the recordings manifest's beats_per_bar or estimated; listen_to_dance_rhythm_counted: "
+    "those levels counted from the beat, clocks that turn once a bar whatever the downbeats sound like). "
+    "Default: the pipeline's.",
 )
 @click.option(
     "--power",

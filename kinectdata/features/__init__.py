@@ -13,7 +13,8 @@ An extractor is a callable ``(samples, starts, config, *, chunk_frames=...) -> (
 - ``"stack"``: :func:`kinectdata.features.stack.stack_features`, parts stacked on their first
   axis (presets ``"yalta2016_rhythm"``: the STFT and the pulse as two channels [2, 129, 5];
   ``"listen_to_dance_rhythm"``: log-mel, the saliences of the pulse's tempi and its metrical levels [153];
-  ``"listen_to_dance_rhythm_bars"``: the same with the bar and two bars in the song's metre).
+  ``"listen_to_dance_rhythm_bars"``: the same with the bar and two bars in the song's metre;
+  ``"listen_to_dance_rhythm_counted"``: those levels counted from the beat).
 
 All presets are in :data:`PRESETS`. A configuration's dict names its extractor
 (``"extractor"``; a dict without one is an STFT configuration, as datasets before the mel
@@ -47,6 +48,7 @@ __all__ = [
     "compute_features",
     "extractor_names",
     "feature_config",
+    "feature_state",
     "get_extractor",
     "mel_features",
     "needs_metre",
@@ -80,6 +82,11 @@ beats_per_bar=)``) instead of bars of 3 and 4 beats: [73]. On Dance with Melody 
 training windows waltzes) the cdhc model given fixed levels danced the training cha-chas at 3
 beats, and given these at their bar; on the test dances it did not do better (docs/benchmarks.md,
 "The bar in each song's metre"), so it is a preset to choose, not the default."""
+LISTEN_TO_DANCE_COUNTED_PULSE = dataclasses.replace(LISTEN_TO_DANCE_BAR_PULSE, counted_levels=True)
+"""The same pulse with the two beats, the bar and two bars counted from the beat (``counted_levels``:
+clocks that turn once per level whatever the downbeats sound like; the tempogram's phase at a bar's
+tempo hardly turns where the downbeats are not louder, and the cdhc network, the same at every
+instant, cannot divide a beat's clock into bars itself): [73]."""
 PRESETS: dict[str, FeatureConfig] = {
     **STFT_PRESETS,
     "listen_to_dance": MelConfig(),
@@ -87,6 +94,7 @@ PRESETS: dict[str, FeatureConfig] = {
     "motion_dance_rhythm": StackConfig((STFT_PRESETS["motion_dance"], RhythmConfig(columns=5))),
     "listen_to_dance_rhythm": StackConfig((MelConfig(), LISTEN_TO_DANCE_PULSE)),
     "listen_to_dance_rhythm_bars": StackConfig((MelConfig(), LISTEN_TO_DANCE_BAR_PULSE)),
+    "listen_to_dance_rhythm_counted": StackConfig((MelConfig(), LISTEN_TO_DANCE_COUNTED_PULSE)),
 }
 """Feature configurations by name: ``yalta2016``, ``motion_dance`` (STFT), ``listen_to_dance``
 (mel), and each with the music's pulse stacked on (``_rhythm``; ``listen_to_dance_rhythm_bars``:
@@ -141,14 +149,31 @@ def feature_config(d: dict[str, Any]) -> FeatureConfig:
 
 
 def compute_features(
-    samples: np.ndarray, starts: np.ndarray, config: FeatureConfig, *, beats_per_bar: int | None = None
+    samples: np.ndarray,
+    starts: np.ndarray,
+    config: FeatureConfig,
+    *,
+    beats_per_bar: int | None = None,
+    state: Any = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """``(features [N, *config.output_shape] float32, padded [N] bool)`` with the config's extractor.
 
     ``beats_per_bar``: the song's metre, passed on to an extractor whose configuration
-    :func:`needs_metre` (None there: the extractor's default, 4)."""
-    extra = {"beats_per_bar": beats_per_bar} if needs_metre(config) else {}
+    :func:`needs_metre` (None there: the extractor's default, 4). ``state``: for a configuration
+    whose frames depend on the frames before them (:func:`feature_state`), what a stream of calls
+    carries from one to the next (None: this call's frames are the first)."""
+    extra: dict[str, Any] = {"beats_per_bar": beats_per_bar} if needs_metre(config) else {}
+    if state is not None:
+        extra["state"] = state
     return get_extractor(config.extractor)(samples, starts, config, **extra)
+
+
+def feature_state(config: FeatureConfig) -> Any:
+    """A fresh state for a stream of :func:`compute_features` calls over consecutive frames, or None
+    when every frame's features depend on its own samples alone (all but the pulse's counted levels:
+    :class:`~kinectdata.features.rhythm.PulseCount`)."""
+    new_state = getattr(config, "new_state", None)
+    return None if new_state is None else new_state()
 
 
 def needs_metre(config: FeatureConfig) -> bool:

@@ -61,6 +61,14 @@ class StackConfig:
     def span(self) -> tuple[int, int]:
         return min(p.span[0] for p in self.parts), max(p.span[1] for p in self.parts)
 
+    def new_state(self) -> tuple[Any, ...] | None:
+        """Each part's fresh stream state (``kinectdata.features.feature_state``), or None when no
+        part has one."""
+        from kinectdata.features import feature_state
+
+        states = tuple(feature_state(p) for p in self.parts)
+        return None if all(s is None for s in states) else states
+
     def to_dict(self) -> dict[str, Any]:
         return {"extractor": self.extractor, "parts": [p.to_dict() for p in self.parts]}
 
@@ -75,14 +83,23 @@ class StackConfig:
 
 
 def stack_features(
-    samples: np.ndarray, starts: np.ndarray, config: StackConfig, *, beats_per_bar: int | None = None
+    samples: np.ndarray,
+    starts: np.ndarray,
+    config: StackConfig,
+    *,
+    beats_per_bar: int | None = None,
+    state: tuple[Any, ...] | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """``(features float32 [N, *config.output_shape], padded bool [N])``: each part's features
-    (:func:`kinectdata.features.compute_features`, given the song's ``beats_per_bar``)
-    concatenated on the first feature axis."""
+    (:func:`kinectdata.features.compute_features`, given the song's ``beats_per_bar`` and its own
+    part of a stream's ``state``, :meth:`StackConfig.new_state`) concatenated on the first feature axis."""
     from kinectdata.features import compute_features
 
-    made = [compute_features(samples, starts, part, beats_per_bar=beats_per_bar) for part in config.parts]
+    states = state or (None,) * len(config.parts)
+    made = [
+        compute_features(samples, starts, part, beats_per_bar=beats_per_bar, state=part_state)
+        for part, part_state in zip(config.parts, states)
+    ]
     features = np.concatenate([f for f, _ in made], axis=1)
     padded = np.logical_or.reduce([p for _, p in made])
     return features, padded

@@ -12,7 +12,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-from . import FeatureConfig, compute_features
+from . import FeatureConfig, compute_features, feature_state
 
 
 class StreamingFeatures:
@@ -38,6 +38,7 @@ class StreamingFeatures:
         self.k = 0
         self.buffer = np.zeros(0, np.float32)
         self.buffer_start = 0
+        self.state = feature_state(config)  # what frames that depend on earlier frames carry on
 
     def push(self, block: np.ndarray) -> None:
         self.buffer = np.concatenate([self.buffer, block])
@@ -55,7 +56,11 @@ class StreamingFeatures:
 
     def _emit(self, upto: int) -> None:
         feats, padded = compute_features(
-            self.buffer, self.starts[self.k : upto] - self.buffer_start, self.config, beats_per_bar=self.beats_per_bar
+            self.buffer,
+            self.starts[self.k : upto] - self.buffer_start,
+            self.config,
+            beats_per_bar=self.beats_per_bar,
+            state=self.state,
         )
         self.sink(self.k, feats, padded)
         self.k = upto

@@ -284,6 +284,53 @@ def test_the_metre_reaches_the_pulse_through_stacks_and_streams():
     np.testing.assert_allclose(got, waltz, rtol=0, atol=1e-6)
 
 
+COUNTED = dataclasses.replace(BAR_LEVELS, levels=(1, 2), counted_levels=True)
+
+
+@pytest.mark.parametrize("beats_per_bar", [3, 4])
+def test_counted_levels_turn_once_a_bar_where_every_beat_sounds_alike(beats_per_bar):
+    """Clicks at 120 BPM, every beat alike: the tempogram's phase at the bar's tempo restarts at
+    every click and turns less than once in 4 bars; counted from the beat, the two beats, the bar and
+    two bars turn at their rates (the slope of the unwrapped phase within 0.5 %), each frame's turn
+    at a level is the beat's turn that frame (numpy's unwrap) divided by the level's beats, every
+    level's length is the beat's salience, and the beat and the tempi are as without counting. The
+    count runs on across chunks, and across calls that carry a PulseCount, as one call over every
+    frame."""
+    bpm = 120.0
+    audio, _ = click_track(bpm, seconds=30.0)
+    starts = frame_starts(audio.size)
+    plain, _ = rhythm_features(
+        audio, starts, dataclasses.replace(COUNTED, counted_levels=False), beats_per_bar=beats_per_bar
+    )
+    counted, _ = rhythm_features(audio, starts, COUNTED, beats_per_bar=beats_per_bar)
+    levels = 195 + 2 * np.arange(4)  # beat, two beats, bar, two bars: cosine at i, sine at i + 1
+    np.testing.assert_array_equal(counted[:, : levels[1]], plain[:, : levels[1]])
+    late = np.flatnonzero(starts / SR > 14.0)
+    t = (starts[late] + COUNTED.slice_samples) / SR
+
+    def turns_per_s(feats, i):
+        return np.polyfit(t, np.unwrap(np.arctan2(feats[late, i + 1], feats[late, i])), 1)[0] / (2 * np.pi)
+
+    bar_rate = bpm / 60 / beats_per_bar
+    assert abs(turns_per_s(plain, levels[2])) < bar_rate / 4
+    beat = np.arctan2(counted[late, levels[0] + 1], counted[late, levels[0]])
+    for i, beats in zip(levels[1:], (2, beats_per_bar, 2 * beats_per_bar)):
+        assert abs(turns_per_s(counted, i) / (bpm / 60 / beats) - 1) < 0.005, beats
+        level = np.arctan2(counted[late, i + 1], counted[late, i])
+        np.testing.assert_allclose(np.diff(np.unwrap(level)), np.diff(np.unwrap(beat)) / beats, atol=1e-4)
+        np.testing.assert_allclose(
+            np.hypot(counted[:, i], counted[:, i + 1]), np.hypot(counted[:, 195], counted[:, 196]), atol=1e-6
+        )
+    chunked, _ = rhythm_features(audio, starts, COUNTED, beats_per_bar=beats_per_bar, chunk_frames=97)
+    np.testing.assert_allclose(chunked, counted, rtol=0, atol=1e-5)
+    state, half = COUNTED.new_state(), starts.size // 2
+    first, _ = rhythm_features(audio, starts[:half], COUNTED, beats_per_bar=beats_per_bar, state=state)
+    rest, _ = rhythm_features(audio, starts[half:], COUNTED, beats_per_bar=beats_per_bar, state=state)
+    np.testing.assert_allclose(np.concatenate([first, rest]), counted, rtol=0, atol=1e-5)
+    silent, _ = rhythm_features(np.zeros(SR * 3, np.float32), frame_starts(SR * 3), COUNTED)
+    assert not silent.any()
+
+
 def test_the_harmonic_weight_picks_the_beat_where_its_eighth_notes_are_more_salient():
     """Accented eighth notes at 90 BPM: the onsets are most periodic at 180 BPM, which the plain
     pick takes (level 1 turning at 3 Hz); with the salience at twice each tempo added
@@ -394,7 +441,7 @@ def test_chunking_does_not_change_the_values(clicks, config):
     np.testing.assert_allclose(reordered[::-1], whole, rtol=0, atol=1e-9)
 
 
-@pytest.mark.parametrize("preset", ["yalta2016_rhythm", "listen_to_dance_rhythm"])
+@pytest.mark.parametrize("preset", ["yalta2016_rhythm", "listen_to_dance_rhythm", "listen_to_dance_rhythm_counted"])
 @pytest.mark.parametrize("block", [1777, 16001])
 def test_streaming_equals_the_whole_audio(preset, block):
     config = PRESETS[preset]
@@ -421,11 +468,12 @@ def test_streaming_equals_the_whole_audio(preset, block):
 
 
 def test_rhythm_config_round_trip_and_dispatch():
-    for config in (VECTOR, PLANE, OTHER, BAR_LEVELS):
+    for config in (VECTOR, PLANE, OTHER, BAR_LEVELS, COUNTED):
         d = json.loads(json.dumps(config.to_dict()))
         assert d["extractor"] == "rhythm" and feature_config(d) == config and RhythmConfig.from_dict(d) == config
     # no bar levels, no key: the dict (and so a dataset's build key) as before bar levels existed
     assert "bar_levels" not in VECTOR.to_dict() and BAR_LEVELS.to_dict()["bar_levels"] == [1, 2]
+    assert "counted_levels" not in BAR_LEVELS.to_dict() and COUNTED.to_dict()["counted_levels"] is True
     assert VECTOR.output_shape == (129,) and PLANE.output_shape == (1, 129, 5) and OTHER.output_shape == (1, 60, 3)
     np.testing.assert_array_equal(PLANE.instants, [160, 240, 320, 400, 480])  # the STFT sub-frames' ends
     with pytest.raises(ConfigError, match="unknown RhythmConfig keys"):
@@ -455,6 +503,8 @@ def test_rhythm_config_round_trip_and_dispatch():
         ({"levels": (1, 2), "columns": 5}, "levels are for the vector layout"),
         ({"harmonic_weight": -0.5}, "harmonic_weight must be at least 0"),
         ({"tempo_phases": "no"}, "tempo_phases must be true or false"),
+        ({"levels": (1,), "counted_levels": 1}, "counted_levels must be true or false"),
+        ({"counted_levels": True}, "counted_levels counts the levels: give levels or bar_levels"),
     ],
 )
 def test_bad_rhythm_settings_are_config_errors(kwargs, message):
