@@ -417,13 +417,17 @@ def _swap_partners(songs: list[HeldOutSong], real: BeatFollowing, level: str) ->
     """(i, j) pairs: each song with the song whose period at ``level`` (the generated motion's
     dominant level, in each song's metre; the beat for ``none``) differs most from its own, when that
     differs by more than twice the period tolerance (so that following either can be told apart: a
-    waltz at 86 BPM and a cha-cha at 120 differ in beat by 40 % and in bar by 3 %)."""
+    waltz at 86 BPM and a cha-cha at 120 differ in beat by 40 % and in bar by 3 %), counting twice and
+    half a period as the same: a beat tracker that reads a song at twice its beat (librosa reads five
+    of Dance with Melody's waltzes at 167 BPM, their beat 83) would otherwise pair two songs of one
+    tempo, and a motion that moves to both alike would be taken for one that does not listen."""
     periods = np.array([r.beat_period_s * level_beats(level, s.beats_per_bar) for r, s in zip(real.recordings, songs)])
     pairs = []
     for i, p in enumerate(periods):
-        ratio = np.abs(np.log(periods / p))
-        j = int(np.argmax(ratio))
-        if ratio[j] > np.log(1 + 2 * PERIOD_TOLERANCE):
+        octaves = np.log2(periods / p)
+        apart = np.abs(octaves - np.round(octaves)) * np.log(2)  # log-distance to p, 2 p or p / 2 (or 4 p...)
+        j = int(np.argmax(apart))
+        if apart[j] > np.log(1 + 2 * PERIOD_TOLERANCE):
             pairs.append((i, j))
     return pairs
 

@@ -186,3 +186,30 @@ def test_a_dancer_at_the_bar_is_swapped_between_songs_whose_bars_differ():
     assert [r.beats_per_bar for r in result.swapped.recordings] == [4, 4, 4]  # partners 2, 2, 1
     assert result.swapped_period_changes == 1.0
     assert result.swapped_follows_new == 1.0 and result.swapped_follows_old == 0.0
+
+
+def test_songs_whose_beat_is_read_at_twice_its_tempo_are_not_swapped_for_each_other():
+    """Two waltzes at 0.69 s a beat, the beat tracker reading the second at twice its tempo (0.345 s,
+    as librosa reads some of Dance with Melody's waltzes), and a cha-cha at 0.48 s: a dancer at two
+    beats moves alike to both waltzes (1.38 s), so swapping one for the other could not show that it
+    listens. By the tracker's beats the first waltz's most different partner would be the second
+    (1.38 against 0.69 s at two beats); counted as the same period, each waltz gets the cha-cha, and
+    every swap changes the period."""
+    frames = int(SECONDS * FPS)
+    out = []
+    for i, (period, read, metre) in enumerate(((0.69, 0.69, 3), (0.69, 0.345, 3), (0.48, 0.48, 4))):
+        beats = np.arange(0.4, SECONDS, period)
+        features = np.zeros((frames, 1))
+        features[np.round(beats * FPS).astype(int), 0] = 1.0
+        real = bounce(beats[::2] * FPS, frames)
+        read_beats = np.arange(0.4, SECONDS, read)
+        out.append(HeldOutSong(f"song{i}", features, real[0], real, None, read_beats, FPS, 0.1, metre))
+
+    def two_beats(features: np.ndarray, first_pose: np.ndarray) -> np.ndarray:
+        return bounce(np.flatnonzero(features[:, 0] > 0.5)[::2], len(features))[1:]
+
+    result = listening_report(out, two_beats, features_of, draws=30)
+    assert result.generated.dominant_level == "two beats"
+    names = [r.name for r in result.swapped.recordings]
+    assert names[:2] == ["song0 with song2's music", "song1 with song2's music"], names
+    assert result.swapped_period_changes == 1.0
