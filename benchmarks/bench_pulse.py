@@ -56,12 +56,19 @@ CLOCK_SETTLE_S = 12.0
 CLOCKS = {"tempogram": LISTEN_TO_DANCE_BAR_PULSE, "counted": LISTEN_TO_DANCE_COUNTED_PULSE}
 
 
-def level_clocks(samples: np.ndarray, beats_per_bar: int) -> dict[str, np.ndarray]:
+CLOCK_SPAN_S = 10.0
+"""A song's clocks are read over at least this long after the settling (shorter songs are skipped)."""
+
+
+def level_clocks(samples: np.ndarray, beats_per_bar: int) -> dict[str, np.ndarray] | None:
     """Per way of making the levels (:data:`CLOCKS`), [4] how many times the beat's, two beats', the
     bar's and two bars' clocks turn per such span of librosa's beats (``evaluate``'s beat: the slope
     of each unwrapped phase against time, fitted by numpy, times the level's beats times the beat
     period): 1 when a level turns once a level, 0 when its phase restarts at every beat, 2 or 0.5
-    where the pick is at twice or half librosa's beat. ``samples``: [S] mono 16-kHz audio."""
+    where the pick is at twice or half librosa's beat. ``samples``: [S] mono 16-kHz audio. None for
+    a song shorter than :data:`CLOCK_SETTLE_S` + :data:`CLOCK_SPAN_S`."""
+    if samples.size < (CLOCK_SETTLE_S + CLOCK_SPAN_S) * 16000:
+        return None
     beat = beat_period_s(music_beats(samples, 16000)[0])
     starts = (np.arange(int(CLOCK_SETTLE_S * 30), int(samples.size / 16000 * 30) - 1) * 16000 // 30).astype(np.int64)
     t = starts / 16000.0
@@ -86,11 +93,17 @@ def run_clocks(manifest, songs) -> dict[str, np.ndarray]:
         first = int(round(float(entry.offset) * 16000))
         metre = int(entry.beats_per_bar or 4)
         clocks = level_clocks(audio[first : first + int(SECONDS * 16000)], metre)
+        if clocks is None:
+            print(f"  {entry.name:8s} {metre} beats not read: shorter than {CLOCK_SETTLE_S + CLOCK_SPAN_S:g} s")
+            continue
         for name in CLOCKS:
             per_song[name].append(clocks[name])
         cells = "  ".join(f"{'':10s}{' / '.join(f'{v:.2f}' for v in c)}" for c in clocks.values())
         print(f"  {entry.name:8s} {metre} beats {cells}", flush=True)
-    result = {name: np.asarray(v) for name, v in per_song.items()}
+    result = {name: np.asarray(v).reshape(-1, 4) for name, v in per_song.items()}
+    if not len(result["counted"]):
+        print("  no song long enough to read the levels' clocks")
+        return result
     for name, r in result.items():
         median = np.median(r, axis=0)
         within = np.mean(np.abs(r - 1) < 0.05, axis=0)

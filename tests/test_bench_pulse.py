@@ -24,6 +24,25 @@ def test_on_accented_eighth_notes_only_the_harmonic_weight_picks_the_beat(monkey
     assert shares[1.0][0] > 0.9 and shares[1.0][1] < 0.1, shares[1.0]
 
 
+def test_the_levels_clocks_where_every_beat_sounds_alike(monkeypatch):
+    """Clicks at 120 BPM for 30 s, every beat alike, read as a song in 4: librosa's beat is 0.5 s;
+    counted from the beat, the two beats, the bar and two bars turn once a level (within 2 %); the
+    tempogram's bar and two bars turn less than a quarter of that (they restart at every click)."""
+    monkeypatch.syspath_prepend(str(REPO))
+    from benchmarks.bench_pulse import level_clocks
+
+    sr, bpm = 16000, 120.0
+    audio = np.zeros(sr * 30, np.float32)
+    burst = 0.5 * np.sin(2 * np.pi * 1500 * np.arange(80) / sr) * np.exp(-np.arange(80) / 20)
+    for t in np.arange(0.3, 30.0, 60.0 / bpm):
+        i = int(round(t * sr))
+        audio[i : i + 80] += burst[: audio.size - i]
+    clocks = level_clocks(audio, 4)
+    np.testing.assert_allclose(clocks["counted"], 1.0, atol=0.02)
+    assert np.all(np.abs(clocks["tempogram"][2:]) < 0.25), clocks["tempogram"]
+    assert level_clocks(audio[: sr * 15], 4) is None  # too short to read after the pulse settles
+
+
 def test_on_a_corpus_copy_it_looks_at_the_training_and_validation_songs_only(tmp_path, monkeypatch, capsys):
     monkeypatch.syspath_prepend(str(REPO))
     from benchmarks.bench_pulse import main, run
@@ -36,5 +55,6 @@ def test_on_a_corpus_copy_it_looks_at_the_training_and_validation_songs_only(tmp
     for shares in means.values():
         assert np.all(shares >= 0) and shares.sum() <= 1 + 1e-9
     assert "at the music's beat most often: harmonic weight" in printed
+    assert "C_6      4 beats not read: shorter than 22 s" in printed  # the 8-s copies
     main([])
     assert "not run: needs --corpus tang2018 PATH" in capsys.readouterr().out

@@ -38,7 +38,9 @@ music's pulse, the corpus's generic target normalised into -0.9..0.9 (the listen
 pipeline's per-video min-max is for 2-D OpenPose poses; ``maxabs`` keeps each coordinate's zero).
 The cdhc model's pulse counts the levels in each song's own metre (beat, two beats, bar, two bars):
 with its jitter term, over three cross-validation folds its periods then ranked with the songs'
-tempi at 0.91 against 0.43 with bars of 3 and 4 beats (docs/benchmarks.md)."""
+tempi at 0.91 against 0.43 with bars of 3 and 4 beats. The pulse alone (``listen_to_dance_pulse``)
+jittered less and scored a lower FID_k on the folds but listened (goal c's verdict) in none of four
+fold runs where these features did in two (docs/benchmarks.md)."""
 
 REAL_QUICK_MINUTES = 25.0
 """The real-corpus quickstart's training budget, minutes: what docs/benchmarks.md's validation runs

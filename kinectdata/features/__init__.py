@@ -14,7 +14,8 @@ An extractor is a callable ``(samples, starts, config, *, chunk_frames=...) -> (
   axis (presets ``"yalta2016_rhythm"``: the STFT and the pulse as two channels [2, 129, 5];
   ``"listen_to_dance_rhythm"``: log-mel, the saliences of the pulse's tempi and its metrical levels [153];
   ``"listen_to_dance_rhythm_bars"``: the same with the bar and two bars in the song's metre;
-  ``"listen_to_dance_rhythm_counted"``: those levels counted from the beat).
+  ``"listen_to_dance_rhythm_counted"``: those levels counted from the beat); ``"listen_to_dance_pulse"``:
+  that pulse alone, without the log-mel bands [73].
 
 All presets are in :data:`PRESETS`. A configuration's dict names its extractor
 (``"extractor"``; a dict without one is an STFT configuration, as datasets before the mel
@@ -95,6 +96,7 @@ PRESETS: dict[str, FeatureConfig] = {
     "listen_to_dance_rhythm": StackConfig((MelConfig(), LISTEN_TO_DANCE_PULSE)),
     "listen_to_dance_rhythm_bars": StackConfig((MelConfig(), LISTEN_TO_DANCE_BAR_PULSE)),
     "listen_to_dance_rhythm_counted": StackConfig((MelConfig(), LISTEN_TO_DANCE_COUNTED_PULSE)),
+    "listen_to_dance_pulse": LISTEN_TO_DANCE_COUNTED_PULSE,
 }
 """Feature configurations by name: ``yalta2016``, ``motion_dance`` (STFT), ``listen_to_dance``
 (mel), and each with the music's pulse stacked on (``_rhythm``; ``listen_to_dance_rhythm_bars``:
