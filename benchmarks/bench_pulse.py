@@ -53,23 +53,20 @@ def song_shares(samples: np.ndarray, weights: tuple[float, ...]) -> tuple[float,
 
 CLOCK_SETTLE_S = 12.0
 """The levels' clocks are read after the pulse's window (12 s) has filled."""
+CLOCK_SPAN_S = 10.0
+"""A song's clocks are read over at least this long after the settling (shorter songs are skipped)."""
 CLOCKS = {"tempogram": LISTEN_TO_DANCE_BAR_PULSE, "counted": LISTEN_TO_DANCE_COUNTED_PULSE}
 
 
-CLOCK_SPAN_S = 10.0
-"""A song's clocks are read over at least this long after the settling (shorter songs are skipped)."""
-
-
-def level_clocks(samples: np.ndarray, beats_per_bar: int) -> dict[str, np.ndarray] | None:
+def level_clocks(samples: np.ndarray, beats_per_bar: int, beat: float) -> dict[str, np.ndarray] | None:
     """Per way of making the levels (:data:`CLOCKS`), [4] how many times the beat's, two beats', the
-    bar's and two bars' clocks turn per such span of librosa's beats (``evaluate``'s beat: the slope
+    bar's and two bars' clocks turn per such span of the music's beats of ``beat`` seconds (the slope
     of each unwrapped phase against time, fitted by numpy, times the level's beats times the beat
     period): 1 when a level turns once a level, 0 when its phase restarts at every beat, 2 or 0.5
-    where the pick is at twice or half librosa's beat. ``samples``: [S] mono 16-kHz audio. None for
-    a song shorter than :data:`CLOCK_SETTLE_S` + :data:`CLOCK_SPAN_S`."""
+    where the pick is at twice or half that beat. ``samples``: [S] mono 16-kHz audio. None for a
+    song shorter than :data:`CLOCK_SETTLE_S` + :data:`CLOCK_SPAN_S`."""
     if samples.size < (CLOCK_SETTLE_S + CLOCK_SPAN_S) * 16000:
         return None
-    beat = beat_period_s(music_beats(samples, 16000)[0])
     starts = (np.arange(int(CLOCK_SETTLE_S * 30), int(samples.size / 16000 * 30) - 1) * 16000 // 30).astype(np.int64)
     t = starts / 16000.0
     out = {}
@@ -82,24 +79,20 @@ def level_clocks(samples: np.ndarray, beats_per_bar: int) -> dict[str, np.ndarra
     return out
 
 
-def run_clocks(manifest, songs) -> dict[str, np.ndarray]:
-    """The levels' clocks of every song (:func:`level_clocks`), printed, with each way's medians and
-    shares within 5 % of turning once a level."""
+def report_clocks(rows: list[tuple[str, int, dict[str, np.ndarray] | None]]) -> dict[str, np.ndarray]:
+    """Print the levels' clocks of every song (``(name, metre, level_clocks(...))``) with each way's
+    medians and shares within 5 % of turning once a level, and return them per way, [songs, 4]."""
     print("  the levels' clocks: turns per level of librosa's beat (1: once a beat, two beats, bar, two bars)")
     print("  song     metre  " + "  ".join(f"{name}: beat / 2 beats / bar / 2 bars" for name in CLOCKS))
     per_song = {name: [] for name in CLOCKS}
-    for entry in songs:
-        audio = load_audio(manifest.root / entry.audio).samples
-        first = int(round(float(entry.offset) * 16000))
-        metre = int(entry.beats_per_bar or 4)
-        clocks = level_clocks(audio[first : first + int(SECONDS * 16000)], metre)
+    for name, metre, clocks in rows:
         if clocks is None:
-            print(f"  {entry.name:8s} {metre} beats not read: shorter than {CLOCK_SETTLE_S + CLOCK_SPAN_S:g} s")
+            print(f"  {name:8s} {metre} beats not read: shorter than {CLOCK_SETTLE_S + CLOCK_SPAN_S:g} s")
             continue
-        for name in CLOCKS:
-            per_song[name].append(clocks[name])
+        for way in CLOCKS:
+            per_song[way].append(clocks[way])
         cells = "  ".join(f"{'':10s}{' / '.join(f'{v:.2f}' for v in c)}" for c in clocks.values())
-        print(f"  {entry.name:8s} {metre} beats {cells}", flush=True)
+        print(f"  {name:8s} {metre} beats {cells}")
     result = {name: np.asarray(v).reshape(-1, 4) for name, v in per_song.items()}
     if not len(result["counted"]):
         print("  no song long enough to read the levels' clocks")
@@ -121,10 +114,14 @@ def run(corpus: str, path: Path, weights: tuple[float, ...]) -> dict[float, np.n
     print(f"  {corpus}: {len(songs)} training and validation songs (the test songs are not looked at)")
     print("  song     librosa  " + "  ".join(f"weight {w:g}: beat / 2x / half" for w in weights))
     per_song = {w: [] for w in weights}
+    clock_rows = []
     for entry in songs:
         audio = load_audio(manifest.root / entry.audio).samples
         first = int(round(float(entry.offset) * 16000))
-        bpm, shares = song_shares(audio[first : first + int(SECONDS * 16000)], weights)
+        segment = audio[first : first + int(SECONDS * 16000)]
+        bpm, shares = song_shares(segment, weights)
+        metre = int(entry.beats_per_bar or 4)
+        clock_rows.append((entry.name, metre, level_clocks(segment, metre, 60.0 / bpm)))
         for w in weights:
             per_song[w].append(shares[w])
         cells = "  ".join(f"{'':10s}{s[0]:.2f} / {s[1]:.2f} / {s[2]:.2f}" for s in shares.values())
@@ -144,7 +141,7 @@ def run(corpus: str, path: Path, weights: tuple[float, ...]) -> dict[float, np.n
             f"beat picked at librosa's, harmonic weight {w:g}",
             f"{m[0]:.0%} of frames (at twice it {m[1]:.0%})",
         )
-    run_clocks(manifest, songs)
+    report_clocks(clock_rows)
     return means
 
 

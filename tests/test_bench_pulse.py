@@ -25,7 +25,7 @@ def test_on_accented_eighth_notes_only_the_harmonic_weight_picks_the_beat(monkey
 
 
 def test_the_levels_clocks_where_every_beat_sounds_alike(monkeypatch):
-    """Clicks at 120 BPM for 30 s, every beat alike, read as a song in 4: librosa's beat is 0.5 s;
+    """Clicks at 120 BPM for 30 s, every beat alike, read as a song in 4 with its beat of 0.5 s:
     counted from the beat, the two beats, the bar and two bars turn once a level (within 2 %); the
     tempogram's bar and two bars turn less than a quarter of that (they restart at every click)."""
     monkeypatch.syspath_prepend(str(REPO))
@@ -37,10 +37,10 @@ def test_the_levels_clocks_where_every_beat_sounds_alike(monkeypatch):
     for t in np.arange(0.3, 30.0, 60.0 / bpm):
         i = int(round(t * sr))
         audio[i : i + 80] += burst[: audio.size - i]
-    clocks = level_clocks(audio, 4)
+    clocks = level_clocks(audio, 4, 60.0 / bpm)
     np.testing.assert_allclose(clocks["counted"], 1.0, atol=0.02)
     assert np.all(np.abs(clocks["tempogram"][2:]) < 0.25), clocks["tempogram"]
-    assert level_clocks(audio[: sr * 15], 4) is None  # too short to read after the pulse settles
+    assert level_clocks(audio[: sr * 15], 4, 60.0 / bpm) is None  # too short to read after the pulse settles
 
 
 def test_on_a_corpus_copy_it_looks_at_the_training_and_validation_songs_only(tmp_path, monkeypatch, capsys):
