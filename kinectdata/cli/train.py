@@ -69,6 +69,18 @@ _LOOP_OPTIONS = (
         "the real motion's, finer than the multi-resolution spectra tell (a waltz's bar from a cha-cha's); 0: none.",
     ),
     (
+        "bone_jitter_weight",
+        click.FloatRange(min=0),
+        "Weight of the bones' jitter in the free-running loss: how fast each bone's length changes from frame to "
+        "frame against the real motion's, more costing in proportion; 0: none.",
+    ),
+    (
+        "song_starts",
+        click.BOOL,
+        "Also train on each song's first frames: windows whose context runs before the recording's start, padded "
+        "as generation pads a song's start (a model with a context otherwise never learns its songs' first seconds).",
+    ),
+    (
         "silence_share",
         click.FloatRange(0, 1),
         "Share of training windows whose music goes silent from a random frame on, the pose held (to stop in silence).",

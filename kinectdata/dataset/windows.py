@@ -6,8 +6,12 @@ recording (never crossing into another): ``audio`` [L, *feature shape] ([L, 1, 1
 s-1..s+L-2), ``next`` [L, D] (at s+1..s+L), ``mask`` [L, D] for ``pose``, ``previous_mask`` [L, D]
 for ``previous``, ``padded`` [L]. Windows start every ``stride`` frames from frame 1 (so the
 first has a previous pose) and end by the recording's second-to-last frame (so the last has a
-next one). Each window is one contiguous read per dataset; files are opened lazily in each
-DataLoader worker process.
+next one). With ``lead`` > 0, windows also start up to ``lead`` frames earlier, every ``stride``
+frames from frame ``1 - lead``: their frames before the recording's first are padding (audio
+zeros, as a causal model's history is padded when it generates a song from its start; poses zero
+and masked), so a model whose first ``lead`` frames are input only (``TrainConfig.context``) learns
+a song's first seconds too. Each window is one contiguous read per dataset; files are opened lazily
+in each DataLoader worker process.
 """
 
 from __future__ import annotations
@@ -38,10 +42,12 @@ class WindowDataset(Dataset):
         *,
         verify: bool = True,
         checksums: bool = True,
+        lead: int = 0,
     ):
         """``verify``: check the folder against its manifest first (shards, sizes, layout and,
         with ``checksums``, their SHA-256: :func:`~kinectdata.dataset.verify.verify_dataset`);
-        False for a caller that has just checked it."""
+        False for a caller that has just checked it. ``lead``: frames a window may start before
+        the recording's second frame, padded (module docstring)."""
         self.root = Path(dataset)
         if verify:
             from kinectdata.dataset.verify import verified_manifest  # here: importing the class stays light
@@ -54,16 +60,21 @@ class WindowDataset(Dataset):
                 raise KinectDataError(f"{self.root}: no readable manifest.json ({exc.strerror or exc})") from exc
         if length < 1:
             raise KinectDataError(f"window length must be at least 1 frame, not {length}")
+        if lead < 0:
+            raise KinectDataError(f"a window's lead must be at least 0 frames, not {lead}")
         self.length, self.stride = length, stride or length
         self.manifest = manifest
-        self.windows: list[tuple[str, int]] = []  # (shard file, first row of the window)
+        # (shard file, the window's first row (before the recording's first when led), the recording's first row)
+        self.windows: list[tuple[str, int, int]] = []
         self.recordings: list[str] = []
         for r in manifest["recordings"]:
             if r["split"] != split:
                 continue
-            for s in range(1, r["frames"] - length, self.stride):  # s-1 >= 0 and s+length <= frames-1
-                self.windows.append((r["shard"], r["start"] + s))
-                self.recordings.append(r["name"])
+            starts = [*range(1 - lead, 1, self.stride), *range(1, r["frames"] - length, self.stride)]
+            for s in starts:
+                if s + length <= r["frames"] - 1:  # the last frame has a next one
+                    self.windows.append((r["shard"], r["start"] + s, r["start"]))
+                    self.recordings.append(r["name"])
         self._files: dict[str, h5py.File] = {}
         self._pid = os.getpid()
 
@@ -102,19 +113,21 @@ class WindowDataset(Dataset):
         return self._files[name]
 
     def __getitem__(self, i: int) -> dict[str, Any]:
-        shard, row = self.windows[i]
+        shard, row, first = self.windows[i]
         f = self._file(shard)
         L = self.length
-        current = f["current"][row - 1 : row + L + 1]  # previous, the window and next in one read
-        mask = f["mask"][row - 1 : row + L]
+        ahead = max(0, first - (row - 1))  # rows before the recording's first (its previous pose's included)
+        current = _padded(f["current"], row - 1 + ahead, row + L + 1, ahead, 0)  # previous, window, next
+        mask = _padded(f["mask"], row - 1 + ahead, row + L, ahead, False)
+        inside = max(0, first - row)
         return {
-            "audio": torch.from_numpy(f["input"][row : row + L]),
+            "audio": torch.from_numpy(_padded(f["input"], row + inside, row + L, inside, 0)),
             "pose": torch.from_numpy(current[1 : L + 1].copy()),
             "previous": torch.from_numpy(current[:L].copy()),
             "next": torch.from_numpy(current[2:].copy()),
             "mask": torch.from_numpy(mask[1:].copy()),
             "previous_mask": torch.from_numpy(mask[:L].copy()),
-            "padded": torch.from_numpy(f["audio_padded"][row : row + L]),
+            "padded": torch.from_numpy(_padded(f["audio_padded"], row + inside, row + L, inside, True)),
         }
 
     def __getstate__(self) -> dict[str, Any]:
@@ -126,3 +139,11 @@ class WindowDataset(Dataset):
         for f in self._files.values():
             f.close()
         self._files = {}
+
+
+def _padded(data: h5py.Dataset, start: int, stop: int, before: int, fill) -> np.ndarray:
+    """Rows ``start..stop-1`` of ``data`` after ``before`` rows of ``fill`` (one read)."""
+    rows = data[start:stop]
+    if not before:
+        return rows
+    return np.concatenate([np.full((before, *rows.shape[1:]), fill, dtype=rows.dtype), rows])

@@ -43,13 +43,15 @@ REAL_DANCE_LOOP: dict[str, Any] = {
     "silence_share": 0.2,
     "keep": "best",
     "context": None,
+    "song_starts": True,
 }
 """The loop for real dance on a CPU (docs/training.md, "Learning real dance"), both models'
 default: windows of 10 s every 2.5 s, many small steps (batches of 8, Adam 1e-3, the gradient's norm
 clipped to 1, no gradient noise), the free-running rhythm loss beside the model's own, a fifth of
 the windows silenced, the epoch whose free-running validation motion is most like the real
 motion kept, and each window preceded by the model's own context (its receptive field) of real
-input that no loss counts."""
+input that no loss counts, windows from each song's start among them (their context padded as
+generation pads it)."""
 
 
 def _inputs_field(default: str):
@@ -313,8 +315,10 @@ class CdhcKind(ModelKind):
     settings_type = CdhcSettings
     # ~8 times the yalta model's steps per epoch on a CPU: its kept epochs in 25 minutes were 13-38.
     # The jitter term: from the music alone its motion jittered at 3.4-5.9 x the real dancers' jerk on
-    # held-out dances, 1.8-4.6 x with it (pooled over three folds 2.07 x -> 1.06 x: docs/benchmarks.md)
-    training_defaults = {**REAL_DANCE_LOOP, "epochs": 40, "jitter_weight": 1.0}
+    # held-out dances, 1.8-4.6 x with it (pooled over three folds 2.07 x -> 1.06 x: docs/benchmarks.md).
+    # The bones' jitter term: its spine jumped in length between frames where the real dancers' did not,
+    # and the peers' geometric features (FID_g) strayed with it (docs/benchmarks.md).
+    training_defaults = {**REAL_DANCE_LOOP, "epochs": 40, "jitter_weight": 1.0, "bone_jitter_weight": 1.0}
     paper = {
         "channels": 256,
         "decoder_channels": 128,
@@ -333,6 +337,8 @@ class CdhcKind(ModelKind):
         "posture_weight": 0.0,
         "jitter_weight": 0.0,
         "periodogram_weight": 0.0,
+        "bone_jitter_weight": 0.0,
+        "song_starts": False,
         "silence_share": 0.0,
         "keep": "last",
     }

@@ -65,6 +65,8 @@ PAPER_LOOP: dict[str, Any] = {
     "posture_weight": 0.0,
     "jitter_weight": 0.0,
     "periodogram_weight": 0.0,
+    "bone_jitter_weight": 0.0,
+    "song_starts": False,
     "silence_share": 0.0,
     "keep": "last",
     "context": 0,

@@ -38,6 +38,8 @@ ADDED_OFF = {
     "posture_weight": 10.0,
     "jitter_weight": 0.0,
     "periodogram_weight": 0.0,
+    "bone_jitter_weight": 0.0,
+    "song_starts": False,
     "context": 0,
     "balance": None,
 }
@@ -94,6 +96,15 @@ class TrainConfig:
         periodogram_weight: weight of the whole-window periodogram in the free-running loss
             (:func:`~kinectdata.models.losses.masked_periodogram_loss`: where the motion's periods lie,
             resolved to a fraction of the multi-resolution spectra's bins). Runs written before it had none.
+        bone_jitter_weight: weight of the bones' jitter in the free-running loss
+            (:func:`~kinectdata.models.losses.masked_bone_jitter_loss`: how fast each bone's length
+            changes from frame to frame against the real one's, an excess costing in proportion).
+            Runs written before it had none.
+        song_starts: also train on each song's first frames: windows whose ``context`` runs before
+            the recording's first frame, padded as a causal model's history is when it generates
+            from a song's start (:class:`~kinectdata.dataset.windows.WindowDataset`'s ``lead``).
+            Without them a model with a context never learns the first ``context`` frames of a
+            song, which it is asked for whenever it generates one. Runs written before it had none.
         silence_share: share of training windows whose music is silenced from a random frame on,
             the pose then held (:mod:`kinectdata.training.augment`): a model learns to stop in silence.
         keep: which epoch ``model.pt`` (and the exports) hold: ``last``, or ``best``, the epoch whose
@@ -129,6 +140,8 @@ class TrainConfig:
     posture_weight: float
     jitter_weight: float
     periodogram_weight: float
+    bone_jitter_weight: float
+    song_starts: bool
     silence_share: float
     keep: str
     context: int | None
@@ -167,6 +180,10 @@ class TrainConfig:
             raise ConfigError(f"jitter_weight must be at least 0, not {self.jitter_weight!r}")
         if not self.periodogram_weight >= 0:
             raise ConfigError(f"periodogram_weight must be at least 0, not {self.periodogram_weight!r}")
+        if not self.bone_jitter_weight >= 0:
+            raise ConfigError(f"bone_jitter_weight must be at least 0, not {self.bone_jitter_weight!r}")
+        if not isinstance(self.song_starts, bool):
+            raise ConfigError(f"song_starts must be true or false, not {self.song_starts!r}")
         if not 0 <= self.silence_share <= 1:
             raise ConfigError(f"silence_share must be in 0..1, not {self.silence_share!r}")
         if self.context is not None and not (isinstance(self.context, int) and self.context >= 0):

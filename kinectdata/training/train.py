@@ -395,6 +395,7 @@ def validate(
             config.posture_weight,
             config.jitter_weight,
             config.periodogram_weight,
+            config.bone_jitter_weight,
         )
     )
     return loss, smape(generated, real, masks), rhythm
@@ -574,7 +575,8 @@ def train(
     stride = config.stride or config.sequence
     context = kind.context_frames(model_config) if config.context is None else config.context
     length = config.sequence + context  # the first `context` frames of a window: input only, no loss
-    train_windows = WindowDataset(dataset, "train", length, stride, verify=False)  # verified above
+    lead = context if config.song_starts else 0  # windows from each song's start, padded as generation pads
+    train_windows = WindowDataset(dataset, "train", length, stride, verify=False, lead=lead)  # verified above
     balance = None if config.balance is None else train_windows.balanced_weights(config.balance)
     val_windows = WindowDataset(dataset, "val", length, config.sequence, verify=False)
     if len(train_windows) == 0:
@@ -666,6 +668,7 @@ def train(
                         config.posture_weight,
                         config.jitter_weight,
                         config.periodogram_weight,
+                        config.bone_jitter_weight,
                     )
                 else:
                     pred = kind.predict(model, audio, previous, config.settings)[:, context:]

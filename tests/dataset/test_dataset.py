@@ -390,9 +390,39 @@ def test_windows_never_cross_recordings_and_carry_previous_and_next(dataset):
     np.testing.assert_array_equal(item["previous"].numpy(), current[s - 1 : s + 59])
     np.testing.assert_array_equal(item["next"].numpy(), current[s + 1 : s + 61])
     np.testing.assert_array_equal(item["audio"].numpy(), inputs[s : s + 60])
-    for (shard, row), name in zip(ds.windows, ds.recordings):
+    for (shard, row, _), name in zip(ds.windows, ds.recordings):
         r = next(x for x in manifest["recordings"] if x["name"] == name)
         assert shard == r["shard"] and r["start"] + 1 <= row and row + 60 + 1 <= r["start"] + r["frames"]
+
+
+def test_led_windows_start_before_a_recording_padded_as_generation_pads(dataset):
+    """With a lead of 40 frames, each recording also gets windows from frame -39 (every 25 frames
+    while they start before frame 1): their frames before the recording are silence for the model
+    (audio zeros, padded) and no pose (masked); from frame 0 on they are the file's rows."""
+    from kinectdata.dataset.windows import WindowDataset
+
+    out, manifest = dataset
+    plain = WindowDataset(out, "train", length=60, stride=25)
+    led = WindowDataset(out, "train", length=60, stride=25, lead=40)
+    train = [r for r in manifest["recordings"] if r["split"] == "train"]
+    assert len(led) == len(plain) + len(train) * len(range(-39, 1, 25))  # frames -39 and -14
+    rec = train[0]
+    first = next(i for i, (_, row, start) in enumerate(led.windows) if start == rec["start"])
+    with h5py.File(out / rec["shard"], "r") as f:
+        current, inputs, mask = f["current"][()], f["input"][()], f["mask"][()]
+    for i, begin in ((first, -39), (first + 1, -14)):
+        item, ahead = led[i], -begin  # rows of the window before frame 0
+        s = rec["start"]
+        assert led.windows[i][1] == s + begin
+        assert not item["audio"][:ahead].any() and item["padded"][:ahead].all()
+        np.testing.assert_array_equal(item["audio"][ahead:].numpy(), inputs[s : s + 60 - ahead])
+        assert not item["mask"][:ahead].any() and not item["previous_mask"][: ahead + 1].any()
+        np.testing.assert_array_equal(item["pose"][ahead:].numpy(), current[s : s + 60 - ahead])
+        np.testing.assert_array_equal(item["mask"][ahead:].numpy(), mask[s : s + 60 - ahead])
+        np.testing.assert_array_equal(item["previous"][ahead + 1 :].numpy(), current[s : s + 59 - ahead])
+        np.testing.assert_array_equal(item["next"][ahead - 1 :].numpy(), current[s : s + 61 - ahead])
+    with pytest.raises(KinectDataError, match="lead must be at least 0"):
+        WindowDataset(out, "train", length=60, lead=-1)
 
 
 def test_windows_load_in_worker_processes(dataset):

@@ -299,6 +299,35 @@ def test_the_cdhc_model_trains_free_too(pulse_mel_dataset, tmp_path):
     assert math.isfinite(history[0]["train_loss"]) and history[0]["val_rhythm"] is not None
 
 
+def test_song_starts_train_the_first_seconds_of_each_song(pulse_mel_dataset, tmp_path, monkeypatch):
+    """With ``song_starts`` the training windows (not the validation ones) also start up to the
+    context before each recording, and such windows are trained on, with the bones' jitter term."""
+    import kinectdata.training.train as training
+    from kinectdata.dataset.windows import WindowDataset
+
+    leads, early = {}, []
+
+    class Spy(WindowDataset):
+        def __init__(self, dataset, split, *args, **kwargs):
+            super().__init__(dataset, split, *args, **kwargs)
+            leads[split] = kwargs.get("lead", 0)
+
+        def __getitem__(self, i):
+            _, row, first = self.windows[i]
+            early.append(row < first + 1)
+            return super().__getitem__(i)
+
+    monkeypatch.setattr(training, "WindowDataset", Spy)
+    config = TrainConfig(
+        "cdhc", channels=8, decoder_channels=8, sequence=40, stride=20, batch_size=4, epochs=1, context=20,
+        song_starts=True, bone_jitter_weight=1.0,
+    )  # fmt: skip
+    history = train(pulse_mel_dataset, tmp_path / "c", config)
+    assert math.isfinite(history[0]["train_loss"])
+    assert leads == {"train": 20, "val": 0} and any(early)
+    assert json.loads((tmp_path / "c" / "config.json").read_text())["train"]["song_starts"] is True
+
+
 def test_the_songs_metre_reaches_the_features_at_build_and_at_generate(tmp_path):
     """With the bar levels in the song's metre (``listen_to_dance_rhythm_bars``), the sample songs say
     no metre: the build estimates each (the synthesized music is in 4) and records it; generate
@@ -409,9 +438,14 @@ def test_the_losses_do_not_count_the_context_frames(pulse_mel_dataset):
 
 
 def test_windows_too_short_for_the_context_are_refused_naming_both(pulse_mel_dataset, tmp_path):
-    config = TrainConfig("cdhc", channels=8, decoder_channels=8, sequence=400, epochs=1)
+    config = TrainConfig("cdhc", channels=8, decoder_channels=8, sequence=400, epochs=1, song_starts=False)
     with pytest.raises(KinectDataError, match=r"no training window of 664 frames \(400 \+ 264 of context\)"):
         train(pulse_mel_dataset, tmp_path / "r", config)
+    from kinectdata.dataset.windows import WindowDataset
+
+    # with song starts (the default) the same recordings give windows whose context runs before them
+    led = WindowDataset(pulse_mel_dataset, "train", 664, 75, verify=False, lead=264)
+    assert len(led) > 0 and all(row < first + 1 for _, row, first in led.windows)
 
 
 def test_a_model_that_cannot_run_free_in_training_is_refused():
@@ -432,7 +466,15 @@ def test_a_model_that_cannot_run_free_in_training_is_refused():
 
 
 @pytest.mark.parametrize(
-    ("setting", "value"), [("free_weight", -1.0), ("silence_share", 1.5), ("keep", "first"), ("context", -3)]
+    ("setting", "value"),
+    [
+        ("free_weight", -1.0),
+        ("silence_share", 1.5),
+        ("keep", "first"),
+        ("context", -3),
+        ("bone_jitter_weight", -0.5),
+        ("song_starts", "yes"),
+    ],
 )
 def test_bad_recipe_settings_are_refused(setting, value):
     with pytest.raises(ConfigError, match=setting):
@@ -458,6 +500,48 @@ def test_the_bone_loss_measures_stretch_as_a_share_of_the_bone():
     assert got == pytest.approx(np.mean(np.abs(lengths - 0.5)) / 0.5, abs=1e-6)
     mask[0, 3, 5] = False  # a bone invalid somewhere in the window is not counted
     assert float(masked_bone_loss(normalise(made), normalise(real), mask, [(1, 0)], scale, offset)) == 0.0
+
+
+def test_the_bone_jitter_loss_costs_bones_changing_length_fast_not_bones_moving():
+    """Two joints, one bone, normalised as the targets are. The real bone's length alternates
+    0.50 / 0.51 m; a motion whose bone alternates 0.50 / 0.52 m changes its length twice as fast
+    (four times the mean squared change): numpy's Itakura-Saito divergence turned round, per 2-s
+    stretch, with the 1 % floor, gives the loss. Joints that swing through the room on rigid bones
+    cost nothing (where the coordinates' jitter term costs them), and the term enters the
+    free-running loss times its weight."""
+    from kinectdata.models.losses import Body, masked_bone_jitter_loss
+
+    frames, chunk = 120, 60
+    scale = torch.tensor([2.0, 1.0, 3.0, 2.0, 1.0, 3.0])
+    offset = torch.tensor([0.1, 0.0, -0.2, 0.1, 0.0, -0.2])
+    normalise = lambda x: (torch.tensor(x, dtype=torch.float32) - offset) * scale  # noqa: E731
+
+    def bone(lengths, swing=0.0):  # joint 0 sways along x; joint 1 above it by `lengths`
+        x = np.zeros((1, frames, 6))
+        x[0, :, 0] = x[0, :, 3] = swing * np.sin(np.arange(frames) / 3.0)
+        x[0, :, 4] = lengths
+        return x
+
+    alternate = np.arange(frames) % 2
+    real, made = bone(0.50 + 0.01 * alternate), bone(0.50 + 0.02 * alternate)
+    mask = torch.ones(1, frames, 6, dtype=torch.bool)
+    got = float(masked_bone_jitter_loss(normalise(made), normalise(real), mask, [(1, 0)], scale, offset, chunk=chunk))
+    real_e = np.full(2, 0.01**2)  # every change +-1 cm, in both stretches (60 and 59 changes)
+    made_e = np.full(2, 0.02**2)
+    floor = 1e-2 * real_e.mean()
+    ratio = (made_e + floor) / (real_e + floor)
+    assert got == pytest.approx(np.mean(2 * (ratio - np.log(ratio) - 1)), rel=1e-3)
+    assert got > 1.0
+
+    rigid, still = bone(np.full(frames, 0.5), swing=0.4), bone(np.full(frames, 0.5))
+    moving = masked_bone_jitter_loss(normalise(rigid), normalise(still), mask, [(1, 0)], scale, offset, chunk=chunk)
+    assert float(moving) == pytest.approx(0.0, abs=1e-6)
+    assert float(masked_jitter_loss(normalise(rigid), normalise(still), mask, chunk)) > 1.0
+
+    body = Body(bones=[(1, 0)], scale=scale, offset=offset)
+    with_term = float(masked_rhythm_loss(normalise(made), normalise(real), mask, 30.0, body, bone_jitter_weight=3.0))
+    without = float(masked_rhythm_loss(normalise(made), normalise(real), mask, 30.0, body))
+    assert with_term - without == pytest.approx(3.0 * got, rel=1e-4)
 
 
 def test_position_bones_leave_out_the_root_when_it_is_centred():
