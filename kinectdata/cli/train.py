@@ -77,8 +77,8 @@ _LOOP_OPTIONS = (
     (
         "song_starts",
         click.BOOL,
-        "Also train on each song's first frames: windows whose context runs before the recording's start, padded "
-        "as generation pads a song's start (a model with a context otherwise never learns its songs' first seconds).",
+        "Also train on each song's first frames: windows whose context runs before the recording's start, silence "
+        "there (a model with a context otherwise never trains on its songs' first seconds).",
     ),
     (
         "silence_share",

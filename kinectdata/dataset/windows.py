@@ -7,9 +7,9 @@ s-1..s+L-2), ``next`` [L, D] (at s+1..s+L), ``mask`` [L, D] for ``pose``, ``prev
 for ``previous``, ``padded`` [L]. Windows start every ``stride`` frames from frame 1 (so the
 first has a previous pose) and end by the recording's second-to-last frame (so the last has a
 next one). With ``lead`` > 0, windows also start up to ``lead`` frames earlier, every ``stride``
-frames from frame ``1 - lead``: their frames before the recording's first are padding (audio
-zeros, as a causal model's history is padded when it generates a song from its start; poses zero
-and masked), so a model whose first ``lead`` frames are input only (``TrainConfig.context``) learns
+frames from frame ``1 - lead`` (``lead`` < ``length``): their frames before the recording's first
+are silence (audio zeros, the features of silence for the mel and pulse features; poses zero and
+masked), so a model whose first ``lead`` frames are input only (``TrainConfig.context``) trains on
 a song's first seconds too. Each window is one contiguous read per dataset; files are opened lazily
 in each DataLoader worker process.
 """
@@ -47,7 +47,7 @@ class WindowDataset(Dataset):
         """``verify``: check the folder against its manifest first (shards, sizes, layout and,
         with ``checksums``, their SHA-256: :func:`~kinectdata.dataset.verify.verify_dataset`);
         False for a caller that has just checked it. ``lead``: frames a window may start before
-        the recording's second frame, padded (module docstring)."""
+        the recording's second frame, silence there (module docstring)."""
         self.root = Path(dataset)
         if verify:
             from kinectdata.dataset.verify import verified_manifest  # here: importing the class stays light
@@ -60,8 +60,10 @@ class WindowDataset(Dataset):
                 raise KinectDataError(f"{self.root}: no readable manifest.json ({exc.strerror or exc})") from exc
         if length < 1:
             raise KinectDataError(f"window length must be at least 1 frame, not {length}")
-        if lead < 0:
-            raise KinectDataError(f"a window's lead must be at least 0 frames, not {lead}")
+        if not 0 <= lead < length:
+            raise KinectDataError(
+                f"a window's lead must be at least 0 frames and shorter than the window ({length}), not {lead}"
+            )
         self.length, self.stride = length, stride or length
         self.manifest = manifest
         # (shard file, the window's first row (before the recording's first when led), the recording's first row)

@@ -50,8 +50,8 @@ default: windows of 10 s every 2.5 s, many small steps (batches of 8, Adam 1e-3,
 clipped to 1, no gradient noise), the free-running rhythm loss beside the model's own, a fifth of
 the windows silenced, the epoch whose free-running validation motion is most like the real
 motion kept, and each window preceded by the model's own context (its receptive field) of real
-input that no loss counts, windows from each song's start among them (their context padded as
-generation pads it)."""
+input that no loss counts, windows from each song's start among them (silence before the song in
+their context)."""
 
 
 def _inputs_field(default: str):

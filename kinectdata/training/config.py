@@ -101,10 +101,12 @@ class TrainConfig:
             changes from frame to frame against the real one's, an excess costing in proportion).
             Runs written before it had none.
         song_starts: also train on each song's first frames: windows whose ``context`` runs before
-            the recording's first frame, padded as a causal model's history is when it generates
-            from a song's start (:class:`~kinectdata.dataset.windows.WindowDataset`'s ``lead``).
-            Without them a model with a context never learns the first ``context`` frames of a
-            song, which it is asked for whenever it generates one. Runs written before it had none.
+            the recording's first frame, silence there (audio zeros; no pose, masked:
+            :class:`~kinectdata.dataset.windows.WindowDataset`'s ``lead``). Without them a model
+            with a context never trains on the first ``context`` frames of a song, which it is
+            asked for whenever it generates one. Generation starts a causal network with every
+            layer's history at zero, which zero features are not once through its first layers:
+            the two starts differ within the first ``context`` frames. Runs written before it had none.
         silence_share: share of training windows whose music is silenced from a random frame on,
             the pose then held (:mod:`kinectdata.training.augment`): a model learns to stop in silence.
         keep: which epoch ``model.pt`` (and the exports) hold: ``last``, or ``best``, the epoch whose

@@ -421,8 +421,9 @@ def test_led_windows_start_before_a_recording_padded_as_generation_pads(dataset)
         np.testing.assert_array_equal(item["mask"][ahead:].numpy(), mask[s : s + 60 - ahead])
         np.testing.assert_array_equal(item["previous"][ahead + 1 :].numpy(), current[s : s + 59 - ahead])
         np.testing.assert_array_equal(item["next"][ahead - 1 :].numpy(), current[s : s + 61 - ahead])
-    with pytest.raises(KinectDataError, match="lead must be at least 0"):
-        WindowDataset(out, "train", length=60, lead=-1)
+    for lead in (-1, 60):  # a window all before its recording would hold no pose
+        with pytest.raises(KinectDataError, match="lead must be at least 0 frames and shorter than the window"):
+            WindowDataset(out, "train", length=60, lead=lead)
 
 
 def test_windows_load_in_worker_processes(dataset):
