@@ -318,7 +318,15 @@ class CdhcKind(ModelKind):
     # held-out dances, 1.8-4.6 x with it (pooled over three folds 2.07 x -> 1.06 x: docs/benchmarks.md).
     # The bones' jitter term: its spine jumped in length between frames where the real dancers' did not,
     # and the peers' geometric features (FID_g) strayed with it (docs/benchmarks.md).
-    training_defaults = {**REAL_DANCE_LOOP, "epochs": 40, "jitter_weight": 1.0, "bone_jitter_weight": 1.0}
+    # The periodogram term: with it the model's period followed the song's tempo and its music (goals
+    # b and c) in all four fold runs, without it in 3 and 2 of 4 (docs/benchmarks.md).
+    training_defaults = {
+        **REAL_DANCE_LOOP,
+        "epochs": 40,
+        "jitter_weight": 1.0,
+        "bone_jitter_weight": 1.0,
+        "periodogram_weight": 1.0,
+    }
     paper = {
         "channels": 256,
         "decoder_channels": 128,
