@@ -78,7 +78,8 @@ _LOOP_OPTIONS = (
         "song_starts",
         click.BOOL,
         "Also train on each song's first frames: windows whose context runs before the recording's start, silence "
-        "there (a model with a context otherwise never trains on its songs' first seconds).",
+        "there, and (the cdhc model) hear that silence before every song generated (a model with a context "
+        "otherwise never trains on its songs' first seconds).",
     ),
     (
         "silence_share",

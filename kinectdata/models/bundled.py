@@ -373,6 +373,8 @@ class CdhcKind(ModelKind):
             "inputs": dict(_cdhc_caches(config)),
             "receptive_field_frames": net.receptive_field,
             "output": net.output,
+            # the state at a song's start: zeros, then this many frames of zero features stepped through
+            "start_silence_frames": net.start_silence,
         }
 
     @property
@@ -441,6 +443,13 @@ class CdhcKind(ModelKind):
         from kinectdata.models.cdhc import CdhcConfig
 
         return CdhcConfig.from_dict(config).receptive_field - 1
+
+    def with_song_starts(self, config: dict[str, Any], lead: int) -> dict[str, Any]:
+        """A music-only network generates each song after the ``lead`` frames of silence its
+        training windows had before it (``start_silence``): without them its first second burst at
+        2-19 x the real dancers' speed on the folds (docs/benchmarks.md). A network fed its own
+        poses starts as before."""
+        return {**config, "start_silence": lead} if config.get("inputs") == "music" else config
 
     def fill_previous(self, previous, mask, start_pose):
         """Masked previous values (stored as 0, a real coordinate in 0..1) become the mean training

@@ -97,6 +97,11 @@ class CdhcConfig:
             or ``music``: the skeleton encoder sees zeros whatever poses it is given, so each pose
             is a function of the music up to its frame (no feedback: the free run is the
             teacher-forced pass; needs a ``linear`` or ``sigmoid`` output).
+        start_silence: frames of silence (zero features) the network hears before every song it
+            generates, its outputs over them dropped, from :func:`generate` and from the streams'
+            initial state alike: the silence its training windows had before each song
+            (``TrainConfig.song_starts``: as many frames as its context). 0 (runs written before):
+            the song starts with every layer's history zero. Only with ``inputs`` ``music``.
     """
 
     output_dim: int
@@ -113,6 +118,7 @@ class CdhcConfig:
     output: str = "sigmoid"
     leak: float = 0.0
     inputs: str = "music-and-poses"
+    start_silence: int = 0
 
     def __post_init__(self) -> None:
         if not 0.0 <= self.leak <= 1.0:
@@ -120,6 +126,10 @@ class CdhcConfig:
         check_inputs(self.inputs, "CDHC config: ")
         if self.inputs == "music" and self.output == "residual":
             raise KinectDataError("CDHC config: a residual output adds to the previous pose: inputs 'music' has none")
+        if self.start_silence < 0 or (self.start_silence and self.inputs != "music"):
+            raise KinectDataError(
+                f"CDHC config: start_silence must be at least 0 (0 unless inputs is 'music'), not {self.start_silence}"
+            )
         if self.output not in OUTPUTS:
             raise KinectDataError(f"CDHC config: output must be one of {', '.join(OUTPUTS)}, not {self.output!r}")
         sizes = {k: getattr(self, k) for k in ("output_dim", "input_dim", "channels", "decoder_channels")}
@@ -355,11 +365,12 @@ class StreamingCdhc(nn.Module):
     inputs in a cache carried by the caller.
 
     ``forward(audio [B, F], previous [B, D], audio_caches, pose_caches)`` returns the pose [B, D]
-    and the new caches; start with :meth:`initial_state` (zeros: the zero padding before frame 0 of
-    :class:`CdhcNet`). The audio encoder does not depend on the poses: when the whole audio is known,
-    its codes can come from one parallel pass and :meth:`decode` does the rest. Results equal
-    :meth:`CdhcNet.forward` over the same sequences up to float rounding. The network is shared,
-    not copied, and evaluated in its current mode: call ``net.eval()`` first.
+    and the new caches; start with :meth:`initial_state` (zeros, the zero padding before frame 0
+    of :class:`CdhcNet`, after the config's ``start_silence``). The audio encoder does not depend
+    on the poses: when the whole audio is known, its codes can come from one parallel pass and
+    :meth:`decode` does the rest. Results equal :meth:`CdhcNet.forward` over the same sequences up
+    to float rounding. The network is shared, not copied, and evaluated in its current mode: call
+    ``net.eval()`` first.
     """
 
     def __init__(self, net: CdhcNet):
@@ -367,15 +378,22 @@ class StreamingCdhc(nn.Module):
         self.net = net
 
     def initial_state(self, batch: int = 1) -> tuple[list[torch.Tensor], list[torch.Tensor]]:
-        """Zero caches for a batch, one [B, channels, history] tensor per highway block: (audio
-        encoder's, skeleton encoder's and decoder's)."""
+        """The caches at a song's start for a batch, one [B, channels, history] tensor per highway
+        block: (audio encoder's, skeleton encoder's and decoder's). Zeros, then the config's
+        ``start_silence`` frames of zero features stepped through (poses not used: music only)."""
         like = self.net.decoder.output.weight
 
         def zeros(blocks) -> list[torch.Tensor]:
             return [like.new_zeros(batch, b.conv.in_channels, b.conv.history) for b in blocks]
 
         pose_blocks = [*self.net.skeleton_encoder.blocks, *self.net.decoder.blocks]
-        return zeros(self.net.audio_encoder.blocks), zeros(pose_blocks)
+        audio_caches, pose_caches = zeros(self.net.audio_encoder.blocks), zeros(pose_blocks)
+        silence = like.new_zeros(batch, self.net.config.input_dim)
+        nothing = like.new_zeros(batch, self.net.config.output_dim)
+        with torch.no_grad():
+            for _ in range(self.net.config.start_silence):
+                _, audio_caches, pose_caches = self(silence, nothing, audio_caches, pose_caches)
+        return audio_caches, pose_caches
 
     def decode(
         self, code: torch.Tensor, previous: torch.Tensor, pose_caches: list[torch.Tensor]
@@ -424,7 +442,8 @@ class FrameCdhc(nn.Module):
 def generate(net: CdhcNet, audio: torch.Tensor | np.ndarray, first_pose: torch.Tensor | np.ndarray) -> np.ndarray:
     """Dance for a whole audio feature sequence, autoregressively.
 
-    The previous pose at frame 0 is ``first_pose``, at frame t the network's own output at t-1.
+    The previous pose at frame 0 is ``first_pose``, at frame t the network's own output at t-1;
+    a music-only network hears its config's ``start_silence`` frames of silence before frame 0.
     The audio codes come from one pass of the (causal) audio encoder, then
     :meth:`StreamingCdhc.decode` steps frame by frame, in evaluation mode (no dropout; the net's
     mode is restored after), on the net's device and dtype.
@@ -476,8 +495,10 @@ def generate_many(
     try:
         with torch.inference_mode():
             if config.inputs == "music":  # nothing fed back: the whole song in one causal pass
+                silence = config.start_silence
+                audio = torch.cat([audio.new_zeros(len(audios), silence, config.input_dim), audio], dim=1)
                 out = net(audio, torch.zeros(*audio.shape[:2], config.output_dim, dtype=like.dtype, device=like.device))
-                return [out[i, :n].float().cpu().numpy() for i, n in enumerate(lengths)]
+                return [out[i, silence : silence + n].float().cpu().numpy() for i, n in enumerate(lengths)]
             codes, _ = net.audio_encoder(audio)
             _, caches = stream.initial_state(len(audios))
             out = torch.empty(len(audios), max(lengths), config.output_dim, dtype=like.dtype, device=like.device)

@@ -186,6 +186,12 @@ class ModelKind(Protocol):
         padding of its left edge, which a network can read as a clock."""
         return 0
 
+    def with_song_starts(self, config: dict[str, Any], lead: int) -> dict[str, Any]:
+        """The network config of a run whose training windows also start up to ``lead`` frames
+        before their songs, silence there (``TrainConfig.song_starts``): a kind whose generation
+        should hear that silence before each song records it here (default: unchanged)."""
+        return config
+
     def fill_previous(self, previous: Any, mask: Any, start_pose: Any) -> Any:
         """What masked previous poses become, ``[..., D]`` tensors or arrays (default: as stored)."""
         return previous

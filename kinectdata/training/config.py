@@ -104,9 +104,9 @@ class TrainConfig:
             the recording's first frame, silence there (audio zeros; no pose, masked:
             :class:`~kinectdata.dataset.windows.WindowDataset`'s ``lead``). Without them a model
             with a context never trains on the first ``context`` frames of a song, which it is
-            asked for whenever it generates one. Generation starts a causal network with every
-            layer's history at zero, which zero features are not once through its first layers:
-            the two starts differ within the first ``context`` frames. Runs written before it had none.
+            asked for whenever it generates one; a kind that takes it (the cdhc model given the
+            music only: ``ModelKind.with_song_starts``) then hears as much silence before every
+            song it generates. Runs written before it had none.
         silence_share: share of training windows whose music is silenced from a random frame on,
             the pose then held (:mod:`kinectdata.training.augment`): a model learns to stop in silence.
         keep: which epoch ``model.pt`` (and the exports) hold: ``last``, or ``best``, the epoch whose

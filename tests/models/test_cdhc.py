@@ -17,6 +17,7 @@ from kinectdata.models.cdhc import (  # noqa: E402
     OPENPOSE_MPI_LIMBS,
     CdhcConfig,
     CdhcNet,
+    FrameCdhc,
     StreamingCdhc,
     cdhc_loss,
     generate,
@@ -288,6 +289,29 @@ def test_songs_generated_together_equal_each_song_alone():
         np.testing.assert_allclose(poses, generate(net, audio, first), rtol=0, atol=1e-5)
     with pytest.raises(KinectDataError, match="2 songs but 1 first poses"):
         generate_many(net, audios[:2], firsts[:1])
+
+
+def test_a_music_only_net_hears_its_start_silence_before_every_song_in_every_form():
+    """``start_silence``: generation and the stream both give the poses the network makes for the
+    song preceded by that many frames of zero features (here one pass over the two together), not
+    those of the song alone; only a music-only network takes it."""
+    net = make_net(inputs="music", start_silence=20)
+    rng = np.random.default_rng(7)
+    audio, first = rng.uniform(0, 1, (30, F)).astype(np.float32), rng.uniform(0, 1, D).astype(np.float32)
+    with torch.no_grad():
+        after_silence = torch.as_tensor(np.concatenate([np.zeros((20, F), np.float32), audio]))[None]
+        expected = net(after_silence, torch.zeros(1, 50, D))[0, 20:].numpy()
+        alone = net(torch.as_tensor(audio)[None], torch.zeros(1, 30, D))[0].numpy()
+        stream = FrameCdhc(net)
+        state, stepped = stream.initial_state(), []
+        for frame in torch.as_tensor(audio):
+            pose, *state = stream(frame, torch.as_tensor(first), *state)
+            stepped.append(pose.numpy())
+    np.testing.assert_allclose(generate(net, audio, first), expected, rtol=0, atol=1e-5)
+    np.testing.assert_allclose(np.stack(stepped), expected, rtol=0, atol=1e-5)
+    assert np.abs(alone - expected).max() > 1e-3  # what the silence changed
+    with pytest.raises(KinectDataError, match=r"start_silence must be at least 0 \(0 unless inputs is 'music'\)"):
+        CdhcConfig(output_dim=D, input_dim=F, start_silence=5)
 
 
 def test_full_size_generates_beyond_its_receptive_field():

@@ -325,7 +325,9 @@ def test_song_starts_train_the_first_seconds_of_each_song(pulse_mel_dataset, tmp
     history = train(pulse_mel_dataset, tmp_path / "c", config)
     assert math.isfinite(history[0]["train_loss"])
     assert leads == {"train": 20, "val": 0} and any(early)
-    assert json.loads((tmp_path / "c" / "config.json").read_text())["train"]["song_starts"] is True
+    written = json.loads((tmp_path / "c" / "config.json").read_text())
+    assert written["train"]["song_starts"] is True
+    assert written["model"]["start_silence"] == 20  # generation hears the silence the windows had
 
 
 def test_the_songs_metre_reaches_the_features_at_build_and_at_generate(tmp_path):
