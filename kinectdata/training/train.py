@@ -576,7 +576,9 @@ def train(
     context = kind.context_frames(model_config) if config.context is None else config.context
     length = config.sequence + context  # the first `context` frames of a window: input only, no loss
     lead = context if config.song_starts else 0  # windows from each song's start, silence before it
-    if lead:
+    if resume:  # the network the run was started with, as its checkpoint holds it (a newer field's default)
+        model_config = saved["model"]
+    elif lead:
         model_config = kind.with_song_starts(model_config, lead)
     train_windows = WindowDataset(dataset, "train", length, stride, verify=False, lead=lead)  # verified above
     balance = None if config.balance is None else train_windows.balanced_weights(config.balance)

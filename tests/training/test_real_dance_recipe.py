@@ -22,6 +22,7 @@ from kinectdata.models.losses import (
     masked_rhythm_loss,
     masked_rhythm_spectrum_loss,
 )
+from kinectdata.models.registry import model_kind
 from kinectdata.models.run import load_checkpoint
 from kinectdata.training.config import TrainConfig
 from kinectdata.training.train import LOG_FIELDS, _better, read_log, train
@@ -328,6 +329,24 @@ def test_song_starts_train_the_first_seconds_of_each_song(pulse_mel_dataset, tmp
     written = json.loads((tmp_path / "c" / "config.json").read_text())
     assert written["train"]["song_starts"] is True
     assert written["model"]["start_silence"] == 20  # generation hears the silence the windows had
+
+
+def test_a_run_resumed_keeps_the_network_it_was_started_with(pulse_mel_dataset, tmp_path, monkeypatch):
+    """A song-start run written before generation heard the silence (here: the hook switched off for
+    its first epoch) keeps generating without it when resumed: the network config is the checkpoint's."""
+    kind = type(model_kind("cdhc"))
+    config = TrainConfig(
+        "cdhc", channels=8, decoder_channels=8, sequence=40, stride=20, batch_size=4, epochs=2, context=20
+    )
+    with monkeypatch.context() as patch:
+        patch.setattr(kind, "with_song_starts", lambda self, model, lead: model)
+        train(pulse_mel_dataset, tmp_path / "r", config, stop_after=1)
+    assert json.loads((tmp_path / "r" / "config.json").read_text())["model"].get("start_silence", 0) == 0
+    history = train(pulse_mel_dataset, tmp_path / "r", resume=True)
+    assert len(history) == 2
+    assert json.loads((tmp_path / "r" / "config.json").read_text())["model"].get("start_silence", 0) == 0
+    train(pulse_mel_dataset, tmp_path / "new", config)
+    assert json.loads((tmp_path / "new" / "config.json").read_text())["model"]["start_silence"] == 20
 
 
 def test_the_songs_metre_reaches_the_features_at_build_and_at_generate(tmp_path):
