@@ -37,11 +37,12 @@ class TorchEngine:
 
     def __init__(self, net: torch.nn.Module, precision: str = "float32", kind: ModelKind | None = None):
         self.module = (kind or kind_of(net)).stream(net, precision).eval()
+        self.initial = tuple(self.module.initial_state())  # once: the cdhc stream's steps through its start silence
         self.name = f"torch {precision}"
         self.reset()
 
     def reset(self) -> None:
-        self.state = self.module.initial_state()
+        self.state = [s.clone() for s in self.initial]
 
     def step(self, features: np.ndarray, previous: np.ndarray) -> np.ndarray:
         with torch.inference_mode():

@@ -4,8 +4,8 @@ A model that exports (its kind's ``exports``: :class:`~kinectdata.models.kind.Mo
 stream (its kind's ``stream``), one frame per call: inputs ``features`` [*F] (the frame's
 features, ``features`` in the metadata), ``previous`` [D] (the previous pose, normalised; first
 call: ``start_pose``) and its state tensors (the kind's ``state_names``; zeros, or the stream's
-``initial_state()``, at the start: for the cdhc model, zeros and then ``start_silence_frames`` of
-the metadata frames of zero features stepped through); outputs ``pose`` [D] (normalised: denormalise with
+``initial_state()``, at the start: for the cdhc model, zeros, then as many frames of zero
+features stepped through as the metadata's ``start_silence_frames``); outputs ``pose`` [D] (normalised: denormalise with
 ``normalisation``) and the new state, ``NAME_out`` for each state tensor, to pass back in with
 the next frame. The yalta model's (:class:`~kinectdata.models.yalta.StreamingYalta`):
 
