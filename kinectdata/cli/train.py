@@ -99,6 +99,12 @@ _LOOP_OPTIONS = (
         "manifest gives them) has the same share; none: each window once, shuffled.",
     ),
     (
+        "weight_average",
+        click.FloatRange(0, 1, max_open=True),
+        "Decay per step of a moving average of the weights, which validation, the kept epoch and model.pt then "
+        "use (0.995: the last 200 steps or so); 0: none.",
+    ),
+    (
         "keep",
         click.Choice(["last", "best"]),
         "model.pt: the last epoch, or the one with the best free-running validation rhythm loss among those whose "

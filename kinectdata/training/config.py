@@ -24,6 +24,7 @@ LOOP_DEFAULTS: dict[str, Any] = {
     "max_minutes": None,
     "previous_noise": 0.0,
     "balance": None,
+    "weight_average": 0.0,
 }
 """The training loop's settings and their base defaults (Yalta et al.'s; a model's
 ``training_defaults`` change them)."""
@@ -42,6 +43,7 @@ ADDED_OFF = {
     "song_starts": False,
     "context": 0,
     "balance": None,
+    "weight_average": 0.0,
 }
 """Loop (and model) settings added after runs were written: a run's config.json without them trained without
 them, whatever today's defaults are (resuming it goes on as it started)."""
@@ -123,6 +125,10 @@ class TrainConfig:
             (``style``, ``beats_per_bar``; :data:`~kinectdata.dataset.layout.BALANCE_FIELDS`). The
             windows are drawn with replacement, as many as there are; None (or one group): each
             window once per epoch, shuffled.
+        weight_average: the decay per step of an exponential moving average of the weights (0:
+            none): with it, validation, the kept epoch, ``model.pt`` and the exports use the
+            averaged weights, ``1 / (1 - weight_average)`` steps long (0.995: 200 steps), the
+            optimiser going on with its own. Runs written before it had none.
     """
 
     model: str
@@ -148,6 +154,7 @@ class TrainConfig:
     keep: str
     context: int | None
     balance: str | None
+    weight_average: float
     settings: Any
 
     def __init__(self, model: str | None = None, *, settings: Any = None, paper: bool = False, **given: Any) -> None:
@@ -174,6 +181,8 @@ class TrainConfig:
             raise ConfigError("lr and clip_norm must be positive, noise_eta and noise_gamma at least 0")
         if not self.previous_noise >= 0:
             raise ConfigError(f"previous_noise must be at least 0, not {self.previous_noise!r}")
+        if not 0 <= self.weight_average < 1:
+            raise ConfigError(f"weight_average must be in [0, 1), not {self.weight_average!r}")
         if not self.free_weight >= 0:
             raise ConfigError(f"free_weight must be at least 0, not {self.free_weight!r}")
         if not self.posture_weight >= 0:

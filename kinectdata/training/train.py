@@ -480,6 +480,20 @@ def _better(history: list[dict]) -> bool:
     return all(last["val_rhythm"] < r["val_rhythm"] for r in rivals)
 
 
+def _averager(net: torch.nn.Module, decay: float, state: dict[str, Any] | None):
+    """The moving average of ``net``'s weights and buffers a run with ``weight_average`` keeps
+    (:class:`torch.optim.swa_utils.AveragedModel` with decay ``decay`` per step), restored from a
+    resumed checkpoint's; None without one."""
+    if decay == 0:
+        return None
+    from torch.optim.swa_utils import AveragedModel, get_ema_multi_avg_fn
+
+    average = AveragedModel(net, multi_avg_fn=get_ema_multi_avg_fn(decay), use_buffers=True)
+    if state is not None and "average" in state:
+        average.load_state_dict(state["average"])
+    return average
+
+
 def _write_log(run: Path, history: list[dict]) -> None:
     buffer = io.StringIO()
     writer = csv.DictWriter(buffer, fieldnames=LOG_FIELDS, lineterminator="\n")
@@ -634,6 +648,8 @@ def train(
         model = replicate(net, world, device)
         net.train()
         params = list(net.parameters())
+        average = _averager(net, config.weight_average, state)
+        judged = net if average is None else average.module  # what validation, the kept epoch and model.pt use
         fps = float(manifest["config"]["fps"])
         silent = silent_frame(manifest["config"]["features"], fps) if config.silence_share > 0 else None
         body = _body(manifest, device)
@@ -684,6 +700,8 @@ def train(
                     torch.nn.utils.clip_grad_norm_(params, config.clip_norm)
                 _add_gradient_noise(params, step, config, noise)
                 optimizer.step()
+                if average is not None:
+                    average.update_parameters(net)
                 step += 1
                 frames += pose.shape[0] * pose.shape[1]
                 total += loss.item() * valid
@@ -692,8 +710,8 @@ def train(
             check_replicas(params, world, epoch)
             figures = (
                 (
-                    *validate(net, val_windows, config, device, start_pose, fps, body, context),
-                    _energy(net, kind, val_songs),
+                    *validate(judged, val_windows, config, device, start_pose, fps, body, context),
+                    _energy(judged, kind, val_songs),
                 )
                 if world.main
                 else (0.0, 0.0, 0.0, 0.0)
@@ -713,13 +731,13 @@ def train(
                 "stopped": "time budget" if out_of_time else None,
             }
             if epoch_metrics is not None and world.main:
-                net.eval()
+                judged.eval()
                 with torch.no_grad():
-                    row.update(epoch_metrics(net))
-                net.train()
+                    row.update(epoch_metrics(judged))
+                judged.train()
             history.append(row)
             if config.keep == "best" and world.main and _better(history):
-                best = {"epoch": epoch, "model": {k: v.detach().clone().cpu() for k, v in net.state_dict().items()}}
+                best = {"epoch": epoch, "model": {k: v.detach().clone().cpu() for k, v in judged.state_dict().items()}}
             for said in (loss_warning(history, config.lr), validation_warning(history)) if world.main else ():
                 if said:
                     warnings.warn(said, TrainingWarning, stacklevel=2)
@@ -740,6 +758,7 @@ def train(
                         "augment_rng": augment.get_state(),
                         "torch_rng": torch.get_rng_state(),
                         **({} if best is None else {"best_epoch": best["epoch"], "best_model": best["model"]}),
+                        **({} if average is None else {"average": average.state_dict()}),
                         "history": json.dumps(history),
                         "config": json.dumps(run_config),
                     },
@@ -759,7 +778,7 @@ def train(
         warnings.warn(said, TrainingWarning, stacklevel=2)
     title = f"{run.name}: {kind.describe(config.settings)}"
     loss_curves(history, run / "loss.png", title=title, loss_name=kind.loss_name(config.settings))
-    net = net.cpu().eval()
+    net = judged.cpu().eval()
     if best is not None:  # keep="best": model.pt and the exports hold that epoch
         net.load_state_dict(best["model"])
         for row in history:

@@ -14,7 +14,7 @@ from conftest import TINY_TRAINING
 
 torch = pytest.importorskip("torch")
 
-from kinectdata.core.errors import KinectDataError  # noqa: E402
+from kinectdata.core.errors import ConfigError, KinectDataError  # noqa: E402
 from kinectdata.models.run import load_checkpoint, load_model  # noqa: E402
 from kinectdata.training.config import TrainConfig  # noqa: E402
 from kinectdata.training.train import LOG_FIELDS, _add_gradient_noise, train  # noqa: E402
@@ -332,3 +332,39 @@ def test_train_says_how_the_losses_ended(sample_dataset, tmp_path, monkeypatch):
     assert seen == [(history, TINY_TRAINING["lr"])]
     with open(tmp_path / "run" / "log.csv") as f:
         assert [int(r["epoch"]) for r in csv.DictReader(f)] == [r["epoch"] for r in history]
+
+
+def test_a_run_with_a_weight_average_keeps_the_average_of_its_steps_and_resumes_it(
+    sample_dataset, tmp_path, monkeypatch
+):
+    """model.pt holds the exponential moving average of the weights after every optimiser step,
+    computed here by hand from the steps' weights (a = w_1, then a = d a + (1 - d) w_t), across an
+    interruption after the first epoch and a resume; the checkpoint keeps the optimiser's own."""
+    decay = 0.9
+    steps: list[list[torch.Tensor]] = []
+
+    class Recording(torch.optim.Adam):
+        def step(self, closure=None):
+            result = super().step(closure)
+            steps.append([p.detach().clone() for group in self.param_groups for p in group["params"]])
+            return result
+
+    monkeypatch.setattr(torch.optim, "Adam", Recording)
+    config = TrainConfig(**{**TINY_TRAINING, "units": 16, "weight_average": decay})
+    run = tmp_path / "run"
+    train(sample_dataset, run, config, stop_after=1)
+    history = train(sample_dataset, run, resume=True)
+    assert len(steps) == history[-1]["step"] > 2
+    average = steps[0]
+    for weights in steps[1:]:
+        average = [decay * a + (1 - decay) * w for a, w in zip(average, weights)]
+    kept = load_checkpoint(run / "model.pt")["model"]
+    last = load_checkpoint(run / "checkpoint.pt")["model"]
+    net, _ = load_model(run)
+    names = [name for name, _ in net.named_parameters()]  # the optimiser's order
+    assert list(kept) == list(last) and len(names) == len(steps[0])
+    for name, mean, own in zip(names, average, steps[-1]):
+        torch.testing.assert_close(kept[name], mean, rtol=1e-5, atol=1e-6)
+        assert torch.equal(last[name], own)
+    with pytest.raises(ConfigError, match="weight_average must be in"):
+        TrainConfig(**{**TINY_TRAINING, "weight_average": 1.0})
