@@ -467,6 +467,16 @@ def body_positions(
     return positions[:, used], placed[:, used]
 
 
+def _travel_joint(spec: TargetSpec, dataset_config: dict[str, Any]) -> int | None:
+    """The index, among :func:`body_positions`' joints, of the root of root-centred targets given as
+    they are (its value the dancer's travel from its first second, the others offsets from it); None
+    when every joint is a place on the body (world positions, or rebuilt by forward kinematics)."""
+    rebuilt = bool(spec.orientations and dataset_config.get("skeleton") and spec.dimensions == 3)
+    if dataset_config.get("root_centre") and spec.root in spec.positions and not rebuilt:
+        return spec.positions.index(spec.root)
+    return None
+
+
 def _song_set(
     net: torch.nn.Module,
     recordings: list[dict[str, Any]],
@@ -496,6 +506,7 @@ def _song_set(
         runs = kind.free_runs(net, [f for f, _ in jobs], [p for _, p in jobs])
         return [body(v, np.ones_like(v, bool))[0] for v in (norm.invert(g, spec) for g in runs)]
 
+    travel = _travel_joint(spec, config["dataset"])
     songs, metres = [], {}
     for r in recordings:
         music = beats[r["name"]][0]
@@ -513,7 +524,9 @@ def _song_set(
         if first is None:
             first = kind.fill_previous(r["current"][0], r["mask"][0], config["dataset"]["start_pose"])
         positions, pmask = body(norm.invert(r["current"], spec, mask=r["mask"]), r["mask"])
-        songs.append(HeldOutSong(r["name"], r["input"], first, positions, pmask, music, fps, rms, metre.beats_per_bar))
+        songs.append(
+            HeldOutSong(r["name"], r["input"], first, positions, pmask, music, fps, rms, metre.beats_per_bar, travel)
+        )
     why = "" if songs else "no recording of the split has music beats (ground truth or tracked)"
     return SongSet(songs, generate_many, features_of, why, metres)
 

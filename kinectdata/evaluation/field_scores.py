@@ -440,6 +440,8 @@ def _number(value: float | None) -> str:
         return "-"
     if abs(value) < 5e-5:
         value = 0.0  # round-off around a zero FID printed as 0.0000, not -0.0000
+    if abs(value) >= 1e7:  # e.g. FID_g on features constant in the reference: fixed point would fill its column
+        return f"{value:.4g}"
     return f"{value:.4f}" if abs(value) < 10 else f"{value:.2f}"
 
 

@@ -17,7 +17,9 @@ beats), with one trained network:
   Figure 7: the motion stops);
 - **baselines** for the phase: the mean real pose with Gaussian noise of the real motion's
   per-coordinate spread, and the real motion of another song, each scored against the song's beats;
-- **alive**: the generated motion's energy (mean squared joint speed) against the real motion's.
+- **alive**: the generated motion's energy (mean squared joint speed) against the real motion's;
+- **turning**: how fast each motion turns about the vertical and the share of its energy the turning
+  is (:mod:`~kinectdata.evaluation.metrics.turning`), and the energy without it.
 
 Every function takes plain arrays; the network is run through its model kind's ``free_run``.
 """
@@ -41,12 +43,92 @@ from kinectdata.evaluation.beat_following import (
     level_beats,
     metrical_level,
 )
+from kinectdata.evaluation.metrics.turning import Turning, turning
 
 ALIVE_RANGE = (0.5, 2.0)
 """Generated motion is alive, not frozen or wild, when its energy is within these times the real motion's."""
 SILENCE_STOPS = 0.1
 """Silence stops the motion when the energy under silence is below this fraction of the energy with music."""
 MIN_SHIFT_S = 2.0
+TURNS_AT_ALL = 0.05
+"""The real motion turns when turning is at least this share of its energy; below it the turning verdict is
+not asked."""
+
+
+@dataclass(frozen=True)
+class TurningFigures:
+    """The generated and the real motion's turning about the vertical, over the test songs.
+
+    Attributes:
+        real_rate, generated_rate: mean absolute turning speed, rad/s (means over the songs).
+        real_share, generated_share: the turning's share of the motion's energy (means over the songs).
+        turning_ratio: the generated motion's turning energy over the real motion's (mean over the
+            songs; NaN when the real motion never turns).
+        energy_ratio_without_turning: the energy left when the turning's is taken out, generated over
+            real (mean over the songs).
+    """
+
+    real_rate: float
+    generated_rate: float
+    real_share: float
+    generated_share: float
+    turning_ratio: float
+    energy_ratio_without_turning: float
+
+    @classmethod
+    def of(cls, real: list[Turning], generated: list[Turning]) -> TurningFigures:
+        def ratio(a: float, b: float) -> float:
+            return a / b if b > 0 else float("nan")
+
+        return cls(
+            real_rate=float(np.nanmean([t.rate for t in real])),
+            generated_rate=float(np.nanmean([t.rate for t in generated])),
+            real_share=float(np.nanmean([t.share for t in real])),
+            generated_share=float(np.nanmean([t.share for t in generated])),
+            turning_ratio=float(np.mean([ratio(g.turning_energy, r.turning_energy) for r, g in zip(real, generated)])),
+            energy_ratio_without_turning=float(
+                np.mean(
+                    [ratio(g.energy - g.turning_energy, r.energy - r.turning_energy) for r, g in zip(real, generated)]
+                )
+            ),
+        )
+
+    @property
+    def asked(self) -> bool:
+        """Whether the real motion turns enough for the verdict (:data:`TURNS_AT_ALL`)."""
+        return self.real_share >= TURNS_AT_ALL
+
+    @property
+    def turns(self) -> bool:
+        """The generated motion's turning energy within :data:`ALIVE_RANGE` times the real motion's."""
+        return self.asked and ALIVE_RANGE[0] <= self.turning_ratio <= ALIVE_RANGE[1]
+
+    def verdict(self) -> str:
+        figures = (
+            f"about the vertical at {self.generated_rate:.2f} rad/s, {self.generated_share:.0%} of its energy; the "
+            f"real motion {self.real_rate:.2f} rad/s, {self.real_share:.0%}"
+        )
+        if not self.asked:
+            return (
+                f"generated motion turns as the real motion does: not asked (the real motion hardly turns: {figures})"
+            )
+        return (
+            f"generated motion turns as the real motion does: {'yes' if self.turns else 'no'} ({figures}; the "
+            f"turning's energy {self.turning_ratio:.2g} x the real's, wanted {ALIVE_RANGE[0]:g}-{ALIVE_RANGE[1]:g}; "
+            f"the energy without the turning {self.energy_ratio_without_turning:.2f} x the real's)"
+        )
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "real_rate_rad_s": self.real_rate,
+            "generated_rate_rad_s": self.generated_rate,
+            "real_share": self.real_share,
+            "generated_share": self.generated_share,
+            "turning_ratio": self.turning_ratio,
+            "energy_ratio_without_turning": self.energy_ratio_without_turning,
+            "asked": self.asked,
+            "turns": self.turns,
+        }
 
 
 @dataclass(frozen=True)
@@ -64,6 +146,9 @@ class HeldOutSong:
         rms: the audio's root mean square (full scale 1), for the noise control (None: no noise control).
         beats_per_bar: the music's metre (:mod:`~kinectdata.features.metre`), which the metrical
             levels (bar, two bars) are built from.
+        travel_joint: the joint of ``real_positions`` (and of the generated positions) whose value is
+            the dancer's travel, not a place on the body (the root of root-centred targets): left out
+            of the turning. None: every joint is on the body.
     """
 
     name: str
@@ -75,6 +160,15 @@ class HeldOutSong:
     fps: float
     rms: float | None = None
     beats_per_bar: int = BEATS_PER_BAR
+    travel_joint: int | None = None
+
+    def body_turning(self, positions: np.ndarray, mask: np.ndarray | None = None) -> Turning:
+        """:func:`~kinectdata.evaluation.metrics.turning.turning` of this song's motion [T, J, 3], the
+        travel joint left out."""
+        if self.travel_joint is not None:
+            positions = np.delete(positions, self.travel_joint, axis=1)
+            mask = None if mask is None else np.delete(mask, self.travel_joint, axis=1)
+        return turning(positions, self.fps, mask)
 
 
 @dataclass(frozen=True)
@@ -90,6 +184,8 @@ class Listening:
         shifted: beat following of the motion generated from shifted audio, against the original beats.
         silence_energy_ratio: energy under silence over energy with music.
         energy_ratio: generated motion energy over real motion energy.
+        turning: both motions' turning about the vertical (:class:`TurningFigures`; None for motion in
+            two dimensions, e.g. OpenPose's image positions).
         baselines: Beat Align Score (music direction) of the mean pose with noise and of another
             song's real motion, against each song's beats.
         generated_positions: per song, the generated motion [T-1, J, C] (frames 1..T-1).
@@ -106,6 +202,7 @@ class Listening:
     shifted: BeatFollowing
     silence_energy_ratio: float
     energy_ratio: float
+    turning: TurningFigures | None
     baselines: dict[str, float | None]
     generated_positions: dict[str, np.ndarray] = field(repr=False, default_factory=dict)
     swapped_period_changes: float | None = None
@@ -211,6 +308,8 @@ class Listening:
             f"generated motion is alive: {'yes' if self.alive else 'no'} (energy {self.energy_ratio:.2f} x the real "
             f"motion's; wanted {ALIVE_RANGE[0]:g}-{ALIVE_RANGE[1]:g})"
         )
+        if self.turning is not None:
+            lines.append(self.turning.verdict())
         lines.append(
             f"stops in silence: {'yes' if self.silence_energy_ratio < SILENCE_STOPS else 'no'} (energy "
             f"{self.silence_energy_ratio:.2g} x the energy with music)"
@@ -240,6 +339,7 @@ class Listening:
             "shifted": self.shifted.to_dict(),
             "silence_energy_ratio": self.silence_energy_ratio,
             "energy_ratio": self.energy_ratio,
+            "turning": None if self.turning is None else self.turning.to_dict(),
             "alive": self.alive,
             "listens": self.listens,
             "phase_ratio": self.phase_ratio,
@@ -371,6 +471,14 @@ def listening_report(
             ]
         )
     )
+    turns = (
+        TurningFigures.of(
+            [s.body_turning(s.real_positions, s.real_mask) for s in songs],
+            [s.body_turning(generated_positions[s.name]) for s in songs],
+        )
+        if all(np.shape(s.real_positions)[-1] == 3 for s in songs)
+        else None
+    )
     return Listening(
         real=real,
         generated=generated,
@@ -381,6 +489,7 @@ def listening_report(
         shifted=shifted,
         silence_energy_ratio=float(np.mean(silence)),
         energy_ratio=energy,
+        turning=turns,
         baselines=_baselines(songs, real, rng, draws, seed),
         generated_positions=generated_positions,
         swapped_period_changes=changes,

@@ -31,6 +31,9 @@ for name in cli.COMMAND_MODULES:
 import torch, torch._dynamo, matplotlib.pyplot
 import kinectdata.training.train, kinectdata.evaluation.evaluate, kinectdata.inference.generate
 import kinectdata.viz.render, kinectdata.viz.report, kinectdata.dataset.build
+# librosa compiles its numba kernels when these are imported (about 5 s in every process that tracks
+# beats: evaluate, the metre, the listen-to-dance pulse), which its own cache does not save
+import librosa.beat, librosa.onset
 
 requests = os.fdopen(0, "r")
 replies = os.fdopen(int(sys.argv[1]), "w", buffering=1)

@@ -449,3 +449,15 @@ def test_a_geometric_feature_is_described_by_what_sets_it():
     changed = np.flatnonzero(M.geometric_features(stretched) != still)
     described = [i for i in range(32) if M.describe_feature(i).startswith("chest moving along belly->chest")]
     assert described == [4, 5] and set(described) <= set(changed.tolist())
+
+
+def test_a_huge_figure_keeps_the_tables_columns_apart():
+    """FID_g reaches 1e15 when a geometric feature never changes in the reference set; printed in
+    fixed point, it ran into its interval's column ("1412944216380743.5091.59 - ...")."""
+    from kinectdata.evaluation.field_scores import Interval, MetricRow
+
+    scores = score_sets(_sequences("gen"), _sequences("gt"), PROTOCOLS["bailando"], bootstrap=0)
+    huge = MetricRow("FID_g", "lower", 1.4129442e15, interval=Interval(91.59, 4.1795e15, 0.95, 100))
+    scores.metrics[:] = [huge]
+    line = next(row for row in scores.table().splitlines() if row.startswith("FID_g "))
+    assert line.split() == ["FID_g", "lower", "1.413e+15", "91.59", "-", "4.18e+15", "-"], line

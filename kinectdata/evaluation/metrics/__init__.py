@@ -5,7 +5,8 @@
 - :mod:`.distribution`: FID and diversity over sets of those features, bootstrap intervals;
 - :mod:`.beat_alignment`: the Beat Align Score as the peers compute it, both directions;
 - :mod:`.foot_contact`: EDGE's physical foot contact score;
-- :mod:`.quality`: bone-length consistency and jitter (jerk).
+- :mod:`.quality`: bone-length consistency and jitter (jerk);
+- :mod:`.turning`: how fast the body turns about the vertical, and its share of the motion's energy.
 
 Definitions, sources and the fixtures that prove them: docs/metrics.md.
 """
@@ -27,6 +28,7 @@ from kinectdata.evaluation.metrics.geometric import describe_feature, geometric_
 from kinectdata.evaluation.metrics.kinetic import kinetic_features
 from kinectdata.evaluation.metrics.pose_error import motion_energy, smape
 from kinectdata.evaluation.metrics.quality import bone_length_variation, mean_jerk
+from kinectdata.evaluation.metrics.turning import Turning, turning, turning_rates
 
 __all__ = [
     "bone_length_variation",
@@ -46,4 +48,7 @@ __all__ = [
     "physical_foot_contact",
     "smape",
     "standardise_by_reference",
+    "Turning",
+    "turning",
+    "turning_rates",
 ]
