@@ -66,6 +66,18 @@ def _centred(points: np.ndarray, weight: np.ndarray) -> np.ndarray:
     return (points - centre) * weight[..., None]
 
 
+def _angles(both: np.ndarray, before: np.ndarray, after: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Per frame pair, the least-squares turn angle [T-2] (NaN where fewer than two joints are valid
+    in both frames) and the first frame's centred horizontal points [T-2, J, 2] it turns."""
+    weight = both.astype(np.float64)
+    p, q = _centred(before, weight), _centred(after, weight)
+    cross = (p[..., 0] * q[..., 1] - p[..., 1] * q[..., 0]).sum(axis=1)
+    dot = (p[..., 0] * q[..., 0] + p[..., 1] * q[..., 1]).sum(axis=1)
+    angle = np.arctan2(cross, dot)
+    angle[both.sum(axis=1) < 2] = np.nan
+    return angle, p
+
+
 def turning_rates(positions: np.ndarray, fps: float, mask: np.ndarray | None = None, up_axis: int = 1) -> np.ndarray:
     """Per frame 1..T-2, the body's turning speed about the up axis, rad/s.
 
@@ -81,13 +93,7 @@ def turning_rates(positions: np.ndarray, fps: float, mask: np.ndarray | None = N
         z); NaN where fewer than two joints are valid in both frames.
     """
     _, both, before, after = _pairs(positions, mask, up_axis)
-    weight = both.astype(np.float64)
-    p, q = _centred(before, weight), _centred(after, weight)
-    cross = (p[..., 0] * q[..., 1] - p[..., 1] * q[..., 0]).sum(axis=1)
-    dot = (p[..., 0] * q[..., 0] + p[..., 1] * q[..., 1]).sum(axis=1)
-    angle = np.arctan2(cross, dot)
-    angle[both.sum(axis=1) < 2] = np.nan
-    return angle * fps / 2
+    return _angles(both, before, after)[0] * fps / 2
 
 
 def turning(positions: np.ndarray, fps: float, mask: np.ndarray | None = None, up_axis: int = 1) -> Turning:
@@ -104,12 +110,11 @@ def turning(positions: np.ndarray, fps: float, mask: np.ndarray | None = None, u
         averaged over the frames and joints valid in both neighbours. The turning's part moves each
         joint by the chord the frame's rigid turn carries it along, about the frame's centre.
     """
-    pos, both, before, _ = _pairs(positions, mask, up_axis)
+    pos, both, before, after = _pairs(positions, mask, up_axis)
     if not both.any():
         raise KinectDataError("turning: no joint is valid in two frames two apart")
-    rates = turning_rates(pos, fps, mask, up_axis)
-    angle = np.nan_to_num(rates * 2 / fps)
-    p = _centred(before, both.astype(np.float64))
+    angles, p = _angles(both, before, after)
+    rates, angle = angles * fps / 2, np.nan_to_num(angles)
     cos, sin = np.cos(angle)[:, None], np.sin(angle)[:, None]
     turned = np.stack([cos * p[..., 0] - sin * p[..., 1], sin * p[..., 0] + cos * p[..., 1]], axis=-1)
     carried = ((turned - p) ** 2).sum(axis=2) * (fps / 2) ** 2
