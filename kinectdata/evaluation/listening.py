@@ -43,6 +43,7 @@ from kinectdata.evaluation.beat_following import (
     level_beats,
     metrical_level,
 )
+from kinectdata.evaluation.metrics.pose_error import motion_energy_per_s
 from kinectdata.evaluation.metrics.turning import Turning, turning
 
 ALIVE_RANGE = (0.5, 2.0)
@@ -351,20 +352,6 @@ class Listening:
             "baselines": self.baselines,
             "verdicts": self.verdicts(),
         }
-
-
-def motion_energy_per_s(positions: np.ndarray, mask: np.ndarray | None, fps: float) -> float:
-    """Mean squared joint speed, (units / s)^2: central-difference velocities of [T, J, C]
-    positions, averaged over the joints and frames where the joint and both neighbours are valid."""
-    pos = np.asarray(positions, np.float64)
-    valid = np.isfinite(pos).all(axis=2) if mask is None else np.asarray(mask, bool) & np.isfinite(pos).all(axis=2)
-    if pos.shape[0] < 3:
-        raise KinectDataError(f"motion energy needs at least 3 frames, got {pos.shape[0]}")
-    velocity = (pos[2:] - pos[:-2]) * fps / 2
-    ok = valid[2:] & valid[:-2]
-    if not ok.any():
-        raise KinectDataError("motion energy: no joint is valid in two frames two apart")
-    return float((velocity**2).sum(axis=2)[ok].mean())
 
 
 def listening_report(

@@ -17,7 +17,7 @@ from pathlib import Path
 from kinectdata.core.errors import KinectDataError
 from kinectdata.evaluation.beat_following import BeatFollowing, RecordingBeats, beat_following
 from kinectdata.evaluation.evaluate import split_songs
-from kinectdata.evaluation.listening import motion_energy_per_s
+from kinectdata.evaluation.metrics.pose_error import motion_energy_per_s
 from kinectdata.models.run import load_model
 
 

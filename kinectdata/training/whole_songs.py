@@ -2,7 +2,7 @@
 epoch is chosen by (``TrainConfig.keep``) and ``log.csv``'s ``val_energy``.
 
 It is the energy ``kinectdata evaluate`` gives its alive verdict
-(:func:`kinectdata.evaluation.listening.motion_energy_per_s`: mean squared joint speed of the body's
+(:func:`kinectdata.evaluation.metrics.pose_error.motion_energy_per_s`: mean squared joint speed of the body's
 positions), of each song run free from its first pose to its end, over the real motion's, averaged
 over the songs. Measured on windows run free from a true pose instead, the cdhc model on tang2018
 moved at 0.36 x in an epoch whose whole songs moved at 0.07 x: a model that settles after some
@@ -19,7 +19,7 @@ import numpy as np
 
 from kinectdata.core.errors import KinectDataError
 from kinectdata.evaluation.evaluate import body_positions, split_recordings
-from kinectdata.evaluation.listening import motion_energy_per_s
+from kinectdata.evaluation.metrics.pose_error import motion_energy_per_s
 from kinectdata.models.kind import ModelKind
 from kinectdata.targets.normalization import Normalizer
 from kinectdata.targets.specs import TargetSpec

@@ -26,7 +26,7 @@ from kinectdata.evaluation.metrics.distribution import (
 from kinectdata.evaluation.metrics.foot_contact import foot_contact_score, physical_foot_contact
 from kinectdata.evaluation.metrics.geometric import describe_feature, geometric_features
 from kinectdata.evaluation.metrics.kinetic import kinetic_features
-from kinectdata.evaluation.metrics.pose_error import motion_energy, smape
+from kinectdata.evaluation.metrics.pose_error import motion_energy, motion_energy_per_s, smape
 from kinectdata.evaluation.metrics.quality import bone_length_variation, mean_jerk
 from kinectdata.evaluation.metrics.turning import Turning, turning, turning_rates
 
@@ -42,6 +42,7 @@ __all__ = [
     "kinetic_features",
     "mean_jerk",
     "motion_energy",
+    "motion_energy_per_s",
     "music_beat_frames",
     "peer_beat_align_score",
     "peer_motion_beats",

@@ -8,7 +8,7 @@ model whose output never turns can only make up that speed with other motion, or
 The turn between two frames is the 2-D rotation about the up axis that best maps one frame's
 horizontal joint positions onto the other's, both centred on their own mean (the least-squares
 angle of the orthogonal Procrustes problem in the plane: Kabsch 1976, in two dimensions). Frames
-are taken two apart (t-1 and t+1), as :func:`~kinectdata.evaluation.listening.motion_energy_per_s`
+are taken two apart (t-1 and t+1), as :func:`~kinectdata.evaluation.metrics.pose_error.motion_energy_per_s`
 takes its central-difference speeds, so that the two figures share their frames and joints.
 """
 
@@ -19,6 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from kinectdata.core.errors import KinectDataError
+from kinectdata.evaluation.metrics.pose_error import motion_energy_per_s
 
 __all__ = ["Turning", "turning", "turning_rates"]
 
@@ -29,7 +30,7 @@ class Turning:
 
     Attributes:
         rate: mean absolute turning speed about the up axis, rad/s.
-        energy: mean squared joint speed, (units / s)^2, as ``motion_energy_per_s`` computes it.
+        energy: mean squared joint speed, (units / s)^2 (:func:`motion_energy_per_s`).
         turning_energy: the part of ``energy`` a rigid turn at each frame's rate explains: the mean
             squared speed of each joint carried round the frame's centre by the turn alone.
     """
@@ -118,9 +119,8 @@ def turning(positions: np.ndarray, fps: float, mask: np.ndarray | None = None, u
     cos, sin = np.cos(angle)[:, None], np.sin(angle)[:, None]
     turned = np.stack([cos * p[..., 0] - sin * p[..., 1], sin * p[..., 0] + cos * p[..., 1]], axis=-1)
     carried = ((turned - p) ** 2).sum(axis=2) * (fps / 2) ** 2
-    speed = ((np.nan_to_num(pos[2:] - pos[:-2]) * fps / 2) ** 2).sum(axis=2)
     return Turning(
         rate=float(np.nanmean(np.abs(rates))) if np.isfinite(rates).any() else float("nan"),
-        energy=float(speed[both].mean()),
+        energy=motion_energy_per_s(pos, mask, fps),
         turning_energy=float(carried[both].mean()),
     )
