@@ -10,6 +10,11 @@ which the next write of the same destination removes (its process is gone: :func
 On any error the temporary file is removed and the destination is left as it was; a write that
 fails because the disk is full (or the file outgrows what the process may write) is raised as a
 :class:`~kinectdata.core.errors.KinectDataError` naming the destination.
+
+``KINECTDATA_FSYNC=0`` in the environment skips the flushes (:func:`durable`): the writes stay
+atomic (a killed process still leaves the old output or the new one), but a power cut may leave a
+renamed output empty. For scratch disks and test suites, where the flushes are most of the time of
+writing many small files (the test suite sets it).
 """
 
 from __future__ import annotations
@@ -55,9 +60,24 @@ def write_failure(path: str | os.PathLike[str], exc: BaseException) -> KinectDat
     )
 
 
+def durable() -> bool:
+    """Whether writes are flushed to disk: True unless ``KINECTDATA_FSYNC`` is ``0``, ``off`` or
+    ``false`` (read at each call, so that a process can change it)."""
+    return os.environ.get("KINECTDATA_FSYNC", "1").strip().lower() not in ("0", "off", "false")
+
+
+def flush_file(path: str | os.PathLike[str]) -> None:
+    """Flush a written file's contents to disk (a no-op when not :func:`durable`)."""
+    if not durable():
+        return
+    with open(path, "rb") as f:
+        os.fsync(f.fileno())
+
+
 def sync_folder(folder: str | os.PathLike[str]) -> None:
-    """Flush a folder's entries (renames, removals) to disk; a no-op where folders cannot be opened."""
-    if os.name != "posix":
+    """Flush a folder's entries (renames, removals) to disk; a no-op where folders cannot be opened
+    and when not :func:`durable`."""
+    if os.name != "posix" or not durable():
         return
     fd = os.open(folder, os.O_RDONLY)
     try:
@@ -113,8 +133,7 @@ def atomic_output(path: str | os.PathLike[str]) -> Iterator[Path]:
     os.chmod(tmp, 0o666 & ~_umask())  # mkstemp makes 0600; outputs should follow the user's umask
     try:
         yield tmp
-        with open(tmp, "rb") as f:
-            os.fsync(f.fileno())
+        flush_file(tmp)
         os.replace(tmp, path)
         sync_folder(path.parent)
     except BaseException as exc:

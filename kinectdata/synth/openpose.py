@@ -37,6 +37,7 @@ import numpy as np
 from scipy.interpolate import CubicSpline
 from scipy.spatial.transform import Rotation
 
+from kinectdata.core.atomic import durable, flush_file, sync_folder
 from kinectdata.core.errors import KinectDataError
 from kinectdata.synth.dancer import Body, make_body
 from kinectdata.synth.recording import AUDIO_FORMATS, SynthRecording, regeneration_command, write_audio, write_truth
@@ -519,15 +520,20 @@ def write_openpose_folder(video: OpenPoseVideo, folder: str | Path, stem: str) -
 
 
 def _fsync(folder: Path) -> None:
-    """Flush a folder's files and the folder itself to disk (before it is renamed into place)."""
+    """Flush a folder's files and the folder itself to disk (before it is renamed into place).
+
+    One ``os.sync`` where there is one (POSIX): it flushes every written file at once, where a
+    ``fsync`` per file commits the file system's journal once per file (1 800 keypoint files:
+    about 3 s against 0.02 s on a virtual disk). Nothing when writes are not
+    :func:`~kinectdata.core.atomic.durable`."""
+    if not durable():
+        return
+    if hasattr(os, "sync"):
+        os.sync()
+        return
     for path in folder.iterdir():
-        with open(path, "rb") as f:
-            os.fsync(f.fileno())
-    fd = os.open(folder, os.O_RDONLY)
-    try:
-        os.fsync(fd)
-    finally:
-        os.close(fd)
+        flush_file(path)
+    sync_folder(folder)
 
 
 def write_openpose_recording(

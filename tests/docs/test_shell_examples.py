@@ -72,10 +72,10 @@ SHRINK = {
     ],
     "kinectdata render": ["--fps", "5", "--size", "160x120"],
     "kinectdata render take_body.json --over": [],  # the take's 60 depth frames at their own rate and size
-    "kinectdata synth ltd": ["--duration", "20"],
+    "kinectdata synth ltd": ["--duration", "10"],
 }
 """Options appended to commands that start so (the last value of an option wins), to keep the
-suite short: one epoch of short sequences instead of a full training, 20 s songs instead of 30 s
+suite short: one epoch of short sequences instead of a full training, 10 s songs instead of 30 s
 for the OpenPose sessions the listen-to-dance examples train and evaluate on."""
 
 

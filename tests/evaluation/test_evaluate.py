@@ -75,6 +75,16 @@ def stream(run):
 
 
 @pytest.fixture(scope="module")
+def generated(trained_run, tmp_path_factory):
+    """(motion, timing, CSV file) of generate on SONG with the trained run: one generation for the
+    tests that check what it computed, what it wrote and what ONNX Runtime gives (none changes it)."""
+    run, _ = trained_run
+    path = tmp_path_factory.mktemp("generated") / "dance.csv"
+    motion, timing = generate(run, SONG, path)
+    return motion, timing, path
+
+
+@pytest.fixture(scope="module")
 def evaluation(trained_run, sample_dataset, tmp_path_factory):
     run, _ = trained_run
     out = tmp_path_factory.mktemp("evaluation")
@@ -213,9 +223,9 @@ def test_evaluate_refuses_a_dataset_with_other_targets(trained_run, sample_datas
     assert not (tmp_path / "e").exists()
 
 
-def test_generate_streams_what_the_sequence_model_computes_offline(trained_run, tmp_path):
+def test_generate_streams_what_the_sequence_model_computes_offline(trained_run, generated):
     run, _ = trained_run
-    motion, timing = generate(run, SONG, tmp_path / "dance.csv")
+    motion, timing, _ = generated
     net, config = load_model(run)
     data = config["dataset"]
     audio = load_audio(SONG, data["sample_rate"]).samples
@@ -235,11 +245,11 @@ def test_generate_streams_what_the_sequence_model_computes_offline(trained_run, 
     np.testing.assert_allclose(np.linalg.norm(got_q, axis=-1), 1.0, atol=1e-9)
 
 
-def test_generate_with_onnx_runtime_gives_the_torch_motion(trained_run):
+def test_generate_with_onnx_runtime_gives_the_torch_motion(trained_run, generated):
     if not onnxruntime_available():
         pytest.skip("onnxruntime and onnxscript not installed")
     run, _ = trained_run
-    a, _ = generate(run, SONG)
+    a, _, _ = generated  # the torch engine's motion
     b, timing = generate(run, SONG, engine="onnxruntime")
     np.testing.assert_allclose(b.positions, a.positions, atol=1e-5)
     np.testing.assert_allclose(b.orientations, a.orientations, atol=1e-5)
@@ -248,10 +258,9 @@ def test_generate_with_onnx_runtime_gives_the_torch_motion(trained_run):
         generate(run, SONG, engine="onnxruntime", precision="float16")
 
 
-def test_generated_csv_reads_back_and_aligns(trained_run, tmp_path):
-    run, _ = trained_run
-    motion, _ = generate(run, SONG, tmp_path / "dance.csv")
-    back = read_motion(tmp_path / "dance.csv")
+def test_generated_csv_reads_back_and_aligns(generated, tmp_path):
+    motion, _, written = generated
+    back = read_motion(written)
     assert back.joint_set.name == "kinect_v2" and back.n_frames == motion.n_frames
     comments = back.metadata["file_metadata"]
     assert comments["generated_by"] == "kinectdata generate" and comments["target_spec"] == "yalta65"
@@ -266,7 +275,7 @@ def test_generated_csv_reads_back_and_aligns(trained_run, tmp_path):
     )
     q = back.orientations[:, js.index("ElbowLeft")]
     np.testing.assert_allclose(np.linalg.norm(q, axis=-1), 1.0, atol=1e-5)
-    rec = align_files(tmp_path / "dance.csv", SONG, tmp_path / "dance.h5", offset=0.0)
+    rec = align_files(written, SONG, tmp_path / "dance.h5", offset=0.0)
     assert rec.n_frames == motion.n_frames and (tmp_path / "dance.h5").is_file()
 
 

@@ -85,9 +85,9 @@ def test_the_checkpoint_digest_covers_every_tensor_byte_and_value():
     assert state_digest({**state, "epoch": 4}) != state_digest(state)
 
 
-def test_resume_refuses_a_damaged_checkpoint_and_keeps_the_model(sample_dataset, tmp_path):
+def test_resume_refuses_a_damaged_checkpoint_and_keeps_the_model(trained_run, sample_dataset, tmp_path):
     run = tmp_path / "run"
-    train(sample_dataset, run, TrainConfig(**TINY_TRAINING))
+    shutil.copytree(trained_run[0], run)  # a TINY_TRAINING run of sample_dataset, damaged below
     model_before = (run / "model.pt").read_bytes()
     checkpoint = run / "checkpoint.pt"
     state = load_checkpoint(checkpoint)
