@@ -10,6 +10,7 @@ from __future__ import annotations
 import functools
 import io
 import json
+import math
 import pickle
 import shutil
 from dataclasses import dataclass
@@ -308,19 +309,24 @@ others lack a file, as the public mirror lacks some blobs, or hold one empty."""
 
 def write_tang2018_dance(folder: Path, dance: MadeDance, frames: int, seed: int) -> None:
     """One ``DANCE_<style>_<n>/`` folder: config.json, skeletons.json, audio.mp3 (the sample's music
-    from its start, long enough to hold the dance's span and a second more), less what is absent."""
+    from its start, long enough to hold the dance's span and a second more, in whole steps of
+    :data:`AUDIO_STEP_S`), less what is absent."""
     folder.mkdir(parents=True, exist_ok=True)
     end = dance.start + frames + dance.extra
     files = {
         "config.json": lambda p: p.write_text(json.dumps({"start_position": dance.start, "end_position": end})),
         "skeletons.json": lambda p: p.write_text(json.dumps(tang2018_dance(frames, seed))),
-        "audio.mp3": lambda p: _write_mp3(p, dance.music, end / 25.0 + 1.0),
+        "audio.mp3": lambda p: _write_mp3(p, dance.music, AUDIO_STEP_S * math.ceil((end / 25.0 + 1.0) / AUDIO_STEP_S)),
     }
     for name, write in files.items():
         if name in dance.empty:
             (folder / name).write_bytes(b"")
         elif name not in dance.absent:
             write(folder / name)
+
+
+AUDIO_STEP_S = 4.0
+"""The copies' songs are cut to multiples of 4 s, so that dances of one sample share an encoding."""
 
 
 def _write_mp3(path: Path, sample: str, seconds: float) -> None:

@@ -31,6 +31,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from kinectdata.core.errors import KinectDataError
+from kinectdata.evaluation.beat_scores_rows import beat_align_scores, beat_fmeasures
 from kinectdata.evaluation.rhythm import (
     BEAT_ALIGN_SIGMA_S,
     DRIFT_WINDOW_S,
@@ -510,11 +511,10 @@ def beat_following(recordings: Sequence[RecordingBeats], *, draws: int = CHANCE_
     rng = np.random.default_rng(seed)
     shifted = np.zeros((3, draws, n))
     for i, (rec, rhythm) in enumerate(zip(recordings, rhythms)):
-        for k, phase in enumerate(rng.uniform(0, rhythm.beat_period_s, draws)):
-            music = _wrapped(rec, phase)
-            shifted[0, k, i] = _bas(music, rhythm.beat_times_s, "music_to_motion")
-            shifted[1, k, i] = _bas(music, rhythm.beat_times_s, "motion_to_music")
-            shifted[2, k, i] = motion_beat_fmeasure(music, rhythm.beat_times_s, FMEASURE_WINDOW_S) if music.size else 0
+        music = _wrapped(rec, rng.uniform(0, rhythm.beat_period_s, draws))
+        shifted[0, :, i] = beat_align_scores(music, rhythm.beat_times_s, BEAT_ALIGN_SIGMA_S, "music_to_motion")
+        shifted[1, :, i] = beat_align_scores(music, rhythm.beat_times_s, BEAT_ALIGN_SIGMA_S, "motion_to_music")
+        shifted[2, :, i] = beat_fmeasures(music, rhythm.beat_times_s, FMEASURE_WINDOW_S)
     observed = np.array(
         [[r.beat_align_music for r in rhythms], [r.beat_align_motion for r in rhythms], [r.f_measure for r in rhythms]]
     )
@@ -636,11 +636,12 @@ def _shifted_figure(value: float, draws: np.ndarray) -> ChanceFigure:
     )
 
 
-def _wrapped(rec: RecordingBeats, phase: float) -> np.ndarray:
-    """The recording's music beats inside its span, shifted by ``phase`` s and wrapped around the span."""
+def _wrapped(rec: RecordingBeats, phases: np.ndarray) -> np.ndarray:
+    """The recording's music beats inside its span [B], shifted by each of ``phases`` [D] s and
+    wrapped around the span: [D, B], each row increasing."""
     lo, hi = rec.span_s
     inside = rec.beats_inside()
-    return np.sort(lo + np.mod(inside + phase - lo, hi - lo + 1 / rec.fps))
+    return np.sort(lo + np.mod(inside[None, :] + phases[:, None] - lo, hi - lo + 1 / rec.fps), axis=1)
 
 
 def _matches(period_s: float | None, beat_period: float) -> bool:
