@@ -2,8 +2,9 @@
 
 The chance levels of :func:`kinectdata.evaluation.beat_following.beat_following` score each motion
 against its music's beats shifted by a thousand random phases. Scored one set at a time that is a
-thousand calls per recording and figure; here each figure is one array computation over the sets,
-equal row by row to :func:`~kinectdata.evaluation.rhythm.beat_align_score` and
+thousand calls per recording and figure; here the sets are scored together (a sorted search for
+the nearest beats, one pass over the motion beats for the F-measure's matching), equal row by row
+to :func:`~kinectdata.evaluation.rhythm.beat_align_score` and
 :func:`~kinectdata.evaluation.rhythm.motion_beat_fmeasure` (``mir_eval.beat.f_measure``), which
 tests/evaluation/test_beat_scores_rows.py checks against them.
 """
@@ -31,12 +32,9 @@ def beat_align_scores(music_rows: np.ndarray, motion_beats_s: np.ndarray, sigma_
         :func:`~kinectdata.evaluation.beat_following.beat_following` counts for a recording
         without beats).
     """
-    music = np.asarray(music_rows, dtype=np.float64)
-    motion = np.asarray(motion_beats_s, dtype=np.float64)
+    music, motion = _sorted_beats(music_rows, motion_beats_s)
     if direction not in BAS_DIRECTIONS:
         raise KinectDataError(f"Beat Align Score direction must be one of {BAS_DIRECTIONS}, got {direction!r}")
-    if music.ndim != 2 or motion.ndim != 1:
-        raise KinectDataError(f"beat rows must be [D, B] and motion beats [K], got {music.shape} and {motion.shape}")
     if music.shape[1] == 0 or motion.size == 0:
         return np.zeros(music.shape[0])
     if direction == "music_to_motion":
@@ -64,8 +62,7 @@ def beat_fmeasures(music_rows: np.ndarray, motion_beats_s: np.ndarray, window_s:
     Returns:
         [D] F-measures in 0..1; 0 where either set is empty.
     """
-    music = np.asarray(music_rows, dtype=np.float64)
-    motion = np.asarray(motion_beats_s, dtype=np.float64)
+    music, motion = _sorted_beats(music_rows, motion_beats_s)
     rows, size = music.shape
     if size == 0 or motion.size == 0:
         return np.zeros(rows)
@@ -81,6 +78,17 @@ def beat_fmeasures(music_rows: np.ndarray, motion_beats_s: np.ndarray, window_s:
     precision, recall = matched / motion.size, matched / size
     with np.errstate(invalid="ignore"):
         return np.where(matched > 0, 2 * precision * recall / (precision + recall), 0.0)
+
+
+def _sorted_beats(music_rows, motion_beats_s) -> tuple[np.ndarray, np.ndarray]:
+    """[D, B] and [K] float64 beat times, each row and the motion beats increasing."""
+    music = np.asarray(music_rows, dtype=np.float64)
+    motion = np.asarray(motion_beats_s, dtype=np.float64)
+    if music.ndim != 2 or motion.ndim != 1:
+        raise KinectDataError(f"beat rows must be [D, B] and motion beats [K], got {music.shape} and {motion.shape}")
+    if (np.diff(music, axis=1) < 0).any() or (np.diff(motion) < 0).any():
+        raise KinectDataError("beat times must be in increasing order within each set")
+    return music, motion
 
 
 def _nearest_gap(beats: np.ndarray, sorted_beats: np.ndarray) -> np.ndarray:

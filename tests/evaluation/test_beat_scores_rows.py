@@ -56,6 +56,8 @@ def test_empty_sets_score_zero_and_a_bad_direction_is_refused():
     assert beat_align_scores(music[:, :0], np.array([1.0]), 0.05, "music_to_motion").tolist() == [0.0] * 5
     with pytest.raises(KinectDataError, match="direction"):
         beat_align_scores(music, np.array([1.0]), 0.05, "sideways")
+    with pytest.raises(KinectDataError, match="increasing order"):
+        beat_fmeasures(music, np.array([2.0, 1.0]), 0.1)
 
 
 def test_crowded_beats_match_as_mir_eval_matches_them():
