@@ -73,6 +73,17 @@ class YaltaConfig:
         return cls(**{**d, "input_shape": tuple(d.get("input_shape", (1, 129, 5)))})
 
 
+def _each_distinct_frame_once(convs: nn.Module, frames: torch.Tensor) -> torch.Tensor:
+    """``convs(frames)`` [N, ...] with each distinct frame (equal bytes) computed once: the
+    convolutions act on each frame alone (batch normalisation from its running statistics)."""
+    flat = np.ascontiguousarray(frames.reshape(frames.shape[0], -1).cpu().numpy())
+    keys = flat.view(np.dtype((np.void, flat.shape[1] * flat.itemsize))).ravel()
+    _, first, inverse = np.unique(keys, return_index=True, return_inverse=True)
+    if first.size == frames.shape[0]:
+        return convs(frames)
+    return convs(frames[torch.from_numpy(first)])[torch.from_numpy(inverse.reshape(-1))]
+
+
 class YaltaNet(nn.Module):
     """The network for training and sequence evaluation (see the module docstring)."""
 
@@ -91,9 +102,16 @@ class YaltaNet(nn.Module):
         self.fc2 = nn.Linear(config.units, config.output_dim)
 
     def encode(self, audio: torch.Tensor, state=None):
-        """[B, T, 1, 129, 5] features -> ([B, T, 65] fc1 codes, LSTM1-3 state)."""
+        """[B, T, 1, 129, 5] features -> ([B, T, 65] fc1 codes, LSTM1-3 state).
+
+        Outside training (evaluation mode, no gradient) the convolutions see each distinct frame
+        once: a batch's padding, a silent song's frames and repeated inputs cost one frame each."""
         b, t = audio.shape[:2]
-        codes = self.convs(audio.reshape(b * t, *audio.shape[2:])).reshape(b, t, CODE)
+        frames = audio.reshape(b * t, *audio.shape[2:])
+        if self.training or torch.is_grad_enabled():
+            codes = self.convs(frames).reshape(b, t, CODE)
+        else:
+            codes = _each_distinct_frame_once(self.convs, frames).reshape(b, t, CODE)
         hidden, state = self.lstm1(codes, state)
         return self.fc1(hidden), state
 

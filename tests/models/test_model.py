@@ -110,6 +110,23 @@ def test_recordings_run_free_together_equal_each_run_alone(reset_every):
         np.testing.assert_allclose(poses, free_run(net, audio, first, reset_every), rtol=0, atol=1e-6)
 
 
+def test_outside_training_each_distinct_frame_is_convolved_once():
+    """A song of one repeated frame (silence) and the zero padding of a shorter song: the codes
+    are those every frame convolved gives (the path training takes), from far fewer frames."""
+    net = make_net()
+    audio = features(12, batch=3)
+    audio[1] = audio[1, 0]  # one frame throughout
+    audio[2, 5:] = 0  # padding
+    seen = []
+    net.convs[0].register_forward_hook(lambda module, inputs, output: seen.append(inputs[0].shape[0]))
+    with torch.no_grad():
+        codes, _ = net.encode(audio)
+    with torch.enable_grad():
+        every_frame, _ = net.encode(audio)
+    torch.testing.assert_close(codes, every_frame.detach(), rtol=0, atol=1e-6)
+    assert seen == [12 + 1 + 5 + 1, 36]
+
+
 def test_outputs_are_causal_in_the_audio():
     net = make_net()
     audio = features(10, batch=1)
