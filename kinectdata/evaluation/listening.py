@@ -401,14 +401,34 @@ def listening_report(
     generated_positions = {s.name: given[s.name] if s.name in given else made[s.name] for s in songs}
     generated = following([(s.name, generated_positions[s.name], None, s) for s in songs], 1)
 
-    swapped = follows_new = follows_old = changes = None
+    # every control's runs in one call: a model whose runs share work across songs (the yalta
+    # model convolves each distinct frame once) finds the swapped and shifted songs' frames together
     partners = _swap_partners(songs, real, generated.dominant_level)
+    lengths = [min(len(songs[i].features), len(songs[j].features)) for i, j in partners]
+    swap_jobs = [(songs[j].features[:n], songs[i].first_pose) for (i, j), n in zip(partners, lengths)]
+    noisy = []
+    if all(s.rms is not None for s in songs):
+        for s in songs:
+            audio = rng.normal(0.0, s.rms, _samples_for(s, features_of)).astype(np.float32)
+            noisy.append((features_of(audio)[: len(s.features)], s.first_pose))
+    rolled = []
+    for s, rhythm in zip(songs, real.recordings):
+        frames = len(s.features)
+        shift = int(round((MIN_SHIFT_S + rng.uniform(0.25, 0.75) * rhythm.beat_period_s) * s.fps))
+        shift = shift % frames if frames > 2 * shift else max(1, frames // 3)
+        rolled.append((np.roll(s.features, shift, axis=0), s.first_pose))
+    silent = [features_of(np.zeros(_samples_for(s, features_of), np.float32))[: len(s.features)] for s in songs]
+    quiet = [(f, s.first_pose) for f, s in zip(silent, songs)]
+    made_runs = iter(run_all(swap_jobs + noisy + rolled + quiet))
+    swap_motions, noise_motions, rolled_motions, quiet_motions = (
+        [next(made_runs) for _ in jobs] for jobs in (swap_jobs, noisy, rolled, quiet)
+    )
+
+    swapped = follows_new = follows_old = changes = None
     if partners:
-        lengths = [min(len(songs[i].features), len(songs[j].features)) for i, j in partners]
-        motions = run_all([(songs[j].features[:n], songs[i].first_pose) for (i, j), n in zip(partners, lengths)])
         runs = [
             (f"{songs[i].name} with {songs[j].name}'s music", motion, None, songs[j], songs[i])
-            for (i, j), motion in zip(partners, motions)
+            for (i, j), motion in zip(partners, swap_motions)
         ]
         swapped = following([(n, p, m, s) for n, p, m, s, _ in runs], 1)
         follows_new = float(np.mean([r.in_metre for r in swapped.recordings]))
@@ -426,27 +446,10 @@ def listening_report(
                 [_changed(r.period.period_s, own[songs[i].name]) for r, (i, _) in zip(swapped.recordings, partners)]
             )
         )
-
-    noise = None
-    if all(s.rms is not None for s in songs):
-        noisy = []
-        for s in songs:
-            audio = rng.normal(0.0, s.rms, _samples_for(s, features_of)).astype(np.float32)
-            noisy.append((features_of(audio)[: len(s.features)], s.first_pose))
-        noise = following([(s.name, m, None, s) for s, m in zip(songs, run_all(noisy))], 1)
-
-    rolled = []
-    for s, rhythm in zip(songs, real.recordings):
-        frames = len(s.features)
-        shift = int(round((MIN_SHIFT_S + rng.uniform(0.25, 0.75) * rhythm.beat_period_s) * s.fps))
-        shift = shift % frames if frames > 2 * shift else max(1, frames // 3)
-        rolled.append((np.roll(s.features, shift, axis=0), s.first_pose))
-    shifted = following([(s.name, m, None, s) for s, m in zip(songs, run_all(rolled))], 1)
-
-    silent = [features_of(np.zeros(_samples_for(s, features_of), np.float32))[: len(s.features)] for s in songs]
-    quiet = [(f, s.first_pose) for f, s in zip(silent, songs)]
+    noise = following([(s.name, m, None, s) for s, m in zip(songs, noise_motions)], 1) if noisy else None
+    shifted = following([(s.name, m, None, s) for s, m in zip(songs, rolled_motions)], 1)
     silence = []
-    for s, still in zip(songs, run_all(quiet)):
+    for s, still in zip(songs, quiet_motions):
         moving = generated_positions[s.name]
         silence.append(motion_energy_per_s(still[_settle(s) :], None, s.fps) / motion_energy_per_s(moving, None, s.fps))
     energy = float(
