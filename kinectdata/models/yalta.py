@@ -75,7 +75,10 @@ class YaltaConfig:
 
 def _each_distinct_frame_once(convs: nn.Module, frames: torch.Tensor) -> torch.Tensor:
     """``convs(frames)`` [N, ...] with each distinct frame (equal bytes) computed once: the
-    convolutions act on each frame alone (batch normalisation from its running statistics)."""
+    convolutions act on each frame alone (batch normalisation from its running statistics). On a
+    GPU, or in a dtype numpy has not, every frame is convolved: finding the repeats would cost more."""
+    if frames.device.type != "cpu" or frames.dtype not in (torch.float32, torch.float64, torch.float16):
+        return convs(frames)
     flat = np.ascontiguousarray(frames.reshape(frames.shape[0], -1).cpu().numpy())
     keys = flat.view(np.dtype((np.void, flat.shape[1] * flat.itemsize))).ravel()
     _, first, inverse = np.unique(keys, return_index=True, return_inverse=True)

@@ -125,6 +125,10 @@ def test_outside_training_each_distinct_frame_is_convolved_once():
         every_frame, _ = net.encode(audio)
     torch.testing.assert_close(codes, every_frame.detach(), rtol=0, atol=1e-6)
     assert seen == [12 + 1 + 5 + 1, 36]
+    seen.clear()
+    with torch.no_grad():  # a dtype numpy has not: every frame, as before
+        half, _ = net.to(torch.bfloat16).encode(audio.to(torch.bfloat16))
+    assert seen == [36] and half.dtype == torch.bfloat16
 
 
 def test_outputs_are_causal_in_the_audio():
