@@ -14,7 +14,7 @@ from __future__ import annotations
 import numpy as np
 
 from kinectdata.core.errors import KinectDataError
-from kinectdata.evaluation.rhythm import BAS_DIRECTIONS
+from kinectdata.evaluation.rhythm import BAS_DIRECTIONS, _beat_array
 
 
 def beat_align_scores(music_rows: np.ndarray, motion_beats_s: np.ndarray, sigma_s: float, direction: str) -> np.ndarray:
@@ -35,6 +35,8 @@ def beat_align_scores(music_rows: np.ndarray, motion_beats_s: np.ndarray, sigma_
     music, motion = _sorted_beats(music_rows, motion_beats_s)
     if direction not in BAS_DIRECTIONS:
         raise KinectDataError(f"Beat Align Score direction must be one of {BAS_DIRECTIONS}, got {direction!r}")
+    if not sigma_s > 0:
+        raise KinectDataError(f"Beat Align Score sigma must be positive, got {sigma_s} s")
     if music.shape[1] == 0 or motion.size == 0:
         return np.zeros(music.shape[0])
     if direction == "music_to_motion":
@@ -63,6 +65,8 @@ def beat_fmeasures(music_rows: np.ndarray, motion_beats_s: np.ndarray, window_s:
         [D] F-measures in 0..1; 0 where either set is empty.
     """
     music, motion = _sorted_beats(music_rows, motion_beats_s)
+    if not window_s > 0:
+        raise KinectDataError(f"F-measure window must be positive, got {window_s} s")
     rows, size = music.shape
     if size == 0 or motion.size == 0:
         return np.zeros(rows)
@@ -81,13 +85,18 @@ def beat_fmeasures(music_rows: np.ndarray, motion_beats_s: np.ndarray, window_s:
 
 
 def _sorted_beats(music_rows, motion_beats_s) -> tuple[np.ndarray, np.ndarray]:
-    """[D, B] and [K] float64 beat times, each row and the motion beats increasing."""
+    """[D, B] and [K] float64 finite beat times, each row and the motion beats increasing (the
+    motion beats checked as the one-set scorers check theirs: ``rhythm._beat_array``)."""
+    motion = _beat_array(motion_beats_s, "motion beats", increasing=True)
     music = np.asarray(music_rows, dtype=np.float64)
-    motion = np.asarray(motion_beats_s, dtype=np.float64)
-    if music.ndim != 2 or motion.ndim != 1:
-        raise KinectDataError(f"beat rows must be [D, B] and motion beats [K], got {music.shape} and {motion.shape}")
-    if (np.diff(music, axis=1) < 0).any() or (np.diff(motion) < 0).any():
-        raise KinectDataError("beat times must be in increasing order within each set")
+    if music.ndim != 2:
+        raise KinectDataError(f"music beat rows must be [D, B] times in seconds, got shape {music.shape}")
+    finite = np.isfinite(music).all(axis=1)
+    if not finite.all():
+        raise KinectDataError(f"music beats: row {int(np.argmin(finite))} holds a time that is not finite")
+    backwards = (np.diff(music, axis=1) < 0).any(axis=1)
+    if backwards.any():
+        raise KinectDataError(f"music beats must be in increasing order: row {int(np.argmax(backwards))} is not")
     return music, motion
 
 

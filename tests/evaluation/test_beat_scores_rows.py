@@ -58,6 +58,14 @@ def test_empty_sets_score_zero_and_a_bad_direction_is_refused():
         beat_align_scores(music, np.array([1.0]), 0.05, "sideways")
     with pytest.raises(KinectDataError, match="increasing order"):
         beat_fmeasures(music, np.array([2.0, 1.0]), 0.1)
+    with pytest.raises(KinectDataError, match="row 3 is not"):
+        beat_fmeasures(np.concatenate([music[:3], music[3:, ::-1]]), np.array([1.0]), 0.1)
+    with pytest.raises(KinectDataError, match="not a finite time"):
+        beat_align_scores(music, np.array([1.0, np.nan]), 0.05, "music_to_motion")
+    with pytest.raises(KinectDataError, match="window must be positive"):
+        beat_fmeasures(music, np.array([1.0]), 0.0)
+    with pytest.raises(KinectDataError, match="sigma must be positive"):
+        beat_align_scores(music, np.array([1.0]), 0.0, "music_to_motion")
 
 
 def test_crowded_beats_match_as_mir_eval_matches_them():
