@@ -87,6 +87,12 @@ _LOOP_OPTIONS = (
         "Share of training windows whose music goes silent from a random frame on, the pose held (to stop in silence).",
     ),
     (
+        "mirror_share",
+        click.FloatRange(0, 1),
+        "Share of training windows danced by their dancer's mirror image (reflected across x = 0, left and right "
+        "swapped), to the same music; 0: none.",
+    ),
+    (
         "context",
         click.IntRange(min=0),
         "Frames of real input before each window that no loss counts (the outputs near a window's start then see "

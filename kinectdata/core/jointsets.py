@@ -8,6 +8,7 @@ other joint lists) build a JointSet with :meth:`JointSet.custom`.
 
 from __future__ import annotations
 
+import re
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from functools import cache
@@ -36,6 +37,8 @@ class JointSet:
         to_smpl24: for a set kinectdata ships no mapping for, how its joints make the 24 SMPL joints
             (a joint mapping's ``joints``; :func:`kinectdata.core.joint_mapping.load_smpl24_mapping`
             uses it), or None.
+        mirror: pairs of joints that are each other's mirror image across the body's midline
+            (left and right), for sets whose names do not say it (:meth:`mirror_image`).
     """
 
     name: str
@@ -47,6 +50,7 @@ class JointSet:
     aliases: Mapping[str, str] = field(default_factory=dict)
     description: str = ""
     to_smpl24: Mapping[str, dict] | None = None
+    mirror: Mapping[str, str] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         if not self.has_orientation:
@@ -94,6 +98,31 @@ class JointSet:
         """(parent, child) index pairs, one per non-root joint."""
         return [(p, c) for c, p in enumerate(self.parents) if p >= 0]
 
+    def mirror_image(self) -> np.ndarray:
+        """[J] index of each joint's mirror image across the body's midline: the pairs of
+        :attr:`mirror`, then the joint whose name has the other side's word (``left`` / ``right`` in
+        any case: ``left_hip``, ``HipLeft``, ``HIP_LEFT``; or a leading ``L`` / ``R`` before a
+        capital: ``LShoulder``), else the joint itself (on the midline: ``Neck``).
+
+        Raises:
+            ConfigError: a joint named for one side has no joint of the other side's name (name
+                its image in the joint set's ``mirror``).
+        """
+        pairs = {**self.mirror, **{b: a for a, b in self.mirror.items()}}
+        image = []
+        for name in self.names:
+            other = pairs.get(name) or _other_side(name)
+            if other is None:
+                image.append(self.names.index(name))
+            elif other in self.names:
+                image.append(self.names.index(other))
+            else:
+                raise ConfigError(
+                    f"joint set {self.name!r}: joint {name!r} has no mirror image {other!r}; "
+                    'name its image in the joint set\'s "mirror" pairs'
+                )
+        return np.array(image, dtype=np.int64)
+
     def to_dict(self) -> dict:
         """The joint set as a joint-set document (``schemas/jointset.schema.json``), which
         :func:`joint_set_from_dict` reads back to an equal JointSet."""
@@ -113,7 +142,24 @@ class JointSet:
             doc["aliases"] = dict(self.aliases)
         if self.to_smpl24 is not None:
             doc["to_smpl24"] = dict(self.to_smpl24)
+        if self.mirror:
+            doc["mirror"] = dict(self.mirror)
         return doc
+
+
+_SIDE_WORDS = {"left": "right", "right": "left", "Left": "Right", "Right": "Left", "LEFT": "RIGHT", "RIGHT": "LEFT"}
+_SIDE_WORD = re.compile("|".join(_SIDE_WORDS))
+_SIDE_LETTER = re.compile(r"^([LR])(?=[A-Z])")
+
+
+def _other_side(name: str) -> str | None:
+    """The name with its side's word swapped (see :meth:`JointSet.mirror_image`), or None when
+    it names no side."""
+    if _SIDE_WORD.search(name):
+        return _SIDE_WORD.sub(lambda m: _SIDE_WORDS[m.group()], name)
+    if _SIDE_LETTER.match(name):
+        return _SIDE_LETTER.sub(lambda m: "R" if m.group(1) == "L" else "L", name)
+    return None
 
 
 def _from_document(doc: dict, path: Path) -> JointSet:
@@ -139,6 +185,14 @@ def _from_document(doc: dict, path: Path) -> JointSet:
     for role, n in roles.items():
         if n not in index:
             raise SchemaError(path, f"role {role!r} names unknown joint {n!r}")
+    mirror = doc.get("mirror", {})
+    for a, b in mirror.items():
+        for n in (a, b):
+            if n not in index:
+                raise SchemaError(path, f"mirror names unknown joint {n!r}")
+    images = [*mirror, *mirror.values()]
+    if len(set(images)) != len(images):
+        raise SchemaError(path, "mirror names a joint in two pairs")
     no_orientation = set(doc.get("no_orientation", []))
     return JointSet(
         name=doc["name"],
@@ -150,6 +204,7 @@ def _from_document(doc: dict, path: Path) -> JointSet:
         aliases=dict(doc.get("aliases", {})),
         description=doc.get("description", ""),
         to_smpl24=doc.get("to_smpl24"),
+        mirror=dict(mirror),
     )
 
 

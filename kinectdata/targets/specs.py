@@ -152,6 +152,36 @@ class TargetSpec:
         js = self.joints
         return [(j, js.names[js.parents[js.index(j)]]) for j in self.limbs]
 
+    def mirror_columns(self) -> tuple[np.ndarray, np.ndarray]:
+        """The target's components in the motion's mirror image (the body reflected across the plane
+        x = 0, its left and right swapped: :meth:`JointSet.mirror_image`): ``mirrored = sign *
+        components[..., source]``, ``source`` [D] int and ``sign`` [D] (-1 on the x columns).
+
+        Raises:
+            ConfigError: the target has orientations (not mirrored here), scales positions per
+                recording, or positions (or measures) a joint without its mirror image.
+        """
+        if self.orientations:
+            raise ConfigError(
+                f"target {self.name!r}: only positions and limb lengths can be mirrored, not orientations"
+            )
+        if self.position_scale != "none":
+            raise ConfigError(f"target {self.name!r}: positions scaled per recording cannot be mirrored")
+        js = self.joints
+        image = js.mirror_image()
+        source, sign = np.arange(self.dim), np.ones(self.dim)
+        for kind, joints in (("position", self.positions), ("limb", self.limbs)):
+            for joint in joints:
+                other = js.names[image[js.index(joint)]]
+                if other not in joints:
+                    raise ConfigError(
+                        f"target {self.name!r}: its {kind}s hold {joint!r} but not its mirror image {other!r}"
+                    )
+                source[self.columns(joint, kind)] = np.arange(self.dim)[self.columns(other, kind)]
+                if kind == "position":
+                    sign[self.columns(joint, kind).start] = -1.0
+        return source, sign
+
     def component_names(self) -> list[str]:
         """One name per component: ``["SpineBase.x", ..., "SpineBase.qx", ..., "RElbow-RShoulder.length"]``."""
         return (

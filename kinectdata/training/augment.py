@@ -6,14 +6,24 @@ frame of a dance to its last), so without it nothing tells a model that silence 
 still, and a model that learned to keep moving on its own keeps moving when the music stops.
 Yalta et al. (2016) show their model stopping in silence (their Figure 7); ``evaluate``'s silence
 test and the listening controls check it.
+
+:func:`mirror_windows`: in a share of the windows the dancer is replaced by their mirror image (the
+body reflected across the plane x = 0, left and right swapped: :class:`Mirror`), to the same
+music. A dance mirrored is a dance to the same song (a dancer leading with the other foot), so a
+corpus gives twice the bodies: mirror augmentation as the field uses it (e.g. Li et al. 2021, AIST++;
+Siyao et al. 2022, Bailando).
 """
 
 from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 import torch
 
 from kinectdata.features import compute_features, feature_config
+from kinectdata.targets.specs import TargetSpec
 
 MIN_MUSIC_FRACTION = 0.25
 """A silenced window keeps at least this share of its frames with music (the pose to hold comes from them)."""
@@ -75,4 +85,74 @@ def silence_windows(
             out["next"][b, s - 1 :] = pose[b, s - 1]
         if "rhythm_valid" in out:
             out["rhythm_valid"][b, s:] = False
+    return out
+
+
+@dataclass(frozen=True)
+class Mirror:
+    """A dataset's normalised targets [..., D] in the motion's mirror image:
+    ``mirrored = targets[..., source] * gain + shift`` (the mirror of
+    :meth:`~kinectdata.targets.specs.TargetSpec.mirror_columns`, through the normalisation).
+
+    Attributes:
+        source: [D] long, the column each component is read from.
+        gain, shift: [D] float32.
+    """
+
+    source: torch.Tensor
+    gain: torch.Tensor
+    shift: torch.Tensor
+
+    @classmethod
+    def of_dataset(cls, manifest: dict[str, Any]) -> Mirror:
+        """The mirror of a dataset's targets, from its manifest (target spec and normalisation).
+
+        Raises:
+            ConfigError: the target cannot be mirrored (:meth:`TargetSpec.mirror_columns`).
+        """
+        source, sign = TargetSpec.from_dict(manifest["config"]["target"]).mirror_columns()
+        norm = manifest["normalisation"]
+        scale = np.array([1.0 if v is None else v for v in norm["scale"]], np.float64)
+        offset = np.array([0.0 if v is None else v for v in norm["offset"]], np.float64)
+        # y = (x - offset) * scale for each column; the mirrored x is sign * x[source]
+        gain = sign * scale / scale[source]
+        shift = (sign * offset[source] - offset) * scale
+        return cls(torch.from_numpy(source), torch.from_numpy(gain).float(), torch.from_numpy(shift).float())
+
+    def poses(self, values: torch.Tensor, mask: torch.Tensor | None = None) -> torch.Tensor:
+        """Normalised poses [..., D] in the mirror image; 0 where ``mask`` [..., D] (the given
+        poses' mask, when known) leaves the mirrored component unknown, as the shards store it."""
+        mirrored = values[..., self.source] * self.gain.to(values.dtype) + self.shift.to(values.dtype)
+        if mask is None:
+            return mirrored
+        return torch.where(mask[..., self.source], mirrored, torch.zeros((), dtype=values.dtype))
+
+
+def mirror_windows(
+    batch: dict[str, torch.Tensor], mirror: Mirror, share: float, generator: torch.Generator
+) -> dict[str, torch.Tensor]:
+    """A training batch with about ``share`` of its windows danced by the mirror image of their
+    dancer (``pose``, ``previous``, ``next`` and their masks), to the same music.
+
+    Args:
+        batch: a :class:`~kinectdata.dataset.windows.WindowDataset` batch (poses [B, L, D];
+            ``next`` has no mask of its own and is mirrored as it is).
+        mirror: the dataset's :class:`Mirror`.
+        share: probability that a window is mirrored, 0..1.
+        generator: the draws (seeded: a run stays reproducible and resumable).
+
+    Returns:
+        A new batch (the given tensors are not changed).
+    """
+    chosen = torch.rand(batch["pose"].shape[0], generator=generator) < share
+    if not chosen.any():
+        return batch
+    out = dict(batch)
+    for values, mask in (("pose", "mask"), ("previous", "previous_mask"), ("next", None)):
+        if values in batch:
+            out[values] = batch[values].clone()
+            out[values][chosen] = mirror.poses(batch[values][chosen], None if mask is None else batch[mask][chosen])
+    for mask in ("mask", "previous_mask"):
+        out[mask] = batch[mask].clone()
+        out[mask][chosen] = batch[mask][chosen][..., mirror.source]
     return out

@@ -25,6 +25,7 @@ LOOP_DEFAULTS: dict[str, Any] = {
     "previous_noise": 0.0,
     "balance": None,
     "weight_average": 0.0,
+    "mirror_share": 0.0,
 }
 """The training loop's settings and their base defaults (Yalta et al.'s; a model's
 ``training_defaults`` change them)."""
@@ -44,6 +45,7 @@ ADDED_OFF = {
     "context": 0,
     "balance": None,
     "weight_average": 0.0,
+    "mirror_share": 0.0,
 }
 """Loop (and model) settings added after runs were written: a run's config.json without them trained without
 them, whatever today's defaults are (resuming it goes on as it started)."""
@@ -129,6 +131,10 @@ class TrainConfig:
             none): with it, validation, the kept epoch, ``model.pt`` and the exports use the
             averaged weights, ``1 / (1 - weight_average)`` steps long (0.995: 200 steps), the
             optimiser going on with its own. Runs written before it had none.
+        mirror_share: share of training windows danced by their dancer's mirror image
+            (:func:`~kinectdata.training.augment.mirror_windows`: the body reflected across x = 0,
+            its left and right swapped by the joint set's names), to the same music; 0: none.
+            Runs written before it had none.
     """
 
     model: str
@@ -155,6 +161,7 @@ class TrainConfig:
     context: int | None
     balance: str | None
     weight_average: float
+    mirror_share: float
     settings: Any
 
     def __init__(self, model: str | None = None, *, settings: Any = None, paper: bool = False, **given: Any) -> None:
@@ -195,6 +202,8 @@ class TrainConfig:
             raise ConfigError(f"bone_jitter_weight must be at least 0, not {self.bone_jitter_weight!r}")
         if not isinstance(self.song_starts, bool):
             raise ConfigError(f"song_starts must be true or false, not {self.song_starts!r}")
+        if not 0 <= self.mirror_share <= 1:
+            raise ConfigError(f"mirror_share must be in 0..1, not {self.mirror_share!r}")
         if not 0 <= self.silence_share <= 1:
             raise ConfigError(f"silence_share must be in 0..1, not {self.silence_share!r}")
         if self.context is not None and not (isinstance(self.context, int) and self.context >= 0):

@@ -39,7 +39,7 @@ import torch
 from torch.utils.data import DataLoader
 
 from kinectdata.core.atomic import atomic_output
-from kinectdata.core.errors import KinectDataError, KinectDataWarning
+from kinectdata.core.errors import ConfigError, KinectDataError, KinectDataWarning
 from kinectdata.dataset.layout import is_copy
 from kinectdata.dataset.windows import WindowDataset
 from kinectdata.evaluation.listening import ALIVE_RANGE
@@ -59,7 +59,7 @@ from kinectdata.models.run import (
     write_json,
 )
 from kinectdata.targets.normalization import Normalizer
-from kinectdata.training.augment import silence_windows, silent_frame
+from kinectdata.training.augment import Mirror, mirror_windows, silence_windows, silent_frame
 from kinectdata.training.config import TrainConfig
 from kinectdata.training.distributed import (
     PaddedWindows,
@@ -429,6 +429,14 @@ def _body(manifest: dict[str, Any], device: torch.device) -> Body | None:
     )
 
 
+def _mirror(dataset: Path, manifest: dict[str, Any]) -> Mirror:
+    """The dataset's :class:`Mirror`; ConfigError naming the dataset when its targets have none."""
+    try:
+        return Mirror.of_dataset(manifest)
+    except ConfigError as e:
+        raise ConfigError(f"{dataset}: its windows cannot be mirrored: {e}") from None
+
+
 def _feet(spec) -> np.ndarray | None:
     """[4, P] weights of the SMPL-24 joints EDGE's foot contact score reads (left ankle and foot,
     right ankle and foot: :mod:`kinectdata.evaluation.metrics.foot_contact`) over the target's P
@@ -585,6 +593,7 @@ def train(
     per_rank_batch(config.batch_size, world)  # an indivisible batch is refused before anything starts
     kind = model_kind(config.model)
     check_fits(kind, manifest, dataset)
+    mirror = _mirror(dataset, manifest) if config.mirror_share > 0 else None  # refused before anything starts
     model_config = kind.network_config(config.settings, manifest)
     stride = config.stride or config.sequence
     context = kind.context_frames(model_config) if config.context is None else config.context
@@ -615,6 +624,7 @@ def train(
         order = torch.Generator().manual_seed(config.seed + 1)
         noise = torch.Generator().manual_seed(config.seed + 2)
         augment = torch.Generator().manual_seed(config.seed + 3)  # silenced windows
+        mirrored = torch.Generator().manual_seed(config.seed + 4)  # mirrored windows
         history: list[dict] = []
         step = 0
         best: dict[str, Any] | None = None  # the kept epoch's weights (keep="best")
@@ -628,6 +638,8 @@ def train(
             noise.set_state(state["noise_rng"])
             if "augment_rng" in state:  # checkpoints written before windows were silenced have none
                 augment.set_state(state["augment_rng"])
+            if "mirror_rng" in state:  # nor had those written before windows were mirrored
+                mirrored.set_state(state["mirror_rng"])
             if "best_model" in state:
                 best = {"epoch": int(state["best_epoch"]), "model": state["best_model"]}
             torch.set_rng_state(state["torch_rng"])
@@ -668,6 +680,8 @@ def train(
                     break
                 if silent is not None:
                     batch = silence_windows(batch, silent, config.silence_share, augment, context)
+                if mirror is not None:
+                    batch = mirror_windows(batch, mirror, config.mirror_share, mirrored)
                 audio, pose, mask = batch["audio"].to(device), batch["pose"].to(device), batch["mask"].to(device)
                 previous = kind.fill_previous(
                     batch["previous"].to(device), batch["previous_mask"].to(device), start_pose
@@ -756,6 +770,7 @@ def train(
                         "order_rng": order.get_state(),
                         "noise_rng": noise.get_state(),
                         "augment_rng": augment.get_state(),
+                        "mirror_rng": mirrored.get_state(),
                         "torch_rng": torch.get_rng_state(),
                         **({} if best is None else {"best_epoch": best["epoch"], "best_model": best["model"]}),
                         **({} if average is None else {"average": average.state_dict()}),

@@ -127,6 +127,7 @@ def cases(paths: dict) -> dict[str, dict[str, list]]:
             "unwritable": ["--data", ds, "--out", block / "run"],
             "missing": ["--data", missing, "--out", out / "run"],
             "foreign": ["--data", junk_dir, "--out", out / "run"],
+            "unmirrorable": ["--data", ds, "--out", out / "run", "--mirror-share", "0.5"],  # yalta65: orientations
         },
         "verify": {"missing": [missing], "foreign": [junk_dir], "a file": [junk_file]},
     }

@@ -24,6 +24,7 @@ from kinectdata.models.losses import (
 )
 from kinectdata.models.registry import model_kind
 from kinectdata.models.run import load_checkpoint
+from kinectdata.training.augment import mirror_windows
 from kinectdata.training.config import TrainConfig
 from kinectdata.training.train import LOG_FIELDS, _better, read_log, train
 
@@ -598,3 +599,31 @@ def test_the_posture_loss_compares_means_and_spreads_not_timing():
     assert float(masked_posture_loss(wild, real, mask)) == pytest.approx(
         float(masked_posture_loss(real[:, :150], real[:, :150], mask[:, :150])), abs=1e-6
     )
+
+
+def test_a_run_with_mirrored_windows_resumes_exactly_and_a_target_with_orientations_is_refused(
+    pulse_mel_dataset, sample_dataset, tmp_path, monkeypatch
+):
+    """Every training batch goes through the mirror at the share asked; its draws are restored on
+    resume (their own generator, in the checkpoint); a dataset whose targets hold orientations is
+    refused before anything is written."""
+    import kinectdata.training.train as training
+
+    shares = []
+
+    def counted(batch, mirror, share, generator):
+        shares.append(share)
+        return mirror_windows(batch, mirror, share, generator)
+
+    monkeypatch.setattr(training, "mirror_windows", counted)
+    config = TrainConfig(
+        "cdhc", channels=8, decoder_channels=8, sequence=40, batch_size=4, epochs=2, context=20, mirror_share=0.5
+    )
+    whole = train(pulse_mel_dataset, tmp_path / "whole", config)
+    assert len(shares) == whole[-1]["step"] and set(shares) == {0.5}
+    train(pulse_mel_dataset, tmp_path / "part", config, stop_after=1)
+    resumed = train(pulse_mel_dataset, tmp_path / "part", resume=True)
+    assert [r["train_loss"] for r in resumed] == [r["train_loss"] for r in whole]
+    with pytest.raises(ConfigError, match="target 'yalta65': only positions and limb lengths can be mirrored"):
+        train(sample_dataset, tmp_path / "refused", TrainConfig(**{**TINY_TRAINING, "mirror_share": 0.5}))
+    assert not (tmp_path / "refused").exists()
