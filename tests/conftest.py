@@ -124,8 +124,36 @@ def _fail_a_ci_skip(report) -> None:
         report.longrepr = f"skipped under CI, where .ci/run installs every dependency: {reason}"
 
 
+def pytest_addoption(parser):
+    parser.addoption(
+        "--slow",
+        action="store_true",
+        help="also run the long end-to-end tests (marked slow): what CI=1 (.ci/run) runs",
+    )
+
+
+def _slow_tests_run(config) -> bool:
+    """The long end-to-end tests (marked ``slow``) run under CI, with ``--slow``, or when ``-m``
+    chooses by marker; a plain ``pytest`` leaves them out, to stay within minutes."""
+    return bool(os.environ.get("CI") or config.getoption("--slow") or config.getoption("markexpr"))
+
+
 def pytest_collection_modifyitems(config, items):
-    """The long tests (marked ``slow``) first, the others in their order: each core's worker takes
-    work from the other when idle (``--dist worksteal``), so the run ends with short tests on both
-    cores instead of one long test begun last on one."""
+    """Without :func:`_slow_tests_run`, the long tests are deselected. With it, they run first, the
+    others in their order: each core's worker takes work from the other when idle (``--dist
+    worksteal``), so the run ends with short tests on both cores instead of one long test begun last
+    on one."""
+    if not _slow_tests_run(config):
+        slow = [item for item in items if item.get_closest_marker("slow") is not None]
+        if slow:
+            config.hook.pytest_deselected(items=slow)
+            items[:] = [item for item in items if item.get_closest_marker("slow") is None]
+        return
     items.sort(key=lambda item: item.get_closest_marker("slow") is None)
+
+
+def pytest_terminal_summary(terminalreporter, config):
+    if not _slow_tests_run(config):
+        terminalreporter.write_line(
+            "the long end-to-end tests (marked slow) were not run: `pytest --slow` runs them, as CI does (CI=1)"
+        )
