@@ -133,9 +133,11 @@ def pytest_addoption(parser):
 
 
 def _slow_tests_run(config) -> bool:
-    """The long end-to-end tests (marked ``slow``) run under CI, with ``--slow``, or when ``-m``
-    chooses by marker; a plain ``pytest`` leaves them out, to stay within minutes."""
-    return bool(os.environ.get("CI") or config.getoption("--slow") or config.getoption("markexpr"))
+    """The long end-to-end tests (marked ``slow``) run under CI, with ``--slow``, when ``-m``
+    chooses by marker, or when tests are named (``file.py::test``); a plain ``pytest`` leaves them
+    out, to stay within minutes."""
+    named = any("::" in arg for arg in config.args)
+    return bool(os.environ.get("CI") or config.getoption("--slow") or config.getoption("markexpr") or named)
 
 
 def pytest_collection_modifyitems(config, items):
