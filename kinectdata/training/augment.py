@@ -10,8 +10,8 @@ test and the listening controls check it.
 :func:`mirror_windows`: in a share of the windows the dancer is replaced by their mirror image (the
 body reflected across the plane x = 0, left and right swapped: :class:`Mirror`), to the same
 music. A dance mirrored is a dance to the same song (a dancer leading with the other foot), so a
-corpus gives twice the bodies: mirror augmentation as the field uses it (e.g. Li et al. 2021, AIST++;
-Siyao et al. 2022, Bailando).
+corpus gives twice the bodies. Whether that helps depends on the corpus: docs/benchmarks.md
+("mirrored dancers") has what it did on ballroom dance.
 """
 
 from __future__ import annotations
