@@ -23,6 +23,7 @@ import numpy as np
 import torch
 
 from kinectdata.features import compute_features, feature_config
+from kinectdata.targets.normalization import Normalizer
 from kinectdata.targets.specs import TargetSpec
 
 MIN_MUSIC_FRACTION = 0.25
@@ -111,9 +112,8 @@ class Mirror:
             ConfigError: the target cannot be mirrored (:meth:`TargetSpec.mirror_columns`).
         """
         source, sign = TargetSpec.from_dict(manifest["config"]["target"]).mirror_columns()
-        norm = manifest["normalisation"]
-        scale = np.array([1.0 if v is None else v for v in norm["scale"]], np.float64)
-        offset = np.array([0.0 if v is None else v for v in norm["offset"]], np.float64)
+        norm = Normalizer.from_dict(manifest["normalisation"])
+        scale, offset = norm.scale, norm.offset
         # y = (x - offset) * scale for each column; the mirrored x is sign * x[source]
         gain = sign * scale / scale[source]
         shift = (sign * offset[source] - offset) * scale

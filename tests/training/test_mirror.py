@@ -77,7 +77,7 @@ def test_targets_that_cannot_be_mirrored_say_why():
 def _manifest(spec, normaliser: Normalizer) -> dict:
     return {
         "config": {"target": spec.to_dict()},
-        "normalisation": {"scale": normaliser.scale.tolist(), "offset": normaliser.offset.tolist()},
+        "normalisation": normaliser.to_dict(),
     }
 
 
