@@ -409,19 +409,19 @@ def _body(manifest: dict[str, Any], device: torch.device) -> Body | None:
 
     spec = TargetSpec.from_dict(manifest["config"]["target"])
     bones = spec.position_bones(root_centred=bool(manifest["config"].get("root_centre")))
-    norm = manifest["normalisation"]
-    if not bones or spec.position_scale != "none" or norm.get("scale") is None:
+    if not bones or spec.position_scale != "none" or manifest["normalisation"].get("scale") is None:
         return None  # no bone, or coordinates scaled per recording (no metres to measure in)
+    norm = Normalizer.from_dict(manifest["normalisation"])
 
     def tensor(values):
-        return torch.tensor([1.0 if v is None else v for v in values], dtype=torch.float32, device=device)
+        return torch.tensor(values, dtype=torch.float32, device=device)
 
     root = spec.positions.index(spec.root) if spec.root in spec.positions else None
     feet = None if root is None else _feet(spec)
     return Body(
         bones=bones,
-        scale=tensor(norm["scale"]),
-        offset=tensor(norm["offset"]),
+        scale=tensor(norm.scale),
+        offset=tensor(norm.offset),
         dims=spec.dimensions,
         feet=None if feet is None else torch.tensor(feet, dtype=torch.float32, device=device),
         root=root,
