@@ -409,7 +409,7 @@ def _body(manifest: dict[str, Any], device: torch.device) -> Body | None:
 
     spec = TargetSpec.from_dict(manifest["config"]["target"])
     bones = spec.position_bones(root_centred=bool(manifest["config"].get("root_centre")))
-    if not bones or spec.position_scale != "none" or manifest["normalisation"].get("scale") is None:
+    if not bones or spec.position_scale != "none":
         return None  # no bone, or coordinates scaled per recording (no metres to measure in)
     norm = Normalizer.from_dict(manifest["normalisation"])
 
