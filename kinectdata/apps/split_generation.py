@@ -52,10 +52,13 @@ def generate_split(
     engine: str = "torch",
     precision: str = "float32",
     checksums: bool = True,
+    turning: bool = True,
+    seed: int = 0,
     progress: Callable[[str], Any] | None = None,
 ) -> list[GeneratedSong]:
     """Generate a dance for each clean recording of ``split`` of ``dataset`` with ``run``'s model
-    into ``out_dir`` (module docstring). ``progress(name)`` is called before each song.
+    into ``out_dir`` (module docstring). ``progress(name)`` is called before each song;
+    ``turning`` and ``seed`` as :func:`~kinectdata.inference.generate.generate`'s.
 
     Raises:
         KinectDataError: the split has no recordings, or a recording's music cannot be read.
@@ -88,7 +91,15 @@ def generate_split(
         metre = entry.get("beats_per_bar") or built[r["name"]].get("beats_per_bar")
         motion = out_dir / f"{r['name']}{suffix}"
         _, timing = generate(
-            run, music, motion, engine=engine, precision=precision, beats_per_bar=metre, start=_start(r, data, kind)
+            run,
+            music,
+            motion,
+            engine=engine,
+            precision=precision,
+            beats_per_bar=metre,
+            start=_start(r, data, kind),
+            turning=turning,
+            seed=seed,
         )
         made.append(GeneratedSong(r["name"], motion, music, timing))
     return made

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import click
 
-from kinectdata.cli.train import _torch_or_fail, beats_per_bar_option
+from kinectdata.cli.train import _torch_or_fail, beats_per_bar_option, turning_options
 from kinectdata.core.errors import KinectDataError
 
 
@@ -63,8 +63,23 @@ from kinectdata.core.errors import KinectDataError
 @beats_per_bar_option(
     "The song's metre, for a model whose features count bars; default: estimated from a file, else 4."
 )
+@turning_options
 def live(
-    run_dir, given, play, osc, vmc, vmc_map, record, duration, stats, block_ms, engine, precision, beats_per_bar
+    run_dir,
+    given,
+    play,
+    osc,
+    vmc,
+    vmc_map,
+    record,
+    duration,
+    stats,
+    block_ms,
+    engine,
+    precision,
+    beats_per_bar,
+    turning,
+    seed,
 ) -> None:
     """Listen to a microphone (or a file at real-time pace), step the run's streaming network once per
     motion frame as the audio arrives, and send each pose at once to OSC receivers (--osc), avatar
@@ -83,7 +98,7 @@ def live(
     for path in (record, stats):  # before the dance, not after it
         if path is not None and not Path(path).resolve().parent.is_dir():
             raise KinectDataError(f"{path}: its folder {Path(path).resolve().parent} does not exist")
-    dancer = LiveDancer(run_dir, engine, precision)
+    dancer = LiveDancer(run_dir, engine, precision, turning=turning, seed=seed)
     clock = MonotonicClock()
     block = max(1, round(dancer.sample_rate * block_ms / 1000))
     source = open_source(given, dancer.sample_rate, block, clock, play=play)
@@ -99,6 +114,7 @@ def live(
     click.echo(
         f"dancing to {source.name} ({1000 * block / dancer.sample_rate:g} ms blocks, {dancer.engine}); Ctrl-C stops"
     )
+    click.echo(f"  {dancer.turning_line}")
     try:
         figures = run_live(
             dancer, source, sinks, clock, duration=duration, beats_per_bar=beats_per_bar, record=recorder

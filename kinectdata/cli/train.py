@@ -6,6 +6,7 @@ torch is imported inside the commands, so the rest of the command line works wit
 from __future__ import annotations
 
 import dataclasses
+import functools
 
 import click
 
@@ -91,6 +92,13 @@ _LOOP_OPTIONS = (
         click.FloatRange(0, 1),
         "Share of training windows danced by their dancer's mirror image (reflected across x = 0, left and right "
         "swapped), to the same music; 0: none.",
+    ),
+    (
+        "turning",
+        click.BOOL,
+        "Fit the training dancers' turning about the vertical (its speed and how long it lasts) and draw it "
+        "wherever the run makes positions (evaluate, generate, live), held still in silence; root-centred 3-D "
+        "position targets only. The music does not tell when dancers turn, so the network cannot.",
     ),
     (
         "context",
@@ -235,6 +243,20 @@ def beats_per_bar_option(help_text: str):
     return click.option("--beats-per-bar", default=None, type=click.IntRange(2, 12), help=help_text)
 
 
+def turning_options(f, seeded: bool = True):
+    """``--turning/--no-turning`` (default on) and, with ``seeded``, ``--seed`` of its draws."""
+    f = click.option(
+        "--turning/--no-turning",
+        default=True,
+        show_default=True,
+        help="Draw the run's turning about the vertical, fitted on its training dancers (none for a run trained "
+        "without it); --no-turning: the network's motion alone.",
+    )(f)
+    if seeded:
+        f = click.option("--seed", default=0, show_default=True, type=click.INT, help="Seed of the drawn turning.")(f)
+    return f
+
+
 @click.command("train-baseline")
 @click.option("--data", required=True, type=click.Path(exists=True, file_okay=False), help="Dataset folder.")
 @click.option("--out", required=True, type=click.Path(file_okay=False), help="Run folder to write.")
@@ -320,7 +342,10 @@ def train_baseline(data, out, resume, paper, no_checksums, **options) -> None:
     "from each song."
 )
 @no_checksums_option
-def evaluate_command(run_dir, data, split, out, silence, protocol, bootstrap, beats_per_bar, no_checksums) -> None:
+@functools.partial(turning_options, seeded=False)
+def evaluate_command(
+    run_dir, data, split, out, silence, protocol, bootstrap, beats_per_bar, no_checksums, turning
+) -> None:
     """Score a run as the paper does: SMAPE (%) free-running without and with reset, on normalised
     and denormalised values; per-frame forward time; generated-against-real plots; the silence test;
     beat following with its chance levels and the listening controls; and the field's table (FID,
@@ -338,6 +363,7 @@ def evaluate_command(run_dir, data, split, out, silence, protocol, bootstrap, be
         bootstrap=bootstrap,
         checksums=not no_checksums,
         beats_per_bar=beats_per_bar,
+        turning=turning,
     )
     click.echo(format_results(results))
 
@@ -380,7 +406,8 @@ def evaluate_command(run_dir, data, split, out, silence, protocol, bootstrap, be
     "The song's metre (a waltz 3), for a model whose features count bars (listen_to_dance_rhythm_bars); "
     "default: estimated from the song."
 )
-def generate_command(run_dir, audio, out, data, split, engine, precision, beats_per_bar) -> None:
+@turning_options
+def generate_command(run_dir, audio, out, data, split, engine, precision, beats_per_bar, turning, seed) -> None:
     """Generate dance motion for AUDIO (any file libsndfile reads, or an aligned .h5: its own music,
     on its timeline), streaming frame by frame, and
     write it: 3-D targets (a yalta run's: metres, unit quaternions) as the canonical CSV that align
@@ -393,11 +420,13 @@ def generate_command(run_dir, audio, out, data, split, engine, precision, beats_
     if data is not None:
         if beats_per_bar is not None:
             raise click.UsageError("--beats-per-bar is for AUDIO: a split's songs keep their own metres")
-        _generate_split(run_dir, data, split, out, engine, precision)
+        _generate_split(run_dir, data, split, out, engine, precision, turning, seed)
         return
     from kinectdata.inference.generate import generate
 
-    motion, timing = generate(run_dir, audio, out, engine=engine, precision=precision, beats_per_bar=beats_per_bar)
+    motion, timing = generate(
+        run_dir, audio, out, engine=engine, precision=precision, beats_per_bar=beats_per_bar, turning=turning, seed=seed
+    )
     click.echo(
         f"wrote {out}: {timing['frames']} frames ({motion.duration:.2f} s) in {timing['seconds']:.2f} s "
         f"({_ratio(timing['x_real_time'])}x real time; network step {timing['step_median_ms']:.3f} ms median)"
@@ -407,16 +436,25 @@ def generate_command(run_dir, audio, out, data, split, engine, precision, beats_
     click.echo(
         f"  starts from {timing['start']}" + (f"; placed by {timing['placement']}" if "placement" in timing else "")
     )
+    click.echo(f"  {timing['turning']}")
     if motion.joint_set.dimensions == 2:
         fps = 1 / float(motion.times[1] - motion.times[0]) if motion.n_frames > 1 else 30.0
         click.echo(f"  (OpenPose JSON Lines hold no frame rate: read or render it with --video-fps {fps:g})")
 
 
-def _generate_split(run_dir, data, split, out, engine, precision) -> None:
+def _generate_split(run_dir, data, split, out, engine, precision, turning, seed) -> None:
     from kinectdata.apps.split_generation import generate_split
 
     songs = generate_split(
-        run_dir, data, split, out, engine=engine, precision=precision, progress=lambda name: click.echo(f"  {name} ...")
+        run_dir,
+        data,
+        split,
+        out,
+        engine=engine,
+        precision=precision,
+        turning=turning,
+        seed=seed,
+        progress=lambda name: click.echo(f"  {name} ..."),
     )
     for song in songs:
         click.echo(f"wrote {song.motion} ({song.timing['frames']} frames) to its music {song.music.name}")

@@ -66,6 +66,7 @@ from kinectdata.evaluation.run_field import run_field_scores
 from kinectdata.features import compute_features, feature_config
 from kinectdata.features.metre import Metre, recording_metre
 from kinectdata.inference.engines import engine_pairs, make_engine, onnxruntime_available
+from kinectdata.inference.turning import run_turning, with_turning
 from kinectdata.models.kind import ModelKind
 from kinectdata.models.registry import kind_of, model_kind
 from kinectdata.models.run import interface_mismatch, load_model, model_name, read_manifest, write_json
@@ -215,6 +216,7 @@ def evaluate(
     beats_per_bar: int | None = None,
     more_protocols: tuple[str, ...] = (),
     baselines: bool = True,
+    turning: bool = True,
 ) -> dict[str, Any]:
     """Score a run on a dataset split; write ``results.json``, ``metrics.json`` (the field's table)
     and figures into ``out`` (default ``RUN/evaluation``); return the results. ``engines``: the
@@ -228,10 +230,14 @@ def evaluate(
     made too (``metrics_<name>.json``). ``baselines``: also score the mean training pose with noise
     at the training dances' speed (and, as an oracle, at each song's own real speed) and the
     retrieval baseline (:mod:`~kinectdata.evaluation.baselines`, :func:`baseline_runs`) by the same
-    protocols, beside the model."""
+    protocols, beside the model. ``turning``: draw the run's turning about the vertical in every free
+    run (:mod:`kinectdata.inference.turning`; a run trained without one draws none); False: the
+    network's motion alone. ``results["turning"]`` says which."""
     protocol = get_protocol(protocol) if isinstance(protocol, str) else protocol
     run, dataset = Path(run), Path(dataset)
     net, config = load_model(run)
+    if not turning:  # every free run below then makes the network's motion alone
+        config.pop("turning", None)
     manifest = read_manifest(dataset, checksums=checksums)
     differ = interface_mismatch(config, dataset, manifest)
     if differ:
@@ -242,7 +248,7 @@ def evaluate(
     recordings = split_recordings(dataset, manifest, split)
     if not recordings:
         raise KinectDataError(f"{dataset}: the {split} split holds no recording")
-    kind = model_kind(model_name(config))
+    kind = with_turning(model_kind(model_name(config)), config)
     for rec in recordings:  # the true first pose, masked values as the model's fill_previous says
         rec["first_pose"] = kind.fill_previous(rec["current"][0], rec["mask"][0], config["dataset"]["start_pose"])
     out = Path(out) if out is not None else run / "evaluation"
@@ -257,6 +263,7 @@ def evaluate(
         "split": split,
         "recordings": [r["name"] for r in recordings],
         "smape_zero_over_zero": 0.0,
+        "turning": None if run_turning(config) is None else run_turning(config).describe(),
     }
     scores = {}
     first = None
@@ -485,7 +492,7 @@ def _song_set(
     config: dict[str, Any],
     beats_per_bar: int | None = None,
 ) -> SongSet:
-    kind = model_kind(model_name(config))
+    kind = with_turning(model_kind(model_name(config)), config)
     spec = TargetSpec.from_dict(config["dataset"]["target"])
     norm = Normalizer.from_dict(config["dataset"]["normalisation"])
     fps = config["dataset"]["fps"]
@@ -600,6 +607,8 @@ def format_results(results: dict[str, Any]) -> str:
     lines = [
         f"split {results['split']}: {len(results['recordings'])} recordings, free-running from the first true pose"
     ]
+    if results.get("turning"):
+        lines.append(f"  {results['turning']}")
     for mode, v in s.items():
         lines.append(
             f"  SMAPE {mode.replace('_', ' '):<14} {v['smape_normalised']:6.2f} % normalised, "

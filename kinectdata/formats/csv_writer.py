@@ -58,7 +58,9 @@ def write_csv(
         time_origin: value of the first timestamp, in the schema's time unit.
         comments: ``# key: value`` lines to write first, for dialects with a comment prefix
             (the reader keeps them as the file's metadata).
-        decimals: digits after the point of positions and orientations (6: micrometres).
+        decimals: digits after the point of positions and orientations (6: micrometres), and of times in
+            seconds when more than 6 (a motion scored again from the file needs its times as exact as
+            its positions: a jerk is a third difference).
 
     Invalid positions are written as the dialect's missing-value text when it has one, else as
     zeros (with a not-tracked state, as the Kinect SDK does); missing orientations likewise, or
@@ -89,7 +91,9 @@ def write_csv(
     if "column" in tspec:
         t = motion.times / sch.time_scale() + time_origin
         cols[tspec["column"]] = (
-            np.char.mod("%d", np.round(t)).astype(object) if tspec["unit"] in ("ticks", "ns") else fmt(t, "%.6f")
+            np.char.mod("%d", np.round(t)).astype(object)
+            if tspec["unit"] in ("ticks", "ns")
+            else fmt(t, f"%.{max(6, decimals)}f")
         )
     if "body" in doc:
         cols[doc["body"]["column"]] = np.full(T, str(motion.metadata.get("body", 0)), dtype=object)

@@ -20,7 +20,9 @@ h2, c2   [3, units]      LSTM4-6 state (zeros at the start)
 
 The metadata (JSON) says everything needed around the network: frame and sample rate, the
 feature settings, the target components and their normalisation, the start pose, the inputs'
-shapes, and what the model adds (:meth:`~kinectdata.models.kind.ModelKind.export_metadata`).
+shapes, the turning about the vertical to draw around the network (``turning``: the process of
+:mod:`kinectdata.targets.turning`, which the network does not make; null: none), and what the model
+adds (:meth:`~kinectdata.models.kind.ModelKind.export_metadata`).
 TorchScript keeps it as the extra file ``kinectdata.json``
 (``torch.jit.load(path, _extra_files={"kinectdata.json": ""})``); ONNX as the model property
 ``kinectdata`` (``onnxruntime.InferenceSession(path).get_modelmeta().custom_metadata_map``).
@@ -87,6 +89,7 @@ def stream_metadata(
         "root_centre": data["root_centre"],
         "normalisation": data["normalisation"],
         "start_pose": data["start_pose"],
+        "turning": run_config.get("turning"),
         **extra,
     }
 

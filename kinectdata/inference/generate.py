@@ -46,6 +46,7 @@ from kinectdata.formats.csv_writer import write_csv
 from kinectdata.formats.openpose_writer import write_openpose_jsonl
 from kinectdata.inference.engines import make_engine
 from kinectdata.inference.start import StartPose, recording_start, target_poses
+from kinectdata.inference.turning import run_turning, turn_song
 from kinectdata.models.registry import model_kind
 from kinectdata.models.run import load_model, model_name
 from kinectdata.targets.normalization import Normalizer
@@ -103,6 +104,8 @@ def generate(
     precision: str = "float32",
     beats_per_bar: int | None = None,
     start: StartPose | None = None,
+    turning: bool = True,
+    seed: int = 0,
 ) -> tuple[Motion, dict[str, Any]]:
     """Generate motion for ``audio`` with a trained run; write it to ``out`` if given (canonical
     CSV, or OpenPose JSON Lines for 2-D targets: see the module docstring). ``audio``: an audio
@@ -123,6 +126,11 @@ def generate(
     (:class:`~kinectdata.inference.start.StartPose`); None: an aligned recording's own first pose
     and anchor, else the mean training pose before frame 0 and the floor rule.
     ``timing["start"]`` and ``timing["placement"]`` say which.
+
+    ``turning``: draw the run's turning about the vertical over the frames the model makes
+    (:mod:`kinectdata.inference.turning`, from a generator seeded by ``seed``: ``live`` on the same
+    audio and seed turns the same way); a run trained without one draws none. ``timing["turning"]``
+    says what was drawn.
     """
     net, config = load_model(run)
     kind = model_kind(model_name(config))
@@ -144,11 +152,15 @@ def generate(
     poses = np.empty((n, spec.dim), np.float32)
     poses[0] = pose
     step_times: list[float] = []
+    process = run_turning(config) if turning else None
+    heard: list[np.ndarray] = []  # every frame's features, when the turning needs to know the silent ones
     if kind.streams:
         stepper = make_engine(net, engine, precision, kind)
 
         def step(k0: int, features: np.ndarray, padded: np.ndarray) -> None:
             nonlocal pose
+            if process is not None:
+                heard.append(np.array(features))
             for k in range(features.shape[0]):
                 if true_first and k0 + k == 0:
                     continue
@@ -160,7 +172,7 @@ def generate(
     else:
         if (engine, precision) != ("torch", "float32"):
             raise ConfigError(f"the {kind.name} model does not stream: it runs in torch with float32 weights only")
-        song: list[np.ndarray] = []
+        song = heard
 
         def step(k0: int, features: np.ndarray, padded: np.ndarray) -> None:
             song.append(np.array(features))  # a copy: the featurizer may reuse its buffers
@@ -185,8 +197,12 @@ def generate(
         else:
             poses[:] = kind.free_run(net, np.concatenate([features[:1], features]), pose)
         step_times = [(time.perf_counter() - ran) / n] * n
-    seconds = time.perf_counter() - started
     values = norm.invert(poses, spec)
+    if process is not None:  # the frames the model made: 1..n-1 after a true first pose, else all
+        made = slice(1 if true_first else 0, n)
+        rng = np.random.default_rng(int(seed))
+        values[made] = turn_song(values[made], np.concatenate(heard)[made], config, process, rng)
+    seconds = time.perf_counter() - started
     metadata = {"format": "generated", "source": str(audio), "run": str(run)}
     motion = _motion(values, spec, fps, metadata, data.get("skeleton"), data["root_centre"], start.anchor)
     if out is not None and spec.dimensions == 2:
@@ -221,6 +237,7 @@ def generate(
     if metre is not None:
         timing["metre"] = metre.describe()
     timing["start"] = start.source
+    timing["turning"] = process.describe() if process is not None else "none drawn"
     if "placement" in motion.metadata:
         timing["placement"] = motion.metadata["placement"]
     if spec.limbs:

@@ -25,9 +25,11 @@ import numpy as np
 from kinectdata.core.errors import KinectDataError
 from kinectdata.features import feature_config, needs_metre
 from kinectdata.features.metre import recording_metre
+from kinectdata.features.silence import silent_frames
 from kinectdata.features.streaming import StreamingFeatures
 from kinectdata.inference.engines import make_engine, onnxruntime_available
 from kinectdata.inference.start import target_poses
+from kinectdata.inference.turning import live_turning
 from kinectdata.live.sinks import LivePose
 from kinectdata.models.registry import model_kind
 from kinectdata.models.run import load_model, model_name
@@ -50,10 +52,19 @@ class LiveDancer:
         engine, precision: as ``generate``'s (torch float32 / float16, onnxruntime float32);
             ``auto``: ONNX Runtime where it is installed and the model runs on it (a yalta step takes
             about half torch's time at batch 1), else torch.
+        turning, seed: draw the run's turning about the vertical one frame at a time, from a generator
+            seeded by ``seed`` (:func:`~kinectdata.inference.turning.live_turning`; held still while
+            the features are silence), as ``generate`` draws it on the same audio and seed; a run
+            trained without one draws none.
     """
 
-    def __init__(self, run: str | Path, engine: str = "auto", precision: str = "float32"):
+    def __init__(
+        self, run: str | Path, engine: str = "auto", precision: str = "float32", *, turning: bool = True, seed: int = 0
+    ):
         net, config = load_model(run)
+        self.config, self.seed = config, int(seed)
+        if not turning:
+            config.pop("turning", None)
         self.kind = model_kind(model_name(config))
         if not self.kind.streams:
             raise KinectDataError(
@@ -73,6 +84,8 @@ class LiveDancer:
         self.pose = np.asarray(self.data["start_pose"], np.float32)
         self.anchor: np.ndarray | None = None
         self.joint_set = self.spec.joints
+        self.turning = live_turning(config, self.seed)
+        self.turning_line = self.turning[0].process.describe() if self.turning else "no turning drawn"
 
     def warm_up(self, frames: int = 10) -> None:
         """Step a few silent frames and start again from the mean pose: the first steps of a network
@@ -85,11 +98,15 @@ class LiveDancer:
         self.stepper.reset()
         self.pose = np.asarray(self.data["start_pose"], np.float32)
         self.anchor = None
+        self.turning = live_turning(self.config, self.seed)  # the draws start again with the dance
 
     def step(self, features: np.ndarray, index: int) -> LivePose:
         """The pose of frame ``index`` from its features (frames are stepped in order)."""
         self.pose = self.stepper.step(features, self.pose)
         values = self.norm.invert(self.pose[None], self.spec)
+        if self.turning is not None:
+            stream, silence = self.turning
+            values[0] = stream.step(values[0], not silent_frames(np.asarray(features)[None], silence)[0])
         skeleton = self.data.get("skeleton") or {}
         # placed as generate places it: the floor rule's anchor from the first frame, then held
         positions, orientations, self.anchor = target_poses(

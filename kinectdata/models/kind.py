@@ -67,6 +67,7 @@ PAPER_LOOP: dict[str, Any] = {
     "periodogram_weight": 0.0,
     "bone_jitter_weight": 0.0,
     "song_starts": False,
+    "turning": False,
     "silence_share": 0.0,
     "keep": "last",
     "context": 0,

@@ -22,7 +22,7 @@ from typing import Any
 import numpy as np
 import torch
 
-from kinectdata.features import compute_features, feature_config
+from kinectdata.features.silence import silence_features
 from kinectdata.targets.normalization import Normalizer
 from kinectdata.targets.specs import TargetSpec
 
@@ -35,10 +35,7 @@ MIN_SILENT_FRAMES = 30
 def silent_frame(features: dict, fps: float) -> torch.Tensor:
     """The features [*F] of one motion frame of digital silence, for a dataset's feature settings
     (its manifest's ``config.features``) and frame rate: what the build computes for silence."""
-    cfg = feature_config(features)
-    starts = np.round(np.arange(2) * cfg.sample_rate / fps).astype(np.int64)
-    frames, _ = compute_features(np.zeros(int(starts[-1]) + cfg.span[1], np.float32), starts, cfg)
-    return torch.from_numpy(np.ascontiguousarray(frames[0]))
+    return torch.from_numpy(silence_features(features, fps))
 
 
 def silence_windows(

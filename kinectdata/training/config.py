@@ -26,6 +26,7 @@ LOOP_DEFAULTS: dict[str, Any] = {
     "balance": None,
     "weight_average": 0.0,
     "mirror_share": 0.0,
+    "turning": True,
 }
 """The training loop's settings and their base defaults (Yalta et al.'s; a model's
 ``training_defaults`` change them)."""
@@ -46,6 +47,7 @@ ADDED_OFF = {
     "balance": None,
     "weight_average": 0.0,
     "mirror_share": 0.0,
+    "turning": False,
 }
 """Loop (and model) settings added after runs were written: a run's config.json without them trained without
 them, whatever today's defaults are (resuming it goes on as it started)."""
@@ -135,6 +137,10 @@ class TrainConfig:
             (:func:`~kinectdata.training.augment.mirror_windows`: the body reflected across x = 0,
             its left and right swapped by the joint set's names), to the same music; 0: none.
             Runs written before it had none.
+        turning: fit the training dancers' turning about the vertical and keep it in the run, to be
+            drawn wherever the run makes positions (:mod:`kinectdata.targets.turning`; 3-D position
+            targets centred on their root only, else none is kept and ``train`` says why). The
+            papers' settings (``paper``) draw none. Runs written before it had none.
     """
 
     model: str
@@ -162,6 +168,7 @@ class TrainConfig:
     balance: str | None
     weight_average: float
     mirror_share: float
+    turning: bool
     settings: Any
 
     def __init__(self, model: str | None = None, *, settings: Any = None, paper: bool = False, **given: Any) -> None:
@@ -202,6 +209,8 @@ class TrainConfig:
             raise ConfigError(f"bone_jitter_weight must be at least 0, not {self.bone_jitter_weight!r}")
         if not isinstance(self.song_starts, bool):
             raise ConfigError(f"song_starts must be true or false, not {self.song_starts!r}")
+        if not isinstance(self.turning, bool):
+            raise ConfigError(f"turning must be true or false, not {self.turning!r}")
         if not 0 <= self.mirror_share <= 1:
             raise ConfigError(f"mirror_share must be in 0..1, not {self.mirror_share!r}")
         if not 0 <= self.silence_share <= 1:

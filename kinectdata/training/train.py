@@ -74,6 +74,7 @@ from kinectdata.training.distributed import (
     sum_over_ranks,
 )
 from kinectdata.training.figures import loss_curves
+from kinectdata.training.turning import fit_dataset_turning
 from kinectdata.training.whole_songs import WholeSongs
 
 LOG_FIELDS = [
@@ -630,6 +631,8 @@ def train(
         best: dict[str, Any] | None = None  # the kept epoch's weights (keep="best")
         if state is not None:
             run_config["dataset"]["start_pose"] = saved["dataset"]["start_pose"]
+            if "turning" in saved:  # as it was fitted when the run started
+                run_config["turning"] = saved["turning"]
             if world.main:
                 write_json(run / CONFIG, run_config)  # with the new epochs or device, if changed
             net.load_state_dict(state["model"])
@@ -650,6 +653,10 @@ def train(
             if (run / CHECKPOINT).exists() or (run / MODEL).exists():
                 raise KinectDataError(f"{run}: already holds a run; use --resume to continue it or another folder")
             run_config["dataset"]["start_pose"] = _start_pose(dataset, manifest)
+            if config.turning:
+                process, _ = fit_dataset_turning(dataset, manifest, run_config["dataset"])
+                if process is not None:
+                    run_config["turning"] = process.to_dict()
             kind.init_output(net, run_config["dataset"]["start_pose"])
             if world.main:
                 run.mkdir(parents=True, exist_ok=True)

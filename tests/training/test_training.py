@@ -145,6 +145,7 @@ def test_runs_written_before_still_load_and_resume(trained_run, sample_dataset, 
     then = {**TINY_TRAINING, "stride": None, "clip_norm": None, "feedback": "predicted", "posture_weight": 10.0}
     then["context"] = 0  # trained without context: the yalta model needs none, and runs before it had none
     then["song_starts"] = False  # runs before it had none
+    then["turning"] = False  # nor a turning drawn at generation
     assert TrainConfig.from_dict(OLD_FLAT) == TrainConfig(**then)
     net, _ = load_model(run)
     assert net.config.units == 32
