@@ -209,6 +209,8 @@ def train_and_score(
     figure = learning_curves(history, run / "learning.png", f"{name}: {model}")
     smape = results["smape"]
     print(f"  [{name}] trained {trained / 60:.1f} min, {history[-1]['step']} steps, {len(history)} epochs")
+    if results.get("turning"):
+        print(f"    {results['turning']}")
     for mode, v in smape.items():
         print(f"    SMAPE {mode.replace('_', ' ')}: {v['smape_normalised']:.2f} % normalised")
     for line in listening.get("verdicts", [f"listening not measured: {listening.get('unavailable')}"]):

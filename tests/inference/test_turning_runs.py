@@ -1,0 +1,105 @@
+"""A run's turning drawn at generation, end to end on the sample sessions built root-centred: train
+fits it into config.json (or, asked not to, keeps none), generate draws it (a rigid turn of each frame
+about the vertical, seeded), live draws it frame by frame as generate does, evaluate says so and
+--no-turning leaves the network's motion alone."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+from conftest import REPO, TINY_TRAINING
+
+pytest.importorskip("torch")
+
+from kinectdata.cli import main  # noqa: E402
+from kinectdata.inference.generate import generate  # noqa: E402
+from kinectdata.live import sources  # noqa: E402
+from kinectdata.live.clock import VirtualClock  # noqa: E402
+from kinectdata.live.session import LiveDancer, run_live  # noqa: E402
+from kinectdata.training.config import TrainConfig  # noqa: E402
+from kinectdata.training.train import train  # noqa: E402
+
+SONG = REPO / "sample_data" / "synth_001.flac"
+
+
+@pytest.fixture(scope="module")
+def centred_run(tmp_path_factory):
+    """(run, dataset): a tiny yalta run on the sample sessions' joint positions centred on the root."""
+    from kinectdata.dataset.build import build_dataset
+    from kinectdata.dataset.config import BuildConfig
+
+    out = tmp_path_factory.mktemp("turning")
+    config = BuildConfig.from_pipeline(
+        "yalta2016", target="kinect_v2_positions", normalisation="maxabs", root_centre=True,
+        split_ratios=(1 / 3, 1 / 3, 1 / 3),
+    )  # fmt: skip
+    build_dataset(REPO / "sample_data", out / "dataset", config)
+    train(out / "dataset", out / "run", TrainConfig(**{**TINY_TRAINING, "epochs": 1}))
+    return out / "run", out / "dataset"
+
+
+def test_train_fits_the_training_dancers_turning_into_the_run(centred_run, tmp_path):
+    run, dataset = centred_run
+    turning = json.loads((run / "config.json").read_text())["turning"]
+    assert turning["pivot"] == ["FootLeft", "FootRight"] and turning["recordings"] == 1
+    assert turning["rms_speed"] == pytest.approx(turning["mean_abs_speed"] * math.sqrt(math.pi / 2))
+    assert 0 < turning["rms_speed"] < 20 and 0 < turning["time_constant"] < 10
+    off = TrainConfig(**{**TINY_TRAINING, "epochs": 1, "turning": False})
+    train(dataset, tmp_path / "off", off)
+    assert "turning" not in json.loads((tmp_path / "off" / "config.json").read_text())
+    assert TrainConfig("yalta", paper=True).turning is False  # the papers drew no turning
+
+
+def test_generate_turns_each_frame_rigidly_about_the_vertical_and_is_seeded(centred_run):
+    run, _ = centred_run
+    still, timing_still = generate(run, SONG, turning=False)
+    turned, timing = generate(run, SONG)
+    again, _ = generate(run, SONG)
+    other, _ = generate(run, SONG, seed=1)
+    assert timing_still["turning"] == "none drawn" and "about the standing foot" in timing["turning"]
+    np.testing.assert_array_equal(turned.positions, again.positions)
+    assert not np.allclose(turned.positions, other.positions)
+    p, q = still.positions, turned.positions
+    np.testing.assert_allclose(q[..., 1], p[..., 1], atol=1e-9)  # heights kept
+    for k in (0, len(p) // 2, len(p) - 1):  # each frame's shape kept: the distances between its joints
+        dp = np.linalg.norm(p[k][:, None] - p[k][None], axis=-1)
+        np.testing.assert_allclose(np.linalg.norm(q[k][:, None] - q[k][None], axis=-1), dp, atol=1e-9)
+    assert np.abs(q - p).max() > 1e-3  # and it does turn
+
+
+def test_live_draws_the_turning_frame_by_frame_as_generate_does(centred_run):
+    run, _ = centred_run
+    clock = VirtualClock(100.0)
+    dancer = LiveDancer(run, "torch", seed=3)
+    assert "turning drawn at generation" in dancer.turning_line
+
+    class Kept:
+        def __init__(self):
+            self.positions = []
+
+        def send(self, pose):
+            self.positions.append(pose.positions)
+
+    kept = Kept()
+    run_live(dancer, sources.FileSource(SONG, dancer.sample_rate, 80, clock), [kept], clock)
+    expected, _ = generate(run, SONG, seed=3)
+    np.testing.assert_allclose(np.stack(kept.positions), expected.positions, atol=1e-6, equal_nan=True)
+
+
+def test_evaluate_says_what_it_drew_and_no_turning_leaves_the_network_alone(centred_run, tmp_path):
+    run, dataset = centred_run
+    args = ["evaluate", "--run", str(run), "--data", str(dataset), "--split", "test", "--bootstrap", "0"]
+    drawn = CliRunner().invoke(main, [*args, "--out", str(tmp_path / "a")])
+    assert drawn.exit_code == 0, drawn.output
+    assert "turning drawn at generation: speed" in drawn.output and "fitted on 1 training recordings" in drawn.output
+    plain = CliRunner().invoke(main, [*args, "--out", str(tmp_path / "b"), "--no-turning"])
+    assert plain.exit_code == 0, plain.output
+    assert "turning drawn" not in plain.output
+    results = [json.loads((tmp_path / x / "results.json").read_text()) for x in "ab"]
+    assert results[1]["turning"] is None and results[0]["turning"].startswith("turning drawn")
+    # heights are the network's either way; the horizontal places are not
+    assert results[0]["smape"]["without_reset"] != results[1]["smape"]["without_reset"]
