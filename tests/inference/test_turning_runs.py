@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import json
 import math
+import shutil
 
 import numpy as np
 import pytest
@@ -52,6 +53,9 @@ def test_train_fits_the_training_dancers_turning_into_the_run(centred_run, tmp_p
     train(dataset, tmp_path / "off", off)
     assert "turning" not in json.loads((tmp_path / "off" / "config.json").read_text())
     assert TrainConfig("yalta", paper=True).turning is False  # the papers drew no turning
+    shutil.copytree(run, tmp_path / "resumed")  # a resumed run keeps the process it was started with
+    train(dataset, tmp_path / "resumed", TrainConfig(**{**TINY_TRAINING, "epochs": 2}), resume=True)
+    assert json.loads((tmp_path / "resumed" / "config.json").read_text())["turning"] == turning
 
 
 def test_generate_turns_each_frame_rigidly_about_the_vertical_and_is_seeded(centred_run):
