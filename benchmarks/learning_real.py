@@ -130,6 +130,11 @@ def goals(results: dict[str, Any]) -> list[tuple[str, bool, str]]:
     return out
 
 
+def _per_minute(history: list[dict[str, Any]], minutes: float) -> str:
+    """Training steps per minute of a run (the docs' runs: cdhc 144 on 2026-11-28, 82 on 2026-11-29)."""
+    return f"{history[-1]['step'] / minutes:.0f}" if minutes > 0 else "?"
+
+
 def _times(ratio: float | None) -> str:
     """An energy ratio as printed (``-`` when the epoch had no free runs to measure)."""
     return "-" if ratio is None else f"{ratio:.2f} x"
@@ -217,7 +222,8 @@ def _score(
     )
     kept = next((r for r in history if r.get("kept")), history[-1])
     print(
-        f"  [{model}] trained {trained:.1f} min, {history[-1]['step']} steps, {len(history)} epochs, model.pt "
+        f"  [{model}] trained {trained:.1f} min, {history[-1]['step']} steps ({_per_minute(history, trained)} a "
+        f"minute: the machine's speed decides how far a time budget goes), {len(history)} epochs, model.pt "
         f"from epoch {kept['epoch']} (lowest free-running validation rhythm loss among the epochs moving at "
         f"{ALIVE_RANGE[0]:g}-{ALIVE_RANGE[1]:g} x the real energy; its validation songs: "
         f"{_times(kept['val_energy'])}); curves: {figure}; "
