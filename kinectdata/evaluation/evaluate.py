@@ -66,7 +66,7 @@ from kinectdata.evaluation.run_field import run_field_scores
 from kinectdata.features import compute_features, feature_config
 from kinectdata.features.metre import Metre, recording_metre
 from kinectdata.inference.engines import engine_pairs, make_engine, onnxruntime_available
-from kinectdata.inference.turning import run_turning, with_turning
+from kinectdata.inference.turning import TurnedKind, with_turning
 from kinectdata.models.kind import ModelKind
 from kinectdata.models.registry import kind_of, model_kind
 from kinectdata.models.run import interface_mismatch, load_model, model_name, read_manifest, write_json
@@ -263,7 +263,7 @@ def evaluate(
         "split": split,
         "recordings": [r["name"] for r in recordings],
         "smape_zero_over_zero": 0.0,
-        "turning": None if run_turning(config) is None else run_turning(config).describe(),
+        "turning": kind.process.describe() if isinstance(kind, TurnedKind) else None,
     }
     scores = {}
     first = None

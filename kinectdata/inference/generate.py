@@ -40,6 +40,7 @@ from kinectdata.core.errors import ConfigError, KinectDataError
 from kinectdata.core.motion import Motion
 from kinectdata.features import feature_config, needs_metre
 from kinectdata.features.metre import recording_metre
+from kinectdata.features.silence import silence_features
 from kinectdata.features.streaming import StreamingFeatures
 from kinectdata.formats.bvh_writer import write_bvh
 from kinectdata.formats.csv_writer import write_csv
@@ -201,7 +202,8 @@ def generate(
     if process is not None:  # the frames the model made: 1..n-1 after a true first pose, else all
         made = slice(1 if true_first else 0, n)
         rng = np.random.default_rng(int(seed))
-        values[made] = turn_song(values[made], np.concatenate(heard)[made], config, process, rng)
+        silence = silence_features(data["features"], fps)
+        values[made] = turn_song(values[made], np.concatenate(heard)[made], silence, spec, fps, process, rng)
     seconds = time.perf_counter() - started
     metadata = {"format": "generated", "source": str(audio), "run": str(run)}
     motion = _motion(values, spec, fps, metadata, data.get("skeleton"), data["root_centre"], start.anchor)

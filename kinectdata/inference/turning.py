@@ -39,21 +39,17 @@ def run_turning(config: dict[str, Any]) -> TurningProcess | None:
 def turn_song(
     values: np.ndarray,
     features: np.ndarray,
-    config: dict[str, Any],
+    silence: np.ndarray,
+    spec: TargetSpec,
+    fps: float,
     process: TurningProcess,
     rng: np.random.Generator,
-    silence: np.ndarray | None = None,
 ) -> np.ndarray:
-    """Denormalised targets [T, D] of the frames whose features are ``features`` [T, *F], turned by a
-    speed drawn from ``rng``, 0 where the features are ``silence`` [*F] (default: the run's
-    :func:`~kinectdata.features.silence.silence_features`)."""
-    data = config["dataset"]
-    fps = float(data["fps"])
-    if silence is None:
-        silence = silence_features(data["features"], fps)
-    live = ~silent_frames(features, silence)
-    speed = draw_turning_speed(process, live, fps, rng)
-    return turn_targets(values, TargetSpec.from_dict(data["target"]), speed, fps, process)
+    """Denormalised targets [T, D] of ``spec`` at ``fps``, of the frames whose features are
+    ``features`` [T, *F], turned by a speed drawn from ``rng``, 0 where the features are ``silence``
+    [*F] (:func:`~kinectdata.features.silence.silence_features`)."""
+    speed = draw_turning_speed(process, ~silent_frames(features, silence), fps, rng)
+    return turn_targets(values, spec, speed, fps, process)
 
 
 def song_generator(seed: int, features: np.ndarray) -> np.random.Generator:
@@ -66,10 +62,11 @@ class TurnedKind:
     kind's own): what ``evaluate`` runs, so that every figure and control sees the turning."""
 
     def __init__(self, kind: Any, config: dict[str, Any], process: TurningProcess, seed: int = 0):
-        self.kind, self.config, self.process, self.seed = kind, config, process, int(seed)
+        self.kind, self.process, self.seed = kind, process, int(seed)
         self.spec = TargetSpec.from_dict(config["dataset"]["target"])
         self.norm = Normalizer.from_dict(config["dataset"]["normalisation"])
-        self.silence = silence_features(config["dataset"]["features"], float(config["dataset"]["fps"]))
+        self.fps = float(config["dataset"]["fps"])
+        self.silence = silence_features(config["dataset"]["features"], self.fps)
 
     def __getattr__(self, name: str) -> Any:
         return getattr(self.kind, name)
@@ -77,7 +74,8 @@ class TurnedKind:
     def _turned(self, audio: np.ndarray, run: np.ndarray) -> np.ndarray:
         made = audio[len(audio) - len(run) :]  # a free run makes frames 1..T-1 of features [T]
         values = self.norm.invert(run, self.spec)
-        turned = turn_song(values, made, self.config, self.process, song_generator(self.seed, audio), self.silence)
+        rng = song_generator(self.seed, audio)
+        turned = turn_song(values, made, self.silence, self.spec, self.fps, self.process, rng)
         return self.norm.apply(turned)
 
     def free_run(self, net: Any, audio: np.ndarray, first_pose: np.ndarray, reset_every: int | None = None) -> Any:
@@ -93,10 +91,10 @@ class TurnedKind:
         return [self._turned(np.asarray(a), np.asarray(r)) for a, r in zip(audios, runs)]
 
 
-def with_turning(kind: Any, config: dict[str, Any], seed: int = 0, turning: bool = True) -> Any:
+def with_turning(kind: Any, config: dict[str, Any], seed: int = 0) -> Any:
     """``kind`` turned by its run's process (:class:`TurnedKind`), or ``kind`` itself when the run
-    keeps none or ``turning`` is False."""
-    process = run_turning(config) if turning else None
+    keeps none."""
+    process = run_turning(config)
     return kind if process is None else TurnedKind(kind, config, process, seed)
 
 

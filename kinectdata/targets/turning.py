@@ -215,10 +215,8 @@ def draw_turning_speed(process: TurningProcess, live: np.ndarray, fps: float, rn
     b, gain = _pole_and_gain(process, fps)
     u = lfilter([1 - b], [1, -b], rng.standard_normal(len(live)))
     v = np.zeros(len(live))
-    previous = 0.0
-    for t in np.flatnonzero(live):  # the second stage restarts from 0 after every silence
-        previous = b * (previous if t and live[t - 1] else 0.0) + (1 - b) * u[t]
-        v[t] = previous
+    for t in np.flatnonzero(live):  # v is 0 in silence, so the second stage restarts from 0 after it
+        v[t] = b * (v[t - 1] if t else 0.0) + (1 - b) * u[t]
     return process.rms_speed * gain * v
 
 
@@ -229,8 +227,8 @@ class _Columns:
     feet: tuple[tuple[int, int, int], ...]  # each pivot foot's x, y, z columns (none: the root)
 
 
-def _columns(spec: TargetSpec, process: TurningProcess, root_centred: bool) -> _Columns:
-    why = turnable(spec, root_centred)
+def _columns(spec: TargetSpec, process: TurningProcess) -> _Columns:
+    why = turnable(spec, root_centred=True)
     if why:
         raise ConfigError(f"turning: {why}")
 
@@ -268,7 +266,7 @@ def turn_targets(
     """Denormalised root-centred targets [T, D] (metres, y up) turned by the heading that ``speed``
     [T] (rad/s) sums to, about the process's pivot (module docstring); a new array. Frame 0's heading
     is ``speed[0] / fps``: pass the frames that follow a given pose, as a free run makes them."""
-    cols = _columns(spec, process, root_centred=True)
+    cols = _columns(spec, process)
     values = np.asarray(values, np.float64)
     heading = np.cumsum(np.asarray(speed, np.float64)) / fps
     before = np.concatenate([[0.0], heading[:-1]])
@@ -293,17 +291,15 @@ class TurningStream:
 
     def __init__(self, process: TurningProcess, spec: TargetSpec, fps: float, rng: np.random.Generator):
         self.process, self.fps, self.rng = process, float(fps), rng
-        self.cols = _columns(spec, process, root_centred=True)
+        self.cols = _columns(spec, process)
         self.b, self.gain = _pole_and_gain(process, self.fps)
         self.u = self.v = self.heading = 0.0
         self.shift = np.zeros(2)
-        self.was_live = False
 
     def step(self, values: np.ndarray, live: bool) -> np.ndarray:
         e = float(self.rng.standard_normal())
         self.u = self.b * self.u + (1 - self.b) * e
-        self.v = (self.b * (self.v if self.was_live else 0.0) + (1 - self.b) * self.u) if live else 0.0
-        self.was_live = bool(live)
+        self.v = self.b * self.v + (1 - self.b) * self.u if live else 0.0  # v is 0 after a silence
         before = self.heading
         self.heading = before + self.process.rms_speed * self.gain * self.v / self.fps
         values = np.asarray(values, np.float64)

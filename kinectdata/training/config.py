@@ -139,7 +139,8 @@ class TrainConfig:
             Runs written before it had none.
         turning: fit the training dancers' turning about the vertical and keep it in the run, to be
             drawn wherever the run makes positions (:mod:`kinectdata.targets.turning`; 3-D position
-            targets centred on their root only, else none is kept and ``train`` says why). The
+            targets centred on their root only, else none is kept: ``evaluate`` and ``generate`` say
+            which). The
             papers' settings (``paper``) draw none. Runs written before it had none.
     """
 

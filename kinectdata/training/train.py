@@ -654,7 +654,7 @@ def train(
                 raise KinectDataError(f"{run}: already holds a run; use --resume to continue it or another folder")
             run_config["dataset"]["start_pose"] = _start_pose(dataset, manifest)
             if config.turning:
-                process, _ = fit_dataset_turning(dataset, manifest, run_config["dataset"])
+                process = fit_dataset_turning(dataset, manifest, run_config["dataset"])
                 if process is not None:
                     run_config["turning"] = process.to_dict()
             kind.init_output(net, run_config["dataset"]["start_pose"])

@@ -17,25 +17,17 @@ import numpy as np
 from kinectdata.core.errors import ConfigError
 from kinectdata.evaluation.evaluate import split_recordings
 from kinectdata.evaluation.metrics.turning import turning_rates
+from kinectdata.evaluation.rhythm_eval import target_positions
 from kinectdata.targets.normalization import Normalizer
 from kinectdata.targets.specs import TargetSpec
 from kinectdata.targets.turning import TurningProcess, fit_turning, turnable
 
-__all__ = ["fit_dataset_turning", "body_offsets"]
+__all__ = ["fit_dataset_turning"]
 
 
-def body_offsets(values: np.ndarray, mask: np.ndarray, spec: TargetSpec) -> tuple[np.ndarray, np.ndarray]:
-    """The offsets from the root [T, P-1, 3] of every positioned joint but the root, and their mask
-    [T, P-1], from denormalised root-centred targets [T, D] and their mask [T, D]."""
-    joints = [j for j in spec.positions if j != spec.root]
-    cols = np.array([np.arange(spec.columns(j).start, spec.columns(j).stop) for j in joints], np.int64)
-    return values[:, cols], mask[:, cols].all(axis=2)
-
-
-def fit_dataset_turning(
-    dataset: Path, manifest: dict[str, Any], summary: dict[str, Any]
-) -> tuple[TurningProcess | None, str]:
-    """(the turning process of the dataset's training recordings, "") or (None, why there is none).
+def fit_dataset_turning(dataset: Path, manifest: dict[str, Any], summary: dict[str, Any]) -> TurningProcess | None:
+    """The turning process of the dataset's training recordings, or None: the target cannot be
+    turned (:func:`kinectdata.targets.turning.turnable`) or no training frame has a known turn.
 
     Args:
         dataset: the dataset folder.
@@ -43,17 +35,17 @@ def fit_dataset_turning(
         summary: the run's dataset summary (:func:`kinectdata.models.run.dataset_summary`).
     """
     spec = TargetSpec.from_dict(summary["target"])
-    why = turnable(spec, bool(summary["root_centre"]))
-    if why:
-        return None, why
+    if turnable(spec, bool(summary["root_centre"])):
+        return None
     norm = Normalizer.from_dict(summary["normalisation"])
     fps = float(summary["fps"])
+    root = spec.positions.index(spec.root)
     rates = []
     for r in split_recordings(dataset, manifest, "train"):
-        if len(r["current"]) >= 3:
-            offsets, mask = body_offsets(norm.invert(r["current"], spec, mask=r["mask"]), r["mask"], spec)
-            rates.append(turning_rates(offsets, fps, mask))
+        if len(r["current"]) >= 3:  # the joints about the root, its travel left out, as evaluate's turning figure
+            positions, mask = target_positions(norm.invert(r["current"], spec, mask=r["mask"]), r["mask"], spec)
+            rates.append(turning_rates(np.delete(positions, root, axis=1), fps, np.delete(mask, root, axis=1)))
     try:
-        return fit_turning(rates, fps, spec), ""
-    except ConfigError as exc:
-        return None, str(exc).removeprefix("turning: ")
+        return fit_turning(rates, fps, spec)
+    except ConfigError:  # no frame with a known turn
+        return None
