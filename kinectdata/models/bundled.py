@@ -183,17 +183,20 @@ class YaltaKind(ModelKind):
 
         return YaltaNet(YaltaConfig.from_dict(config))
 
-    def predict(self, net, audio, previous, settings: YaltaSettings):
-        """[B, L, D] from a batch: ``previous`` [B, L, D] the true poses before each frame."""
-        return net(audio, previous if settings.feedback == "teacher" else previous[:, 0], settings.feedback)
+    def predict(self, net, audio, previous, settings: YaltaSettings, context: int = 0):
+        """[B, L - context, D] from a batch: ``previous`` [B, L, D] the true poses before each frame
+        (the LSTMs' state carries the context: every frame is stepped)."""
+        given = previous if settings.feedback == "teacher" else previous[:, 0]
+        return net(audio, given, settings.feedback)[:, context:]
 
-    def predict_free(self, net, audio, previous, settings: YaltaSettings):
+    def predict_free(self, net, audio, previous, settings: YaltaSettings, context: int = 0):
         """The configured feedback's poses and the free run, on one pass of the audio path."""
         given = previous if settings.feedback == "teacher" else previous[:, 0]
         if settings.feedback == "predicted":  # its training already runs free
-            poses = net(audio, given, "predicted")
+            poses = net(audio, given, "predicted")[:, context:]
             return poses, poses
-        return net(audio, previous, "teacher", free=True)
+        poses, free = net(audio, previous, "teacher", free=True)
+        return poses[:, context:], free[:, context:]
 
     def loss(self, net, pred, pose, mask, settings: YaltaSettings):
         loss = masked_mse(pred, pose, mask)
@@ -461,11 +464,13 @@ class CdhcKind(ModelKind):
         start = torch.as_tensor(start_pose, dtype=previous.dtype, device=previous.device)
         return torch.where(mask, previous, start)
 
-    def predict(self, net, audio, previous, settings: CdhcSettings):
-        return net(audio, previous)  # teacher forcing: the true pose of each previous frame
+    def predict(self, net, audio, previous, settings: CdhcSettings, context: int = 0):
+        """Teacher forcing (the true pose of each previous frame); the context's frames computed
+        only as far as later frames read them."""
+        return net(audio, previous, skip=context)
 
-    def predict_free(self, net, audio, previous, settings: CdhcSettings):
-        return net(audio, previous, free=True)
+    def predict_free(self, net, audio, previous, settings: CdhcSettings, context: int = 0):
+        return net(audio, previous, free=True, skip=context)
 
     def loss(self, net, pred, pose, mask, settings: CdhcSettings):
         from kinectdata.models.cdhc import cdhc_loss

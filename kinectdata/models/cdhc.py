@@ -187,8 +187,11 @@ class CausalConv1d(nn.Conv1d):
         super().__init__(in_channels, out_channels, kernel_size, dilation=dilation)
         self.history = (kernel_size - 1) * dilation
 
-    def forward(self, x: torch.Tensor) -> torch.Tensor:
-        return super().forward(F.pad(x.transpose(1, 2), (self.history, 0))).transpose(1, 2)
+    def forward(self, x: torch.Tensor, padded: bool = True) -> torch.Tensor:
+        """[B, T, Cin] -> [B, T, Cout] with zeros before frame 0; unpadded, [B, T - history, Cout]:
+        the first ``history`` rows of x serve as the history of the next one."""
+        x = x.transpose(1, 2)
+        return super().forward(F.pad(x, (self.history, 0)) if padded else x).transpose(1, 2)
 
     def step(self, x: torch.Tensor, cache: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
         """One frame x [B, Cin] and the previous ``history`` inputs [B, Cin, history] -> ([B, Cout], new cache)."""
@@ -214,8 +217,13 @@ class Highway(nn.Module):
         gate = torch.sigmoid(self.gate_norm(gate))
         return self.dropout(gate * self.info_norm(info) + (1.0 - gate) * x)
 
-    def forward(self, x: torch.Tensor) -> torch.Tensor:
-        return self._mix(self.conv(x), x)
+    def forward(self, x: torch.Tensor, drop: int = 0) -> torch.Tensor:
+        """X [B, T, C] -> Y [B, T - drop, C], the outputs of rows ``drop``.. of X. Dropped rows still
+        serve as the convolution's history (zeros before row 0), so rows 0.. of X must be frames 0..
+        unless ``drop`` is at least the block's history."""
+        look_back = self.conv.history
+        h = self.conv(x[:, drop - look_back :], padded=False) if drop >= look_back else self.conv(x)[:, drop:]
+        return self._mix(h, x[:, drop:])
 
     def step(self, x: torch.Tensor, cache: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
         """One frame x [B, C] and the conv's cache -> ([B, C], new cache)."""
@@ -227,13 +235,24 @@ def _highways(channels: int, dilations: tuple[int, ...], config: CdhcConfig) -> 
     return nn.ModuleList(Highway(channels, config.kernel_size, d, config.dropout) for d in dilations)
 
 
+def history(blocks: nn.ModuleList) -> int:
+    """Frames before its own that a stack of highway blocks' output depends on."""
+    return sum(block.conv.history for block in blocks)
+
+
 def _run_blocks(
-    blocks: nn.ModuleList, x: torch.Tensor, caches: list[torch.Tensor] | None
+    blocks: nn.ModuleList, x: torch.Tensor, caches: list[torch.Tensor] | None, skip: int = 0
 ) -> tuple[torch.Tensor, list[torch.Tensor]]:
-    """Highway blocks over a sequence [B, T, C] (caches None) or one frame [B, C] with one cache per block."""
+    """Highway blocks over a sequence [B, T, C] (caches None) or one frame [B, C] with one cache per
+    block. On a sequence whose rows are frames 0.., outputs of frames ``skip``.. only ([B, T - skip,
+    C]): each block computes only the rows the blocks after it read, which on a training window
+    with a long context saves a large share of the work."""
     if caches is None:
+        start, wanted = 0, skip - history(blocks)  # the frame x's row 0 holds; the first one read of it
         for block in blocks:
-            x = block(x)
+            wanted += block.conv.history  # the first frame of this block's output that is read
+            x = block(x, drop=max(wanted, 0) - start)
+            start = max(wanted, 0)
         return x, []
     new = []
     for block, cache in zip(blocks, caches):
@@ -255,11 +274,11 @@ class Encoder(nn.Module):
         self.blocks = _highways(c, config.encoder_dilations, config)
 
     def forward(
-        self, x: torch.Tensor, caches: list[torch.Tensor] | None = None
+        self, x: torch.Tensor, caches: list[torch.Tensor] | None = None, skip: int = 0
     ) -> tuple[torch.Tensor, list[torch.Tensor]]:
-        """A sequence [B, T, in] -> ([B, T, C], []), or one frame [B, in] and the blocks' caches ->
-        ([B, C], new caches)."""
-        return _run_blocks(self.blocks, self.convs(x), caches)
+        """A sequence [B, T, in] -> ([B, T - skip, C] codes of frames ``skip``.., []), or one frame
+        [B, in] and the blocks' caches -> ([B, C], new caches)."""
+        return _run_blocks(self.blocks, self.convs(x), caches, skip)
 
 
 class Decoder(nn.Module):
@@ -277,12 +296,13 @@ class Decoder(nn.Module):
         self.squash = config.output == "sigmoid"
 
     def forward(
-        self, audio: torch.Tensor, skeleton: torch.Tensor, caches: list[torch.Tensor] | None = None
+        self, audio: torch.Tensor, skeleton: torch.Tensor, caches: list[torch.Tensor] | None = None, skip: int = 0
     ) -> tuple[torch.Tensor, list[torch.Tensor]]:
-        """Codes [B, T, C] -> ([B, T, D], []), or one frame of codes [B, C] and the blocks' caches ->
-        ([B, D], new caches)."""
+        """Codes [B, T, C] -> ([B, T - skip, D] poses of rows ``skip``.., []), or one frame of codes
+        [B, C] and the blocks' caches -> ([B, D], new caches). Dropped rows still feed the blocks'
+        history: rows 0.. must be frames 0.. unless ``skip`` is at least the blocks' history."""
         g = torch.sigmoid(self.gate(torch.cat([audio, skeleton], dim=-1)))
-        x, caches = _run_blocks(self.blocks, self.fuse(g * audio + (1.0 - g) * skeleton), caches)
+        x, caches = _run_blocks(self.blocks, self.fuse(g * audio + (1.0 - g) * skeleton), caches, skip)
         out = self.output(self.convs(x))
         return (torch.sigmoid(out) if self.squash else out), caches
 
@@ -317,37 +337,54 @@ class CdhcNet(nn.Module):
         """Frames (at the motion rate) that output t depends on: t - R + 1 .. t, in both inputs."""
         return self.config.receptive_field
 
-    def forward(self, audio: torch.Tensor, previous: torch.Tensor, free: bool = False):
+    def forward(self, audio: torch.Tensor, previous: torch.Tensor, free: bool = False, skip: int = 0):
         """Poses from audio features and the previous poses (teacher forcing); with ``free``, also
         the free run from ``previous[:, 0]`` (the network fed its own outputs, frame by frame with
-        the blocks' caches, differentiable): ``(poses, free poses [B, T, D])``.
+        the blocks' caches, differentiable): ``(poses, free poses)``.
 
         Args:
             audio: [B, T, F] features, frame t at the motion's frame t.
             previous: [B, T, D], ``previous[:, t]`` the pose of frame t-1 (the true poses shifted
                 by one frame, the first being a start pose).
+            skip: the first ``skip`` frames are input only (a training window's context): their
+                poses are neither returned nor computed beyond what later frames depend on.
 
         Returns:
-            [B, T, D] poses (in 0..1 under a sigmoid output); frame t depends only on ``audio[:, :t+1]``
-            and ``previous[:, :t+1]``.
+            [B, T - skip, D] poses of frames ``skip``.. (in 0..1 under a sigmoid output); frame t
+            depends only on ``audio[:, :t+1]`` and ``previous[:, :t+1]``.
         """
         _check_inputs(self.config, audio, previous)
-        a, _ = self.audio_encoder(audio)
-        s, _ = self.skeleton_encoder(self.seen_poses(previous))
-        poses = self.decoder(a, s)[0]
+        if not 0 <= skip < audio.shape[1]:
+            raise KinectDataError(f"CDHC input: skip must be in 0..{audio.shape[1] - 1}, not {skip}")
+        first = max(skip - history(self.decoder.blocks), 0)  # the first frame whose codes the decoder reads
+        steps_free = free and self.config.inputs != "music"  # the free run reads every frame's audio code
+        codes, _ = self.audio_encoder(audio, skip=0 if steps_free else first)
+        a = codes[:, first:] if steps_free else codes
+        poses = self.decoder(a, self._skeleton_codes(previous, first), skip=skip - first)[0]
         if self.config.output == "residual":
-            poses = self.add_change(poses, previous)
+            poses = self.add_change(poses, previous[:, skip:])
         if not free:
             return poses
-        if self.config.inputs == "music":  # no feedback: running free is this same pass
+        if not steps_free:  # no feedback: running free is this same pass
             return poses, poses
         stream = StreamingCdhc(self)
         _, caches = stream.initial_state(audio.shape[0])
         pose, steps = previous[:, 0], []
         for t in range(audio.shape[1]):
-            pose, caches = stream.decode(a[:, t], pose, caches)
+            pose, caches = stream.decode(codes[:, t], pose, caches)
             steps.append(pose)
-        return poses, torch.stack(steps, dim=1)
+        return poses, torch.stack(steps[skip:], dim=1)
+
+    def _skeleton_codes(self, previous: torch.Tensor, first: int) -> torch.Tensor:
+        """The skeleton encoder's codes [B, T - first, C] of frames ``first``.. of the previous poses [B, T, D]."""
+        if self.config.inputs != "music" or (self.training and self.config.dropout > 0):
+            return self.skeleton_encoder(self.seen_poses(previous), skip=first)[0]
+        # Zeros in, the same for every window of the batch: the codes change only while the zero
+        # padding before frame 0 is in view and are constant after it, so one short pass gives them all.
+        span = min(previous.shape[1], history(self.skeleton_encoder.blocks) + 1)
+        codes, _ = self.skeleton_encoder(previous.new_zeros(1, span, self.config.output_dim))
+        rows = torch.arange(first, previous.shape[1], device=codes.device).clamp(max=span - 1)
+        return codes[:, rows].expand(previous.shape[0], -1, -1)
 
 
 def _check_inputs(config: CdhcConfig, audio: torch.Tensor, previous: torch.Tensor) -> None:
@@ -497,8 +534,9 @@ def generate_many(
             if config.inputs == "music":  # nothing fed back: the whole song in one causal pass
                 silence = config.start_silence
                 audio = torch.cat([audio.new_zeros(len(audios), silence, config.input_dim), audio], dim=1)
-                out = net(audio, torch.zeros(*audio.shape[:2], config.output_dim, dtype=like.dtype, device=like.device))
-                return [out[i, silence : silence + n].float().cpu().numpy() for i, n in enumerate(lengths)]
+                nothing = torch.zeros(*audio.shape[:2], config.output_dim, dtype=like.dtype, device=like.device)
+                out = net(audio, nothing, skip=silence)
+                return [out[i, :n].float().cpu().numpy() for i, n in enumerate(lengths)]
             codes, _ = net.audio_encoder(audio)
             _, caches = stream.initial_state(len(audios))
             out = torch.empty(len(audios), max(lengths), config.output_dim, dtype=like.dtype, device=like.device)

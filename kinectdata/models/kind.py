@@ -197,16 +197,18 @@ class ModelKind(Protocol):
         """What masked previous poses become, ``[..., D]`` tensors or arrays (default: as stored)."""
         return previous
 
-    def predict(self, net: Any, audio: Any, previous: Any, settings: Any) -> Any:
-        """Poses ``[B, L, D]`` for a training batch: ``audio [B, L, *F]``, ``previous [B, L, D]``
-        (the true poses before each frame); ``net`` may be wrapped in DistributedDataParallel."""
+    def predict(self, net: Any, audio: Any, previous: Any, settings: Any, context: int = 0) -> Any:
+        """Poses ``[B, L - context, D]`` of frames ``context``.. of a training batch: ``audio [B, L,
+        *F]``, ``previous [B, L, D]`` (the true poses before each frame), the first ``context``
+        frames input only (``TrainConfig.context``: a kind may skip work for them); ``net`` may be
+        wrapped in DistributedDataParallel."""
         raise NotImplementedError(f"the {self.name} model does not define predict")
 
-    def predict_free(self, net: Any, audio: Any, previous: Any, settings: Any) -> tuple[Any, Any]:
-        """``(poses, free poses)`` for a training batch: :meth:`predict`'s poses and the network
-        running on its own outputs through the window from ``previous[:, 0]``, differentiable (the
-        free-running rhythm loss: ``TrainConfig.free_weight``). Only for kinds with
-        ``runs_free_in_training``."""
+    def predict_free(self, net: Any, audio: Any, previous: Any, settings: Any, context: int = 0) -> tuple[Any, Any]:
+        """``(poses, free poses)`` of frames ``context``.. of a training batch: :meth:`predict`'s
+        poses and the network running on its own outputs through the window from ``previous[:,
+        0]``, differentiable (the free-running rhythm loss: ``TrainConfig.free_weight``). Only for
+        kinds with ``runs_free_in_training``."""
         raise NotImplementedError(f"the {self.name} model does not run free in training")
 
     def loss(self, net: Any, pred: Any, pose: Any, mask: Any, settings: Any) -> Any:

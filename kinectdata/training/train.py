@@ -697,8 +697,7 @@ def train(
                     previous = previous + config.previous_noise * torch.randn(previous.shape).to(device)
                 pose, mask = pose[:, context:], mask[:, context:]
                 if config.free_weight > 0:
-                    pred, free = kind.predict_free(model, audio, previous, config.settings)
-                    pred, free = pred[:, context:], free[:, context:]
+                    pred, free = kind.predict_free(model, audio, previous, config.settings, context)
                     loss = kind.loss(net, pred, pose, mask, config.settings)
                     loss = loss + config.free_weight * masked_rhythm_loss(
                         free,
@@ -712,7 +711,7 @@ def train(
                         config.bone_jitter_weight,
                     )
                 else:
-                    pred = kind.predict(model, audio, previous, config.settings)[:, context:]
+                    pred = kind.predict(model, audio, previous, config.settings, context)
                     loss = kind.loss(net, pred, pose, mask, config.settings)
                 valid = float(mask.sum())
                 optimizer.zero_grad(set_to_none=True)

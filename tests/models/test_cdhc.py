@@ -51,13 +51,7 @@ def make_net(channels=8, seed=0, dtype=torch.float32, sharpen=True, **config) ->
     return (sharpened(net) if sharpen else net).to(dtype).eval()
 
 
-@pytest.fixture(autouse=True)
-def one_thread():
-    """Small tensors: one thread is fastest, and two stall badly when the other core is busy."""
-    threads = torch.get_num_threads()
-    torch.set_num_threads(1)
-    yield
-    torch.set_num_threads(threads)
+pytestmark = pytest.mark.usefixtures("one_thread")  # tests/models/conftest.py
 
 
 def sequences(T, batch=2, seed=1, dtype=torch.float32, features=F):

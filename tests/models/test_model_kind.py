@@ -94,8 +94,8 @@ class TinyKind(ModelKind):
     def build(self, config):
         return TinyNet(config)
 
-    def predict(self, net, audio, previous, settings):
-        return net(audio, previous)[0]  # teacher forcing
+    def predict(self, net, audio, previous, settings, context=0):
+        return net(audio, previous)[0][:, context:]  # teacher forcing; a recurrent net steps its context
 
     def loss(self, net, pred, pose, mask, settings):
         return masked_mse(pred, pose, mask)
