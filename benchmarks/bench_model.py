@@ -168,7 +168,7 @@ def _training_setup(config: TrainConfig):
 
 
 def training_throughput(steps: int = 2) -> None:
-    config = TrainConfig()
+    config = TrainConfig(paper=True)  # the paper-size network and batches the docs describe
     print(
         f"training throughput: {config.units} units, sequences of {config.sequence}, batches of "
         f"{config.batch_size}, {torch.get_num_threads()} threads, {steps} timed steps after one warm-up:"
@@ -232,7 +232,7 @@ def training_profile(feedback: str = "teacher") -> None:
     nn.LSTM, Adam), so a faster loop would have to cut the time of these operators themselves."""
     from torch.profiler import ProfilerActivity, profile
 
-    config = TrainConfig()
+    config = TrainConfig(paper=True)  # the paper-size network and batches the docs describe
     net, optimizer, (audio, pose, previous, mask) = _training_setup(config)
 
     def step() -> None:
@@ -275,6 +275,43 @@ def training_profile(feedback: str = "teacher") -> None:
     )
     share = 100 * groups["convolutions"] / total
     record("training", f"yalta {feedback}-feedback step: share in convolutions", f"{share:.0f} %")
+
+
+def yalta_bfloat16_step(steps: int = 3) -> None:
+    """Seconds per optimisation step of the yalta defaults' network (128 units, teacher feedback
+    and its free run, 2-channel real-dance features, batches of 8 x 300) in float32 and with
+    ``--precision bfloat16`` (the convolutions under autocast, the LSTMs in float32), interleaved
+    in the same run; on a CPU without native bfloat16 it says so and measures nothing."""
+    from kinectdata.training.train import native_bfloat16
+
+    if not native_bfloat16(torch.device("cpu")):
+        print("yalta step in bfloat16: this CPU has no native bfloat16 (train-baseline trains in float32 there)")
+        return
+    torch.manual_seed(0)
+    net = YaltaNet(YaltaConfig(output_dim=75, units=128, input_shape=(2, 129, 5))).train()
+    optimizer = torch.optim.Adam(net.parameters(), lr=1e-3)
+    g = torch.Generator().manual_seed(3)
+    audio = torch.rand(8, 300, 2, 129, 5, generator=g)
+    pose = torch.rand(8, 300, 75, generator=g) * 1.8 - 0.9
+    previous = torch.cat([pose[:, :1], pose[:, :-1]], dim=1)
+    times: dict[str, list[float]] = {"float32": [], "bfloat16": []}
+    for _ in range(steps + 1):
+        for precision in times:
+            start = time.perf_counter()
+            with torch.autocast("cpu", dtype=torch.bfloat16, enabled=precision == "bfloat16"):
+                poses, free = net(audio, previous, "teacher", free=True)
+            loss = (poses.float() - pose).abs().mean() + (free.float() - pose).abs().mean()
+            optimizer.zero_grad(set_to_none=True)
+            loss.backward()
+            optimizer.step()
+            times[precision].append(time.perf_counter() - start)
+    seconds = {k: float(np.median(v[1:])) for k, v in times.items()}
+    print(f"yalta training step, 128 units, teacher feedback and its free run, batches of 8 x 300, {steps} steps each:")
+    for precision, value in seconds.items():
+        print(f"  {precision:<9} {value:6.2f} s per step")
+    ratio = seconds["float32"] / seconds["bfloat16"]
+    print(f"  bfloat16 {ratio:.2f}x faster than float32")
+    record("training", "yalta step on a real-dance window, bfloat16 against float32", f"{ratio:.2f}x")
 
 
 def _whole_window(net, audio: torch.Tensor, context: int) -> torch.Tensor:
@@ -332,6 +369,7 @@ def main() -> None:
     training_throughput()
     training_profile()
     cdhc_training_step()
+    yalta_bfloat16_step()
 
 
 if __name__ == "__main__":

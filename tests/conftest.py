@@ -54,9 +54,21 @@ TINY_TRAINING = {
     "free_weight": 0.0,
     "silence_share": 0.0,
     "keep": "last",
+    "precision": "float32",  # the same arithmetic on every machine
 }
 """A training small enough for tests (about a second): 32 units, 30-frame sequences, no noise, the
 teacher-forced loss alone (tests/training/test_real_dance_recipe.py trains the rest)."""
+
+
+@pytest.fixture
+def one_thread():
+    """torch on one thread for the test: small tensors compute fastest so, and two threads stall
+    badly when the other core is busy."""
+    torch = pytest.importorskip("torch")
+    threads = torch.get_num_threads()
+    torch.set_num_threads(1)
+    yield
+    torch.set_num_threads(threads)
 
 
 @pytest.fixture(scope="session")

@@ -119,6 +119,13 @@ _LOOP_OPTIONS = (
         "use (0.995: the last 200 steps or so); 0: none.",
     ),
     (
+        "precision",
+        click.Choice(["float32", "bfloat16"]),
+        "Arithmetic of the training step's forward pass: bfloat16 runs it under torch.autocast where the device "
+        "computes bfloat16 natively (about twice as fast for convolutions; float32 with a warning elsewhere); "
+        "losses, weights, validation and generation stay float32.",
+    ),
+    (
         "keep",
         click.Choice(["last", "best"]),
         "model.pt: the last epoch, or the one with the best free-running validation rhythm loss among those whose "

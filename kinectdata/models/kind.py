@@ -71,6 +71,7 @@ PAPER_LOOP: dict[str, Any] = {
     "silence_share": 0.0,
     "keep": "last",
     "context": 0,
+    "precision": "float32",
 }
 """Yalta et al.'s training loop: sequences of 150 (not overlapping), batches of 50, 10 epochs, Adam
 1e-4, annealed gradient noise, the teacher-forced (or fed-back) loss alone, the last epoch kept;

@@ -87,6 +87,13 @@ def _each_distinct_frame_once(convs: nn.Module, frames: torch.Tensor) -> torch.T
     return convs(frames[torch.from_numpy(first)])[torch.from_numpy(inverse.reshape(-1))]
 
 
+def _in_float32(x: torch.Tensor):
+    """A context with ``torch.autocast`` off on x's device: under a bfloat16 training step
+    (``TrainConfig.precision``) the convolutions run in bfloat16 and the LSTMs, whose state is
+    carried over hundreds of frames, in float32."""
+    return torch.autocast(x.device.type, enabled=False)
+
+
 class YaltaNet(nn.Module):
     """The network for training and sequence evaluation (see the module docstring)."""
 
@@ -115,8 +122,9 @@ class YaltaNet(nn.Module):
             codes = self.convs(frames).reshape(b, t, CODE)
         else:
             codes = _each_distinct_frame_once(self.convs, frames).reshape(b, t, CODE)
-        hidden, state = self.lstm1(codes, state)
-        return self.fc1(hidden), state
+        with _in_float32(codes):
+            hidden, state = self.lstm1(codes.to(self.lstm1.weight_ih_l0.dtype), state)
+            return self.fc1(hidden), state
 
     def decode(self, codes: torch.Tensor, previous: torch.Tensor, feedback: str, state=None):
         """Poses from fc1 codes [B, T, 65].
@@ -129,6 +137,10 @@ class YaltaNet(nn.Module):
         Returns:
             ([B, T, D] poses, LSTM4-6 state).
         """
+        with _in_float32(codes):
+            return self._decode(codes.to(self.fc2.weight.dtype), previous, feedback, state)
+
+    def _decode(self, codes: torch.Tensor, previous: torch.Tensor, feedback: str, state):
         if self.config.inputs == "music":
             previous = torch.zeros_like(previous)
         if feedback == "teacher" or self.config.inputs == "music":  # music only: no feedback to step

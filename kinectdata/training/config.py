@@ -32,6 +32,7 @@ LOOP_DEFAULTS: dict[str, Any] = {
 ``training_defaults`` change them)."""
 
 KEEPS = ("last", "best")
+PRECISIONS = ("float32", "bfloat16")
 ADDED_OFF = {
     "free_weight": 0.0,
     "silence_share": 0.0,
@@ -48,6 +49,7 @@ ADDED_OFF = {
     "weight_average": 0.0,
     "mirror_share": 0.0,
     "turning": False,
+    "precision": "float32",
 }
 """Loop (and model) settings added after runs were written: a run's config.json without them trained without
 them, whatever today's defaults are (resuming it goes on as it started)."""
@@ -142,6 +144,12 @@ class TrainConfig:
             targets centred on their root only, else none is kept: ``evaluate`` and ``generate`` say
             which). The
             papers' settings (``paper``) draw none. Runs written before it had none.
+        precision: the training step's arithmetic (:data:`PRECISIONS`): ``float32``, or
+            ``bfloat16``, the network's forward pass under ``torch.autocast`` (its losses, weights,
+            optimiser, validation and every run made from it in float32; a model keeps what it
+            must in float32: the yalta model its LSTMs, :class:`~kinectdata.models.yalta.YaltaNet`).
+            Where the device has no native bfloat16 (a CPU without AVX-512 BF16, a GPU without
+            bfloat16), ``train`` warns and trains in float32. Runs written before it had float32.
     """
 
     model: str
@@ -170,6 +178,7 @@ class TrainConfig:
     weight_average: float
     mirror_share: float
     turning: bool
+    precision: str
     settings: Any
 
     def __init__(self, model: str | None = None, *, settings: Any = None, paper: bool = False, **given: Any) -> None:
@@ -222,6 +231,8 @@ class TrainConfig:
             object.__setattr__(self, "balance", None)
         if self.balance is not None and self.balance not in BALANCE_FIELDS:
             raise ConfigError(f"balance must be one of {', '.join(BALANCE_FIELDS)} or None, not {self.balance!r}")
+        if self.precision not in PRECISIONS:
+            raise ConfigError(f"precision must be {' or '.join(PRECISIONS)}, not {self.precision!r}")
         if self.keep not in KEEPS:
             raise ConfigError(f"keep must be {' or '.join(KEEPS)}, not {self.keep!r}")
         if self.free_weight > 0 and not model_kind(self.model).runs_free_in_training:

@@ -271,6 +271,29 @@ def _set_deterministic(mode: bool, warn_only: bool) -> None:
         torch._C._set_deterministic_algorithms(mode, warn_only=warn_only)
 
 
+def native_bfloat16(device: torch.device) -> bool:
+    """Whether ``device`` computes bfloat16 natively: a CPU with AVX-512 BF16 (or AMX), a CUDA
+    device that supports it. Elsewhere torch emulates it, slower than float32."""
+    if device.type == "cuda":
+        return torch.cuda.is_bf16_supported()
+    return device.type == "cpu" and torch.cpu._is_avx512_bf16_supported()
+
+
+def _forward_precision(precision: str, device: torch.device):
+    """The context the training step's forward pass runs in: ``torch.autocast`` to bfloat16 for
+    ``precision`` ``bfloat16`` where the device has it natively (else float32, with a warning)."""
+    wanted = precision == "bfloat16"
+    if wanted and not native_bfloat16(device):
+        warnings.warn(
+            f"--precision bfloat16: this {device.type.upper()} has no native bfloat16 arithmetic (emulated, it "
+            "would be slower than float32): training in float32",
+            TrainingWarning,
+            stacklevel=3,
+        )
+        wanted = False
+    return torch.autocast(device.type, dtype=torch.bfloat16, enabled=wanted)
+
+
 def _start_pose(dataset: Path, manifest: dict[str, Any]) -> list[float]:
     """Mean normalised pose of the training split's recordings (valid values; 0 where a component
     never is): the output layer's initial bias and the first "previous pose" when generating."""
@@ -677,6 +700,7 @@ def train(
             if config.keep == "best"
             else None
         )
+        forward_precision = _forward_precision(config.precision, device)
         deadline = None if config.max_minutes is None else time.monotonic() + 60 * config.max_minutes
         out_of_time = False
         for epoch in range(len(history) + 1, config.epochs + 1):
@@ -697,7 +721,9 @@ def train(
                     previous = previous + config.previous_noise * torch.randn(previous.shape).to(device)
                 pose, mask = pose[:, context:], mask[:, context:]
                 if config.free_weight > 0:
-                    pred, free = kind.predict_free(model, audio, previous, config.settings, context)
+                    with forward_precision:
+                        pred, free = kind.predict_free(model, audio, previous, config.settings, context)
+                    pred, free = pred.float(), free.float()
                     loss = kind.loss(net, pred, pose, mask, config.settings)
                     loss = loss + config.free_weight * masked_rhythm_loss(
                         free,
@@ -711,8 +737,9 @@ def train(
                         config.bone_jitter_weight,
                     )
                 else:
-                    pred = kind.predict(model, audio, previous, config.settings, context)
-                    loss = kind.loss(net, pred, pose, mask, config.settings)
+                    with forward_precision:
+                        pred = kind.predict(model, audio, previous, config.settings, context)
+                    loss = kind.loss(net, pred.float(), pose, mask, config.settings)
                 valid = float(mask.sum())
                 optimizer.zero_grad(set_to_none=True)
                 (loss * share_of_batch(valid, world)).backward()

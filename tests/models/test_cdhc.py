@@ -51,7 +51,7 @@ def make_net(channels=8, seed=0, dtype=torch.float32, sharpen=True, **config) ->
     return (sharpened(net) if sharpen else net).to(dtype).eval()
 
 
-pytestmark = pytest.mark.usefixtures("one_thread")  # tests/models/conftest.py
+pytestmark = pytest.mark.usefixtures("one_thread")  # tests/conftest.py
 
 
 def sequences(T, batch=2, seed=1, dtype=torch.float32, features=F):

@@ -15,7 +15,7 @@ from kinectdata.models.cdhc import CdhcConfig, CdhcNet, StreamingCdhc, history  
 D, F = 14, 7  # 4 joints x 3 + 2 limb lengths; features
 
 
-pytestmark = pytest.mark.usefixtures("one_thread")  # tests/models/conftest.py
+pytestmark = pytest.mark.usefixtures("one_thread")  # tests/conftest.py
 
 
 def make_net(inputs="music", output="linear", seed=0, dropout=0.0) -> CdhcNet:

@@ -20,7 +20,7 @@ from kinectdata.targets.specs import load_target_spec  # noqa: E402
 D, F = 8, 6  # 2 joints in 3-D and 2 limbs; 6 audio features
 
 
-pytestmark = pytest.mark.usefixtures("one_thread")  # tests/models/conftest.py
+pytestmark = pytest.mark.usefixtures("one_thread")  # tests/conftest.py
 
 
 def small(output: str, seed: int = 0, leak: float = 0.0, inputs: str = "music-and-poses") -> CdhcNet:
