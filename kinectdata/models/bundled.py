@@ -137,7 +137,7 @@ class YaltaKind(ModelKind):
     description = "the DCNN + deep LSTM of Yalta et al. (2016)"
     settings_type = YaltaSettings
     # bfloat16: its four convolutions are four fifths of a training step; in bfloat16 a step took
-    # 0.70 x the time, the gradient within 0.2 % of float32's (docs/benchmarks.md, bench_model)
+    # 0.65 x the time, the whole gradient within 0.2 % of float32's (docs/benchmarks.md, bench_model)
     training_defaults: dict[str, Any] = {**REAL_DANCE_LOOP, "precision": "bfloat16"}
     paper: dict[str, Any] = {
         **PAPER_LOOP,
