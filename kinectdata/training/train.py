@@ -22,6 +22,7 @@ writes files.
 from __future__ import annotations
 
 import csv
+import inspect
 import io
 import json
 import math
@@ -292,6 +293,16 @@ def _forward_precision(precision: str, device: torch.device):
         )
         wanted = False
     return torch.autocast(device.type, dtype=torch.bfloat16, enabled=wanted)
+
+
+def _after_context(predict: Callable, net, audio, previous, settings, context: int):
+    """A kind's ``predict`` or ``predict_free`` for the frames after a window's context. A kind
+    written before they took ``context`` (``predict(net, audio, previous, settings)``) still
+    trains: its whole window's outputs are cut here."""
+    if "context" in inspect.signature(predict).parameters:
+        return predict(net, audio, previous, settings, context=context)
+    out = predict(net, audio, previous, settings)
+    return tuple(x[:, context:] for x in out) if isinstance(out, tuple) else out[:, context:]
 
 
 def _start_pose(dataset: Path, manifest: dict[str, Any]) -> list[float]:
@@ -722,7 +733,7 @@ def train(
                 pose, mask = pose[:, context:], mask[:, context:]
                 if config.free_weight > 0:
                     with forward_precision:
-                        pred, free = kind.predict_free(model, audio, previous, config.settings, context)
+                        pred, free = _after_context(kind.predict_free, model, audio, previous, config.settings, context)
                     pred, free = pred.float(), free.float()
                     loss = kind.loss(net, pred, pose, mask, config.settings)
                     loss = loss + config.free_weight * masked_rhythm_loss(
@@ -738,7 +749,7 @@ def train(
                     )
                 else:
                     with forward_precision:
-                        pred = kind.predict(model, audio, previous, config.settings, context)
+                        pred = _after_context(kind.predict, model, audio, previous, config.settings, context)
                     loss = kind.loss(net, pred.float(), pose, mask, config.settings)
                 valid = float(mask.sum())
                 optimizer.zero_grad(set_to_none=True)

@@ -275,3 +275,32 @@ def test_recordings_are_run_free_in_bounded_batches_of_similar_length():
     assert run_batches([10] * 5, max_batch=2) == [[0, 1], [2, 3], [4]]
     assert run_batches([50_000, 10]) == [[1], [0]]  # one recording longer than the cap runs alone
     assert run_batches([]) == []
+
+
+class OlderKind(TinyKind):
+    """A kind written before ``predict`` took the window's context."""
+
+    name = "tiny_older"
+
+    def predict(self, net, audio, previous, settings):
+        return net(audio, previous)[0]
+
+
+def test_a_kind_written_before_predict_took_the_context_still_trains_on_the_frames_after_it(sample_dataset, tmp_path):
+    from kinectdata.training import train as training
+    from kinectdata.training.config import TrainConfig
+
+    seen = []  # the shapes the loss is given
+    register_model(OlderKind())
+    try:
+        kind = training.model_kind("tiny_older")
+        original = kind.loss
+        kind.loss = lambda net, pred, pose, mask, settings: (
+            seen.append((pred.shape, pose.shape)) or original(net, pred, pose, mask, settings)
+        )
+        history = training.train(sample_dataset, tmp_path / "run", TrainConfig.for_model("tiny_older", context=5))
+    finally:
+        unregister_model("tiny_older")
+    assert np.isfinite(history[0]["train_loss"])
+    pred_shape, pose_shape = seen[0]
+    assert pred_shape == pose_shape and pred_shape[1] == 30  # the window's 30 counted frames, its 5 of context cut
