@@ -273,11 +273,12 @@ def _set_deterministic(mode: bool, warn_only: bool) -> None:
 
 
 def native_bfloat16(device: torch.device) -> bool:
-    """Whether ``device`` computes bfloat16 natively: a CPU with AVX-512 BF16 (or AMX), a CUDA
-    device that supports it. Elsewhere torch emulates it, slower than float32."""
+    """Whether ``device`` computes bfloat16 natively: a CPU with AVX-512 BF16, a CUDA device that
+    supports it. Elsewhere torch emulates it, slower than float32. (torch names the CPU's check
+    privately: a torch without it is taken to have none.)"""
     if device.type == "cuda":
         return torch.cuda.is_bf16_supported()
-    return device.type == "cpu" and torch.cpu._is_avx512_bf16_supported()
+    return device.type == "cpu" and getattr(torch.cpu, "_is_avx512_bf16_supported", lambda: False)()
 
 
 def _forward_precision(precision: str, device: torch.device):
@@ -295,14 +296,19 @@ def _forward_precision(precision: str, device: torch.device):
     return torch.autocast(device.type, dtype=torch.bfloat16, enabled=wanted)
 
 
-def _after_context(predict: Callable, net, audio, previous, settings, context: int):
-    """A kind's ``predict`` or ``predict_free`` for the frames after a window's context. A kind
-    written before they took ``context`` (``predict(net, audio, previous, settings)``) still
-    trains: its whole window's outputs are cut here."""
+def _after_context(predict: Callable) -> Callable:
+    """A kind's ``predict`` or ``predict_free`` as ``f(net, audio, previous, settings, context)``,
+    giving the frames after a window's context. A kind written before they took ``context``
+    (``predict(net, audio, previous, settings)``) still trains: its whole window's outputs are cut
+    here. Its signature is read once, not every step."""
     if "context" in inspect.signature(predict).parameters:
-        return predict(net, audio, previous, settings, context=context)
-    out = predict(net, audio, previous, settings)
-    return tuple(x[:, context:] for x in out) if isinstance(out, tuple) else out[:, context:]
+        return predict
+
+    def cut(net, audio, previous, settings, context):
+        out = predict(net, audio, previous, settings)
+        return tuple(x[:, context:] for x in out) if isinstance(out, tuple) else out[:, context:]
+
+    return cut
 
 
 def _start_pose(dataset: Path, manifest: dict[str, Any]) -> list[float]:
@@ -712,6 +718,7 @@ def train(
             else None
         )
         forward_precision = _forward_precision(config.precision, device)
+        predict, predict_free = _after_context(kind.predict), _after_context(kind.predict_free)
         deadline = None if config.max_minutes is None else time.monotonic() + 60 * config.max_minutes
         out_of_time = False
         for epoch in range(len(history) + 1, config.epochs + 1):
@@ -733,7 +740,7 @@ def train(
                 pose, mask = pose[:, context:], mask[:, context:]
                 if config.free_weight > 0:
                     with forward_precision:
-                        pred, free = _after_context(kind.predict_free, model, audio, previous, config.settings, context)
+                        pred, free = predict_free(model, audio, previous, config.settings, context)
                     pred, free = pred.float(), free.float()
                     loss = kind.loss(net, pred, pose, mask, config.settings)
                     loss = loss + config.free_weight * masked_rhythm_loss(
@@ -749,7 +756,7 @@ def train(
                     )
                 else:
                     with forward_precision:
-                        pred = _after_context(kind.predict, model, audio, previous, config.settings, context)
+                        pred = predict(model, audio, previous, config.settings, context)
                     loss = kind.loss(net, pred.float(), pose, mask, config.settings)
                 valid = float(mask.sum())
                 optimizer.zero_grad(set_to_none=True)

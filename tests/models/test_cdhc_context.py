@@ -9,6 +9,8 @@ import pytest
 
 torch = pytest.importorskip("torch")
 
+from test_cdhc import sharpened  # noqa: E402
+
 from kinectdata.core.errors import KinectDataError  # noqa: E402
 from kinectdata.models.cdhc import CdhcConfig, CdhcNet, StreamingCdhc, history  # noqa: E402
 
@@ -34,14 +36,9 @@ def make_net(inputs="music", output="linear", seed=0, dropout=0.0) -> CdhcNet:
         inputs=inputs,
         leak=0.1 if output == "residual" else 0.0,
     )
-    net = CdhcNet(config)
-    with torch.no_grad():
-        for module in net.modules():
-            if isinstance(module, torch.nn.Linear):
-                module.weight.mul_(3.0)
-            if hasattr(module, "gate_norm"):
-                module.gate_norm.bias.fill_(-2.0)
-        if output == "residual":
+    net = sharpened(CdhcNet(config))
+    if output == "residual":
+        with torch.no_grad():
             net.anchor.normal_()
     return net.eval()
 
