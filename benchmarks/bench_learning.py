@@ -272,8 +272,19 @@ def _headline(model: str, name: str, scored: dict[str, Any]) -> None:
 
 def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(prog="python -m benchmarks.bench_learning", description=__doc__.split("\n")[0])
-    parser.add_argument("--minutes", type=float, default=30.0, help="training budget per model and ablation")
-    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument(
+        "--minutes",
+        type=float,
+        default=None,
+        help="the synthetic corpus: training budget per model and ablation (default 30); a real corpus: a time "
+        "guard per run (default 60: the recipes' epochs fit 30 minutes on the 2-core machine)",
+    )
+    parser.add_argument("--seed", type=int, default=0, help="the synthetic corpus's and its training's seed")
+    parser.add_argument(
+        "--seeds",
+        default="0",
+        help="with --corpus: the training seeds, comma-separated (0,1,2: each goal per seed and over the seeds)",
+    )
     parser.add_argument("--models", default="yalta,cdhc")
     parser.add_argument("--corpus-minutes", type=float, default=CORPUS_MINUTES)
     parser.add_argument("--ablations", action="store_true", help="also train every ablation (same budget each)")
@@ -307,6 +318,12 @@ def main(argv: list[str] | None = None) -> None:
     if args.folds is not None and (args.corpus is None or args.rescore):
         parser.error("--folds cross-validates on a real corpus: give --corpus (and not --rescore)")
     models = [m.strip() for m in args.models.split(",") if m.strip()]
+    try:
+        seeds = [int(x) for x in args.seeds.split(",") if x.strip()]
+    except ValueError:
+        parser.error(f"--seeds takes whole numbers separated by commas, not {args.seeds!r}")
+    if not seeds:
+        parser.error("--seeds names no seed")
     torch.set_num_threads(2)
     if args.corpus is None:
         print("  real corpus: not run (--corpus tang2018 PATH: a local copy of Dance with Melody, docs/corpora.md)")
@@ -318,18 +335,19 @@ def main(argv: list[str] | None = None) -> None:
             if args.folds is not None:
                 from .learning_folds import run_folds
 
-                run_folds(name, Path(path), out, args.minutes, models, args.seed, args.folds)
+                run_folds(name, Path(path), out, _guard(args.minutes), models, seeds, args.folds)
                 return
             from .learning_real import run
 
-            run(name, Path(path), out, args.minutes, models, args.seed, rescore=args.rescore)
+            run(name, Path(path), out, models, seeds, _guard(args.minutes), rescore=args.rescore)
             return
+        minutes = 30.0 if args.minutes is None else args.minutes
         datasets = make_corpus(out, args.seed, args.corpus_minutes, models)
         summary = {}
         for model in models:
             if not args.only_ablations:
                 scored = train_and_score(
-                    "recipe", model, RECIPES[model], datasets[model], out / model, args.minutes, args.seed
+                    "recipe", model, RECIPES[model], datasets[model], out / model, minutes, args.seed
                 )
                 _headline(model, "recipe", scored)
                 summary[f"{model} recipe"] = scored["results"]["listening"]
@@ -341,11 +359,18 @@ def main(argv: list[str] | None = None) -> None:
                     name = f"ablation-{number}"
                     print(f"  {name}: {label}")
                     scored = train_and_score(
-                        name, model, {**RECIPES[model], **change}, datasets[model], out / model, args.minutes, args.seed
+                        name, model, {**RECIPES[model], **change}, datasets[model], out / model, minutes, args.seed
                     )
                     _headline(model, label, scored)
                     summary[f"{model} {name}: {label}"] = scored["results"]["listening"]
         (out / "learning.json").write_text(json.dumps(summary, indent=1, default=str))
+
+
+def _guard(minutes: float | None) -> float:
+    """A real corpus's time guard per run, minutes (``--minutes``, default the acceptance run's)."""
+    from .learning_real import GUARD_MINUTES
+
+    return GUARD_MINUTES if minutes is None else minutes
 
 
 if __name__ == "__main__":

@@ -22,10 +22,11 @@ import numpy as np
 from kinectdata.apps.real_dance import build_model_dataset
 from kinectdata.dataset.folds import write_folds
 from kinectdata.dataset.recipes import prepare_corpus
-from kinectdata.evaluation.evaluate import evaluate
+from kinectdata.evaluation.evaluate import evaluate, variety
 from kinectdata.evaluation.pooled import held_out_following
 
-from .learning_real import goals, train_defaults
+from .learning_real import train_defaults
+from .real_goals import goals
 from .summary import record
 
 
@@ -33,52 +34,75 @@ def run_folds(
     corpus: str,
     path: Path,
     out: Path,
-    minutes: float,
+    guard_minutes: float | None,
     models: list[str],
-    seed: int,
+    seeds: list[int],
     folds: int,
     changes: dict[str, dict[str, Any]] | None = None,
 ) -> dict[str, Any]:
-    """Build, train and score every model on each of ``folds`` folds (module docstring), each
-    fold's training within ``minutes``; the pooled reading printed and returned per model."""
+    """Build, train and score every model on each of ``folds`` folds (module docstring) once per
+    seed, each run within ``guard_minutes`` at most; the pooled reading printed and returned per
+    model and seed. The folds are dealt the same way whatever the seeds (seed 0)."""
     out.mkdir(parents=True, exist_ok=True)
     manifest = prepare_corpus(corpus, path)
     listed = manifest.write(out / "recordings.yaml")
-    made = write_folds(listed, folds, by="style", seed=seed)
+    made = write_folds(listed, folds, by="style", seed=0)
     for fold in made:
         print(f"  fold {fold.index}: validates on {', '.join(fold.validation)} ({len(fold.training)} to train on)")
-    summary = {}
+    summary: dict[str, Any] = {}
     for model in models:
-        pairs = []
         for fold in made:
             dataset = out / f"fold{fold.index}" / f"{model}_dataset"
             build_model_dataset(fold.path, dataset, model, manifest, echo=lambda line: print("  " + line, flush=True))
-            run_dir = out / f"fold{fold.index}" / model
-            history, trained = train_defaults(model, dataset, run_dir, minutes, seed, changes)
-            results = evaluate(run_dir, dataset, "val", bootstrap=0, engines=[("torch", "float32")], baselines=False)
-            print(f"  [{model}] fold {fold.index}: trained {trained:.1f} min, "
-                  f"{history[-1]['step']} steps; on its {len(fold.validation)} held-out dances:")  # fmt: skip
-            for goal, ok, figures in goals(results)[:3]:
-                print(f"    {goal}: {'yes' if ok else 'no'} ({figures})")
-            pairs.append((run_dir, dataset))
-        pooled = held_out_following(pairs, "val")
-        energy = np.array(list(pooled.energy_ratios.values()))
-        print(f"  [{model}] the {len(energy)} held-out dances of the {folds} folds together:")
-        for line in pooled.generated.verdicts("generated") + pooled.real.verdicts("real"):
-            print(f"    {line}")
-        print(f"    energy x the real motion's: median {np.median(energy):.2f}, in 0.5-2 for "
-              f"{np.mean((energy >= 0.5) & (energy <= 2)):.0%} of the dances")  # fmt: skip
-        at_level = pooled.generated.in_metre
-        record(
-            "learning",
-            f"{model} on {corpus}, {folds} folds: held-out songs at a metrical level",
-            f"{at_level.value:.0%} (chance {at_level.chance:.0%}, p = {at_level.p_value:.2g})",
-        )
-        summary[model] = {
-            "verdicts": pooled.generated.verdicts("generated"),
-            "real": pooled.real.verdicts("real"),
-            "energy_ratios": pooled.energy_ratios,
-            "runs": pooled.runs,
-        }
+        for seed in seeds:
+            summary.setdefault(model, {})[seed] = _seed_on_folds(model, seed, made, out, guard_minutes, changes)
     (out / "learning_folds.json").write_text(json.dumps(summary, indent=1, default=str))
     return summary
+
+
+def _seed_on_folds(
+    model: str, seed: int, made: list, out: Path, guard_minutes: float | None, changes: dict | None
+) -> dict[str, Any]:
+    """One seed of ``model`` trained and scored on every fold; the pooled figures printed and returned."""
+    pairs, varied, styled = [], [], []
+    for fold in made:
+        dataset = out / f"fold{fold.index}" / f"{model}_dataset"
+        run_dir = out / f"fold{fold.index}" / f"{model}-seed{seed}"
+        history, trained = train_defaults(model, dataset, run_dir, guard_minutes, seed, changes)
+        results = evaluate(run_dir, dataset, "val", bootstrap=0, engines=[("torch", "float32")], baselines=False)
+        print(f"  [{model} seed {seed}] fold {fold.index}: trained {trained:.1f} min, "
+              f"{history[-1]['step']} steps; on its {len(fold.validation)} held-out dances:")  # fmt: skip
+        for goal in goals(results):
+            if goal.key != "d":  # d needs the test split's baselines
+                print(f"    {goal.line()}")
+        pairs.append((run_dir, dataset))
+        divs = variety(results["field"])
+        if divs is not None:
+            varied.append(divs[0] / divs[1])
+        style = results.get("style", {})
+        styled += [(n, s["style"], s["named"]) for n, s in style.get("songs", {}).items() if n in style["counted"]]
+    pooled = held_out_following(pairs, "val")
+    energy = np.array(list(pooled.energy_ratios.values()))
+    name = f"{model} seed {seed}"
+    print(f"  [{name}] the {len(energy)} held-out dances of the {len(made)} folds together:")
+    for line in pooled.generated.verdicts("generated") + pooled.real.verdicts("real"):
+        print(f"    {line}")
+    print(f"    energy x the real motion's: median {np.median(energy):.2f}, in 0.5-2 for "
+          f"{np.mean((energy >= 0.5) & (energy <= 2)):.0%} of the dances")  # fmt: skip
+    right = sum(s == said for _, s, said in styled)
+    print(f"    Div_k over the real dancers' of each fold: {', '.join(f'{v:.2f}' for v in varied) or 'n/a'}; "
+          f"dances in their song's style: {right} of {len(styled)}")  # fmt: skip
+    at_level = pooled.generated.in_metre
+    record(
+        "learning",
+        f"{name} on the folds: held-out songs at a metrical level",
+        f"{at_level.value:.0%} (chance {at_level.chance:.0%}, p = {at_level.p_value:.2g})",
+    )
+    return {
+        "verdicts": pooled.generated.verdicts("generated"),
+        "real": pooled.real.verdicts("real"),
+        "energy_ratios": pooled.energy_ratios,
+        "runs": pooled.runs,
+        "div_k_ratios": varied,
+        "style": {"right": right, "counted": len(styled), "named": styled},
+    }

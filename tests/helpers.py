@@ -174,3 +174,20 @@ class FakeInput:
 
     def close(self):
         pass
+
+
+def pulsed_tone(bpm: float, seconds: float, rate: int, tone_hz: float = 880.0) -> np.ndarray:
+    """[S] float32: a tone whose loudness swells and falls sharply on every beat at ``bpm``."""
+    t = np.arange(int(seconds * rate)) / rate
+    return (np.abs(np.cos(np.pi * bpm / 60 * t)) ** 8 * np.sin(2 * np.pi * tone_hz * t)).astype(np.float32)
+
+
+def envelope_beat_s(samples: np.ndarray, rate: int, lags_s: tuple[float, float]) -> float:
+    """The lag (s, within ``lags_s``) where the loudness envelope's autocorrelation (5-ms hops) peaks."""
+    hop = max(1, rate // 200)
+    envelope = np.sqrt(np.convolve(np.asarray(samples, np.float64) ** 2, np.ones(hop) / hop, mode="same")[::hop])
+    envelope -= envelope.mean()
+    r = np.correlate(envelope, envelope, mode="full")[len(envelope) - 1 :]
+    lags = np.arange(len(r)) * hop / rate
+    inside = (lags >= lags_s[0]) & (lags <= lags_s[1])
+    return float(lags[inside][np.argmax(r[inside])])

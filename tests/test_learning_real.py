@@ -1,6 +1,7 @@
-"""``bench_learning --corpus tang2018 PATH`` end to end on a copy made in the corpus's shape (the
-corpus itself has no licence): both models built, trained for a moment, scored on the test
-dances, and issue 25's goals printed with their figures."""
+"""``bench_learning --corpus tang2018 PATH --seeds 0,1`` end to end on a copy made in the corpus's
+shape (the corpus itself has no licence): both models built, trained for a moment once per seed,
+scored on the test dances, and issue 56's goals printed with their figures per seed and over the
+seeds."""
 
 from __future__ import annotations
 
@@ -30,22 +31,28 @@ def test_the_real_corpus_benchmark_prints_every_goal(tmp_path, monkeypatch, caps
     small = {"sequence": 60, "stride": 60, "epochs": 1}
     tiny_cdhc = {"channels": 16, "decoder_channels": 16, "context": 30}  # 8-s songs: no room for 264 frames
     changes = {"yalta": {**small, "units": 16}, "cdhc": {**small, **tiny_cdhc}}
-    summary = run("tang2018", corpus, tmp_path / "out", 0.01, ["yalta", "cdhc"], 0, bootstrap=0, changes=changes)
+    summary = run("tang2018", corpus, tmp_path / "out", ["yalta", "cdhc"], [0, 1], 0.5, bootstrap=0, changes=changes)
     printed = capsys.readouterr().out
     for model in ("yalta", "cdhc"):
-        assert f"[{model}] goals:" in printed
-        goals = [goal for goal, _, _ in summary[model]["goals"]]
-        assert goals[:3] == ["a. alive and human", "b. no fixed oscillator", "c. listens"], goals
-        assert any(g.startswith("d. beats the mean pose + noise (bailando)") for g in goals), goals
-        assert any(g.startswith("d. beats the mean pose + noise (aist)") for g in goals), goals
-        assert (tmp_path / "out" / f"learning-real-{model}.png").is_file()
+        for seed in (0, 1):
+            assert f"[{model} seed {seed}] goals:" in printed
+            assert (tmp_path / "out" / f"seed{seed}" / model / "model.pt").is_file()
+            keys = [(g["key"], g["title"]) for g in summary[model][seed]["goals"]]
+            assert keys[:3] == [("a", "alive and human"), ("b", "no fixed oscillator"), ("c", "listens")], keys
+            assert ("d", "FID_k against the mean pose + noise (bailando)") in keys, keys
+            assert ("d", "FID_k against the mean pose + noise (aist)") in keys, keys
+            assert keys[-1] == ("e", "as varied as the music"), keys
+            assert (tmp_path / "out" / f"learning-real-{model}-seed{seed}.png").is_file()
+        assert f"[{model}] the goals over seeds 0, 1:" in printed
+    assert "goals met in every seed:" in printed
     for model, shape in (("yalta", [2, 129, 5]), ("cdhc", [153])):  # spectra (or mel) with the pulse
         built = json.loads((tmp_path / "out" / f"{model}_dataset" / "manifest.json").read_text())
         assert built["feature_shape"] == shape, (model, built["feature_shape"])
     saved = json.loads((tmp_path / "out" / "learning_real.json").read_text())
-    assert set(saved) == {"yalta", "cdhc"}
+    assert set(saved) == {"yalta", "cdhc"} and set(saved["yalta"]) == {"0", "1"}
     assert "model.pt from epoch 1 (lowest free-running validation rhythm loss among the epochs moving at" in printed
-    assert "the noise at each test song's own speed (an oracle): FID_k" in printed
+    assert "keeps time with the song at other tempi: " in printed  # the tempo control ran (SoX)
+    assert "dances in their song's style: " in printed
 
     # scored again without training: the run's own log read back, its evaluation asked for as before
     # (evaluate's figures are its tests'; here the answer it gave the first time stands in for it)
@@ -55,10 +62,10 @@ def test_the_real_corpus_benchmark_prints_every_goal(tmp_path, monkeypatch, caps
 
     monkeypatch.setattr(bench, "evaluate", again_as_before)
     monkeypatch.setattr(bench, "train", lambda *a, **k: pytest.fail("--rescore trained"))
-    again = run("tang2018", corpus, tmp_path / "out", 0.01, ["yalta"], 0, bootstrap=0, rescore=True)
+    again = run("tang2018", corpus, tmp_path / "out", ["yalta"], [0, 1], 0.5, bootstrap=0, rescore=True)
     printed = capsys.readouterr().out
-    assert "[yalta] the run in" in printed and "model.pt from epoch 1 (lowest free-running" in printed
-    assert again["yalta"]["goals"] == summary["yalta"]["goals"]
+    assert "[yalta seed 1] the run in" in printed and "model.pt from epoch 1 (lowest free-running" in printed
+    assert again["yalta"][1]["goals"] == summary["yalta"][1]["goals"]
 
 
 def test_without_a_corpus_the_real_benchmark_says_why_it_is_not_run(monkeypatch, capsys):

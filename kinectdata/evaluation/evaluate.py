@@ -54,6 +54,7 @@ from kinectdata.evaluation.field_scores import write_metrics_json
 from kinectdata.evaluation.figures import rhythm_plot, trajectories
 from kinectdata.evaluation.listening import HeldOutSong, listening_report
 from kinectdata.evaluation.metrics import motion_energy, smape
+from kinectdata.evaluation.motion_sets import motion_as_dance
 from kinectdata.evaluation.protocols import Protocol, get_protocol
 from kinectdata.evaluation.rhythm_eval import (
     recording_audio,
@@ -62,7 +63,8 @@ from kinectdata.evaluation.rhythm_eval import (
     summarize_rhythm,
     target_positions,
 )
-from kinectdata.evaluation.run_field import run_field_scores
+from kinectdata.evaluation.run_field import run_field_scores, target_motion
+from kinectdata.evaluation.style import style_features, style_report
 from kinectdata.features import compute_features, feature_config
 from kinectdata.features.metre import Metre, recording_metre
 from kinectdata.inference.engines import engine_pairs, make_engine, onnxruntime_available
@@ -370,6 +372,7 @@ def evaluate(
             results["field"] = entry
         else:
             results.setdefault("field_protocols", {})[chosen.name] = entry
+    results["style"] = style_scores(dataset, manifest, free, config, norm, protocol, anchors)
     shown_rhythm = next((name for name, r in per_recording.items() if "real" in r), None)
     if shown_rhythm is not None:
         for which in ("real", "generated"):
@@ -429,6 +432,54 @@ def baseline_runs(
     return runs, retrieved
 
 
+def style_scores(
+    dataset: Path,
+    manifest: dict[str, Any],
+    free: dict[str, np.ndarray],
+    config: dict[str, Any],
+    norm: Normalizer,
+    protocol: Protocol,
+    anchors: dict[str, np.ndarray],
+) -> dict[str, Any]:
+    """Whether each free run is recognisably its song's style (:mod:`~kinectdata.evaluation.style`):
+    the classifier fitted on the dataset's real training dances, the styles the recordings manifest
+    gives; ``{"unavailable": why}`` when the manifest gives no styles, the target cannot become
+    SMPL-24 joints or fewer than two training dances have a style."""
+    spec = TargetSpec.from_dict(config["dataset"]["target"])
+    styles = {e["name"]: e.get("style") for e in manifest["inputs"]}
+    style_of = {r["name"]: styles.get(r["recording"]) for r in manifest["recordings"]}
+
+    def features(values: np.ndarray, mask: np.ndarray, name: str, anchor: np.ndarray | None) -> np.ndarray:
+        motion = target_motion(values, mask, spec, config["dataset"], anchor)
+        return style_features(motion_as_dance(motion, protocol, name=name, source=f"recording {name}").positions,
+                              protocol.fps)  # fmt: skip
+
+    try:
+        training = []
+        for r in manifest["recordings"]:
+            if r["split"] != "train" or is_copy(r) or not style_of.get(r["name"]):
+                continue
+            with h5py.File(dataset / r["shard"], "r") as f:
+                rows = slice(r["start"], r["start"] + r["frames"])
+                info = next(x["info"] for x in read_index(f) if x["name"] == r["name"])
+                mask = f["mask"][rows][1:]
+                values = norm.invert(f["current"][rows][1:], spec, mask=mask)
+            anchor = np.asarray(info["root_anchor"]) if "root_anchor" in info else None
+            training.append((r["name"], style_of[r["name"]], features(values, mask, r["name"], anchor)))
+        if len(training) < 2:
+            return {"unavailable": "fewer than two training dances have a style in the recordings manifest"}
+        generated = [
+            (name, style_of[name], features(values, np.ones_like(values, bool), name, anchors.get(name)))
+            for name, values in free.items()
+            if style_of.get(name)
+        ]
+        if not generated:
+            return {"unavailable": "the recordings manifest gives no style for the songs scored"}
+        return style_report(training, generated).to_dict()
+    except KinectDataError as exc:  # 2-D targets, a joint set without an SMPL-24 mapping
+        return {"unavailable": str(exc)}
+
+
 @dataclass
 class SongSet:
     """A split's recordings ready for the listening controls.
@@ -438,8 +489,9 @@ class SongSet:
         generate_many: ``generate_many([(features [T, ...], first_pose [D]), ...]) -> [positions
             [T-1, J, C], ...]``, the network run free as its model runs it (the songs together),
             denormalised into the target's units; :meth:`generate` for one song.
-        features_of: ``features_of(samples [S]) -> features [T, ...]`` of mono audio at
-            ``features_of.sample_rate``, on the motion clock.
+        features_of: ``features_of(samples [S], beats_per_bar=None) -> features [T, ...]`` of mono
+            audio at ``features_of.sample_rate``, on the motion clock, bars counted in
+            ``beats_per_bar`` where the features count them (None: the extractor's default, 4).
         unavailable: why no recording has beats ("" when some have).
         metres: per song, its metre and where it came from (manifest, given, estimated).
     """
@@ -499,10 +551,10 @@ def _song_set(
     cfg = feature_config(config["dataset"]["features"])
     inputs = {e["name"]: e for e in manifest["inputs"]}
 
-    def features_of(samples: np.ndarray) -> np.ndarray:
+    def features_of(samples: np.ndarray, beats_per_bar: int | None = None) -> np.ndarray:
         frames = int(len(samples) / cfg.sample_rate * fps)
         starts = np.round(np.arange(frames) * cfg.sample_rate / fps).astype(np.int64)
-        return compute_features(np.asarray(samples, np.float32), starts, cfg)[0]
+        return compute_features(np.asarray(samples, np.float32), starts, cfg, beats_per_bar=beats_per_bar)[0]
 
     features_of.sample_rate = cfg.sample_rate  # type: ignore[attr-defined]
 
@@ -532,7 +584,9 @@ def _song_set(
             first = kind.fill_previous(r["current"][0], r["mask"][0], config["dataset"]["start_pose"])
         positions, pmask = body(norm.invert(r["current"], spec, mask=r["mask"]), r["mask"])
         songs.append(
-            HeldOutSong(r["name"], r["input"], first, positions, pmask, music, fps, rms, metre.beats_per_bar, travel)
+            HeldOutSong(
+                r["name"], r["input"], first, positions, pmask, music, fps, rms, metre.beats_per_bar, travel, samples
+            )
         )
     why = "" if songs else "no recording of the split has music beats (ground truth or tracked)"
     return SongSet(songs, generate_many, features_of, why, metres)
@@ -647,6 +701,7 @@ def format_results(results: dict[str, Any]) -> str:
         lines.append(f"  field metrics  not measured: {field['unavailable']}")
     for entry in [field, *results.get("field_protocols", {}).values()]:
         lines += _comparison_lines(entry)
+    lines += _variety_lines(field, results.get("style", {}))
     if rhythm.get("unavailable"):
         lines.append(f"  rhythm         {rhythm['unavailable']} recordings without beats (see results.json)")
     lines.append("  figures        " + ", ".join(results["figures"]))
@@ -659,6 +714,36 @@ BASELINE_NAMES = {
     "mean_pose_noise_own_speed": "the same noise at each song's own speed (an oracle: it knows the answer's speed)",
 }
 """How :func:`format_results` names the baselines of :func:`baseline_runs`."""
+
+
+VARIED_AT_LEAST = 0.5
+"""Generated dances are as varied as the music when their Div_k is at least this share of the real dancers'."""
+
+
+def variety(field: dict[str, Any]) -> tuple[float, float] | None:
+    """(Div_k of the generated dances, Div_k of the real dances of the same songs) from a field entry
+    of :func:`evaluate`'s results, or None when not scored."""
+    row = field.get("metrics", {}).get("Div_k")
+    if row is None or row.get("generated") is None or not row.get("reference"):
+        return None
+    return float(row["generated"]), float(row["reference"])
+
+
+def _variety_lines(field: dict[str, Any], style: dict[str, Any]) -> list[str]:
+    """The variety verdict (Div_k against the real dancers') and the style verdict."""
+    lines = []
+    divs = variety(field)
+    if divs is not None:
+        made, real = divs
+        lines.append(
+            f"  as varied as the real dancers: {'yes' if made >= VARIED_AT_LEAST * real else 'no'} (Div_k {made:.3g} "
+            f"against the real dancers' {real:.3g} = {made / real:.2f} x; wanted at least {VARIED_AT_LEAST:g} x)"
+        )
+    if "verdict" in style:
+        lines.append(f"  {style['verdict']}")
+    elif style:
+        lines.append(f"  style          not measured: {style['unavailable']}")
+    return lines
 
 
 def _comparison_lines(entry: dict[str, Any]) -> list[str]:

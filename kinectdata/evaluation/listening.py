@@ -45,6 +45,7 @@ from kinectdata.evaluation.beat_following import (
 )
 from kinectdata.evaluation.metrics.pose_error import motion_energy_per_s
 from kinectdata.evaluation.metrics.turning import Turning, turning
+from kinectdata.evaluation.tempo_control import TempoControl, TempoSong, tempo_control
 
 ALIVE_RANGE = (0.5, 2.0)
 """Generated motion is alive, not frozen or wild, when its energy is within these times the real motion's."""
@@ -150,6 +151,8 @@ class HeldOutSong:
         travel_joint: the joint of ``real_positions`` (and of the generated positions) whose value is
             the dancer's travel, not a place on the body (the root of root-centred targets): left out
             of the turning. None: every joint is on the body.
+        samples: [S] the song's music, mono at ``features_of``'s rate, sample 0 at frame 0, for the
+            tempo control (:mod:`~kinectdata.evaluation.tempo_control`; None: no tempo control).
     """
 
     name: str
@@ -162,6 +165,7 @@ class HeldOutSong:
     rms: float | None = None
     beats_per_bar: int = BEATS_PER_BAR
     travel_joint: int | None = None
+    samples: np.ndarray | None = field(default=None, repr=False)
 
     def body_turning(self, positions: np.ndarray, mask: np.ndarray | None = None) -> Turning:
         """:func:`~kinectdata.evaluation.metrics.turning.turning` of this song's motion [T, J, 3], the
@@ -192,6 +196,9 @@ class Listening:
         generated_positions: per song, the generated motion [T-1, J, C] (frames 1..T-1).
         swapped_period_changes: share of swapped runs whose dominant period is more than 10 % away
             from the period the same start pose made with its own song (None: no swapped runs).
+        tempo: the tempo control (:class:`~kinectdata.evaluation.tempo_control.TempoControl`: each song
+            played faster and slower, the dances warped back); None when it could not run.
+        tempo_unavailable: why the tempo control did not run ("" when it did).
     """
 
     real: BeatFollowing
@@ -207,6 +214,8 @@ class Listening:
     baselines: dict[str, float | None]
     generated_positions: dict[str, np.ndarray] = field(repr=False, default_factory=dict)
     swapped_period_changes: float | None = None
+    tempo: TempoControl | None = None
+    tempo_unavailable: str = ""
 
     @property
     def alive(self) -> bool:
@@ -306,6 +315,11 @@ class Listening:
         )
         lines.append(self._oscillator_verdict())
         lines.append(
+            self.tempo.verdict()
+            if self.tempo is not None
+            else f"keeps time with the song at other tempi: not measured ({self.tempo_unavailable})"
+        )
+        lines.append(
             f"generated motion is alive: {'yes' if self.alive else 'no'} (energy {self.energy_ratio:.2f} x the real "
             f"motion's; wanted {ALIVE_RANGE[0]:g}-{ALIVE_RANGE[1]:g})"
         )
@@ -348,6 +362,8 @@ class Listening:
             "period_spread": self.period_spread,
             "swapped_period_changes": self.swapped_period_changes,
             "no_fixed_oscillator": self.no_fixed_oscillator,
+            "tempo": None if self.tempo is None else self.tempo.to_dict(),
+            "tempo_unavailable": self.tempo_unavailable,
             "shifted_at_chance": self.shifted_at_chance,
             "baselines": self.baselines,
             "verdicts": self.verdicts(),
@@ -363,6 +379,7 @@ def listening_report(
     draws: int = 500,
     generated: dict[str, np.ndarray] | None = None,
     generate_many: Callable[[list[tuple[np.ndarray, np.ndarray]]], list[np.ndarray]] | None = None,
+    tempo_rates: tuple[float, ...] | None = None,
 ) -> Listening:
     """Run the generated-motion figures and the listening controls (module docstring).
 
@@ -379,6 +396,9 @@ def listening_report(
             already (the rest are generated here).
         generate_many: ``generate`` over a list of (features, first_pose) at once, when the model
             runs several songs faster together than one by one (default: ``generate`` in turn).
+        tempo_rates: the tempo factors of the tempo control, run on the songs whose ``samples`` are
+            given (None: :data:`~kinectdata.evaluation.tempo_control.TEMPO_RATES`; empty: none).
+            ``features_of`` then takes ``beats_per_bar=`` too.
     """
     if not songs:
         raise KinectDataError("the listening controls need at least one test song")
@@ -469,6 +489,7 @@ def listening_report(
         if all(np.shape(s.real_positions)[-1] == 3 for s in songs)
         else None
     )
+    tempo, tempo_why = _tempo(songs, run_all, features_of, tempo_rates)
     return Listening(
         real=real,
         generated=generated,
@@ -483,7 +504,33 @@ def listening_report(
         baselines=_baselines(songs, real, rng, draws, seed),
         generated_positions=generated_positions,
         swapped_period_changes=changes,
+        tempo=tempo,
+        tempo_unavailable=tempo_why,
     )
+
+
+def _tempo(
+    songs: list[HeldOutSong],
+    run_all: Callable[[list[tuple[np.ndarray, np.ndarray]]], list[np.ndarray]],
+    features_of: Callable[..., np.ndarray],
+    rates: tuple[float, ...] | None,
+) -> tuple[TempoControl | None, str]:
+    """The tempo control over the songs whose music is known, or (None, why not)."""
+    if rates is not None and not rates:
+        return None, "not asked"
+    if any(s.samples is None for s in songs):
+        return None, "the music of some songs could not be read"
+    try:
+        control = tempo_control(
+            [TempoSong(s.name, s.samples, s.first_pose, s.beats_per_bar) for s in songs],
+            run_all,
+            features_of,
+            songs[0].fps,
+            **({} if rates is None else {"rates": rates}),
+        )
+    except KinectDataError as exc:  # no SoX nor librosa, songs too short
+        return None, str(exc)
+    return control, ""
 
 
 def _changed(period: float | None, before: float | None) -> bool:

@@ -94,8 +94,8 @@ def run_field_scores(
         shifted = None if music is None else np.asarray(music, np.float64) - 1.0 / fps
         anchor = anchors.get(name)
         scored[name] = (
-            _motion(values, np.ones_like(values, bool), spec, dataset_config, anchor),
-            _motion(real_values[1:], real_mask[1:], spec, dataset_config, anchor),
+            target_motion(values, np.ones_like(values, bool), spec, dataset_config, anchor),
+            target_motion(real_values[1:], real_mask[1:], spec, dataset_config, anchor),
             shifted,
         )
     if not centred:
@@ -136,7 +136,7 @@ def write_scored_motion(folder: str | Path, scored: dict[str, tuple[Motion, Moti
     return folder
 
 
-def _motion(
+def target_motion(
     values: np.ndarray,
     mask: np.ndarray,
     spec: TargetSpec,

@@ -3,8 +3,11 @@ that ignores the audio."""
 
 from __future__ import annotations
 
+import shutil
+
 import numpy as np
 import pytest
+from helpers import skip_unless_installed
 
 from kinectdata.evaluation.listening import HeldOutSong, listening_report, motion_energy_per_s
 
@@ -213,3 +216,48 @@ def test_songs_whose_beat_is_read_at_twice_its_tempo_are_not_swapped_for_each_ot
     names = [r.name for r in result.swapped.recordings]
     assert names[:2] == ["song0 with song2's music", "song1 with song2's music"], names
     assert result.swapped_period_changes == 1.0
+
+
+MUSIC_RATE = 8000
+
+
+def songs_with_music() -> list[HeldOutSong]:
+    """:func:`songs` with their music at :data:`MUSIC_RATE`: a burst of a 400-Hz tone on every beat."""
+    out = []
+    for song in songs():
+        t = np.arange(int(SECONDS * MUSIC_RATE)) / MUSIC_RATE
+        music = np.zeros(t.size, np.float32)
+        for beat in song.beats_s:
+            burst = (t >= beat) & (t < beat + 0.03)
+            music[burst] = np.sin(2 * np.pi * 400 * t[burst])
+        out.append(HeldOutSong(song.name, song.features, song.first_pose, song.real_positions, None, song.beats_s,
+                               FPS, rms=0.1, samples=music))  # fmt: skip
+    return out
+
+
+def tempo_features_of(samples: np.ndarray, beats_per_bar: int | None = None) -> np.ndarray:
+    """[T, 1]: 1.0 at the frames where a burst begins (the features :func:`listener` hears)."""
+    per_frame = MUSIC_RATE / FPS
+    frames = int(len(samples) / per_frame)
+    loud = np.array([np.abs(samples[int(k * per_frame) : int((k + 1) * per_frame)]).max() for k in range(frames)])
+    on = loud > 0.3 * loud.max()
+    return (on & ~np.concatenate([[False], on[:-1]])).astype(float)[:, None]
+
+
+tempo_features_of.sample_rate = MUSIC_RATE
+
+
+def test_the_tempo_control_runs_on_songs_whose_music_is_given():
+    skip_unless_installed(None if shutil.which("sox") else "no sox on the PATH", "SoX")
+    heard = listening_report(songs_with_music(), listener, tempo_features_of, draws=30)
+    assert heard.tempo is not None and len(heard.tempo.pairs) == 2 * len(PERIODS)
+    assert heard.tempo.followed == len(heard.tempo.pairs) and heard.tempo.keeps_time
+    assert "keeps time with the song at other tempi: yes (8 of 8 pairs follow" in "\n".join(heard.verdicts())
+    ignored = listening_report(songs_with_music(), deaf, tempo_features_of, draws=30)
+    assert ignored.tempo.followed == 0 and not ignored.tempo.keeps_time
+    assert ignored.to_dict()["tempo"]["followed"] == 0
+    without = listening_report(songs(), listener, features_of, draws=30)  # no music given: not measured
+    assert without.tempo is None
+    assert "keeps time with the song at other tempi: not measured (the music of some songs could not be read)" in (
+        "\n".join(without.verdicts())
+    )

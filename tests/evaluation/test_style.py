@@ -1,0 +1,84 @@
+"""Is a generated dance its song's style (kinectdata.evaluation.style): the nearest style's mean of
+the real training dances, standardised by them, against scikit-learn's nearest-centroid classifier;
+leave-one-out counted against scikit-learn's; the features of a dance do not move with where it is
+danced."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from sklearn.model_selection import LeaveOneOut, cross_val_predict
+from sklearn.neighbors import NearestCentroid
+from sklearn.pipeline import make_pipeline
+from sklearn.preprocessing import StandardScaler
+
+from kinectdata.core.errors import KinectDataError
+from kinectdata.evaluation.style import StyleClassifier, style_features, style_report
+
+FPS = 60.0
+
+
+def clusters(seed: int = 0):
+    """Three styles of made-up feature rows, 9, 5 and 3 of them, overlapping a little."""
+    rng = np.random.default_rng(seed)
+    centres = {"waltz": rng.normal(0, 1, 6), "rumba": rng.normal(0, 1, 6), "cha-cha": rng.normal(0, 1, 6)}
+    names, styles, rows = [], [], []
+    for style, count in (("waltz", 9), ("rumba", 5), ("cha-cha", 3)):
+        for i in range(count):
+            names.append(f"{style}_{i}")
+            styles.append(style)
+            rows.append(centres[style] * [1, 10, 0.1, 1, 5, 1] + rng.normal(0, 0.9, 6) * [1, 10, 0.1, 1, 5, 1])
+    return names, styles, np.array(rows)
+
+
+def reference():
+    return make_pipeline(StandardScaler(), NearestCentroid())
+
+
+def test_the_nearest_standardised_style_mean_names_the_style_as_scikit_learn_does():
+    names, styles, rows = clusters()
+    asked = np.random.default_rng(5).normal(0, 1, (40, 6)) * [1, 10, 0.1, 1, 5, 1] * 1.5
+    classifier = StyleClassifier(tuple(names), tuple(styles), rows)
+    named = [style for style, _ in classifier.predict(asked)]
+    assert named == list(reference().fit(rows, styles).predict(asked))
+    assert classifier.predict(rows[:1])[0][1] == names[0]  # a training dance is its own nearest dance
+    # the nearest dance is named beside the style, and need not be of it
+    far_waltz = rows[:9].mean(axis=0) * 0.2 + rows[-1] * 0.8
+    style, dance = classifier.predict(far_waltz[None])[0]
+    assert style == reference().fit(rows, styles).predict(far_waltz[None])[0] and dance in names
+
+
+def test_leave_one_out_counts_as_scikit_learn_counts():
+    for seed in range(4):
+        names, styles, rows = clusters(seed)
+        loo = cross_val_predict(reference(), rows, np.array(styles), cv=LeaveOneOut())
+        assert StyleClassifier(tuple(names), tuple(styles), rows).leave_one_out() == int(np.sum(loo == styles))
+
+
+def test_a_style_no_training_dance_holds_is_not_counted():
+    names, styles, rows = clusters()
+    generated = [("C_1", "cha-cha", rows[-1] + 0.01), ("T_5", "tango", rows[0]), ("W_1", "waltz", rows[-2])]
+    report = style_report(list(zip(names, styles, rows)), generated)
+    assert report.counted == ["C_1", "W_1"] and report.right == 1
+    assert report.held == {"cha-cha": 3, "rumba": 5, "waltz": 9}
+    assert report.songs["T_5"] == ("tango", "waltz", "waltz_0")
+    assert report.verdict().startswith("dances in their song's style: 1 of 2 (C_1 cha-cha -> cha-cha, T_5 tango")
+    assert report.to_dict()["leave_one_out"]["dances"] == 17
+
+
+def test_too_few_or_broken_training_dances_are_refused():
+    with pytest.raises(KinectDataError, match="at least 2 training dances"):
+        StyleClassifier(("a",), ("waltz",), np.zeros((1, 3)))
+    with pytest.raises(KinectDataError, match="must be finite"):
+        StyleClassifier(("a", "b"), ("waltz", "rumba"), np.array([[0.0, np.nan], [1.0, 2.0]]))
+
+
+def test_the_features_of_a_dance_do_not_move_with_where_it_is_danced():
+    rng = np.random.default_rng(1)
+    t = np.arange(240) / FPS
+    dance = rng.normal(0, 0.3, (1, 24, 3)) + 0.05 * np.sin(2 * np.pi * 1.5 * t)[:, None, None] * rng.normal(
+        0, 1, (24, 3)
+    )
+    dance[..., 1] += 1.0  # off the floor
+    here, there = style_features(dance, FPS), style_features(dance + [3.0, 0.0, -2.0], FPS)
+    assert here.shape == (104,) and np.allclose(here, there)

@@ -1,0 +1,102 @@
+"""Issue 56's goals read from evaluate's results (benchmarks/real_goals.py): each figure against its
+bounds, and the same goals over several seeds (met in every seed, the worst figure, the spread)."""
+
+from __future__ import annotations
+
+import pytest
+from conftest import REPO
+
+
+@pytest.fixture
+def real_goals(monkeypatch):
+    monkeypatch.syspath_prepend(str(REPO))
+    import benchmarks.real_goals as module
+
+    return module
+
+
+def results(energy=0.7, rho=0.97, followed=13, fid=120.0, div=7.0, right=5, turning_share=0.3):
+    """evaluate's results as the goals read them, with the figures given."""
+    shifted = {"beat_align_music": {"value": 0.2, "chance": 0.21}}
+    listening = {
+        "verdicts": [],
+        "energy_ratio": energy,
+        "turning": {"asked": True, "generated_share": turning_share, "real_rate_rad_s": 1.58, "real_share": 0.44},
+        "generated": {"tempo_correlation": rho, "tempo_p_value": 0.001},
+        "real": {"tempo_correlation": 0.96},
+        "period_spread": 1.6,
+        "swapped_period_changes": 1.0,
+        "listens": True,
+        "shifted_at_chance": True,
+        "silence_energy_ratio": 1e-6,
+        "tempo": {"followed": followed, "pairs": [{}] * 14},
+        "swapped_follows_new": 1.0,
+        "swapped_follows_old": 0.0,
+        "noise": {"in_metre": {"value": 0.14}},
+        "shifted": shifted,
+    }
+    metrics = {
+        "jerk": {"generated": 110.0, "reference": 139.0},
+        "PFC": {"generated": 0.2, "reference": 0.87},
+        "bone CV": {"generated": 0.09, "reference": 0.103},
+        "Div_k": {"generated": div, "reference": 12.0},
+    }
+
+    def entry(protocol, baseline):
+        return {"protocol": protocol, "metrics": metrics,
+                "comparison": {"mean_pose_noise": {"FID_k": fid, "FID_k_baseline": baseline},
+                               "retrieval": {"FID_k_baseline": 42.0}}}  # fmt: skip
+
+    style = {"counted": ["C_2", "C_4", "R_2", "R_3", "W_1", "W_3"], "right": right,
+             "songs": {"C_2": {"style": "cha-cha", "named": "cha-cha"}}}  # fmt: skip
+    return {
+        "listening": listening,
+        "field": entry("bailando", 169.0),
+        "field_protocols": {"aist": entry("aist", 131.0)},
+        "style": style,
+    }
+
+
+def test_every_goal_is_met_inside_its_bounds(real_goals):
+    goals = real_goals.goals(results())
+    assert [g.key for g in goals] == ["a", "b", "c", "d", "d", "e"]
+    assert [g.met for g in goals] == [True, True, True, True, False, True]  # aist: 120 / 131 = 0.92 > 0.8
+    assert (
+        "d. FID_k against the mean pose + noise (aist): no (FID_k / the baseline's 120 / 131 = 0.92" in goals[4].line()
+    )
+    assert goals[5].line().startswith("e. as varied as the music: yes (Div_k / the real dancers' 7 / 12 = 0.58")
+
+
+@pytest.mark.parametrize(
+    ("changed", "goal"),
+    [
+        ({"energy": 0.49}, "a"),
+        ({"turning_share": 0.2}, "a"),
+        ({"rho": 0.95}, "b"),
+        ({"followed": 11}, "c"),
+        ({"div": 5.9}, "e"),
+        ({"right": 4}, "e"),
+    ],
+)
+def test_a_figure_outside_its_bound_loses_its_goal(real_goals, changed, goal):
+    met = {g.key: g.met for g in real_goals.goals(results(**changed)) if g.key != "d"}
+    assert [k for k, ok in met.items() if not ok] == [goal]
+
+
+def test_over_the_seeds_the_worst_figure_and_the_spread(real_goals):
+    per_seed = {seed: real_goals.goals(results(energy=e, fid=100.0)) for seed, e in ((0, 0.7), (1, 0.47), (2, 1.9))}
+    lines = real_goals.across_seeds(per_seed)
+    assert lines[0].startswith("a. alive and human: met in 2 of 3 seeds (missed in seed 1); energy 0.47 x (0.5-2) at "
+                               "worst (seed 1), over the seeds 0.47-1.9")  # fmt: skip
+    assert lines[1].startswith("b. no fixed oscillator: met in 3 of 3 seeds; tempo rank 0.97 (>= 0.96) at worst")
+    assert lines[-1] == "goals met in every seed: 5 of 6"
+    # 1.9 is nearer its bound (2) than 0.7 is to 0.5 in share of the bound: the worst of two that meet
+    two = real_goals.across_seeds({0: per_seed[0], 2: per_seed[2]})
+    assert "energy 1.90 x (0.5-2) at worst (seed 2), over the seeds 0.7-1.9" in two[0]
+    assert "bone CV 0.09 (<= 0.103) at worst (seed 0), the same in every seed" in two[0]
+
+
+def test_a_figure_not_measured_fails_and_is_the_worst(real_goals):
+    missing = real_goals.Figure("tempo pairs followed", None, low=12)
+    assert not missing.ok and missing.margin == float("-inf")
+    assert real_goals.Figure("x", 0.8, high=0.8).ok and real_goals.Figure("x", 0.81, high=0.8).margin < 0
