@@ -55,10 +55,11 @@ def generate_split(
     turning: bool = True,
     seed: int = 0,
     progress: Callable[[str], Any] | None = None,
+    travel: bool = True,
 ) -> list[GeneratedSong]:
     """Generate a dance for each clean recording of ``split`` of ``dataset`` with ``run``'s model
     into ``out_dir`` (module docstring). ``progress(name)`` is called before each song;
-    ``turning`` and ``seed`` as :func:`~kinectdata.inference.generate.generate`'s.
+    ``turning``, ``travel`` and ``seed`` as :func:`~kinectdata.inference.generate.generate`'s.
 
     Raises:
         KinectDataError: the split has no recordings, or a recording's music cannot be read.
@@ -99,6 +100,7 @@ def generate_split(
             beats_per_bar=metre,
             start=_start(r, data, kind),
             turning=turning,
+            travel=travel,
             seed=seed,
         )
         made.append(GeneratedSong(r["name"], motion, music, timing))

@@ -79,6 +79,7 @@ def live(
     precision,
     beats_per_bar,
     turning,
+    travel,
     seed,
 ) -> None:
     """Listen to a microphone (or a file at real-time pace), step the run's streaming network once per
@@ -98,7 +99,7 @@ def live(
     for path in (record, stats):  # before the dance, not after it
         if path is not None and not Path(path).resolve().parent.is_dir():
             raise KinectDataError(f"{path}: its folder {Path(path).resolve().parent} does not exist")
-    dancer = LiveDancer(run_dir, engine, precision, turning=turning, seed=seed)
+    dancer = LiveDancer(run_dir, engine, precision, turning=turning, seed=seed, travel=travel)
     clock = MonotonicClock()
     block = max(1, round(dancer.sample_rate * block_ms / 1000))
     source = open_source(given, dancer.sample_rate, block, clock, play=play)

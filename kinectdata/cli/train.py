@@ -101,6 +101,19 @@ _LOOP_OPTIONS = (
         "position targets only. The music does not tell when dancers turn, so the network cannot.",
     ),
     (
+        "travel",
+        click.BOOL,
+        "Fit the training dancers' travel across the floor (the root's slow velocity: its speed and how long it "
+        "lasts) and draw it wherever the run makes positions, held still in silence; root-centred 3-D position "
+        "targets only. Which way dancers go is theirs, not the music's.",
+    ),
+    (
+        "facing",
+        click.BOOL,
+        "Train on poses turned about the vertical to face one way, frame by frame (the hips' and shoulders' "
+        "left-right axis along x): the network makes the body, the drawn turning where it faces (needs --turning).",
+    ),
+    (
         "context",
         click.IntRange(min=0),
         "Frames of real input before each window that no loss counts (the outputs near a window's start then see "
@@ -251,7 +264,15 @@ def beats_per_bar_option(help_text: str):
 
 
 def turning_options(f, seeded: bool = True):
-    """``--turning/--no-turning`` (default on) and, with ``seeded``, ``--seed`` of its draws."""
+    """``--turning/--no-turning`` and ``--travel/--no-travel`` (default on) and, with ``seeded``,
+    ``--seed`` of their draws."""
+    f = click.option(
+        "--travel/--no-travel",
+        default=True,
+        show_default=True,
+        help="Draw the run's travel across the floor, fitted on its training dancers (none for a run trained "
+        "without it); --no-travel: the dancer stays where the network puts it.",
+    )(f)
     f = click.option(
         "--turning/--no-turning",
         default=True,
@@ -260,7 +281,9 @@ def turning_options(f, seeded: bool = True):
         "without it); --no-turning: the network's motion alone.",
     )(f)
     if seeded:
-        f = click.option("--seed", default=0, show_default=True, type=click.INT, help="Seed of the drawn turning.")(f)
+        f = click.option(
+            "--seed", default=0, show_default=True, type=click.INT, help="Seed of the drawn turning and travel."
+        )(f)
     return f
 
 
@@ -351,7 +374,7 @@ def train_baseline(data, out, resume, paper, no_checksums, **options) -> None:
 @no_checksums_option
 @functools.partial(turning_options, seeded=False)
 def evaluate_command(
-    run_dir, data, split, out, silence, protocol, bootstrap, beats_per_bar, no_checksums, turning
+    run_dir, data, split, out, silence, protocol, bootstrap, beats_per_bar, no_checksums, turning, travel
 ) -> None:
     """Score a run as the paper does: SMAPE (%) free-running without and with reset, on normalised
     and denormalised values; per-frame forward time; generated-against-real plots; the silence test;
@@ -371,6 +394,7 @@ def evaluate_command(
         checksums=not no_checksums,
         beats_per_bar=beats_per_bar,
         turning=turning,
+        travel=travel,
     )
     click.echo(format_results(results))
 
@@ -414,7 +438,7 @@ def evaluate_command(
     "default: estimated from the song."
 )
 @turning_options
-def generate_command(run_dir, audio, out, data, split, engine, precision, beats_per_bar, turning, seed) -> None:
+def generate_command(run_dir, audio, out, data, split, engine, precision, beats_per_bar, turning, travel, seed) -> None:
     """Generate dance motion for AUDIO (any file libsndfile reads, or an aligned .h5: its own music,
     on its timeline), streaming frame by frame, and
     write it: 3-D targets (a yalta run's: metres, unit quaternions) as the canonical CSV that align
@@ -427,12 +451,20 @@ def generate_command(run_dir, audio, out, data, split, engine, precision, beats_
     if data is not None:
         if beats_per_bar is not None:
             raise click.UsageError("--beats-per-bar is for AUDIO: a split's songs keep their own metres")
-        _generate_split(run_dir, data, split, out, engine, precision, turning, seed)
+        _generate_split(run_dir, data, split, out, engine, precision, turning, travel, seed)
         return
     from kinectdata.inference.generate import generate
 
     motion, timing = generate(
-        run_dir, audio, out, engine=engine, precision=precision, beats_per_bar=beats_per_bar, turning=turning, seed=seed
+        run_dir,
+        audio,
+        out,
+        engine=engine,
+        precision=precision,
+        beats_per_bar=beats_per_bar,
+        turning=turning,
+        travel=travel,
+        seed=seed,
     )
     click.echo(
         f"wrote {out}: {timing['frames']} frames ({motion.duration:.2f} s) in {timing['seconds']:.2f} s "
@@ -449,7 +481,7 @@ def generate_command(run_dir, audio, out, data, split, engine, precision, beats_
         click.echo(f"  (OpenPose JSON Lines hold no frame rate: read or render it with --video-fps {fps:g})")
 
 
-def _generate_split(run_dir, data, split, out, engine, precision, turning, seed) -> None:
+def _generate_split(run_dir, data, split, out, engine, precision, turning, travel, seed) -> None:
     from kinectdata.apps.split_generation import generate_split
 
     songs = generate_split(
@@ -460,6 +492,7 @@ def _generate_split(run_dir, data, split, out, engine, precision, turning, seed)
         engine=engine,
         precision=precision,
         turning=turning,
+        travel=travel,
         seed=seed,
         progress=lambda name: click.echo(f"  {name} ..."),
     )

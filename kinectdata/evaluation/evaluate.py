@@ -219,6 +219,8 @@ def evaluate(
     more_protocols: tuple[str, ...] = (),
     baselines: bool = True,
     turning: bool = True,
+    travel: bool = True,
+    tempo_rates: tuple[float, ...] | None = None,
 ) -> dict[str, Any]:
     """Score a run on a dataset split; write ``results.json``, ``metrics.json`` (the field's table)
     and figures into ``out`` (default ``RUN/evaluation``); return the results. ``engines``: the
@@ -232,14 +234,16 @@ def evaluate(
     made too (``metrics_<name>.json``). ``baselines``: also score the mean training pose with noise
     at the training dances' speed (and, as an oracle, at each song's own real speed) and the
     retrieval baseline (:mod:`~kinectdata.evaluation.baselines`, :func:`baseline_runs`) by the same
-    protocols, beside the model. ``turning``: draw the run's turning about the vertical in every free
-    run (:mod:`kinectdata.inference.turning`; a run trained without one draws none); False: the
-    network's motion alone. ``results["turning"]`` says which."""
+    protocols, beside the model. ``turning``, ``travel``: draw the run's turning about the vertical and
+    its travel across the floor in every free run (:mod:`kinectdata.inference.turning`; a run trained
+    without them draws none); False: the network's motion alone. ``results["turning"]`` says which.
+    ``tempo_rates``: the tempo control's factors (None: its own; empty: no tempo control)."""
     protocol = get_protocol(protocol) if isinstance(protocol, str) else protocol
     run, dataset = Path(run), Path(dataset)
     net, config = load_model(run)
-    if not turning:  # every free run below then makes the network's motion alone
-        config.pop("turning", None)
+    for drawn, asked in (("turning", turning), ("travel", travel)):
+        if not asked:  # every free run below then makes without it
+            config.pop(drawn, None)
     manifest = read_manifest(dataset, checksums=checksums)
     differ = interface_mismatch(config, dataset, manifest)
     if differ:
@@ -265,7 +269,7 @@ def evaluate(
         "split": split,
         "recordings": [r["name"] for r in recordings],
         "smape_zero_over_zero": 0.0,
-        "turning": kind.process.describe() if isinstance(kind, TurnedKind) else None,
+        "turning": kind.describe() if isinstance(kind, TurnedKind) else None,
     }
     scores = {}
     first = None
@@ -326,7 +330,7 @@ def evaluate(
     per_recording = rhythm_evaluation(recordings, free, real, spec, beats, fps)
     results["rhythm"] = {"summary": summarize_rhythm(per_recording), "recordings": per_recording}
     results["listening"] = listening_controls(
-        net, recordings, beats, manifest, config, free=free, beats_per_bar=beats_per_bar
+        net, recordings, beats, manifest, config, free=free, beats_per_bar=beats_per_bar, tempo_rates=tempo_rates
     )
     anchors = {r["name"]: np.asarray(r["info"]["root_anchor"]) for r in recordings if "root_anchor" in r["info"]}
     runs, retrieved = {"generated": free}, {}
@@ -622,6 +626,7 @@ def listening_controls(
     seed: int = 0,
     free: dict[str, np.ndarray] | None = None,
     beats_per_bar: int | None = None,
+    tempo_rates: tuple[float, ...] | None = None,
 ) -> dict[str, Any]:
     """The beat-following figures with their chance levels and the listening controls
     (:func:`~kinectdata.evaluation.listening.listening_report`) over the recordings whose beats are
@@ -638,7 +643,13 @@ def listening_controls(
             for name, values in (free or {}).items()
         }
         report = listening_report(
-            found.songs, found.generate, found.features_of, seed=seed, generated=done, generate_many=found.generate_many
+            found.songs,
+            found.generate,
+            found.features_of,
+            seed=seed,
+            generated=done,
+            generate_many=found.generate_many,
+            tempo_rates=tempo_rates,
         ).to_dict()
         report["metres"] = {
             name: {"beats_per_bar": m.beats_per_bar, "source": m.source, "scores": m.scores}

@@ -34,6 +34,7 @@ import numpy as np
 
 from kinectdata.core.errors import ConfigError
 from kinectdata.features.mel import MelConfig, mel_features
+from kinectdata.features.metre_input import MetreInputConfig, metre_input_features
 from kinectdata.features.rhythm import RhythmConfig, rhythm_features
 from kinectdata.features.stack import StackConfig, stack_features
 from kinectdata.features.stft import PRESETS as STFT_PRESETS
@@ -43,6 +44,7 @@ __all__ = [
     "PRESETS",
     "FeatureConfig",
     "MelConfig",
+    "MetreInputConfig",
     "RhythmConfig",
     "StackConfig",
     "StftConfig",
@@ -57,7 +59,7 @@ __all__ = [
     "stft_features",
 ]
 
-FeatureConfig = StftConfig | MelConfig | RhythmConfig | StackConfig
+FeatureConfig = StftConfig | MelConfig | RhythmConfig | MetreInputConfig | StackConfig
 LISTEN_TO_DANCE_PULSE = RhythmConfig(
     tempo_range_bpm=(15.0, 240.0),
     n_tempi=65,
@@ -97,11 +99,22 @@ PRESETS: dict[str, FeatureConfig] = {
     "listen_to_dance_rhythm_bars": StackConfig((MelConfig(), LISTEN_TO_DANCE_BAR_PULSE)),
     "listen_to_dance_rhythm_counted": StackConfig((MelConfig(), LISTEN_TO_DANCE_COUNTED_PULSE)),
     "listen_to_dance_pulse": LISTEN_TO_DANCE_COUNTED_PULSE,
+    "yalta2016_rhythm_metre": StackConfig(
+        (STFT_PRESETS["yalta2016"], RhythmConfig(columns=5), MetreInputConfig(planes=(129, 5)))
+    ),
+    "listen_to_dance_rhythm_bars_metre": StackConfig((MelConfig(), LISTEN_TO_DANCE_BAR_PULSE, MetreInputConfig())),
 }
 """Feature configurations by name: ``yalta2016``, ``motion_dance`` (STFT), ``listen_to_dance``
 (mel), and each with the music's pulse stacked on (``_rhythm``; ``listen_to_dance_rhythm_bars``:
-its bar levels in the song's metre)."""
-_CONFIG_TYPES = {"stft": StftConfig, "mel": MelConfig, "rhythm": RhythmConfig, "stack": StackConfig}
+its bar levels in the song's metre), and each of those with the song's metre as input
+(``_metre``: :mod:`.metre_input`, one value per bar length of 3 and 4 beats)."""
+_CONFIG_TYPES = {
+    "stft": StftConfig,
+    "mel": MelConfig,
+    "rhythm": RhythmConfig,
+    "metre": MetreInputConfig,
+    "stack": StackConfig,
+}
 
 Extractor = Callable[..., Any]
 
@@ -186,4 +199,5 @@ def needs_metre(config: FeatureConfig) -> bool:
 register_extractor("stft", stft_features)
 register_extractor("mel", mel_features)
 register_extractor("rhythm", rhythm_features)
+register_extractor("metre", metre_input_features)
 register_extractor("stack", stack_features)

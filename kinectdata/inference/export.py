@@ -90,6 +90,7 @@ def stream_metadata(
         "normalisation": data["normalisation"],
         "start_pose": data["start_pose"],
         "turning": run_config.get("turning"),
+        "travel": run_config.get("travel"),
         **extra,
     }
 

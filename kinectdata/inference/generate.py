@@ -47,7 +47,7 @@ from kinectdata.formats.csv_writer import write_csv
 from kinectdata.formats.openpose_writer import write_openpose_jsonl
 from kinectdata.inference.engines import make_engine
 from kinectdata.inference.start import StartPose, recording_start, target_poses
-from kinectdata.inference.turning import run_turning, turn_song
+from kinectdata.inference.turning import run_travel, run_turning, travel_generator, turn_song
 from kinectdata.models.registry import model_kind
 from kinectdata.models.run import load_model, model_name
 from kinectdata.targets.normalization import Normalizer
@@ -106,6 +106,7 @@ def generate(
     beats_per_bar: int | None = None,
     start: StartPose | None = None,
     turning: bool = True,
+    travel: bool = True,
     seed: int = 0,
 ) -> tuple[Motion, dict[str, Any]]:
     """Generate motion for ``audio`` with a trained run; write it to ``out`` if given (canonical
@@ -128,10 +129,10 @@ def generate(
     and anchor, else the mean training pose before frame 0 and the floor rule.
     ``timing["start"]`` and ``timing["placement"]`` say which.
 
-    ``turning``: draw the run's turning about the vertical over the frames the model makes
-    (:mod:`kinectdata.inference.turning`, from a generator seeded by ``seed``: ``live`` on the same
-    audio and seed turns the same way); a run trained without one draws none. ``timing["turning"]``
-    says what was drawn.
+    ``turning``, ``travel``: draw the run's turning about the vertical and its travel across the floor
+    over the frames the model makes (:mod:`kinectdata.inference.turning`, from generators seeded by
+    ``seed``: ``live`` on the same audio and seed turns and travels the same way); a run trained
+    without them draws none. ``timing["turning"]`` says what was drawn.
     """
     net, config = load_model(run)
     kind = model_kind(model_name(config))
@@ -154,13 +155,14 @@ def generate(
     poses[0] = pose
     step_times: list[float] = []
     process = run_turning(config) if turning else None
+    moving = run_travel(config) if travel else None
     heard: list[np.ndarray] = []  # every frame's features, when the turning needs to know the silent ones
     if kind.streams:
         stepper = make_engine(net, engine, precision, kind)
 
         def step(k0: int, features: np.ndarray, padded: np.ndarray) -> None:
             nonlocal pose
-            if process is not None:
+            if process is not None or moving is not None:
                 heard.append(np.array(features))
             for k in range(features.shape[0]):
                 if true_first and k0 + k == 0:
@@ -199,11 +201,13 @@ def generate(
             poses[:] = kind.free_run(net, np.concatenate([features[:1], features]), pose)
         step_times = [(time.perf_counter() - ran) / n] * n
     values = norm.invert(poses, spec)
-    if process is not None:  # the frames the model made: 1..n-1 after a true first pose, else all
+    if process is not None or moving is not None:  # the frames the model made: 1..n-1 after a true first pose
         made = slice(1 if true_first else 0, n)
         rng = np.random.default_rng(int(seed))
         silence = silence_features(data["features"], fps)
-        values[made] = turn_song(values[made], np.concatenate(heard)[made], silence, spec, fps, process, rng)
+        values[made] = turn_song(
+            values[made], np.concatenate(heard)[made], silence, spec, fps, process, rng, moving, travel_generator(seed)
+        )
     seconds = time.perf_counter() - started
     metadata = {"format": "generated", "source": str(audio), "run": str(run)}
     motion = _motion(values, spec, fps, metadata, data.get("skeleton"), data["root_centre"], start.anchor)
@@ -239,7 +243,8 @@ def generate(
     if metre is not None:
         timing["metre"] = metre.describe()
     timing["start"] = start.source
-    timing["turning"] = process.describe() if process is not None else "none drawn"
+    drawn = [p.describe() for p in (process, moving) if p is not None]
+    timing["turning"] = "; ".join(drawn) if drawn else "none drawn"
     if "placement" in motion.metadata:
         timing["placement"] = motion.metadata["placement"]
     if spec.limbs:

@@ -29,7 +29,7 @@ from kinectdata.features.silence import silent_frames
 from kinectdata.features.streaming import StreamingFeatures
 from kinectdata.inference.engines import make_engine, onnxruntime_available
 from kinectdata.inference.start import target_poses
-from kinectdata.inference.turning import live_turning
+from kinectdata.inference.turning import drawn_line, live_turning
 from kinectdata.live.sinks import LivePose
 from kinectdata.models.registry import model_kind
 from kinectdata.models.run import load_model, model_name
@@ -52,19 +52,28 @@ class LiveDancer:
         engine, precision: as ``generate``'s (torch float32 / float16, onnxruntime float32);
             ``auto``: ONNX Runtime where it is installed and the model runs on it (a yalta step takes
             about half torch's time at batch 1), else torch.
-        turning, seed: draw the run's turning about the vertical one frame at a time, from a generator
-            seeded by ``seed`` (:func:`~kinectdata.inference.turning.live_turning`; held still while
-            the features are silence), as ``generate`` draws it on the same audio and seed; a run
-            trained without one draws none.
+        turning, travel, seed: draw the run's turning about the vertical and its travel across the
+            floor one frame at a time, from generators seeded by ``seed``
+            (:func:`~kinectdata.inference.turning.live_turning`; held still while the features are
+            silence), as ``generate`` draws them on the same audio and seed; a run trained without
+            them draws none.
     """
 
     def __init__(
-        self, run: str | Path, engine: str = "auto", precision: str = "float32", *, turning: bool = True, seed: int = 0
+        self,
+        run: str | Path,
+        engine: str = "auto",
+        precision: str = "float32",
+        *,
+        turning: bool = True,
+        seed: int = 0,
+        travel: bool = True,
     ):
         net, config = load_model(run)
         self.config, self.seed = config, int(seed)
-        if not turning:
-            config.pop("turning", None)
+        for drawn, asked in (("turning", turning), ("travel", travel)):
+            if not asked:
+                config.pop(drawn, None)
         self.kind = model_kind(model_name(config))
         if not self.kind.streams:
             raise KinectDataError(
@@ -85,7 +94,7 @@ class LiveDancer:
         self.anchor: np.ndarray | None = None
         self.joint_set = self.spec.joints
         self.turning = live_turning(config, self.seed)
-        self.turning_line = self.turning[0].process.describe() if self.turning else "no turning drawn"
+        self.turning_line = drawn_line(config)
 
     def warm_up(self, frames: int = 10) -> None:
         """Step a few silent frames and start again from the mean pose: the first steps of a network

@@ -68,6 +68,8 @@ PAPER_LOOP: dict[str, Any] = {
     "bone_jitter_weight": 0.0,
     "song_starts": False,
     "turning": False,
+    "travel": False,
+    "facing": False,
     "silence_share": 0.0,
     "keep": "last",
     "context": 0,

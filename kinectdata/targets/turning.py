@@ -9,12 +9,12 @@ dancers (:func:`fit_turning`: the ``train`` command keeps it in the run) and dra
 makes positions (``evaluate``, ``generate``, ``live``), while the network makes the rest.
 
 The process: the turning speed ``w_t`` (rad/s) is white Gaussian noise through two equal
-first-order low-pass stages (``u_t = b u_{t-1} + (1 - b) e_t``, ``v_t = b v_{t-1} + (1 - b) u_t``,
-``b = exp(-1 / (fps * time_constant))``), scaled so its stationary root mean square is
-``rms_speed``; its autocorrelation is ``(1 + t / tau) exp(-t / tau)``. Where the music is silent the
-speed is held at 0 (the dancer stops with the music). The heading ``h_t`` is the speed's sum over
-frames divided by fps. Two stages, not one: one renews the acceleration every frame and adds jerk
-(docs/benchmarks.md, "Tried since, on the folds: turning drawn at generation").
+first-order low-pass stages (:mod:`kinectdata.targets.slow_process`), scaled so its stationary root
+mean square is ``rms_speed``; its autocorrelation is ``(1 + t / tau) exp(-t / tau)``. Where the
+music is silent the speed is held at 0 (the dancer stops with the music). The heading ``h_t`` is the
+speed's sum over frames divided by fps. Two stages, not one: one renews the acceleration every
+frame and adds jerk (docs/notebook/2026-11-real-dance.md, "Tried since, on the folds: turning drawn
+at generation").
 
 A frame is turned by ``h_t`` about the vertical (y up; positive from x towards z, as
 :func:`kinectdata.evaluation.metrics.turning.turning_rates` counts it): each joint's offset from the
@@ -37,10 +37,9 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-from scipy.optimize import minimize_scalar
-from scipy.signal import lfilter
 
 from kinectdata.core.errors import ConfigError
+from kinectdata.targets.slow_process import fit_time_constant, pole_and_gain, two_stage
 from kinectdata.targets.specs import TargetSpec
 
 __all__ = [
@@ -140,26 +139,6 @@ def _pivot(spec: TargetSpec) -> tuple[str, ...]:
     return (spec.root,)  # type: ignore[return-value]
 
 
-def _pooled_autocorrelation(rates: Sequence[np.ndarray], lags: int) -> np.ndarray:
-    """[lags + 1] sum of r_t r_{t+k} over the pairs valid in both, over the sum of r_t^2."""
-    num, den = np.zeros(lags + 1), 0.0
-    for r in rates:
-        r = np.asarray(r, np.float64)
-        ok = np.isfinite(r)
-        x = np.where(ok, r, 0.0)
-        den += float((x * x).sum())
-        for k in range(lags + 1):
-            if k < len(x):
-                num[k] += float((x[: len(x) - k] * x[k:]).sum())
-    return num / den if den > 0 else np.full(lags + 1, np.nan)
-
-
-def _two_stage_autocorrelation(lags: np.ndarray, b: float) -> np.ndarray:
-    """The autocorrelation of white noise through two first-order stages of pole ``b``, at ``lags``
-    frames: ``b^k (1 + k (1 - b^2) / (1 + b^2))``."""
-    return b**lags * (1 + lags * (1 - b * b) / (1 + b * b))
-
-
 def fit_turning(rates: Sequence[np.ndarray], fps: float, spec: TargetSpec) -> TurningProcess:
     """The turning process of dancers whose turning speeds are ``rates``.
 
@@ -183,14 +162,7 @@ def fit_turning(rates: Sequence[np.ndarray], fps: float, spec: TargetSpec) -> Tu
     if values.size < 3:
         raise ConfigError("turning: no turning speed to fit (fewer than 3 frames with a known turn)")
     mean_abs = float(np.abs(values).mean())
-    lags = max(1, int(round(FIT_LAGS_S * fps)))
-    seen = _pooled_autocorrelation(rates, lags)
-    k = np.arange(1, lags + 1, dtype=np.float64)
-
-    def misfit(tau: float) -> float:
-        return float(np.nansum((_two_stage_autocorrelation(k, math.exp(-1 / (fps * tau))) - seen[1:]) ** 2))
-
-    tau = float(minimize_scalar(misfit, bounds=(0.5 / fps, 10.0), method="bounded").x)
+    tau = fit_time_constant(rates, fps, FIT_LAGS_S)
     return TurningProcess(
         rms_speed=mean_abs * math.sqrt(math.pi / 2),
         time_constant=tau,
@@ -201,23 +173,11 @@ def fit_turning(rates: Sequence[np.ndarray], fps: float, spec: TargetSpec) -> Tu
     )
 
 
-def _pole_and_gain(process: TurningProcess, fps: float) -> tuple[float, float]:
-    """The stages' pole b and the gain that gives unit white noise a unit stationary output:
-    ``1 / sqrt((1 - b)^4 (1 + b^2) / (1 - b^2)^3)``."""
-    b = math.exp(-1 / (fps * process.time_constant))
-    return b, math.sqrt((1 - b * b) ** 3 / ((1 - b) ** 4 * (1 + b * b)))
-
-
 def draw_turning_speed(process: TurningProcess, live: np.ndarray, fps: float, rng: np.random.Generator) -> np.ndarray:
     """[T] turning speed (rad/s) of T frames, 0 where ``live`` [T] (bool) is False (silence): one
     standard normal draw per frame from ``rng``, as :class:`TurningStream` draws them."""
     live = np.asarray(live, bool)
-    b, gain = _pole_and_gain(process, fps)
-    u = lfilter([1 - b], [1, -b], rng.standard_normal(len(live)))
-    v = np.zeros(len(live))
-    for t in np.flatnonzero(live):  # v is 0 in silence, so the second stage restarts from 0 after it
-        v[t] = b * (v[t - 1] if t else 0.0) + (1 - b) * u[t]
-    return process.rms_speed * gain * v
+    return process.rms_speed * two_stage(rng.standard_normal(len(live)), live, process.time_constant, fps)
 
 
 @dataclass(frozen=True)
@@ -292,7 +252,7 @@ class TurningStream:
     def __init__(self, process: TurningProcess, spec: TargetSpec, fps: float, rng: np.random.Generator):
         self.process, self.fps, self.rng = process, float(fps), rng
         self.cols = _columns(spec, process)
-        self.b, self.gain = _pole_and_gain(process, self.fps)
+        self.b, self.gain = pole_and_gain(process.time_constant, self.fps)
         self.u = self.v = self.heading = 0.0
         self.shift = np.zeros(2)
 

@@ -12,16 +12,31 @@ body reflected across the plane x = 0, left and right swapped: :class:`Mirror`),
 music. A dance mirrored is a dance to the same song (a dancer leading with the other foot), so a
 corpus gives twice the bodies. Whether that helps depends on the corpus: docs/benchmarks.md
 ("mirrored dancers") has what it did on ballroom dance.
+
+:func:`without_slow_travel`: in every window the root's slow travel across the floor is taken out of
+its targets, for a run that draws its travel at generation (:mod:`kinectdata.targets.travel`): the
+network is not asked for what it will be given. Asked for the real dancers' speeds along the floor
+with their travel in them, a network that cannot know which way a dancer goes made them up with a
+fast sway of its body instead (docs/benchmarks.md, "The travel drawn at generation").
+
+:func:`facing_windows`: every frame of every window turned about the vertical so that the body faces
+one way (its left-right axis, from its hips and shoulders, along x), for a run that draws its
+turning (:mod:`kinectdata.targets.turning`): in the world's frame a network that cannot know which
+way a dancer faces learns a body averaged over the ways, a fraction as wide as the dancers'
+(docs/notebook/2026-11-real-dance.md, "Tried since, on the folds: poses in the body's facing frame").
 """
 
 from __future__ import annotations
 
+import math
+import re
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 import torch
 
+from kinectdata.core.errors import ConfigError
 from kinectdata.features.silence import silence_features
 from kinectdata.targets.normalization import Normalizer
 from kinectdata.targets.specs import TargetSpec
@@ -152,4 +167,181 @@ def mirror_windows(
     for mask in ("mask", "previous_mask"):
         out[mask] = batch[mask].clone()
         out[mask][chosen] = batch[mask][chosen][..., mirror.source]
+    return out
+
+
+SLOW_TRAVEL_S = 2.0
+"""The slow travel is the root's horizontal place averaged over this many seconds (centred): a
+moving average whose first zero is at 0.5 Hz, the travel process's cut-off."""
+
+
+@dataclass(frozen=True)
+class SlowTravel:
+    """What :func:`without_slow_travel` needs of a dataset: the root's x and z columns, their
+    normalisation (``y = (x - offset) * scale``) and the moving average's width in frames."""
+
+    columns: tuple[int, int]
+    scale: tuple[float, float]
+    offset: tuple[float, float]
+    frames: int
+
+    @classmethod
+    def of_dataset(cls, manifest: dict[str, Any], fps: float) -> SlowTravel:
+        spec = TargetSpec.from_dict(manifest["config"]["target"])
+        norm = Normalizer.from_dict(manifest["normalisation"])
+        start = spec.columns(spec.root, "position").start
+        columns = (start, start + 2)
+        width = max(3, int(round(SLOW_TRAVEL_S * fps)) | 1)  # odd: centred
+        return cls(
+            columns,
+            tuple(float(norm.scale[c]) for c in columns),
+            tuple(float(norm.offset[c]) for c in columns),
+            width,
+        )
+
+
+def _moving_average(values: torch.Tensor, valid: torch.Tensor, frames: int) -> torch.Tensor:
+    """[N, L] centred moving average over ``frames`` of the valid values (fewer at the edges)."""
+    kernel = torch.ones(1, 1, frames, dtype=values.dtype, device=values.device)
+    total = torch.nn.functional.conv1d((values * valid)[:, None], kernel, padding=frames // 2)[:, 0]
+    count = torch.nn.functional.conv1d(valid[:, None], kernel, padding=frames // 2)[:, 0]
+    return total / count.clamp(min=1.0)
+
+
+def _as_sequence(values: dict[str, torch.Tensor]) -> torch.Tensor:
+    """The poses before, in and after a window as one sequence [B, L + 1 (+ 1), ...]: ``previous``'s
+    first, ``pose``'s, and ``next``'s last when the batch has it."""
+    parts = [values["previous"][:, :1], values["pose"]]
+    if "next" in values:
+        parts.append(values["next"][:, -1:])
+    return torch.cat(parts, dim=1)
+
+
+def _from_sequence(out: dict[str, torch.Tensor], sequence: torch.Tensor, frames: int) -> None:
+    """Write a :func:`_as_sequence` sequence back into ``out``'s ``previous``, ``pose`` and ``next``."""
+    out["previous"] = sequence[:, :frames]
+    out["pose"] = sequence[:, 1 : frames + 1]
+    if "next" in out:
+        out["next"] = sequence[:, 2 : frames + 2]
+
+
+def without_slow_travel(batch: dict[str, torch.Tensor], travel: SlowTravel) -> dict[str, torch.Tensor]:
+    """A batch (``pose``, ``previous`` and ``next`` [B, L, D] normalised, with the first two's masks)
+    whose root's x and z are its place less its moving average over ``travel.frames``: its sway and
+    steps about where it is going, not the going (the poses before, in and after the window taken as
+    one sequence, so that a window's ``previous`` is its ``pose`` a frame later). A new batch; the
+    given tensors are not changed."""
+    frames = batch["pose"].shape[1]
+    sequence = _as_sequence(batch).clone()
+    masks = {"previous": batch["previous_mask"], "pose": batch["mask"]}
+    if "next" in batch:
+        masks["next"] = torch.ones_like(batch["next"], dtype=torch.bool)  # the last pose, known where any is
+        masks["next"][:, -1:] = batch["mask"][:, -1:]
+    valid = _as_sequence(masks)
+    for column, scale, offset in zip(travel.columns, travel.scale, travel.offset):
+        places, known = sequence[..., column], valid[..., column].to(sequence.dtype)
+        slow = _moving_average(places, known, travel.frames)
+        # in metres: x - average(x); normalised: y - average(y) - offset * scale
+        sequence[..., column] = (places - slow - offset * scale) * known
+    out = dict(batch)
+    _from_sequence(out, sequence, frames)
+    return out
+
+
+LEFT = re.compile(r"(?i)left|^L(?=[A-Z])")
+"""A joint named for the body's left side (``left_hip``, ``HipLeft``, ``LShoulder``)."""
+TRUNK = re.compile(r"(?i)hip|shoulder")
+"""The pairs whose left-right vector gives the facing: the hips' and shoulders' (the arms wander)."""
+
+
+FACING_SMOOTHING_S = 0.5
+"""The heading a frame is turned by is the trunk's, averaged over this many seconds (centred): the
+turning the run draws is slow (its speed correlated over about 0.4 s on tang2018), and a heading
+read frame by frame from four tracked joints shakes; turned by it, every joint shook with it (jerk
+2.3 x the real dancers' on a fold, docs/benchmarks.md)."""
+
+
+@dataclass(frozen=True)
+class Facing:
+    """What :func:`facing_windows` needs of a dataset's targets: the x and z columns of the joints
+    turned (every positioned joint but the root, whose values are its travel), the left and right
+    joints of the pairs the facing is read from (indices into those joints), the columns'
+    normalisation (``y = (x - offset) * scale``) and the heading's smoothing in frames."""
+
+    x: torch.Tensor
+    z: torch.Tensor
+    left: torch.Tensor
+    right: torch.Tensor
+    scale: torch.Tensor
+    offset: torch.Tensor
+    frames: int = 1
+
+    @classmethod
+    def of_dataset(cls, manifest: dict[str, Any]) -> Facing:
+        """Raises ConfigError: the targets are not 3-D positions centred on their root, or name no
+        left and right joint."""
+        spec = TargetSpec.from_dict(manifest["config"]["target"])
+        if spec.dimensions != 3 or not manifest["config"].get("root_centre") or spec.root not in spec.positions:
+            raise ConfigError("facing: the targets must be 3-D joint positions centred on their root (--root-centre)")
+        joints = [j for j in spec.positions if j != spec.root]
+        js = spec.joints
+        image = js.mirror_image()
+        pairs = []
+        for j in joints:
+            other = js.names[image[js.index(j)]]
+            if other != j and other in joints and LEFT.search(j):
+                pairs.append((joints.index(j), joints.index(other), bool(TRUNK.search(j))))
+        trunk = [p for p in pairs if p[2]] or pairs
+        if not trunk:
+            raise ConfigError(f"facing: the target's joints name no left and right side ({', '.join(joints)})")
+        x = [spec.columns(j, "position").start for j in joints]
+        norm = Normalizer.from_dict(manifest["normalisation"])
+        columns = np.array([[c, c + 2] for c in x])  # [J, 2]
+        return cls(
+            torch.tensor(columns[:, 0]),
+            torch.tensor(columns[:, 1]),
+            torch.tensor([a for a, _, _ in trunk]),
+            torch.tensor([b for _, b, _ in trunk]),
+            torch.tensor(norm.scale[columns], dtype=torch.float32),
+            torch.tensor(norm.offset[columns], dtype=torch.float32),
+            max(1, int(round(FACING_SMOOTHING_S * float(manifest["config"]["fps"]))) | 1),
+        )
+
+
+def _smooth_heading(heading: torch.Tensor, known: torch.Tensor, frames: int) -> torch.Tensor:
+    """[B, S] headings (rad) unwrapped along the frames and averaged over ``frames`` centred (the
+    known ones; fewer at the edges); 0 where unknown."""
+    step = torch.diff(heading, dim=1)
+    step = torch.remainder(step + math.pi, 2 * math.pi) - math.pi  # the shortest way round
+    step = torch.where(known[:, 1:] & known[:, :-1], step, torch.zeros_like(step))
+    unwrapped = torch.cat([heading[:, :1], heading[:, :1] + torch.cumsum(step, dim=1)], dim=1)
+    if frames > 1:
+        unwrapped = _moving_average(unwrapped, known.to(unwrapped.dtype), frames)
+    return torch.where(known, unwrapped, torch.zeros_like(unwrapped))
+
+
+def facing_windows(batch: dict[str, torch.Tensor], facing: Facing) -> dict[str, torch.Tensor]:
+    """A batch whose every pose (``pose``, ``previous``, ``next``) is turned about the vertical
+    through its root by the trunk's heading (the angle of the sum of its trunk pairs'
+    left-minus-right vectors, averaged over ``facing.frames``: :func:`_smooth_heading`), so that
+    the body faces one way; a frame where a pair's joint is unknown is left as it is. A new batch."""
+    frames = batch["pose"].shape[1]
+    sequence = _as_sequence(batch).clone()
+    known = _as_sequence({"previous": batch["previous_mask"], "pose": batch["mask"],
+                          **({"next": batch["mask"]} if "next" in batch else {})})  # fmt: skip
+    scale, offset = facing.scale.to(sequence), facing.offset.to(sequence)
+    x = sequence[..., facing.x] / scale[:, 0] + offset[:, 0]  # [B, S, J] metres about the root
+    z = sequence[..., facing.z] / scale[:, 1] + offset[:, 1]
+    across_x = (x[..., facing.left] - x[..., facing.right]).sum(dim=-1)
+    across_z = (z[..., facing.left] - z[..., facing.right]).sum(dim=-1)
+    pair_known = (known[..., facing.x[facing.left]] & known[..., facing.x[facing.right]]).all(dim=-1)
+    heading = _smooth_heading(torch.atan2(across_z, across_x), pair_known, facing.frames)
+    cos, sin = torch.cos(heading)[..., None], torch.sin(heading)[..., None]
+    turned_x, turned_z = cos * x + sin * z, -sin * x + cos * z  # by -heading
+    turned = pair_known[..., None]  # a frame whose trunk is unknown is left as it is
+    valid_x, valid_z = known[..., facing.x] & turned, known[..., facing.z] & turned
+    sequence[..., facing.x] = torch.where(valid_x, (turned_x - offset[:, 0]) * scale[:, 0], sequence[..., facing.x])
+    sequence[..., facing.z] = torch.where(valid_z, (turned_z - offset[:, 1]) * scale[:, 1], sequence[..., facing.z])
+    out = dict(batch)
+    _from_sequence(out, sequence, frames)
     return out

@@ -27,6 +27,8 @@ LOOP_DEFAULTS: dict[str, Any] = {
     "weight_average": 0.0,
     "mirror_share": 0.0,
     "turning": True,
+    "travel": True,
+    "facing": False,
 }
 """The training loop's settings and their base defaults (Yalta et al.'s; a model's
 ``training_defaults`` change them)."""
@@ -49,6 +51,8 @@ ADDED_OFF = {
     "weight_average": 0.0,
     "mirror_share": 0.0,
     "turning": False,
+    "travel": False,
+    "facing": False,
     "precision": "float32",
 }
 """Loop (and model) settings added after runs were written: a run's config.json without them trained without
@@ -144,6 +148,13 @@ class TrainConfig:
             targets centred on their root only, else none is kept: ``evaluate`` and ``generate`` say
             which). The
             papers' settings (``paper``) draw none. Runs written before it had none.
+        travel: fit the training dancers' travel across the floor and keep it in the run, to be drawn
+            wherever the run makes positions (:mod:`kinectdata.targets.travel`; the same targets as
+            ``turning``, else none is kept). The papers' settings draw none. Runs written before it
+            had none.
+        facing: train on poses turned about the vertical to face one way, frame by frame
+            (:func:`~kinectdata.training.augment.facing_windows`), for a run that draws its turning: the
+            network makes the body, the drawn turning where it faces. Runs written before it had none.
         precision: the training step's arithmetic (:data:`PRECISIONS`): ``float32``, or
             ``bfloat16``, the network's forward pass under ``torch.autocast`` (its losses, weights,
             optimiser, validation and every run made from it in float32; a model keeps what it
@@ -178,6 +189,8 @@ class TrainConfig:
     weight_average: float
     mirror_share: float
     turning: bool
+    travel: bool
+    facing: bool
     precision: str
     settings: Any
 
@@ -221,6 +234,12 @@ class TrainConfig:
             raise ConfigError(f"song_starts must be true or false, not {self.song_starts!r}")
         if not isinstance(self.turning, bool):
             raise ConfigError(f"turning must be true or false, not {self.turning!r}")
+        if not isinstance(self.travel, bool):
+            raise ConfigError(f"travel must be true or false, not {self.travel!r}")
+        if not isinstance(self.facing, bool):
+            raise ConfigError(f"facing must be true or false, not {self.facing!r}")
+        if self.facing and not self.turning:
+            raise ConfigError("facing: a run that learns its poses facing one way must draw its turning (turning true)")
         if not 0 <= self.mirror_share <= 1:
             raise ConfigError(f"mirror_share must be in 0..1, not {self.mirror_share!r}")
         if not 0 <= self.silence_share <= 1:

@@ -46,6 +46,7 @@ from kinectdata.dataset.windows import WindowDataset
 from kinectdata.evaluation.listening import ALIVE_RANGE
 from kinectdata.evaluation.metrics import smape
 from kinectdata.inference.export import export_network, stream_metadata
+from kinectdata.inference.turning import with_turning
 from kinectdata.models.losses import Body, masked_rhythm_loss
 from kinectdata.models.registry import check_fits, model_for_dataset, model_kind
 from kinectdata.models.run import (
@@ -60,7 +61,16 @@ from kinectdata.models.run import (
     write_json,
 )
 from kinectdata.targets.normalization import Normalizer
-from kinectdata.training.augment import Mirror, mirror_windows, silence_windows, silent_frame
+from kinectdata.training.augment import (
+    Facing,
+    Mirror,
+    SlowTravel,
+    facing_windows,
+    mirror_windows,
+    silence_windows,
+    silent_frame,
+    without_slow_travel,
+)
 from kinectdata.training.config import TrainConfig
 from kinectdata.training.distributed import (
     PaddedWindows,
@@ -75,7 +85,7 @@ from kinectdata.training.distributed import (
     sum_over_ranks,
 )
 from kinectdata.training.figures import loss_curves
-from kinectdata.training.turning import fit_dataset_turning
+from kinectdata.training.turning import fit_dataset_travel, fit_dataset_turning
 from kinectdata.training.whole_songs import WholeSongs
 
 LOG_FIELDS = [
@@ -395,13 +405,17 @@ def validate(
     fps: float = 30.0,
     body: Body | None = None,
     context: int = 0,
+    travel: SlowTravel | None = None,
+    facing: Facing | None = None,
 ) -> tuple[float, float, float]:
     """(loss as in training, SMAPE in % free-running, the free-running rhythm loss) over a split's
     windows: the model runs free from each window's first true pose; the rhythm loss
     (:func:`~kinectdata.models.losses.masked_rhythm_loss`) compares how much and how often
     it moves with the real motion, whatever the phase. ``start_pose`` [D] stands in for masked
     previous values (as the model's ``fill_previous`` says); the first ``context`` frames of each
-    window are input only (``TrainConfig.context``)."""
+    window are input only (``TrainConfig.context``); ``travel``, ``facing``: the root's slow travel
+    taken out of the windows and the poses turned to face one way, as training does for a run that
+    draws its travel and turning (:func:`_drawn_out`)."""
     if len(windows) == 0:
         return float("nan"), float("nan"), float("nan")
     kind = model_kind(config.model)
@@ -409,6 +423,7 @@ def validate(
     losses, weights, generated, real, masks = [], [], [], [], []
     with torch.no_grad():
         for batch in _batches(windows, config):
+            batch = _drawn_out(batch, travel, facing)
             audio, pose, mask = batch["audio"].to(device), batch["pose"].to(device), batch["mask"].to(device)
             previous = batch["previous"].to(device)
             if start_pose is not None:
@@ -440,6 +455,17 @@ def validate(
         )
     )
     return loss, smape(generated, real, masks), rhythm
+
+
+def _drawn_out(batch: dict[str, Any], travel: SlowTravel | None, facing: Facing | None) -> dict[str, Any]:
+    """A batch without what the run draws at generation: the root's slow travel
+    (:func:`~kinectdata.training.augment.without_slow_travel`) and, with ``facing``, where the body
+    faces (:func:`~kinectdata.training.augment.facing_windows`)."""
+    if travel is not None:
+        batch = without_slow_travel(batch, travel)
+    if facing is not None:
+        batch = facing_windows(batch, facing)
+    return batch
 
 
 def _body(manifest: dict[str, Any], device: torch.device) -> Body | None:
@@ -500,7 +526,9 @@ def _feet(spec) -> np.ndarray | None:
 
 
 def _energy(net: torch.nn.Module, kind, songs: WholeSongs | None) -> float:
-    """The validation songs' energy ratio run free (NaN without songs to measure)."""
+    """The validation songs' energy ratio run free (NaN without songs to measure), by ``kind``: the
+    run's model kind with its turning and travel drawn (:func:`~kinectdata.inference.turning.with_turning`),
+    so that it is the energy ``evaluate`` gives its alive verdict."""
     return float("nan") if songs is None else songs.energy_ratio(net, kind)
 
 
@@ -671,8 +699,9 @@ def train(
         best: dict[str, Any] | None = None  # the kept epoch's weights (keep="best")
         if state is not None:
             run_config["dataset"]["start_pose"] = saved["dataset"]["start_pose"]
-            if "turning" in saved:  # as it was fitted when the run started
-                run_config["turning"] = saved["turning"]
+            for drawn in ("turning", "travel"):  # as they were fitted when the run started
+                if drawn in saved:
+                    run_config[drawn] = saved[drawn]
             if world.main:
                 write_json(run / CONFIG, run_config)  # with the new epochs or device, if changed
             net.load_state_dict(state["model"])
@@ -697,6 +726,10 @@ def train(
                 process = fit_dataset_turning(dataset, manifest, run_config["dataset"])
                 if process is not None:
                     run_config["turning"] = process.to_dict()
+            if config.travel:
+                travel = fit_dataset_travel(dataset, manifest, run_config["dataset"])
+                if travel is not None:
+                    run_config["travel"] = travel.to_dict()
             kind.init_output(net, run_config["dataset"]["start_pose"])
             if world.main:
                 run.mkdir(parents=True, exist_ok=True)
@@ -712,6 +745,9 @@ def train(
         fps = float(manifest["config"]["fps"])
         silent = silent_frame(manifest["config"]["features"], fps) if config.silence_share > 0 else None
         body = _body(manifest, device)
+        travel = SlowTravel.of_dataset(manifest, fps) if "travel" in run_config else None  # it is drawn
+        facing = Facing.of_dataset(manifest) if config.facing else None
+        drawn_kind = with_turning(kind, run_config)  # whole songs measured with what the run draws, as evaluate
         val_songs = (  # the kept epoch's condition: measured when the run keeps its best
             WholeSongs.of_split(dataset, manifest, "val", kind, run_config["dataset"], start_pose)
             if config.keep == "best"
@@ -731,6 +767,7 @@ def train(
                     batch = silence_windows(batch, silent, config.silence_share, augment, context)
                 if mirror is not None:
                     batch = mirror_windows(batch, mirror, config.mirror_share, mirrored)
+                batch = _drawn_out(batch, travel, facing)
                 audio, pose, mask = batch["audio"].to(device), batch["pose"].to(device), batch["mask"].to(device)
                 previous = kind.fill_previous(
                     batch["previous"].to(device), batch["previous_mask"].to(device), start_pose
@@ -775,8 +812,8 @@ def train(
             check_replicas(params, world, epoch)
             figures = (
                 (
-                    *validate(judged, val_windows, config, device, start_pose, fps, body, context),
-                    _energy(judged, kind, val_songs),
+                    *validate(judged, val_windows, config, device, start_pose, fps, body, context, travel, facing),
+                    _energy(judged, drawn_kind, val_songs),
                 )
                 if world.main
                 else (0.0, 0.0, 0.0, 0.0)

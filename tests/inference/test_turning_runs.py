@@ -1,7 +1,8 @@
-"""A run's turning drawn at generation, end to end on the sample sessions built root-centred: train
-fits it into config.json (or, asked not to, keeps none), generate draws it (a rigid turn of each frame
-about the vertical, seeded), live draws it frame by frame as generate does, evaluate says so and
---no-turning leaves the network's motion alone."""
+"""A run's turning and travel drawn at generation, end to end on the sample sessions built
+root-centred: train fits them into config.json (or, asked not to, keeps none), generate draws them
+(a rigid turn of each frame about the vertical, then a move of the whole body across the floor,
+seeded), live draws them frame by frame as generate does, evaluate says so and --no-turning and
+--no-travel leave the network's motion alone."""
 
 from __future__ import annotations
 
@@ -53,18 +54,26 @@ def test_train_fits_the_training_dancers_turning_into_the_run(centred_run, tmp_p
     train(dataset, tmp_path / "off", off)
     assert "turning" not in json.loads((tmp_path / "off" / "config.json").read_text())
     assert TrainConfig("yalta", paper=True).turning is False  # the papers drew no turning
+    travel = json.loads((run / "config.json").read_text())["travel"]
+    assert travel["recordings"] == 1 and 0 < travel["rms_speed"] < 2 and 0 < travel["time_constant"] < 10
+    no_travel = TrainConfig(**{**TINY_TRAINING, "epochs": 1, "travel": False})
+    train(dataset, tmp_path / "still", no_travel)
+    assert "travel" not in json.loads((tmp_path / "still" / "config.json").read_text())
+    assert TrainConfig("yalta", paper=True).travel is False
     shutil.copytree(run, tmp_path / "resumed")  # a resumed run keeps the process it was started with
     train(dataset, tmp_path / "resumed", TrainConfig(**{**TINY_TRAINING, "epochs": 2}), resume=True)
-    assert json.loads((tmp_path / "resumed" / "config.json").read_text())["turning"] == turning
+    resumed = json.loads((tmp_path / "resumed" / "config.json").read_text())
+    assert resumed["turning"] == turning and resumed["travel"] == travel
 
 
 def test_generate_turns_each_frame_rigidly_about_the_vertical_and_is_seeded(centred_run):
     run, _ = centred_run
-    still, timing_still = generate(run, SONG, turning=False)
+    still, timing_still = generate(run, SONG, turning=False, travel=False)
     turned, timing = generate(run, SONG)
     again, _ = generate(run, SONG)
     other, _ = generate(run, SONG, seed=1)
     assert timing_still["turning"] == "none drawn" and "about the standing foot" in timing["turning"]
+    assert "travel drawn at generation" in timing["turning"]
     np.testing.assert_array_equal(turned.positions, again.positions)
     assert not np.allclose(turned.positions, other.positions)
     p, q = still.positions, turned.positions
@@ -75,11 +84,26 @@ def test_generate_turns_each_frame_rigidly_about_the_vertical_and_is_seeded(cent
     assert np.abs(q - p).max() > 1e-3  # and it does turn
 
 
+def test_the_travel_moves_the_whole_body_across_the_floor_and_the_turning_is_drawn_as_without_it(centred_run):
+    run, _ = centred_run
+    still, _ = generate(run, SONG, turning=False, travel=False)
+    moved, _ = generate(run, SONG, turning=False)
+    shift = moved.positions - still.positions  # [T, J, 3]
+    np.testing.assert_allclose(shift[..., 1], 0.0, atol=1e-9)  # no joint rises or falls
+    np.testing.assert_allclose(shift, np.broadcast_to(shift[:, :1], shift.shape), atol=1e-9)  # all joints alike
+    assert np.abs(shift[:, 0, [0, 2]]).max() > 0.01  # and it does move
+    # the turning's draws do not depend on whether the travel is drawn after it
+    turned_only, _ = generate(run, SONG, travel=False)
+    both, _ = generate(run, SONG)
+    from_turning = turned_only.positions - still.positions
+    np.testing.assert_allclose(both.positions - shift - still.positions, from_turning, atol=1e-6)
+
+
 def test_live_draws_the_turning_frame_by_frame_as_generate_does(centred_run):
     run, _ = centred_run
     clock = VirtualClock(100.0)
     dancer = LiveDancer(run, "torch", seed=3)
-    assert "turning drawn at generation" in dancer.turning_line
+    assert "turning drawn at generation" in dancer.turning_line and "travel drawn" in dancer.turning_line
 
     class Kept:
         def __init__(self):
@@ -102,8 +126,11 @@ def test_evaluate_says_what_it_drew_and_no_turning_leaves_the_network_alone(cent
     assert "turning drawn at generation: speed" in drawn.output and "fitted on 1 training recordings" in drawn.output
     plain = CliRunner().invoke(main, [*args, "--out", str(tmp_path / "b"), "--no-turning"])
     assert plain.exit_code == 0, plain.output
-    assert "turning drawn" not in plain.output
-    results = [json.loads((tmp_path / x / "results.json").read_text()) for x in "ab"]
-    assert results[1]["turning"] is None and results[0]["turning"].startswith("turning drawn")
+    assert "turning drawn" not in plain.output and "travel drawn at generation" in plain.output
+    neither = CliRunner().invoke(main, [*args, "--out", str(tmp_path / "c"), "--no-turning", "--no-travel"])
+    assert neither.exit_code == 0, neither.output
+    results = [json.loads((tmp_path / x / "results.json").read_text()) for x in "abc"]
+    assert results[2]["turning"] is None and results[0]["turning"].startswith("turning drawn")
+    assert "travel drawn" in results[0]["turning"]
     # heights are the network's either way; the horizontal places are not
-    assert results[0]["smape"]["without_reset"] != results[1]["smape"]["without_reset"]
+    assert results[0]["smape"]["without_reset"] != results[2]["smape"]["without_reset"]

@@ -146,6 +146,7 @@ def test_runs_written_before_still_load_and_resume(trained_run, sample_dataset, 
     then["context"] = 0  # trained without context: the yalta model needs none, and runs before it had none
     then["song_starts"] = False  # runs before it had none
     then["turning"] = False  # nor a turning drawn at generation
+    then["travel"] = False  # nor a travel
     then["precision"] = "float32"  # and trained in float32
     assert TrainConfig.from_dict(OLD_FLAT) == TrainConfig(**then)
     net, _ = load_model(run)

@@ -1,0 +1,102 @@
+"""The travel drawn at generation (kinectdata.targets.travel): the velocity's statistics against the
+formulas of two first-order stages, the fit recovering a known process from root tracks (its fast
+steps filtered out), silence, gaps in a track, and the stream against the whole song."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from kinectdata.core.errors import ConfigError
+from kinectdata.core.jointsets import load_joint_set
+from kinectdata.targets.specs import TargetSpec, generic_target
+from kinectdata.targets.travel import (
+    TravelProcess,
+    TravelStream,
+    draw_travel,
+    fit_travel,
+    slow_velocity,
+    travel_targets,
+)
+
+FPS = 30.0
+SPEC = generic_target("positions", load_joint_set("tang2018"))
+
+
+def _velocity(place: np.ndarray) -> np.ndarray:
+    return np.diff(place, axis=0, prepend=np.zeros((1, 2))) * FPS
+
+
+def test_the_drawn_velocity_has_the_processs_spread_and_time_scale():
+    process = TravelProcess(0.35, 0.5)
+    velocity = _velocity(draw_travel(process, np.ones(200_000, bool), FPS, np.random.default_rng(1)))[1000:]
+    for axis in (0, 1):
+        v = velocity[:, axis]
+        assert np.sqrt(np.mean(v**2)) == pytest.approx(0.35, rel=0.04)
+        for seconds in (0.25, 0.5, 1.0):  # (1 + t / tau) exp(-t / tau)
+            lag = round(seconds * FPS)
+            seen = float((v[:-lag] * v[lag:]).mean() / (v * v).mean())
+            assert seen == pytest.approx((1 + seconds / 0.5) * math.exp(-seconds / 0.5), abs=0.04)
+    assert abs(np.corrcoef(velocity[:, 0], velocity[:, 1])[0, 1]) < 0.03  # the axes drawn apart
+
+
+def test_the_fit_recovers_a_known_process_under_fast_steps():
+    # a process slow enough that the low-pass keeps it (a faster one is fitted as its slowed self)
+    truth = TravelProcess(0.3, 1.5)
+    rng = np.random.default_rng(2)
+    tracks = []
+    for _ in range(30):  # 2-minute dances whose steps sway the root 5 cm at 1.5 Hz on top of the travel
+        place = draw_travel(truth, np.ones(3600, bool), FPS, rng)
+        t = np.arange(3600) / FPS
+        tracks.append(place + 0.05 * np.stack([np.sin(2 * np.pi * 1.5 * t), np.cos(2 * np.pi * 1.5 * t)], axis=1))
+    fitted = fit_travel(tracks, FPS)
+    assert fitted.rms_speed == pytest.approx(0.3, rel=0.08)
+    assert fitted.time_constant == pytest.approx(1.5, rel=0.12)
+    assert fitted.recordings == 30 and fitted.frames == 30 * 3600
+    assert "0.30 m/s root mean square along each horizontal axis" in fitted.describe()
+    assert TravelProcess.from_dict(fitted.to_dict()) == fitted
+
+
+def test_a_gap_splits_a_track_and_short_stretches_are_left_out():
+    track = np.cumsum(np.random.default_rng(3).normal(0, 0.01, (600, 2)), axis=0)
+    track[200:203] = np.nan  # 6.7 s, a gap, 13.2 s
+    track[590:] = np.nan
+    assert [len(v) for v in slow_velocity(track, FPS)] == [200, 387]
+    assert slow_velocity(track[:100], FPS) == []  # 3.3 s: too short to fit
+    with pytest.raises(ConfigError, match="no stretch of at least 4 s"):
+        fit_travel([track[:100]], FPS)
+
+
+def test_silence_holds_the_dancer_where_it_is():
+    live = np.ones(900, bool)
+    live[300:600] = False
+    place = draw_travel(TravelProcess(0.4, 0.3), live, FPS, np.random.default_rng(4))
+    assert np.ptp(place[300:600], axis=0).max() == 0.0  # not a millimetre in the silence
+    assert np.abs(place[600:] - place[599]).max() > 0.05  # and off again with the music
+
+
+def test_only_the_roots_travel_moves_and_the_stream_is_the_whole_song():
+    process = TravelProcess(0.35, 0.5)
+    values = np.random.default_rng(5).normal(0, 0.3, (240, SPEC.dim))
+    live = np.ones(240, bool)
+    live[100:150] = False
+    place = draw_travel(process, live, FPS, np.random.default_rng(6))
+    moved = travel_targets(values, SPEC, place)
+    root = SPEC.columns(SPEC.root, "position").start
+    assert np.array_equal(moved[:, [root, root + 2]], values[:, [root, root + 2]] + place)
+    others = np.ones(SPEC.dim, bool)
+    others[[root, root + 2]] = False
+    assert np.array_equal(moved[:, others], values[:, others])
+    stream = TravelStream(process, SPEC, FPS, np.random.default_rng(6))
+    stepped = np.stack([stream.step(v, bool(k)) for v, k in zip(values, live)])
+    assert np.allclose(stepped, moved, atol=1e-12)
+
+
+def test_targets_without_a_root_to_travel_are_refused():
+    not_centred = TargetSpec.from_dict({**SPEC.to_dict(), "root": None})
+    with pytest.raises(ConfigError, match="travel: the target is not centred on its root"):
+        travel_targets(np.zeros((3, SPEC.dim)), not_centred, np.zeros((3, 2)))
+    with pytest.raises(ConfigError, match="rms_speed must be a finite number >= 0 m/s"):
+        TravelProcess(-1.0, 0.5)
