@@ -144,6 +144,26 @@ def pytest_addoption(parser):
     )
 
 
+@pytest.fixture(scope="module")
+def centred_run(tmp_path_factory):
+    """(run, dataset): a tiny yalta run on the sample sessions' joint positions centred on the root,
+    its turning and travel fitted (the tests of what a run draws at generation)."""
+    pytest.importorskip("torch")
+    from kinectdata.dataset.build import build_dataset
+    from kinectdata.dataset.config import BuildConfig
+    from kinectdata.training.config import TrainConfig
+    from kinectdata.training.train import train
+
+    out = tmp_path_factory.mktemp("centred")
+    config = BuildConfig.from_pipeline(
+        "yalta2016", target="kinect_v2_positions", normalisation="maxabs", root_centre=True,
+        split_ratios=(1 / 3, 1 / 3, 1 / 3),
+    )  # fmt: skip
+    build_dataset(REPO / "sample_data", out / "dataset", config)
+    train(out / "dataset", out / "run", TrainConfig(**{**TINY_TRAINING, "epochs": 1}))
+    return out / "run", out / "dataset"
+
+
 def _slow_tests_run(config) -> bool:
     """The long end-to-end tests (marked ``slow``) run under CI, with ``--slow``, when ``-m``
     chooses by marker, or when tests are named (``file.py::test``); a plain ``pytest`` leaves them

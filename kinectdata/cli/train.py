@@ -114,6 +114,12 @@ _LOOP_OPTIONS = (
         "left-right axis along x): the network makes the body, the drawn turning where it faces (needs --turning).",
     ),
     (
+        "by_metre",
+        click.BOOL,
+        "Also fit the drawn turning and travel on the training recordings of each metre (3 or 4 beats a bar, "
+        "from the recordings manifest or the build): each song is drawn its metre's, where the run has them.",
+    ),
+    (
         "context",
         click.IntRange(min=0),
         "Frames of real input before each window that no loss counts (the outputs near a window's start then see "

@@ -255,6 +255,8 @@ def evaluate(
     if not recordings:
         raise KinectDataError(f"{dataset}: the {split} split holds no recording")
     kind = with_turning(model_kind(model_name(config)), config)
+    beats = split_beats(recordings, manifest, config["dataset"]["fps"])
+    _tell_metres(kind, recordings, beats, manifest, config, beats_per_bar)
     for rec in recordings:  # the true first pose, masked values as the model's fill_previous says
         rec["first_pose"] = kind.fill_previous(rec["current"][0], rec["mask"][0], config["dataset"]["start_pose"])
     out = Path(out) if out is not None else run / "evaluation"
@@ -326,11 +328,18 @@ def evaluate(
     results["silence_test"] = sil
     results["figures"] = [str(fig6), str(fig7)]
     real = {r["name"]: (norm.invert(r["current"], spec, mask=r["mask"]), r["mask"]) for r in recordings}
-    beats = split_beats(recordings, manifest, fps)
     per_recording = rhythm_evaluation(recordings, free, real, spec, beats, fps)
     results["rhythm"] = {"summary": summarize_rhythm(per_recording), "recordings": per_recording}
     results["listening"] = listening_controls(
-        net, recordings, beats, manifest, config, free=free, beats_per_bar=beats_per_bar, tempo_rates=tempo_rates
+        net,
+        recordings,
+        beats,
+        manifest,
+        config,
+        free=free,
+        beats_per_bar=beats_per_bar,
+        tempo_rates=tempo_rates,
+        kind=kind,
     )
     anchors = {r["name"]: np.asarray(r["info"]["root_anchor"]) for r in recordings if "root_anchor" in r["info"]}
     runs, retrieved = {"generated": free}, {}
@@ -540,6 +549,36 @@ def _travel_joint(spec: TargetSpec, dataset_config: dict[str, Any]) -> int | Non
     return None
 
 
+def _tell_metres(
+    kind: Any,
+    recordings: list[dict[str, Any]],
+    beats: dict[str, tuple],
+    manifest: dict[str, Any],
+    config: dict[str, Any],
+    beats_per_bar: int | None,
+) -> None:
+    """Tell a kind that draws its turning and travel by the song's metre (``drawn_by_metre``) each
+    recording's metre, found as the listening report finds it (:func:`_song_set`); nothing for any
+    other kind."""
+    if not (isinstance(kind, TurnedKind) and config.get("drawn_by_metre")):
+        return
+    cfg = feature_config(config["dataset"]["features"])
+    fps = config["dataset"]["fps"]
+    inputs = {e["name"]: e for e in manifest["inputs"]}
+    for r in recordings:
+        listed, found = inputs[r["recording"]].get("beats_per_bar"), (r["info"].get("metre") or {}).get("beats_per_bar")
+        samples = None
+        if listed is None and beats_per_bar is None and found is None:  # estimated from the music
+            try:
+                samples = recording_audio(inputs[r["recording"]], r["info"], len(r["current"]), fps, cfg.sample_rate)
+            except (KinectDataError, OSError):
+                samples = None
+        music = beats.get(r["name"], (None,))[0]
+        kind.know_metre(
+            r["input"], recording_metre(listed, samples, cfg.sample_rate, music, beats_per_bar, found).beats_per_bar
+        )
+
+
 def _song_set(
     net: torch.nn.Module,
     recordings: list[dict[str, Any]],
@@ -547,8 +586,10 @@ def _song_set(
     manifest: dict[str, Any],
     config: dict[str, Any],
     beats_per_bar: int | None = None,
+    kind: Any = None,
 ) -> SongSet:
-    kind = with_turning(model_kind(model_name(config)), config)
+    kind = kind or with_turning(model_kind(model_name(config)), config)
+    by_metre = isinstance(kind, TurnedKind) and bool(config.get("drawn_by_metre"))
     spec = TargetSpec.from_dict(config["dataset"]["target"])
     norm = Normalizer.from_dict(config["dataset"]["normalisation"])
     fps = config["dataset"]["fps"]
@@ -558,7 +599,10 @@ def _song_set(
     def features_of(samples: np.ndarray, beats_per_bar: int | None = None) -> np.ndarray:
         frames = int(len(samples) / cfg.sample_rate * fps)
         starts = np.round(np.arange(frames) * cfg.sample_rate / fps).astype(np.int64)
-        return compute_features(np.asarray(samples, np.float32), starts, cfg, beats_per_bar=beats_per_bar)[0]
+        features = compute_features(np.asarray(samples, np.float32), starts, cfg, beats_per_bar=beats_per_bar)[0]
+        if by_metre and beats_per_bar is not None:  # a song of that metre (stretched): drawn its metre's
+            kind.know_metre(features, beats_per_bar)
+        return features
 
     features_of.sample_rate = cfg.sample_rate  # type: ignore[attr-defined]
 
@@ -583,6 +627,8 @@ def _song_set(
         listed, found = inputs[r["recording"]].get("beats_per_bar"), (r["info"].get("metre") or {}).get("beats_per_bar")
         metre = recording_metre(listed, samples, cfg.sample_rate, music, beats_per_bar, found)
         metres[r["name"]] = metre
+        if by_metre:
+            kind.know_metre(r["input"], metre.beats_per_bar)
         first = r.get("first_pose")
         if first is None:
             first = kind.fill_previous(r["current"][0], r["mask"][0], config["dataset"]["start_pose"])
@@ -627,13 +673,15 @@ def listening_controls(
     free: dict[str, np.ndarray] | None = None,
     beats_per_bar: int | None = None,
     tempo_rates: tuple[float, ...] | None = None,
+    kind: Any = None,
 ) -> dict[str, Any]:
     """The beat-following figures with their chance levels and the listening controls
     (:func:`~kinectdata.evaluation.listening.listening_report`) over the recordings whose beats are
     known (ground truth or tracked), as JSON-ready figures with ``verdicts``; ``{"unavailable": why}``
     when no recording has beats or the motion is too short for them. ``free``: per recording, its
-    free run without reset, denormalised [T-1, D], when the caller has made it (not run again)."""
-    found = _song_set(net, recordings, beats, manifest, config, beats_per_bar)
+    free run without reset, denormalised [T-1, D], when the caller has made it (not run again). ``kind``:
+    the model kind the free runs are made with (default: the run's, its turning and travel drawn)."""
+    found = _song_set(net, recordings, beats, manifest, config, beats_per_bar, kind)
     if not found.songs:
         return {"unavailable": found.unavailable}
     try:

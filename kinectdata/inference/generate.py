@@ -154,15 +154,14 @@ def generate(
     poses = np.empty((n, spec.dim), np.float32)
     poses[0] = pose
     step_times: list[float] = []
-    process = run_turning(config) if turning else None
-    moving = run_travel(config) if travel else None
+    drawing = (turning and config.get("turning") is not None) or (travel and config.get("travel") is not None)
     heard: list[np.ndarray] = []  # every frame's features, when the turning needs to know the silent ones
     if kind.streams:
         stepper = make_engine(net, engine, precision, kind)
 
         def step(k0: int, features: np.ndarray, padded: np.ndarray) -> None:
             nonlocal pose
-            if process is not None or moving is not None:
+            if drawing:
                 heard.append(np.array(features))
             for k in range(features.shape[0]):
                 if true_first and k0 + k == 0:
@@ -183,11 +182,14 @@ def generate(
     starts = np.round(np.arange(n) * sr / fps).astype(np.int64)
     features_config = feature_config(data["features"])
     metre = None
-    if needs_metre(features_config):
+    counts_bars = needs_metre(features_config)
+    if counts_bars or (drawing and config.get("drawn_by_metre")):  # the features' bars, or the draws' metre
         samples = None if beats_per_bar is not None else np.concatenate([np.zeros(0, np.float32), *blocks()])
         metre = recording_metre(None, samples, sr, given=beats_per_bar)
     bar = None if metre is None else metre.beats_per_bar
-    featurizer = StreamingFeatures(starts, features_config, step, beats_per_bar=bar)
+    process = run_turning(config, bar) if turning else None
+    moving = run_travel(config, bar) if travel else None
+    featurizer = StreamingFeatures(starts, features_config, step, beats_per_bar=bar if counts_bars else None)
     started = time.perf_counter()
     for block in blocks():
         featurizer.push(block)
@@ -244,6 +246,8 @@ def generate(
         timing["metre"] = metre.describe()
     timing["start"] = start.source
     drawn = [p.describe() for p in (process, moving) if p is not None]
+    if drawn and bar is not None and str(bar) in (config.get("drawn_by_metre") or {}):
+        drawn.append(f"those of the training dances of {bar} beats a bar")
     timing["turning"] = "; ".join(drawn) if drawn else "none drawn"
     if "placement" in motion.metadata:
         timing["placement"] = motion.metadata["placement"]

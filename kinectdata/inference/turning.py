@@ -14,6 +14,10 @@ the travel after it, both held still where the music is silent
 - one frame at a time (``live``): :func:`live_turning`, seeded by ``seed`` alone; on the same audio
   and seed its frames are ``generate``'s.
 
+A run trained with ``by_metre`` also keeps each metre's processes (``drawn_by_metre``): a song whose
+metre is known (given, listed in the recordings manifest, found by the build or estimated from the
+music, as its bar features are) is drawn its metre's where the run has them, else the pooled ones.
+
 Runs that reset their state every L frames (``evaluate``'s "with reset" figures, the yalta paper's
 table) are not turned: those figures measure the network's prediction from true poses.
 """
@@ -44,22 +48,43 @@ __all__ = [
 ]
 
 
-def run_turning(config: dict[str, Any]) -> TurningProcess | None:
-    """The turning process a run's ``config.json`` keeps, or None (a run trained without one)."""
-    doc = config.get("turning")
+def _by_metre(config: dict[str, Any], drawn: str, beats_per_bar: int | None) -> dict[str, Any] | None:
+    """The ``drawn`` process's record for a song of ``beats_per_bar``: its metre's (``drawn_by_metre``)
+    where the run fitted one, else the pooled one; None where the run keeps no pooled one (trained
+    without it, or left out by the caller: ``--no-turning``, ``--no-travel``)."""
+    doc = config.get(drawn)
+    if doc is None or beats_per_bar is None:
+        return doc
+    return (config.get("drawn_by_metre") or {}).get(str(int(beats_per_bar)), {}).get(drawn, doc)
+
+
+def run_turning(config: dict[str, Any], beats_per_bar: int | None = None) -> TurningProcess | None:
+    """The turning process a run's ``config.json`` keeps for a song of ``beats_per_bar`` (None:
+    the metre unknown, the pooled one), or None (a run trained without one)."""
+    doc = _by_metre(config, "turning", beats_per_bar)
     return None if doc is None else TurningProcess.from_dict(doc)
 
 
-def run_travel(config: dict[str, Any]) -> TravelProcess | None:
-    """The travel process a run's ``config.json`` keeps, or None (a run trained without one)."""
-    doc = config.get("travel")
+def run_travel(config: dict[str, Any], beats_per_bar: int | None = None) -> TravelProcess | None:
+    """The travel process a run's ``config.json`` keeps for a song of ``beats_per_bar``, as
+    :func:`run_turning`, or None (a run trained without one)."""
+    doc = _by_metre(config, "travel", beats_per_bar)
     return None if doc is None else TravelProcess.from_dict(doc)
 
 
-def drawn_line(config: dict[str, Any]) -> str:
-    """What a run draws at generation, for a printout: its processes' lines, or that it draws none."""
-    lines = [p.describe() for p in (run_turning(config), run_travel(config)) if p is not None]
-    return "; ".join(lines) if lines else "no turning or travel drawn"
+def drawn_line(config: dict[str, Any], beats_per_bar: int | None = None) -> str:
+    """What a run draws at generation, for a printout: its processes' lines (a song of
+    ``beats_per_bar``'s; None: the pooled ones, and the metres the run has its own for), or that it
+    draws none."""
+    lines = [p.describe() for p in (run_turning(config, beats_per_bar), run_travel(config, beats_per_bar)) if p]
+    if not lines:
+        return "no turning or travel drawn"
+    metres = sorted(int(m) for m in config.get("drawn_by_metre") or {})
+    if beats_per_bar is not None and str(int(beats_per_bar)) in (config.get("drawn_by_metre") or {}):
+        lines.append(f"those of the training dances of {int(beats_per_bar)} beats a bar")
+    elif metres:
+        lines.append(f"songs of {' or '.join(map(str, metres))} beats a bar are drawn their metre's")
+    return "; ".join(lines)
 
 
 def turn_song(
@@ -111,20 +136,40 @@ class TurnedKind:
         travel: TravelProcess | None = None,
     ):
         self.kind, self.process, self.travel, self.seed = kind, process, travel, int(seed)
+        self.config = config
         self.spec = TargetSpec.from_dict(config["dataset"]["target"])
         self.norm = Normalizer.from_dict(config["dataset"]["normalisation"])
         self.fps = float(config["dataset"]["fps"])
         self.silence = silence_features(config["dataset"]["features"], self.fps)
+        self.metres: dict[int, int] = {}  # a song's features' CRC-32 -> its beats per bar
 
     def __getattr__(self, name: str) -> Any:
         return getattr(self.kind, name)
 
     def describe(self) -> str:
         """What is drawn, one line."""
-        return "; ".join(p.describe() for p in (self.process, self.travel) if p is not None)
+        lines = [p.describe() for p in (self.process, self.travel) if p is not None]
+        metres = sorted(int(m) for m in self.config.get("drawn_by_metre") or {})
+        if metres:
+            lines.append(f"songs of {' or '.join(map(str, metres))} beats a bar are drawn their metre's")
+        return "; ".join(lines)
+
+    def know_metre(self, features: np.ndarray, beats_per_bar: int | None) -> None:
+        """Draw the song whose features are ``features`` [T, *F] (the whole song, as a free run is
+        given it) with its metre's processes, where the run has them; None: the pooled ones."""
+        key = zlib.crc32(np.ascontiguousarray(features).tobytes())
+        if beats_per_bar is None:
+            self.metres.pop(key, None)
+        else:
+            self.metres[key] = int(beats_per_bar)
 
     def _turned(self, audio: np.ndarray, run: np.ndarray) -> np.ndarray:
         made = audio[len(audio) - len(run) :]  # a free run makes frames 1..T-1 of features [T]
+        metre = self.metres.get(zlib.crc32(np.ascontiguousarray(audio).tobytes()))
+        process, travel = self.process, self.travel
+        if metre is not None:
+            process = run_turning(self.config, metre) if process is not None else None
+            travel = run_travel(self.config, metre) if travel is not None else None
         values = self.norm.invert(run, self.spec)
         turned = turn_song(
             values,
@@ -132,9 +177,9 @@ class TurnedKind:
             self.silence,
             self.spec,
             self.fps,
-            self.process,
+            process,
             song_generator(self.seed, audio),
-            self.travel,
+            travel,
             travel_generator(self.seed, audio),
         )
         return self.norm.apply(turned)
@@ -175,10 +220,12 @@ class DrawnStream:
         return values
 
 
-def live_turning(config: dict[str, Any], seed: int = 0) -> tuple[DrawnStream, np.ndarray] | None:
-    """(the run's turning and travel one frame at a time, the features [*F] of a silent frame), or
-    None when the run keeps neither process."""
-    process, travel = run_turning(config), run_travel(config)
+def live_turning(
+    config: dict[str, Any], seed: int = 0, beats_per_bar: int | None = None
+) -> tuple[DrawnStream, np.ndarray] | None:
+    """(the run's turning and travel one frame at a time, a song of ``beats_per_bar``'s (None: the
+    pooled ones), the features [*F] of a silent frame), or None when the run keeps neither process."""
+    process, travel = run_turning(config, beats_per_bar), run_travel(config, beats_per_bar)
     if process is None and travel is None:
         return None
     data = config["dataset"]

@@ -93,8 +93,22 @@ class LiveDancer:
         self.pose = np.asarray(self.data["start_pose"], np.float32)
         self.anchor: np.ndarray | None = None
         self.joint_set = self.spec.joints
+        self.beats_per_bar: int | None = None  # the song's metre, once known (set_metre)
         self.turning = live_turning(config, self.seed)
         self.turning_line = drawn_line(config)
+
+    @property
+    def draws_by_metre(self) -> bool:
+        """Whether the run draws a song's turning and travel by its metre (``drawn_by_metre``)."""
+        return self.turning is not None and bool(self.config.get("drawn_by_metre"))
+
+    def set_metre(self, beats_per_bar: int | None) -> None:
+        """The song's metre: its turning and travel are drawn as the run's training dances of that metre
+        turned and travelled, where the run has them (:func:`~kinectdata.inference.turning.run_turning`).
+        The draws start again."""
+        self.beats_per_bar = beats_per_bar
+        self.turning = live_turning(self.config, self.seed, beats_per_bar)
+        self.turning_line = drawn_line(self.config, beats_per_bar)
 
     def warm_up(self, frames: int = 10) -> None:
         """Step a few silent frames and start again from the mean pose: the first steps of a network
@@ -107,7 +121,7 @@ class LiveDancer:
         self.stepper.reset()
         self.pose = np.asarray(self.data["start_pose"], np.float32)
         self.anchor = None
-        self.turning = live_turning(self.config, self.seed)  # the draws start again with the dance
+        self.turning = live_turning(self.config, self.seed, self.beats_per_bar)  # the draws start again
 
     def step(self, features: np.ndarray, index: int) -> LivePose:
         """The pose of frame ``index`` from its features (frames are stepped in order)."""
@@ -222,11 +236,14 @@ def run_live(
     n = int(np.floor(planned * fps + 1e-9))
     starts = np.round(np.arange(n) * sr / fps).astype(np.int64)
     bar = None
-    if needs_metre(dancer.features):
+    counts_bars = needs_metre(dancer.features)
+    if counts_bars or dancer.draws_by_metre:  # the features' bars, or the draws' metre
         samples = None
         if beats_per_bar is None and whole is not None:
             samples = np.concatenate([np.zeros(0, np.float32), *whole.blocks()])
         bar = recording_metre(None, samples, sr, given=beats_per_bar).beats_per_bar
+        if dancer.draws_by_metre:
+            dancer.set_metre(bar)
     ends = starts + dancer.features.span[1]
     heard = _HeardClock(sr)
     got = [0.0]
@@ -242,7 +259,7 @@ def run_live(
             stats.processing_ms.append(1000.0 * (sent - got[0]))
             stats.sent_s.append(sent)
 
-    featurizer = StreamingFeatures(starts, dancer.features, step, beats_per_bar=bar)
+    featurizer = StreamingFeatures(starts, dancer.features, step, beats_per_bar=bar if counts_bars else None)
     limit = int(round(planned * sr))  # samples to hear
     exhausted = False
     try:

@@ -70,6 +70,7 @@ PAPER_LOOP: dict[str, Any] = {
     "turning": False,
     "travel": False,
     "facing": False,
+    "by_metre": False,
     "silence_share": 0.0,
     "keep": "last",
     "context": 0,

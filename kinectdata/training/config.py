@@ -29,6 +29,7 @@ LOOP_DEFAULTS: dict[str, Any] = {
     "turning": True,
     "travel": True,
     "facing": False,
+    "by_metre": False,
 }
 """The training loop's settings and their base defaults (Yalta et al.'s; a model's
 ``training_defaults`` change them)."""
@@ -53,6 +54,7 @@ ADDED_OFF = {
     "turning": False,
     "travel": False,
     "facing": False,
+    "by_metre": False,
     "precision": "float32",
 }
 """Loop (and model) settings added after runs were written: a run's config.json without them trained without
@@ -155,6 +157,10 @@ class TrainConfig:
         facing: train on poses turned about the vertical to face one way, frame by frame
             (:func:`~kinectdata.training.augment.facing_windows`), for a run that draws its turning: the
             network makes the body, the drawn turning where it faces. Runs written before it had none.
+        by_metre: also fit the turning and the travel on the training recordings of each metre
+            (:func:`~kinectdata.training.turning.fit_dataset_by_metre`), kept in the run as
+            ``drawn_by_metre``: a song is drawn its metre's processes where the run has them, else the
+            pooled ones. Runs written before it had none.
         precision: the training step's arithmetic (:data:`PRECISIONS`): ``float32``, or
             ``bfloat16``, the network's forward pass under ``torch.autocast`` (its losses, weights,
             optimiser, validation and every run made from it in float32; a model keeps what it
@@ -191,6 +197,7 @@ class TrainConfig:
     turning: bool
     travel: bool
     facing: bool
+    by_metre: bool
     precision: str
     settings: Any
 
@@ -238,6 +245,10 @@ class TrainConfig:
             raise ConfigError(f"travel must be true or false, not {self.travel!r}")
         if not isinstance(self.facing, bool):
             raise ConfigError(f"facing must be true or false, not {self.facing!r}")
+        if not isinstance(self.by_metre, bool):
+            raise ConfigError(f"by_metre must be true or false, not {self.by_metre!r}")
+        if self.by_metre and not (self.turning or self.travel):
+            raise ConfigError("by_metre: a run that fits its drawn processes by metre must draw its turning or travel")
         if self.facing and not self.turning:
             raise ConfigError("facing: a run that learns its poses facing one way must draw its turning (turning true)")
         if not 0 <= self.mirror_share <= 1:

@@ -85,7 +85,7 @@ from kinectdata.training.distributed import (
     sum_over_ranks,
 )
 from kinectdata.training.figures import loss_curves
-from kinectdata.training.turning import fit_dataset_travel, fit_dataset_turning
+from kinectdata.training.turning import fit_dataset_by_metre, fit_dataset_travel, fit_dataset_turning
 from kinectdata.training.whole_songs import WholeSongs
 
 LOG_FIELDS = [
@@ -699,7 +699,7 @@ def train(
         best: dict[str, Any] | None = None  # the kept epoch's weights (keep="best")
         if state is not None:
             run_config["dataset"]["start_pose"] = saved["dataset"]["start_pose"]
-            for drawn in ("turning", "travel"):  # as they were fitted when the run started
+            for drawn in ("turning", "travel", "drawn_by_metre"):  # as they were fitted when the run started
                 if drawn in saved:
                     run_config[drawn] = saved[drawn]
             if world.main:
@@ -730,6 +730,10 @@ def train(
                 travel = fit_dataset_travel(dataset, manifest, run_config["dataset"])
                 if travel is not None:
                     run_config["travel"] = travel.to_dict()
+            if config.by_metre:
+                by_metre = fit_dataset_by_metre(dataset, manifest, run_config["dataset"])
+                if by_metre:
+                    run_config["drawn_by_metre"] = by_metre
             kind.init_output(net, run_config["dataset"]["start_pose"])
             if world.main:
                 run.mkdir(parents=True, exist_ok=True)

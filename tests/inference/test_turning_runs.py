@@ -28,22 +28,6 @@ from kinectdata.training.train import train  # noqa: E402
 SONG = REPO / "sample_data" / "synth_001.flac"
 
 
-@pytest.fixture(scope="module")
-def centred_run(tmp_path_factory):
-    """(run, dataset): a tiny yalta run on the sample sessions' joint positions centred on the root."""
-    from kinectdata.dataset.build import build_dataset
-    from kinectdata.dataset.config import BuildConfig
-
-    out = tmp_path_factory.mktemp("turning")
-    config = BuildConfig.from_pipeline(
-        "yalta2016", target="kinect_v2_positions", normalisation="maxabs", root_centre=True,
-        split_ratios=(1 / 3, 1 / 3, 1 / 3),
-    )  # fmt: skip
-    build_dataset(REPO / "sample_data", out / "dataset", config)
-    train(out / "dataset", out / "run", TrainConfig(**{**TINY_TRAINING, "epochs": 1}))
-    return out / "run", out / "dataset"
-
-
 def test_train_fits_the_training_dancers_turning_into_the_run(centred_run, tmp_path):
     run, dataset = centred_run
     turning = json.loads((run / "config.json").read_text())["turning"]
