@@ -40,10 +40,10 @@ The cdhc model's pulse counts the levels in each song's own metre (beat, two bea
 with its jitter term, over three cross-validation folds its periods then ranked with the songs'
 tempi at 0.91 against 0.43 with bars of 3 and 4 beats. The pulse alone (``listen_to_dance_pulse``)
 jittered less and scored a lower FID_k on the folds but listened (goal c's verdict) in none of four
-fold runs where these features did in two (docs/benchmarks.md)."""
+fold runs where these features did in two (docs/notebook/2026-11-real-dance.md)."""
 
 REAL_QUICK_MINUTES = 25.0
-"""The real-corpus quickstart's training budget, minutes: what docs/benchmarks.md's validation runs
+"""The real-corpus quickstart's training budget, minutes: what docs/notebook/2026-11-real-dance.md's validation runs
 of the defaults were given (one thread each)."""
 
 

@@ -77,13 +77,13 @@ phases it kept one tempo's phase, the same period for every song (each tempo's p
 that tempo whatever the music); with the levels it moved alive and human for both seeds tried, and
 without the tempi's phases (``tempo_phases=False``) the only clocks it is given are the song's own
 beat and bar. The beat is picked with the salience at twice each tempo added (``harmonic_weight``):
-without it, at twice the music's beat almost as often as at the beat (docs/benchmarks.md, "How the
+without it, at twice the music's beat almost as often as at the beat (docs/notebook/2026-11-real-dance.md, "How the
 recipe was found"; ``python -m benchmarks.bench_pulse``)."""
 LISTEN_TO_DANCE_BAR_PULSE = dataclasses.replace(LISTEN_TO_DANCE_PULSE, levels=(1, 2), bar_levels=(1, 2))
 """The same pulse with the bar and two bars counted in the song's metre (``compute_features(...,
 beats_per_bar=)``) instead of bars of 3 and 4 beats: [73]. On Dance with Melody (388 of its 564
 training windows waltzes) the cdhc model given fixed levels danced the training cha-chas at 3
-beats, and given these at their bar; on the test dances it did not do better (docs/benchmarks.md,
+beats, and given these at their bar; on the test dances it did not do better (docs/notebook/2026-11-real-dance.md,
 "The bar in each song's metre"), so it is a preset to choose, not the default."""
 LISTEN_TO_DANCE_COUNTED_PULSE = dataclasses.replace(LISTEN_TO_DANCE_BAR_PULSE, counted_levels=True)
 """The same pulse with the two beats, the bar and two bars counted from the beat (``counted_levels``:

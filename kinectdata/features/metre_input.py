@@ -5,7 +5,7 @@ Why: a waltz is in 3 and a cha-cha or a rumba in 4, and the dancers dance them d
 Dance with Melody the waltzers hold their partner and their arms still, the cha-cha and rumba
 dancers' wrists move 7 to 10 times as fast); the pulse's levels count the bar in the song's metre
 (:mod:`.rhythm`) but do not say which metre it is, and a network trained mostly on waltzes then
-dances one average dance for every song (docs/benchmarks.md). The metre is the song's
+dances one average dance for every song (docs/notebook/2026-12-real-dance-variety.md). The metre is the song's
 (``beats_per_bar`` given by the caller: a dataset build takes the recordings manifest's, else
 estimates it from the music, as for the pulse's bar levels; ``generate`` and ``evaluate`` likewise).
 

@@ -41,7 +41,7 @@ on that corpus's songs; dB-scaled features 0.7-0.8). So the pulse is computed, c
    dataset build takes the recordings manifest's, else estimates it from the music): a bar is 3
    beats in a waltz and 4 in a cha-cha, so one output is the bar whatever the metre (with fixed
    levels of 3 and 4 beats, a network that learned waltzes at the 3-beat level danced cha-chas at 3
-   beats too: docs/benchmarks.md). A level's tempo below ``tempo_range_bpm`` takes the lowest tempo.
+   beats too: docs/notebook/2026-11-real-dance.md). A level's tempo below ``tempo_range_bpm`` takes the lowest tempo.
    A level above 1 has the phase of the onsets' own periodicity at its tempo: it tells the bar where
    the downbeats sound different (louder, or across more of the spectrum); where they do not, it
    restarts at every beat.

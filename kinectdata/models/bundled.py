@@ -263,7 +263,7 @@ class CdhcSettings:
 
     No dropout by default: with it, the free run the rhythm loss trains on moved by the dropout's
     noise alone (on tang2018 at 0.46 x the real energy in training mode, 1e-10 x in evaluation
-    mode: docs/benchmarks.md)."""
+    mode: docs/notebook/2026-11-real-dance.md)."""
 
     channels: int = field(default=128, metadata={"help": "width of the audio and skeleton encoders.", "min": 1})
     decoder_channels: int = field(default=128, metadata={"help": "width of the fused code and the decoder.", "min": 1})
@@ -320,11 +320,12 @@ class CdhcKind(ModelKind):
     settings_type = CdhcSettings
     # ~8 times the yalta model's steps per epoch on a CPU: its kept epochs in 25 minutes were 13-38.
     # The jitter term: from the music alone its motion jittered at 3.4-5.9 x the real dancers' jerk on
-    # held-out dances, 1.8-4.6 x with it (pooled over three folds 2.07 x -> 1.06 x: docs/benchmarks.md).
+    # held-out dances, 1.8-4.6 x with it (pooled over three folds 2.07 x -> 1.06 x:
+    # docs/notebook/2026-11-real-dance.md).
     # The bones' jitter term: its spine jumped in length between frames where the real dancers' did not,
-    # and the peers' geometric features (FID_g) strayed with it (docs/benchmarks.md).
+    # and the peers' geometric features (FID_g) strayed with it (docs/notebook/2026-11-real-dance.md).
     # The periodogram term: with it the model's period followed the song's tempo and its music (goals
-    # b and c) in all four fold runs, without it in 3 and 2 of 4 (docs/benchmarks.md).
+    # b and c) in all four fold runs, without it in 3 and 2 of 4 (docs/notebook/2026-11-real-dance.md).
     training_defaults = {
         **REAL_DANCE_LOOP,
         "epochs": 40,
@@ -452,7 +453,7 @@ class CdhcKind(ModelKind):
     def with_song_starts(self, config: dict[str, Any], lead: int) -> dict[str, Any]:
         """A music-only network generates each song after the ``lead`` frames of silence its
         training windows had before it (``start_silence``): without them its first second burst at
-        2-19 x the real dancers' speed on the folds (docs/benchmarks.md). A network fed its own
+        2-19 x the real dancers' speed on the folds (docs/notebook/2026-11-real-dance.md). A network fed its own
         poses starts as before."""
         return {**config, "start_silence": lead} if config.get("inputs") == "music" else config
 

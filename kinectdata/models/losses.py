@@ -126,7 +126,7 @@ def masked_periodogram_loss(
     longest window (128 frames, 4.3 s at 30 fps) puts a waltz's bar (2.07 s) and a cha-cha's (1.92 s)
     in one 0.23-Hz bin, where this term sees them 2 points of 0.03 Hz apart: on 10-s sines the wrong
     bar costs 36 x a wrong phase here and 4 x in those spectra. On the folds of tang2018
-    (docs/benchmarks.md) the cdhc model otherwise played one waltz period for most songs.
+    (docs/notebook/2026-11-real-dance.md) the cdhc model otherwise played one waltz period for most songs.
     Torch tensors; a scalar (0 when no component is valid throughout)."""
     import torch
 
@@ -142,7 +142,7 @@ ENERGY_CHUNK_S = 2.0
 """The stretch of a window (seconds) over which :func:`masked_rhythm_loss` matches the motion's speed.
 Over a whole window, a burst of motion then stillness matched the real speed on average: the cdhc
 model on tang2018's validation dances moved 2-18 x the real energy in its first 5 s and 0.04-0.4 x
-after (docs/benchmarks.md)."""
+after (docs/notebook/2026-11-real-dance.md)."""
 
 
 def masked_energy_loss(prediction, target, mask, chunk: int | None = None, excess: bool = False):
@@ -156,7 +156,7 @@ def masked_energy_loss(prediction, target, mask, chunk: int | None = None, exces
     0.39 or 0.61) and, unlike the squared log ratio, where the music cannot tell when the dancer
     moves it is least at the target's mean speed, not at its geometric mean: on tang2018's
     training windows that mean is 0.56 x the real energy, where the squared log ratio left the
-    models (docs/benchmarks.md). A stretch where the target holds still asks the motion to hold
+    models (docs/notebook/2026-11-real-dance.md). A stretch where the target holds still asks the motion to hold
     still too. With ``excess`` the divergence is turned round (the made energy's from the target's):
     too much then costs in proportion and too little only in log ratio (:func:`masked_jitter_loss`)."""
     import torch
@@ -188,7 +188,7 @@ def masked_jitter_loss(prediction, target, mask, chunk: int | None = None):
     other way (ten times the target's acceleration costs 2.8): without this term the cdhc model,
     making its motion from the music alone, jittered on held-out dances at 4-12 x the real dancers'
     mean squared acceleration and 8-36 x their jerk's, most of the excess above the rhythm
-    spectra's 6 Hz (docs/benchmarks.md). Torch tensors; a scalar."""
+    spectra's 6 Hz (docs/notebook/2026-11-real-dance.md). Torch tensors; a scalar."""
     made, real, both = _changes(prediction, target, mask)
     loss = masked_energy_loss(made, real, both, chunk, excess=True)
     return loss + masked_energy_loss(*_changes(made, real, both), chunk, excess=True)
@@ -288,7 +288,7 @@ def masked_world_speed_loss(prediction, target, mask, body, chunk: int | None = 
     still on the floor, and the torso then sways with the root. The field's kinetic features
     (FID_k, :mod:`kinectdata.evaluation.metrics.kinetic`) measure speeds in the world, and there
     the cdhc model on tang2018's validation dances moved its feet at 0.03-0.06 x the real speed
-    along the floor and its shoulders and head at 2.3-3 x (docs/benchmarks.md).
+    along the floor and its shoulders and head at 2.3-3 x (docs/notebook/2026-11-real-dance.md).
 
     Args:
         prediction, target, mask: [B, L, D]; positions first, ``body.dims`` components per joint.
@@ -379,7 +379,7 @@ def masked_bone_jitter_loss(prediction, target, mask, bones, scale, offset, dims
     folds of tang2018 the cdhc model's spine changed its length by more than 6 mm between frames 131
     times where the real dancers' did 22 times (14 with this term), and the peers' geometric
     features, which count a chest moving along the spine faster than 1.8 humerus lengths a second,
-    then vary where the real dancers' never do (FID_g multiplied by 1e10, docs/benchmarks.md).
+    then vary where the real dancers' never do (FID_g multiplied by 1e10, docs/notebook/2026-11-real-dance.md).
     Torch tensors [B, L, D]; a scalar.
 
     Args:
@@ -403,13 +403,13 @@ BONE_WEIGHT = 10.0
 """The bone term's weight in :func:`masked_rhythm_loss`: a stretch of a tenth of a bone's length
 (about the real dancers' bone-length CV on tang2018) then weighs 1, the order of the spectral
 term; the stretch in metres at weight 1 left the bones 1.5 times as variable as the real ones on
-the validation dances (docs/benchmarks.md)."""
+the validation dances (docs/notebook/2026-11-real-dance.md)."""
 
 
 WORLD_SPEED_WEIGHT = 1.0
 """The world speed term's weight in :func:`masked_rhythm_loss`, that of the speed term on the
 targets: with it the cdhc model's feet step and its torso sways less on the validation dances
-(docs/benchmarks.md)."""
+(docs/notebook/2026-11-real-dance.md)."""
 
 
 @dataclass(frozen=True)

@@ -6,7 +6,7 @@ dance began, 2.8 m in the median dance, averaged over the dance. A network train
 averages which way a dancer goes and stays where it starts (its root within a metre), and the
 field's kinetic features are mostly that distance (the peers' acceleration slip makes a third of
 them each joint's distance from the first frame's root: real dances with their travel taken out
-score FID_k 344 against other real dances, 42 with it; docs/benchmarks.md). So the travel is a
+score FID_k 344 against other real dances, 42 with it; docs/notebook/2026-12-real-dance-variety.md). So the travel is a
 random process fitted on the training dancers (:func:`fit_travel`: the ``train`` command keeps it in
 the run) and drawn wherever a run makes positions, while the network makes the rest.
 

@@ -3,7 +3,7 @@
 The dancers of a real corpus turn all the time (on tang2018, 44 % of their joints' mean squared
 speed), but when and which way they turn keeps no time with the music: the signed turning speed's
 mean per phase of the beat or the bar explains no more of it than shifted phases do
-(docs/benchmarks.md, "Whether the music can tell a turn"). A network trained to a pose loss averages
+(docs/notebook/2026-11-real-dance.md, "Whether the music can tell a turn"). A network trained to a pose loss averages
 such turns away and faces one way. So the turning is a random process fitted on the training
 dancers (:func:`fit_turning`: the ``train`` command keeps it in the run) and drawn wherever a run
 makes positions (``evaluate``, ``generate``, ``live``), while the network makes the rest.

@@ -10,14 +10,15 @@ test and the listening controls check it.
 :func:`mirror_windows`: in a share of the windows the dancer is replaced by their mirror image (the
 body reflected across the plane x = 0, left and right swapped: :class:`Mirror`), to the same
 music. A dance mirrored is a dance to the same song (a dancer leading with the other foot), so a
-corpus gives twice the bodies. Whether that helps depends on the corpus: docs/benchmarks.md
+corpus gives twice the bodies. Whether that helps depends on the corpus: docs/notebook/2026-11-real-dance.md
 ("mirrored dancers") has what it did on ballroom dance.
 
 :func:`without_slow_travel`: in every window the root's slow travel across the floor is taken out of
 its targets, for a run that draws its travel at generation (:mod:`kinectdata.targets.travel`): the
 network is not asked for what it will be given. Asked for the real dancers' speeds along the floor
 with their travel in them, a network that cannot know which way a dancer goes made them up with a
-fast sway of its body instead (docs/benchmarks.md, "The travel drawn at generation").
+fast sway of its body instead (docs/notebook/2026-12-real-dance-variety.md, "What the field's kinetic
+features measure here").
 
 :func:`facing_windows`: every frame of every window turned about the vertical so that the body faces
 one way (its left-right axis, from its hips and shoulders, along x), for a run that draws its
@@ -258,7 +259,7 @@ FACING_SMOOTHING_S = 0.5
 """The heading a frame is turned by is the trunk's, averaged over this many seconds (centred): the
 turning the run draws is slow (its speed correlated over about 0.4 s on tang2018), and a heading
 read frame by frame from four tracked joints shakes; turned by it, every joint shook with it (jerk
-2.3 x the real dancers' on a fold, docs/benchmarks.md)."""
+2.3 x the real dancers' on a fold, docs/notebook/2026-12-real-dance-variety.md)."""
 
 
 @dataclass(frozen=True)

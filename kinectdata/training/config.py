@@ -103,7 +103,7 @@ class TrainConfig:
             (:func:`~kinectdata.models.losses.masked_posture_loss`: each coordinate's mean and spread
             over the window against the real one's). The yalta model follows the songs at 3 and
             played one period for all at 10 (2 seeds of 3); the cdhc model from the music alone
-            moves at 10 and stands still at 3 (docs/benchmarks.md). Runs written before it had 10.
+            moves at 10 and stands still at 3 (docs/notebook/2026-11-real-dance.md). Runs written before it had 10.
         jitter_weight: weight of the jitter term in the free-running loss
             (:func:`~kinectdata.models.losses.masked_jitter_loss`: the motion's accelerations and jerks
             against the real ones', an excess costing in proportion). Runs written before it had none.

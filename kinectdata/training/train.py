@@ -544,7 +544,7 @@ def _better(history: list[dict]) -> bool:
     loss is the lowest (the first finite one counts) among the epochs whose validation songs are
     alive (:func:`_alive`), or among all of them while none is. The rhythm loss alone can prefer a
     nearly still epoch to one that moves at the wrong moments (the cdhc model on tang2018 kept one
-    at 0.05 x the real energy: docs/benchmarks.md); an epoch that moves always wins over one that
+    at 0.05 x the real energy: docs/notebook/2026-11-real-dance.md); an epoch that moves always wins over one that
     does not."""
     last = history[-1]
     if last.get("val_rhythm") is None:

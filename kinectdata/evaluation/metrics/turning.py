@@ -3,7 +3,7 @@
 Ballroom dancers turn all the time: in the root-centred positions of tang2018's dancers, where the
 body's travel is gone, a rigid turn about the vertical still moves every joint around the root. A
 model whose output never turns can only make up that speed with other motion, or move less
-(docs/benchmarks.md, "Where the missing energy is: the dancers turn").
+(docs/notebook/2026-11-real-dance.md, "Where the missing energy is: the dancers turn").
 
 The turn between two frames is the 2-D rotation about the up axis that best maps one frame's
 horizontal joint positions onto the other's, both centred on their own mean (the least-squares
