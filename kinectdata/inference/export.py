@@ -91,6 +91,7 @@ def stream_metadata(
         "start_pose": data["start_pose"],
         "turning": run_config.get("turning"),
         "travel": run_config.get("travel"),
+        "drawn_by_metre": run_config.get("drawn_by_metre"),
         **extra,
     }
 

@@ -326,12 +326,18 @@ class CdhcKind(ModelKind):
     # and the peers' geometric features (FID_g) strayed with it (docs/notebook/2026-11-real-dance.md).
     # The periodogram term: with it the model's period followed the song's tempo and its music (goals
     # b and c) in all four fold runs, without it in 3 and 2 of 4 (docs/notebook/2026-11-real-dance.md).
+    # Facing one way and the draws by metre: its body kept its width under the drawn turning (the
+    # turning 15 % -> 37 % of the energy) and the Latin songs their style; with them it met every goal
+    # the folds score on fold 1 and goals b and e on fold 2, where the defaults without them met none
+    # (docs/notebook/2026-12-real-dance-variety.md).
     training_defaults = {
         **REAL_DANCE_LOOP,
         "epochs": 40,
         "jitter_weight": 1.0,
         "bone_jitter_weight": 1.0,
         "periodogram_weight": 1.0,
+        "facing": True,
+        "by_metre": True,
     }
     paper = {
         "channels": 256,

@@ -156,7 +156,9 @@ class TrainConfig:
             had none.
         facing: train on poses turned about the vertical to face one way, frame by frame
             (:func:`~kinectdata.training.augment.facing_windows`), for a run that draws its turning: the
-            network makes the body, the drawn turning where it faces. Runs written before it had none.
+            network makes the body, the drawn turning where it faces (a run that keeps no turning, its
+            targets not 3-D positions centred on their root, trains as without it). Runs written
+            before it had none.
         by_metre: also fit the turning and the travel on the training recordings of each metre
             (:func:`~kinectdata.training.turning.fit_dataset_by_metre`), kept in the run as
             ``drawn_by_metre``: a song is drawn its metre's processes where the run has them, else the

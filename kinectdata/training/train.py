@@ -750,7 +750,8 @@ def train(
         silent = silent_frame(manifest["config"]["features"], fps) if config.silence_share > 0 else None
         body = _body(manifest, device)
         travel = SlowTravel.of_dataset(manifest, fps) if "travel" in run_config else None  # it is drawn
-        facing = Facing.of_dataset(manifest) if config.facing else None
+        # facing one way is for a run whose turning is drawn: targets that cannot be turned keep none
+        facing = Facing.of_dataset(manifest) if config.facing and "turning" in run_config else None
         drawn_kind = with_turning(kind, run_config)  # whole songs measured with what the run draws, as evaluate
         val_songs = (  # the kept epoch's condition: measured when the run keeps its best
             WholeSongs.of_split(dataset, manifest, "val", kind, run_config["dataset"], start_pose)
