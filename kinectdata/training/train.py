@@ -85,7 +85,7 @@ from kinectdata.training.distributed import (
     sum_over_ranks,
 )
 from kinectdata.training.figures import loss_curves
-from kinectdata.training.turning import fit_dataset_by_metre, fit_dataset_travel, fit_dataset_turning
+from kinectdata.training.turning import fit_dataset_drawn
 from kinectdata.training.whole_songs import WholeSongs
 
 LOG_FIELDS = [
@@ -722,18 +722,14 @@ def train(
             if (run / CHECKPOINT).exists() or (run / MODEL).exists():
                 raise KinectDataError(f"{run}: already holds a run; use --resume to continue it or another folder")
             run_config["dataset"]["start_pose"] = _start_pose(dataset, manifest)
-            if config.turning:
-                process = fit_dataset_turning(dataset, manifest, run_config["dataset"])
-                if process is not None:
-                    run_config["turning"] = process.to_dict()
-            if config.travel:
-                travel = fit_dataset_travel(dataset, manifest, run_config["dataset"])
-                if travel is not None:
-                    run_config["travel"] = travel.to_dict()
-            if config.by_metre:
-                by_metre = fit_dataset_by_metre(dataset, manifest, run_config["dataset"])
-                if by_metre:
-                    run_config["drawn_by_metre"] = by_metre
+            run_config |= fit_dataset_drawn(
+                dataset,
+                manifest,
+                run_config["dataset"],
+                turning=config.turning,
+                travel=config.travel,
+                by_metre=config.by_metre,
+            )
             kind.init_output(net, run_config["dataset"]["start_pose"])
             if world.main:
                 run.mkdir(parents=True, exist_ok=True)
