@@ -147,12 +147,8 @@ class TurnedKind:
         return getattr(self.kind, name)
 
     def describe(self) -> str:
-        """What is drawn, one line."""
-        lines = [p.describe() for p in (self.process, self.travel) if p is not None]
-        metres = sorted(int(m) for m in self.config.get("drawn_by_metre") or {})
-        if metres:
-            lines.append(f"songs of {' or '.join(map(str, metres))} beats a bar are drawn their metre's")
-        return "; ".join(lines)
+        """What is drawn, one line (:func:`drawn_line`)."""
+        return drawn_line(self.config)
 
     def know_metre(self, features: np.ndarray, beats_per_bar: int | None) -> None:
         """Draw the song whose features are ``features`` [T, *F] (the whole song, as a free run is
