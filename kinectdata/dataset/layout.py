@@ -36,3 +36,14 @@ def is_copy(record: dict) -> bool:
 def shard_name(split: str, index: int) -> str:
     """The file name of a split's ``index``-th shard, e.g. ``train-00003.h5``."""
     return f"{split}-{index:05d}.h5"
+
+
+def known_metre(entry: dict, info: dict) -> tuple[int | None, int | None]:
+    """What a dataset says of a recording's metre, in beats per bar: (the recordings-manifest entry's
+    ``beats_per_bar`` as the dataset manifest's ``inputs`` keeps it (``entry``), the metre the build
+    found for features that count bars (``info["metre"]``, a recording's shard attributes)); None
+    where it says nothing. The two are kept apart because a caller's own metre ranks between them
+    (:func:`kinectdata.features.metre.recording_metre`)."""
+    listed = entry.get("beats_per_bar")
+    found = (info.get("metre") or {}).get("beats_per_bar")
+    return (None if listed is None else int(listed)), (None if found is None else int(found))

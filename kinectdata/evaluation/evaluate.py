@@ -40,7 +40,7 @@ import numpy as np
 import torch
 
 from kinectdata.core.errors import KinectDataError
-from kinectdata.dataset.layout import is_copy
+from kinectdata.dataset.layout import is_copy, known_metre
 from kinectdata.dataset.shards import read_index
 from kinectdata.evaluation.baselines import (
     TrainingSong,
@@ -549,6 +549,30 @@ def _travel_joint(spec: TargetSpec, dataset_config: dict[str, Any]) -> int | Non
     return None
 
 
+def _recording_metre(
+    r: dict[str, Any],
+    entry: dict[str, Any],
+    music: np.ndarray | None,
+    beats_per_bar: int | None,
+    sample_rate: int,
+    fps: float,
+    samples: np.ndarray | None = None,
+) -> Metre:
+    """A split recording's metre (:func:`~kinectdata.features.metre.recording_metre`): what the
+    dataset says of it (:func:`~kinectdata.dataset.layout.known_metre`), else ``beats_per_bar``, else
+    estimated from its music ``samples`` (read here when not given and needed) at its beats
+    ``music`` (seconds). Kept as ``r["metre"]``: a recording's metre is found once per evaluation."""
+    if r.get("metre") is None:
+        listed, found = known_metre(entry, r["info"])
+        if samples is None and listed is None and beats_per_bar is None and found is None:
+            try:
+                samples = recording_audio(entry, r["info"], len(r["current"]), fps, sample_rate)
+            except (KinectDataError, OSError):
+                samples = None
+        r["metre"] = recording_metre(listed, samples, sample_rate, music, beats_per_bar, found)
+    return r["metre"]
+
+
 def _tell_metres(
     kind: Any,
     recordings: list[dict[str, Any]],
@@ -558,25 +582,15 @@ def _tell_metres(
     beats_per_bar: int | None,
 ) -> None:
     """Tell a kind that draws its turning and travel by the song's metre (``drawn_by_metre``) each
-    recording's metre, found as the listening report finds it (:func:`_song_set`); nothing for any
-    other kind."""
+    recording's metre (:func:`_recording_metre`); nothing for any other kind."""
     if not (isinstance(kind, TurnedKind) and config.get("drawn_by_metre")):
         return
-    cfg = feature_config(config["dataset"]["features"])
-    fps = config["dataset"]["fps"]
+    rate = feature_config(config["dataset"]["features"]).sample_rate
     inputs = {e["name"]: e for e in manifest["inputs"]}
     for r in recordings:
-        listed, found = inputs[r["recording"]].get("beats_per_bar"), (r["info"].get("metre") or {}).get("beats_per_bar")
-        samples = None
-        if listed is None and beats_per_bar is None and found is None:  # estimated from the music
-            try:
-                samples = recording_audio(inputs[r["recording"]], r["info"], len(r["current"]), fps, cfg.sample_rate)
-            except (KinectDataError, OSError):
-                samples = None
         music = beats.get(r["name"], (None,))[0]
-        kind.know_metre(
-            r["input"], recording_metre(listed, samples, cfg.sample_rate, music, beats_per_bar, found).beats_per_bar
-        )
+        metre = _recording_metre(r, inputs[r["recording"]], music, beats_per_bar, rate, config["dataset"]["fps"])
+        kind.know_metre(r["input"], metre.beats_per_bar)
 
 
 def _song_set(
@@ -624,8 +638,7 @@ def _song_set(
             rms = float(np.sqrt(np.mean(np.square(samples, dtype=np.float64)))) if samples.size else None
         except (KinectDataError, OSError):
             samples, rms = None, None
-        listed, found = inputs[r["recording"]].get("beats_per_bar"), (r["info"].get("metre") or {}).get("beats_per_bar")
-        metre = recording_metre(listed, samples, cfg.sample_rate, music, beats_per_bar, found)
+        metre = _recording_metre(r, inputs[r["recording"]], music, beats_per_bar, cfg.sample_rate, fps, samples)
         metres[r["name"]] = metre
         if by_metre:
             kind.know_metre(r["input"], metre.beats_per_bar)

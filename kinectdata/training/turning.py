@@ -19,6 +19,7 @@ from typing import Any
 import numpy as np
 
 from kinectdata.core.errors import ConfigError
+from kinectdata.dataset.layout import known_metre
 from kinectdata.evaluation.evaluate import split_recordings
 from kinectdata.evaluation.metrics.turning import turning_rates
 from kinectdata.evaluation.rhythm_eval import target_positions
@@ -139,10 +140,8 @@ def recording_beats_per_bar(manifest: dict[str, Any], recording: dict[str, Any])
     """A dataset recording's metre as the build knew it: its recordings-manifest entry's
     ``beats_per_bar``, else the metre the build found for features that count bars; None: unknown."""
     entry = next((e for e in manifest.get("inputs", []) if e.get("name") == recording["recording"]), {})
-    listed = entry.get("beats_per_bar")
-    found = (recording.get("info", {}).get("metre") or {}).get("beats_per_bar")
-    value = listed if listed is not None else found
-    return None if value is None else int(value)
+    listed, found = known_metre(entry, recording.get("info", {}))
+    return listed if listed is not None else found
 
 
 def fit_dataset_by_metre(dataset: Path, manifest: dict[str, Any], summary: dict[str, Any]) -> dict[str, Any]:
