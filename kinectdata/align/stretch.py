@@ -15,7 +15,8 @@ import subprocess
 
 import numpy as np
 
-from kinectdata.core.errors import AudioError, ConfigError
+from kinectdata.core.errors import AudioError, ConfigError, KinectDataError
+from kinectdata.core.librosa_import import import_librosa
 
 STRETCHERS = ("sox", "librosa")
 """The programs :func:`stretch_audio` can use, in the order it tries them."""
@@ -81,9 +82,7 @@ def _sox(x: np.ndarray, rate: float, sample_rate: int) -> np.ndarray:
 
 def _librosa(x: np.ndarray, rate: float) -> np.ndarray:
     try:
-        import librosa
-    except ImportError as exc:
-        raise AudioError(
-            None, "changing a song's tempo without SoX needs librosa: pip install 'kinectdata[music]'"
-        ) from exc
+        librosa = import_librosa("changing a song's tempo without SoX")
+    except KinectDataError as exc:
+        raise AudioError(None, str(exc)) from None
     return np.asarray(librosa.effects.time_stretch(x, rate=rate), np.float32)

@@ -6,6 +6,7 @@ from __future__ import annotations
 import numpy as np
 
 from kinectdata.core.errors import KinectDataError
+from kinectdata.core.librosa_import import import_librosa
 
 __all__ = ["BEAT_TRACKER_HOP_S", "music_beats"]
 
@@ -28,10 +29,7 @@ def music_beats(samples: np.ndarray, sample_rate: float) -> tuple[np.ndarray, fl
         ``(beat_times_s [B], tempo_bpm)``: beat times in seconds from the first sample (B may be 0
         for silence) and librosa's global tempo estimate in beats per minute.
     """
-    try:
-        import librosa
-    except ImportError:
-        raise KinectDataError("music beat tracking needs librosa: pip install 'kinectdata[music]'") from None
+    librosa = import_librosa("music beat tracking")
     y = np.asarray(samples, dtype=np.float32)
     if y.ndim != 1:
         raise KinectDataError(f"music beat tracking needs mono samples [S], got shape {y.shape}")

@@ -23,6 +23,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from kinectdata.core.errors import KinectDataError
+from kinectdata.core.librosa_import import import_librosa
 from kinectdata.features.beats import music_beats
 
 CANDIDATES = (3, 4)
@@ -61,10 +62,7 @@ class Metre:
 def beat_descriptors(samples: np.ndarray, sample_rate: float, beats_s: np.ndarray) -> np.ndarray:
     """[K, MEL_BANDS] the mean log-mel spectrum (dB) between consecutive beats (K = beats - 1),
     each band standardised over the beats."""
-    try:
-        import librosa
-    except ImportError:
-        raise KinectDataError("estimating the metre needs librosa: pip install 'kinectdata[music]'") from None
+    librosa = import_librosa("estimating the metre")
     y = np.asarray(samples, dtype=np.float32)
     hop = max(1, round(sample_rate * HOP_S))
     mel = librosa.feature.melspectrogram(y=y, sr=sample_rate, hop_length=hop, n_mels=MEL_BANDS, n_fft=2048)
