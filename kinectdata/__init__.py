@@ -31,6 +31,8 @@ from kinectdata.core.version import __version__
 _API = {
     # read
     "read_motion": ("kinectdata.formats", "read_motion"),
+    "write_motion": ("kinectdata.apps.convert", "write_motion"),
+    "convert": ("kinectdata.apps.convert", "convert"),
     "Motion": ("kinectdata.core.motion", "Motion"),
     "load_joint_set": ("kinectdata.core.jointsets", "load_joint_set"),
     "load_audio": ("kinectdata.align.audio", "load_audio"),

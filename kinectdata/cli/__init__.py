@@ -44,6 +44,7 @@ COMMAND_MODULES = {
     "sweep": "train",
     "score": "score",
     "smpl24": "score",
+    "convert": "convert",
     "synth": "synth",
     "quickstart": "quickstart",
     "report": "report",

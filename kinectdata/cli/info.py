@@ -125,12 +125,17 @@ def _body_lines(motion) -> list[str]:
 
 @click.command()
 def formats() -> None:
-    """List the readers, the sensor recordings read by their own commands, shipped CSV dialects,
-    array schemas and joint sets."""
+    """List the readers, the writers, the sensor recordings read by their own commands, shipped CSV
+    dialects, array schemas and joint sets."""
     click.echo("readers (--format):")
     for name, r in sorted(readers().items()):
         exts = ", ".join(r.extensions) or ("by content" if r.sniff else "--format only")
         click.echo(f"  {name:<14} {exts:<13} {r.description}")
+    from kinectdata.apps.convert import writers
+
+    click.echo("writers (kinectdata convert, by the output's extension or --format):")
+    for name, w in sorted(writers().items()):
+        click.echo(f"  {name:<14} {', '.join(w.extensions):<13} {w.description}")
     click.echo("sensor recordings (depth, colour, IMU frames; their own commands):")
     click.echo(f"  {'oni':<14} {'.oni':<13} OpenNI 1.x and OpenNI2 recordings (Kinect v1, Xtion): kinectdata oni")
     click.echo(f"  {'mkv':<14} {'.mkv':<13} Azure Kinect and Orbbec Femto k4arecorder recordings: kinectdata mkv")

@@ -54,10 +54,13 @@ def default_of(cls: type, name: str):
 READING_OPTIONS = ("format_", "schema", "body", "person", "video_fps", "array_fps", "unit", "rest_joints")
 
 
-def reader_options(command):
+def reader_options(command=None, *, format_flag: str = "--format"):
     """--format, --schema, --body, --person, --video-fps, --array-fps, --unit and --rest-joints, for commands
     that read a skeleton recording. The command receives them as one ``reading`` dict of :func:`read_motion`'s
-    keyword arguments (``format``, ``schema``, ...; None where not given)."""
+    keyword arguments (``format``, ``schema``, ...; None where not given). ``format_flag``: the input
+    format's flag, for a command whose ``--format`` is its output's (``@reader_options(format_flag="--from")``)."""
+    if command is None:
+        return functools.partial(reader_options, format_flag=format_flag)
 
     @functools.wraps(command)
     def f(*args, **kwargs):
@@ -111,7 +114,7 @@ def reader_options(command):
         "(.npy, .npz, .pkl, JSON), the array schema (shipped: aistpp_keypoints3d...; or a file) that declares them.",
     )(f)
     f = click.option(
-        "--format",
+        format_flag,
         "format_",
         default=None,
         type=click.Choice(sorted(readers())),

@@ -61,10 +61,7 @@ def smpl24(recording, out, fps, mapping, reading) -> None:
     """Write RECORDING (any 3-D recording kinectdata reads, or an aligned .h5) as the field's joint
     array: [T, 24, 3] float32 SMPL-24 joints in metres, y up, at --fps, for the peers' tools and for
     `score` (which reads it back with --fps and --up y)."""
-    import numpy as np
-
-    from kinectdata.core.atomic import atomic_output
-    from kinectdata.evaluation.motion_sets import smpl24_joints
+    from kinectdata.evaluation.motion_sets import save_smpl24, smpl24_joints
 
     if recording.lower().endswith((".h5", ".hdf5")):
         from kinectdata.align.aligned import AlignedRecording
@@ -73,13 +70,9 @@ def smpl24(recording, out, fps, mapping, reading) -> None:
     else:
         motion = read_motion(recording, **reading)
     sequence = smpl24_joints(motion, fps, source=recording, mapping=mapping)
-    joints = sequence.positions.astype(np.float32)
-    with atomic_output(out) as tmp:
-        with open(tmp, "wb") as f:
-            np.save(f, joints)
-    click.echo(
-        f"wrote {out}: {joints.shape[0]} frames of SMPL-24 joints at {fps:g} fps ({joints.shape[0] / fps:.2f} s)"
-    )
+    save_smpl24(sequence, out)
+    frames = sequence.positions.shape[0]
+    click.echo(f"wrote {out}: {frames} frames of SMPL-24 joints at {fps:g} fps ({frames / fps:.2f} s)")
     for joint, note in ((sequence.mapping or {}).get("stand_ins") or {}).items():
         click.echo(f"  {joint}: {note}")
 

@@ -40,6 +40,7 @@ import numpy as np
 from kinectdata.align.aligned import AlignedRecording
 from kinectdata.align.audio import load_audio
 from kinectdata.align.timeline import resample_motion
+from kinectdata.core.atomic import atomic_output
 from kinectdata.core.errors import FormatError, KinectDataError, KinectDataWarning, SchemaError
 from kinectdata.core.joint_mapping import load_smpl24_mapping
 from kinectdata.core.jointsets import load_joint_set
@@ -49,6 +50,7 @@ from kinectdata.evaluation.field_scores import DanceSequence
 from kinectdata.evaluation.protocols import Protocol, get_protocol
 from kinectdata.features.beats import music_beats
 from kinectdata.formats.registry import read_motion, readers
+from kinectdata.formats.writers import register_writer
 
 ARRAY_SUFFIXES = (".npy", ".npz")
 ALIGNED_SUFFIXES = (".h5", ".hdf5")
@@ -268,6 +270,38 @@ def smpl24_joints(
         raise KinectDataError(f"{source}: the frame rate must be a positive number of frames per second, not {fps!r}")
     rate = dataclasses.replace(get_protocol("aist"), fps=float(fps))  # of a protocol, only its rate is used here
     return motion_as_dance(motion, rate, name=Path(str(source)).stem, source=source, mapping=mapping)
+
+
+def smpl24_loses(motion: Motion) -> list[str]:
+    """What of ``motion`` the field's SMPL-24 joint array cannot carry, each a short phrase."""
+    lost = [] if motion.joint_set.name == "smpl24" else [f"the {motion.joint_set.name} joints (mapped to SMPL-24)"]
+    lost.append("the frame times (resampled from the first frame to --fps)")
+    if np.any(motion.confidence[motion.position_mask] != 1.0):
+        lost.append("the confidences")
+    if motion.has_orientations:
+        lost.append("the orientations")
+    if not motion.position_mask.all():
+        lost.append("which joints were missing (short gaps filled, never-placed joints stood in for)")
+    return lost
+
+
+@register_writer(
+    "smpl24", extensions=(".npy",), loses=smpl24_loses, description="The field's SMPL-24 joint array (.npy)"
+)
+def write_smpl24(motion: Motion, path: str | Path, *, fps: float = 60.0, mapping: str | Path | None = None) -> Path:
+    """Write ``motion`` as the field's joint array (:func:`smpl24_joints`: [T, 24, 3] float32
+    SMPL-24 joints in metres, y up, at ``fps``), atomically; read back with the shipped array
+    schema ``smpl24`` (``--schema smpl24 --array-fps FPS``) or by ``score``. Returns the path."""
+    path = Path(path)
+    return save_smpl24(smpl24_joints(motion, fps, source=motion.metadata.get("source", path), mapping=mapping), path)
+
+
+def save_smpl24(sequence: DanceSequence, path: str | Path) -> Path:
+    """Save a sequence's [T, 24, 3] joints as a float32 ``.npy`` at ``path``, atomically."""
+    with atomic_output(path) as tmp:
+        with open(tmp, "wb") as f:
+            np.save(f, sequence.positions.astype(np.float32))
+    return Path(path)
 
 
 def read_beats_file(path: Path) -> dict[str, np.ndarray]:

@@ -24,6 +24,10 @@ file like a CSV dialect's) says it, so that such files read with no code:
 - ``root_track``: the key of a [T, 3] track that is the root joint's own position, every joint of
   the file being relative to it (the tang2018 corpus' ``center``): it is added to them, and the joint
   set's last joint, its root, is placed on it;
+- ``confidence``: the key of a [T, J] array of each joint's confidence, 0 to 1 (default: 1 where
+  a position is given); ``orientations``: the key of a [T, J, 4] array of unit quaternions x, y, z,
+  w in the file's axes (turned with them), as :mod:`.arrays_writer` writes them (not with
+  ``derived`` or ``root_track``, whose joints the file does not hold);
 - ``derived``: joints the file lacks, each a weighted sum of the file's joints (``{"pelvis":
   {"left_hip": 0.5, "right_hip": 0.5}}``), the joint set's last joints in this order: so that
   keypoint layouts with no root (COCO-17) make one tree.
@@ -74,6 +78,11 @@ def load_array_schema(name_or_path: str | Path) -> dict[str, Any]:
         raise SchemaError(
             path,
             f"root_track: the track is the root's, so {joint_set.name}'s last joint must be its root, not {last!r}",
+        )
+    per_joint = [k for k in ("confidence", "orientations") if k in doc]
+    if per_joint and (derived or tracked):
+        raise SchemaError(
+            path, f"{per_joint[0]}: a file whose joints are derived or tracked holds no value for those joints"
         )
     n_file = len(joint_set) - len(derived) - tracked
     if derived and list(joint_set.names[n_file : n_file + len(derived)]) != derived:
@@ -221,25 +230,67 @@ def read_arrays(path: Path, *, schema: str | Path | None = None, array_fps: floa
         positions = positions + track[:, None, :]
         if "root_track" in spec:  # the root itself, where the track says
             positions = np.concatenate([positions, track[:, None, :]], axis=1)
-    times = _times(path, contents, kind, spec["time"] if fps is None else {"fps": fps}, T)
+    time = spec["time"] if fps is None else {"fps": fps}
+    times, origin = _times(path, contents, kind, time, T)
     positions = positions * UNITS_TO_M[spec.get("unit", "m")]
-    positions, _ = to_kinectdata_axes(positions, up=spec.get("up", "y"), handedness=spec.get("handedness", "right"))
+    confidence, orientations = _per_joint(path, contents, kind, spec, T, len(js))
+    positions, orientations = to_kinectdata_axes(
+        positions, orientations, up=spec.get("up", "y"), handedness=spec.get("handedness", "right")
+    )
+    valid = np.isfinite(positions).all(axis=-1)
     return Motion(
         times=times,
         positions=positions,
         joint_set=js,
+        position_mask=valid,
+        confidence=None if confidence is None else np.where(valid, confidence, 0.0),
+        orientations=orientations,
         metadata={
             "format": "arrays",
             "schema": spec["name"],
             "schema_path": str(spec["_path"]),
-            **({"time_source": "frame index at the schema's fps"} if "fps" in spec["time"] else {}),
+            **({"time_source": "frame index at the schema's fps"} if "fps" in time else {}),
+            **({"time_origin": {"value": origin, "unit": time["unit"]}} if "key" in time else {}),
         },
     )
 
 
-def _times(path: Path, contents: Any, kind: str, time: dict, T: int) -> np.ndarray:
+def _per_joint(
+    path: Path, contents: Any, kind: str, spec: dict[str, Any], T: int, J: int
+) -> tuple[np.ndarray | None, np.ndarray | None]:
+    """The schema's ``confidence`` [T, J] (0 to 1) and ``orientations`` [T, J, 4] arrays, None where
+    it names none; FormatError for a shape or value that does not fit."""
+    confidence = orientations = None
+    if "confidence" in spec:
+        confidence = _array(path, contents, kind, spec["confidence"], "confidences")
+        if confidence.shape != (T, J):
+            raise FormatError(path, f"{spec['confidence']!r} has shape {list(confidence.shape)}, not [{T}, {J}]")
+        outside = np.isfinite(confidence) & ((confidence < 0) | (confidence > 1))
+        if outside.any():
+            t, j = np.argwhere(outside)[0]
+            raise FormatError(
+                path, f"{spec['confidence']!r}: {confidence[t, j]:g} at frame {t}, joint {j} is not in 0..1"
+            )
+        confidence = np.nan_to_num(confidence, nan=0.0)
+    if "orientations" in spec:
+        orientations = _array(path, contents, kind, spec["orientations"], "orientations")
+        if orientations.shape != (T, J, 4):
+            raise FormatError(path, f"{spec['orientations']!r} has shape {list(orientations.shape)}, not [{T}, {J}, 4]")
+        norms = np.linalg.norm(orientations, axis=-1)
+        bad = np.isfinite(norms) & (np.abs(norms - 1.0) > 1e-3)
+        if bad.any():
+            t, j = np.argwhere(bad)[0]
+            raise FormatError(
+                path,
+                f"{spec['orientations']!r}: the quaternion at frame {t}, joint {j} has length {norms[t, j]:g}, not 1",
+            )
+    return confidence, orientations
+
+
+def _times(path: Path, contents: Any, kind: str, time: dict, T: int) -> tuple[np.ndarray, float]:
+    """[T] seconds from the first frame, and the first frame's time in the file's unit (0 at an fps)."""
     if "fps" in time:
-        return np.arange(T) / float(time["fps"])
+        return np.arange(T) / float(time["fps"]), 0.0
     raw = _array(path, contents, kind, time["key"], "timestamps")
     if raw.shape != (T,):
         raise FormatError(path, f"{time['key']!r} has shape {list(raw.shape)}, not [{T}] like the positions")
@@ -247,4 +298,4 @@ def _times(path: Path, contents: Any, kind: str, time: dict, T: int) -> np.ndarr
     bad = first_bad_time(times)
     if bad is not None:
         raise FormatError(path, f"{time['key']!r}: time {raw[bad]:g} at frame {bad} does not come after the one before")
-    return times
+    return times, float(raw[0])

@@ -40,10 +40,58 @@ from kinectdata.core.atomic import atomic_output
 from kinectdata.core.errors import KinectDataError
 from kinectdata.core.motion import Motion, frame_clock
 from kinectdata.formats.common import UNITS_TO_M
+from kinectdata.formats.writers import register_writer
 
 ROTATION_ORDER = "ZXY"
 
 
+BONE_TOLERANCE_M = 5e-4
+"""A bone whose length moves more than this over the frames cannot be kept by a BVH's one OFFSET."""
+TIME_TOLERANCE_S = 1e-4
+"""Frame times further than this from an even clock cannot be kept by a BVH's one frame time."""
+
+
+def bvh_loses(motion: Motion) -> list[str]:
+    """What of ``motion`` a BVH file cannot carry, each a short phrase (:mod:`.writers`)."""
+    lost = []
+    js = motion.joint_set
+    if js.roles or js.mirror or js.to_smpl24 is not None:
+        lost.append(f"the {js.name} joint set's roles, sides and SMPL-24 mapping (a BVH names its joints only)")
+    seen = motion.position_mask.any(axis=0)
+    if np.any(motion.confidence[motion.position_mask] != 1.0):
+        lost.append("the confidences (BVH has none)")
+    if np.any(~motion.position_mask[:, seen]):
+        lost.append("when each joint was missing (BVH holds every joint in every frame: held from the nearest one)")
+    if not seen.all():
+        never = ", ".join(n for n, s in zip(motion.joint_set.names, seen) if not s)
+        lost.append(f"the joints never placed ({never}) and those below them")
+    spread = _bone_spread(motion)
+    if spread > BONE_TOLERANCE_M:
+        off = f"{100 * spread:.1f} cm"
+        lost.append(f"bone lengths that change from frame to frame (BVH keeps one per bone: up to {off} off)")
+    if motion.n_frames >= 2:
+        interval, numbers = frame_clock(motion.times)
+        off = float(np.max(np.abs(motion.times - motion.times[0] - interval * numbers)))
+        if off > TIME_TOLERANCE_S or np.any(np.diff(numbers) != 1):
+            lost.append(f"the frames' own times (BVH frames are evenly spaced, {interval:.4f} s apart)")
+    return lost
+
+
+def _bone_spread(motion: Motion) -> float:
+    """The largest distance, in metres, of a bone's length in a frame from its median length."""
+    worst = 0.0
+    for child, parent in enumerate(motion.joint_set.parents):
+        if parent < 0:
+            continue
+        both = motion.position_mask[:, child] & motion.position_mask[:, parent]
+        if both.sum() < 2:
+            continue
+        lengths = np.linalg.norm(motion.positions[both, child] - motion.positions[both, parent], axis=-1)
+        worst = max(worst, float(np.max(np.abs(lengths - np.median(lengths)))))
+    return worst
+
+
+@register_writer("bvh", extensions=(".bvh",), loses=bvh_loses, description="Biovision BVH (rest pose, rotations)")
 def write_bvh(motion: Motion, path: str | Path, *, unit: str = "cm", decimals: int = 6) -> Path:
     """Write ``motion`` (3-D, one root, at least two frames) as a BVH file at ``path``, atomically.
 

@@ -18,6 +18,7 @@ from kinectdata.core.jointsets import is_shipped, joint_set_text
 from kinectdata.core.motion import Motion
 from kinectdata.core.quaternions import xyzw_to_wxyz
 from kinectdata.formats.csv_schema import JOINT, CsvSchema, joint_set_of, load_csv_schema
+from kinectdata.formats.writers import register_writer
 
 
 def _state_column(motion: Motion, spec: dict, states: np.ndarray | None) -> np.ndarray:
@@ -160,3 +161,19 @@ def write_csv(
                 index=False,
                 lineterminator=",\n" if doc.get("trailing_delimiter") else "\n",
             )
+
+
+def _canonical_loses(motion: Motion) -> list[str]:
+    return []
+
+
+@register_writer(
+    "csv", extensions=(".csv",), loses=_canonical_loses, description="kinectdata's canonical CSV (lossless)"
+)
+def write_canonical_csv(motion: Motion, path: str | Path, *, decimals: int = 6) -> Path:
+    """Write ``motion`` as kinectdata's canonical CSV (:func:`write_csv` with ``canonical``): every
+    joint, confidence and orientation, the frame times, a joint set kinectdata does not ship, and
+    the recording's source and placement as comment lines. Returns the path."""
+    kept = {key: str(motion.metadata[key]) for key in ("source", "placement") if motion.metadata.get(key)}
+    write_csv(motion, path, "canonical", comments={k: v.replace("\n", " ") for k, v in kept.items()}, decimals=decimals)
+    return Path(path)

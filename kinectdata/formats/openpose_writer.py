@@ -17,14 +17,26 @@ import numpy as np
 from kinectdata.core.atomic import atomic_output
 from kinectdata.core.errors import KinectDataError
 from kinectdata.core.motion import Motion
+from kinectdata.formats.writers import register_writer
 
 
+def openpose_loses(motion: Motion) -> list[str]:
+    """What of ``motion`` OpenPose JSON cannot carry, each a short phrase (:mod:`.writers`)."""
+    lost = ["the frame times (OpenPose JSON numbers frames: read it back with --video-fps)"]
+    if motion.has_orientations:
+        lost.append("the orientations")
+    return lost
+
+
+@register_writer(
+    "openpose", extensions=(".jsonl",), loses=openpose_loses, description="OpenPose JSON Lines (2-D MPI-15)"
+)
 def write_openpose_jsonl(motion: Motion, path: str | Path, *, digits: int = 6) -> Path:
     """Write ``motion`` (joint set ``openpose_mpi``) to ``path`` atomically; values rounded to ``digits``
     decimals. Returns the path."""
-    if motion.joint_set.name != "openpose_mpi":
-        raise KinectDataError(f"OpenPose JSON holds openpose_mpi joints, not {motion.joint_set.name}")
     path = Path(path)
+    if motion.joint_set.name != "openpose_mpi":
+        raise KinectDataError(f"{path}: OpenPose JSON holds openpose_mpi joints, not {motion.joint_set.name}")
     values = np.zeros((motion.n_frames, motion.n_joints, 3))
     values[..., :2] = np.where(motion.position_mask[..., None], motion.positions, 0.0)
     values[..., 2] = np.where(motion.position_mask, np.maximum(motion.confidence, 1e-3), 0.0)  # c > 0: detected

@@ -112,6 +112,11 @@ def cases(paths: dict) -> dict[str, dict[str, list]]:
             "missing": ["aistpp", missing, "-o", out / "r.yaml"],
             "foreign": ["aistpp", junk_dir, "-o", out / "r.yaml"],
         },
+        "convert": {
+            "unwritable": [RECORDING, "-o", block / "take.bvh"],
+            "missing": [missing / "take.csv", "-o", out / "take.bvh"],
+            "foreign": [junk_file, "-o", out / "take.npz"],
+        },
         "smpl24": {
             "unwritable": [RECORDING, "-o", block / "j.npy"],
             "missing": [missing / "take.csv", "-o", out / "j.npy"],
