@@ -33,6 +33,8 @@ _API = {
     "read_motion": ("kinectdata.formats", "read_motion"),
     "write_motion": ("kinectdata.apps.convert", "write_motion"),
     "convert": ("kinectdata.apps.convert", "convert"),
+    "clean_motion": ("kinectdata.cleaning", "clean_motion"),
+    "CleanConfig": ("kinectdata.cleaning", "CleanConfig"),
     "Motion": ("kinectdata.core.motion", "Motion"),
     "load_joint_set": ("kinectdata.core.jointsets", "load_joint_set"),
     "load_audio": ("kinectdata.align.audio", "load_audio"),

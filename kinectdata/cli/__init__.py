@@ -45,6 +45,7 @@ COMMAND_MODULES = {
     "score": "score",
     "smpl24": "score",
     "convert": "convert",
+    "clean": "clean",
     "synth": "synth",
     "quickstart": "quickstart",
     "report": "report",

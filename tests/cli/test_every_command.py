@@ -112,6 +112,11 @@ def cases(paths: dict) -> dict[str, dict[str, list]]:
             "missing": ["aistpp", missing, "-o", out / "r.yaml"],
             "foreign": ["aistpp", junk_dir, "-o", out / "r.yaml"],
         },
+        "clean": {
+            "unwritable": [RECORDING, "-o", block / "take.csv"],
+            "missing": [missing / "take.csv", "-o", out / "take.csv"],
+            "foreign": [junk_file, "-o", out / "take.csv"],
+        },
         "convert": {
             "unwritable": [RECORDING, "-o", block / "take.bvh"],
             "missing": [missing / "take.csv", "-o", out / "take.bvh"],

@@ -11,6 +11,7 @@
 Definitions, sources and the fixtures that prove them: docs/metrics.md.
 """
 
+from kinectdata.core.body_quality import bone_length_variation, mean_jerk
 from kinectdata.evaluation.metrics.beat_alignment import (
     music_beat_frames,
     peer_beat_align_score,
@@ -27,7 +28,6 @@ from kinectdata.evaluation.metrics.foot_contact import foot_contact_score, physi
 from kinectdata.evaluation.metrics.geometric import describe_feature, geometric_features
 from kinectdata.evaluation.metrics.kinetic import kinetic_features
 from kinectdata.evaluation.metrics.pose_error import motion_energy, motion_energy_per_s, smape
-from kinectdata.evaluation.metrics.quality import bone_length_variation, mean_jerk
 from kinectdata.evaluation.metrics.turning import Turning, turning, turning_rates
 
 __all__ = [

@@ -1,5 +1,6 @@
 """Two checks the Kinect world needs that the field's tables do not have: bones that keep their
-length, and motion without jitter.
+length, and motion without jitter (in ``core``: the metrics report them, and cleaning measures what
+it changed by them; :mod:`kinectdata.evaluation.metrics` exports them).
 
 A rigid body's bones do not stretch; a sensor's skeleton (or a generator's) does. Kinect-class
 trackers also shake: jitter shows as a large jerk (the third derivative of position).

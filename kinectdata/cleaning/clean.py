@@ -1,0 +1,198 @@
+"""A recording cleaned as a capture studio would, stage by stage, with a report of what each changed.
+
+:func:`clean_motion` runs the stages :class:`CleanConfig` asks for, in this order:
+
+1. **jitter** (:mod:`.jitter`): a zero-phase Butterworth low-pass at 6 Hz (the default: offline,
+   no delay), a Savitzky-Golay smoother, or the 1-euro filter (causal: what a live system can do,
+   at the price of a lag on fast joints), per joint, each sample weighted by its confidence;
+2. **bone lengths** (:mod:`.bones`): each bone held to the recording's median length (or one given),
+   from the root out, each bone keeping its direction.
+
+The cleaned recording keeps the joint set, the frame times, the masks, the confidences, the
+orientations (positions alone are changed) and the metadata (its placement among them), with
+``metadata["cleaned"]`` saying what was done. The :class:`CleanReport` gives, for each stage, the
+frames and joints it moved and by how much, and for the whole the bone-length CV and the jerk before
+and after.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from kinectdata.cleaning.bones import hold_bone_lengths, lengths_by_name
+from kinectdata.cleaning.jitter import ONE_EURO_DEFAULTS, one_euro, zero_phase
+from kinectdata.core.body_quality import bone_length_variation, mean_jerk
+from kinectdata.core.errors import ConfigError
+from kinectdata.core.motion import Motion, frame_clock
+
+JITTER_FILTERS = ("one_euro", "butterworth", "savgol", "none")
+MOVED_M = 1e-4
+"""A joint's sample counts as moved by a stage when it moved more than this (a tenth of a millimetre)."""
+
+
+@dataclass(frozen=True)
+class CleanConfig:
+    """What :func:`clean_motion` does.
+
+    Attributes:
+        jitter: ``butterworth`` (default), ``savgol``, ``one_euro`` or ``none``.
+        min_cutoff_hz, beta, d_cutoff_hz: the 1-euro filter's settings (Hz, Hz per m/s, Hz).
+        cutoff_hz, order: the Butterworth low-pass (Hz, order before the backward pass).
+        window_s: the Savitzky-Golay window, seconds.
+        bones: hold each bone to one length.
+        bone_lengths: ``{child joint: metres}`` for the bones of a measured body (the others the
+            recording's own median).
+    """
+
+    jitter: str = "butterworth"
+    min_cutoff_hz: float = ONE_EURO_DEFAULTS["min_cutoff_hz"]
+    beta: float = ONE_EURO_DEFAULTS["beta"]
+    d_cutoff_hz: float = ONE_EURO_DEFAULTS["d_cutoff_hz"]
+    cutoff_hz: float = 6.0
+    order: int = 2
+    window_s: float = 0.3
+    bones: bool = True
+    bone_lengths: dict[str, float] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        if self.jitter not in JITTER_FILTERS:
+            raise ConfigError(f"jitter filter {self.jitter!r} is not one of {', '.join(JITTER_FILTERS)}")
+
+    def to_dict(self) -> dict[str, Any]:
+        return dataclasses.asdict(self)
+
+
+@dataclass(frozen=True)
+class StageReport:
+    """What one stage changed.
+
+    Attributes:
+        stage: ``jitter`` or ``bones``.
+        detail: what it was (``one_euro: min cutoff 1 Hz, beta 0.7 Hz per m/s``).
+        samples_moved: joint samples moved by more than :data:`MOVED_M`.
+        frames_touched: frames with at least one such sample.
+        joints_touched: names of the joints with at least one.
+        mean_shift_mm: the mean distance a valid sample moved, millimetres.
+        max_shift_mm: the largest, millimetres.
+    """
+
+    stage: str
+    detail: str
+    samples_moved: int
+    frames_touched: int
+    joints_touched: tuple[str, ...]
+    mean_shift_mm: float
+    max_shift_mm: float
+
+
+@dataclass(frozen=True)
+class CleanReport:
+    """What :func:`clean_motion` did: its stages, and the bone-length CV (mean over bones) and the
+    mean jerk (m/s^3, on the recording's median frame interval) before and after."""
+
+    stages: tuple[StageReport, ...]
+    bone_cv_before: float
+    bone_cv_after: float
+    jerk_before: float
+    jerk_after: float
+
+    def lines(self) -> list[str]:
+        """The report as lines for a person."""
+        out = []
+        for s in self.stages:
+            out.append(
+                f"{s.stage}: {s.detail}; moved {s.samples_moved} samples in {s.frames_touched} frames, "
+                f"{len(s.joints_touched)} joints, by {s.mean_shift_mm:.1f} mm on average (at most {s.max_shift_mm:.1f})"
+            )
+        out.append(f"bone-length CV {self.bone_cv_before:.4f} -> {self.bone_cv_after:.4f}")
+        out.append(f"mean jerk {self.jerk_before:.1f} -> {self.jerk_after:.1f} m/s^3")
+        return out
+
+    def to_json(self) -> str:
+        return json.dumps(dataclasses.asdict(self), indent=1, allow_nan=True)
+
+
+@dataclass(frozen=True)
+class Cleaned:
+    """A cleaned recording and its report."""
+
+    motion: Motion
+    report: CleanReport
+
+
+def clean_motion(motion: Motion, config: CleanConfig | None = None) -> Cleaned:
+    """Clean a 3-D recording (see the module docstring).
+
+    Raises:
+        ConfigError: a 2-D joint set, fewer than 4 frames, or settings that do not fit the recording.
+    """
+    config = config or CleanConfig()
+    js = motion.joint_set
+    where = f"{motion.metadata['source']}: " if motion.metadata.get("source") else ""
+    if js.dimensions != 3:
+        raise ConfigError(f"{where}cleaning needs 3-D joints in metres; joint set {js.name} is {js.dimensions}-D")
+    if motion.n_frames < 4:
+        raise ConfigError(f"{where}cleaning needs at least 4 frames, the recording has {motion.n_frames}")
+    mask = motion.position_mask
+    interval, _ = frame_clock(motion.times)
+    fps = 1.0 / interval
+    positions = np.where(mask[..., None], motion.positions, np.nan)
+    stages = []
+    if config.jitter != "none":
+        if config.jitter == "one_euro":
+            detail = (f"one_euro: min cutoff {config.min_cutoff_hz:g} Hz, beta {config.beta:g} Hz per m/s, "
+                      f"speed cutoff {config.d_cutoff_hz:g} Hz")  # fmt: skip
+            moved = one_euro(positions, motion.times, mask, motion.confidence, min_cutoff_hz=config.min_cutoff_hz,
+                             beta=config.beta, d_cutoff_hz=config.d_cutoff_hz)  # fmt: skip
+        else:
+            detail = (f"butterworth: {config.cutoff_hz:g} Hz, order {config.order}, forwards and backwards"
+                      if config.jitter == "butterworth" else f"savgol: cubic over {config.window_s:g} s")  # fmt: skip
+            moved = zero_phase(positions, fps, mask, motion.confidence, method=config.jitter,
+                               cutoff_hz=config.cutoff_hz, order=config.order, window_s=config.window_s)  # fmt: skip
+        stages.append(_stage("jitter", detail, positions, moved, mask, js.names))
+        positions = moved
+    if config.bones:
+        given = lengths_by_name(js.names, config.bone_lengths) if config.bone_lengths else None
+        moved, held = hold_bone_lengths(positions, js.parents, mask, given)
+        told = f" ({len(config.bone_lengths)} given)" if config.bone_lengths else ""
+        detail = f"each bone at its median length{told}, from the root out"
+        stages.append(_stage("bones", detail, positions, moved, mask, js.names))
+        positions = moved
+    cleaned = dataclasses.replace(
+        motion,
+        positions=positions,
+        position_mask=mask,
+        metadata={**motion.metadata, "cleaned": "; ".join(s.detail for s in stages) or "nothing"},
+    )
+    report = CleanReport(
+        tuple(stages),
+        _mean_cv(motion.positions, js.parents, mask),
+        _mean_cv(positions, js.parents, mask),
+        mean_jerk(motion.positions, fps, mask),
+        mean_jerk(positions, fps, mask),
+    )
+    return Cleaned(cleaned, report)
+
+
+def _stage(stage: str, detail: str, before: np.ndarray, after: np.ndarray, mask: np.ndarray, names) -> StageReport:
+    shift = np.where(mask, np.linalg.norm(np.nan_to_num(after - before), axis=-1), 0.0)
+    moved = shift > MOVED_M
+    return StageReport(
+        stage,
+        detail,
+        int(moved.sum()),
+        int(moved.any(axis=1).sum()),
+        tuple(n for n, m in zip(names, moved.any(axis=0)) if m),
+        float(1e3 * shift[mask].mean()) if mask.any() else 0.0,
+        float(1e3 * shift.max()) if mask.any() else 0.0,
+    )
+
+
+def _mean_cv(positions: np.ndarray, parents, mask: np.ndarray) -> float:
+    cv = bone_length_variation(positions, parents, mask)
+    return float(np.nanmean(cv)) if np.isfinite(cv).any() else float("nan")

@@ -1,0 +1,71 @@
+"""``kinectdata clean``: a recording's jitter filtered and bones held to one length, with a report."""
+
+from __future__ import annotations
+
+import json
+
+import click
+
+from kinectdata.cli.options import reader_options
+
+
+@click.command("clean")
+@click.argument("recording", type=click.Path(path_type=str))
+@click.option("-o", "--out", required=True, type=click.Path(dir_okay=False), help="the cleaned recording (any format)")
+@click.option(
+    "--jitter",
+    type=click.Choice(["butterworth", "savgol", "one-euro", "none"]),
+    default="butterworth",
+    show_default=True,
+    help="the jitter filter: a zero-phase Butterworth or Savitzky-Golay (offline), the 1-euro filter (causal)",
+)
+@click.option("--min-cutoff", type=click.FloatRange(min=0, min_open=True), default=None, help="1-euro: Hz (1)")
+@click.option("--beta", type=click.FloatRange(min=0), default=None, help="1-euro: Hz per m/s of speed (50)")
+@click.option("--d-cutoff", type=click.FloatRange(min=0, min_open=True), default=None, help="1-euro: Hz (1)")
+@click.option("--cutoff", type=click.FloatRange(min=0, min_open=True), default=None, help="Butterworth: Hz (6)")
+@click.option("--order", type=click.IntRange(min=1), default=None, help="Butterworth: its order (2)")
+@click.option("--window", type=click.FloatRange(min=0, min_open=True), default=None, help="Savitzky-Golay: s (0.3)")
+@click.option("--bones/--no-bones", default=True, show_default=True, help="hold each bone to one length")
+@click.option("--bone-lengths", type=click.Path(dir_okay=False), default=None,
+              help='JSON {"child joint": metres} of a measured body (other bones: the median)')  # fmt: skip
+@click.option("--report", "report_path", type=click.Path(dir_okay=False), default=None, help="write the report as JSON")
+@reader_options(format_flag="--from")
+def clean(recording, out, jitter, min_cutoff, beta, d_cutoff, cutoff, order, window, bones, bone_lengths, report_path,
+          reading) -> None:  # fmt: skip
+    """Clean RECORDING (any 3-D recording kinectdata reads) and write it to OUT in the format its
+    extension names: the jitter filtered per joint (each sample weighted by its confidence), each
+    bone held to the recording's median length along its own direction. Prints what each stage
+    changed, and the bone-length CV and jerk before and after. The joint set, frame times,
+    confidences, orientations and placement are kept."""
+    from kinectdata.apps.convert import write_motion
+    from kinectdata.cleaning import CleanConfig, clean_motion
+    from kinectdata.core.atomic import atomic_output
+    from kinectdata.core.errors import InputError
+    from kinectdata.formats import read_motion
+
+    chosen = {"min_cutoff_hz": min_cutoff, "beta": beta, "d_cutoff_hz": d_cutoff}
+    chosen |= {"cutoff_hz": cutoff, "order": order, "window_s": window}
+    given = {}
+    if bone_lengths is not None:
+        try:
+            given = json.loads(open(bone_lengths, encoding="utf-8").read())
+        except (OSError, ValueError) as exc:
+            raise InputError(bone_lengths, f"cannot read it as JSON ({exc})") from None
+        if not isinstance(given, dict):
+            raise InputError(bone_lengths, 'expected a JSON object {"child joint": metres, ...}')
+    config = CleanConfig(
+        jitter=jitter.replace("-", "_"),
+        bones=bones,
+        bone_lengths=given,
+        **{k: v for k, v in chosen.items() if v is not None},
+    )
+    cleaned = clean_motion(read_motion(recording, **reading), config)
+    for line in cleaned.report.lines():
+        click.echo(line)
+    if report_path is not None:
+        with atomic_output(report_path) as tmp:
+            tmp.write_text(cleaned.report.to_json() + "\n", encoding="utf-8")
+    click.echo(write_motion(cleaned.motion, out).describe())
+
+
+COMMANDS = [clean]
