@@ -2,14 +2,17 @@
 
 :func:`clean_motion` runs the stages :class:`CleanConfig` asks for, in this order:
 
-1. **jitter** (:mod:`.jitter`): a zero-phase Butterworth low-pass at 6 Hz (the default: offline,
+1. **gaps** (:mod:`.gaps`): inferred samples that jump away from their tracked neighbours taken out,
+   and gaps up to ``max_gap_s`` filled as ``align`` fills them; longer ones left masked and listed;
+2. **jitter** (:mod:`.jitter`): a zero-phase Butterworth low-pass at 6 Hz (the default: offline,
    no delay), a Savitzky-Golay smoother, or the 1-euro filter (causal: what a live system can do,
    at the price of a lag on fast joints), per joint, each sample weighted by its confidence;
-2. **bone lengths** (:mod:`.bones`): each bone held to the recording's median length (or one given),
+3. **bone lengths** (:mod:`.bones`): each bone held to the recording's median length (or one given),
    from the root out, each bone keeping its direction.
 
-The cleaned recording keeps the joint set, the frame times, the masks, the confidences, the
-orientations (positions alone are changed) and the metadata (its placement among them), with
+The cleaned recording keeps the joint set, the frame times, the masks (but where gaps were filled),
+the confidences (a filled sample's at most 0.5), the orientations (filled across short gaps too, not
+filtered) and the metadata (its placement among them), with
 ``metadata["cleaned"]`` saying what was done. The :class:`CleanReport` gives, for each stage, the
 frames and joints it moved and by how much, and for the whole the bone-length CV and the jerk before
 and after.
@@ -25,6 +28,7 @@ from typing import Any
 import numpy as np
 
 from kinectdata.cleaning.bones import hold_bone_lengths, lengths_by_name
+from kinectdata.cleaning.gaps import GapReport, fill_gaps
 from kinectdata.cleaning.jitter import ONE_EURO_DEFAULTS, one_euro, zero_phase
 from kinectdata.core.body_quality import bone_length_variation, mean_jerk
 from kinectdata.core.errors import ConfigError
@@ -40,6 +44,9 @@ class CleanConfig:
     """What :func:`clean_motion` does.
 
     Attributes:
+        gaps: take out inferred jumps and fill short gaps.
+        max_gap_s: the longest gap filled, seconds.
+        jump_m: how far an inferred sample may lie from its tracked neighbours' line, metres.
         jitter: ``butterworth`` (default), ``savgol``, ``one_euro`` or ``none``.
         min_cutoff_hz, beta, d_cutoff_hz: the 1-euro filter's settings (Hz, Hz per m/s, Hz).
         cutoff_hz, order: the Butterworth low-pass (Hz, order before the backward pass).
@@ -49,6 +56,9 @@ class CleanConfig:
             recording's own median).
     """
 
+    gaps: bool = True
+    max_gap_s: float = 0.2
+    jump_m: float = 0.1
     jitter: str = "butterworth"
     min_cutoff_hz: float = ONE_EURO_DEFAULTS["min_cutoff_hz"]
     beta: float = ONE_EURO_DEFAULTS["beta"]
@@ -72,7 +82,7 @@ class StageReport:
     """What one stage changed.
 
     Attributes:
-        stage: ``jitter`` or ``bones``.
+        stage: ``jitter`` or ``bones`` (the gaps have their own report, :class:`~.gaps.GapReport`).
         detail: what it was (``one_euro: min cutoff 1 Hz, beta 0.7 Hz per m/s``).
         samples_moved: joint samples moved by more than :data:`MOVED_M`.
         frames_touched: frames with at least one such sample.
@@ -92,10 +102,12 @@ class StageReport:
 
 @dataclass(frozen=True)
 class CleanReport:
-    """What :func:`clean_motion` did: its stages, and the bone-length CV (mean over bones) and the
-    mean jerk (m/s^3, on the recording's median frame interval) before and after."""
+    """What :func:`clean_motion` did: its stages, the gaps (None when not asked), and the bone-length
+    CV (mean over bones) and the mean jerk (m/s^3, on the recording's median frame interval) before
+    and after."""
 
     stages: tuple[StageReport, ...]
+    gaps: GapReport | None
     bone_cv_before: float
     bone_cv_after: float
     jerk_before: float
@@ -104,6 +116,13 @@ class CleanReport:
     def lines(self) -> list[str]:
         """The report as lines for a person."""
         out = []
+        g = self.gaps
+        if g is not None:
+            left = f" ({', '.join(g.joints_left)}; the longest {g.longest_left_s:.2f} s)" if g.gaps_left else ""
+            out.append(
+                f"gaps: {g.jumps_replaced} inferred jumps taken out; {g.gaps_filled} gaps filled ({g.samples_filled} "
+                f"samples, up to {g.max_gap_s:g} s); {g.gaps_left} left masked{left}"
+            )
         for s in self.stages:
             out.append(
                 f"{s.stage}: {s.detail}; moved {s.samples_moved} samples in {s.frames_touched} frames, "
@@ -138,11 +157,14 @@ def clean_motion(motion: Motion, config: CleanConfig | None = None) -> Cleaned:
         raise ConfigError(f"{where}cleaning needs 3-D joints in metres; joint set {js.name} is {js.dimensions}-D")
     if motion.n_frames < 4:
         raise ConfigError(f"{where}cleaning needs at least 4 frames, the recording has {motion.n_frames}")
-    mask = motion.position_mask
     interval, _ = frame_clock(motion.times)
     fps = 1.0 / interval
+    stages, gaps = [], None
+    source = motion
+    if config.gaps:
+        motion, gaps = fill_gaps(motion, config.max_gap_s, config.jump_m)
+    mask = motion.position_mask
     positions = np.where(mask[..., None], motion.positions, np.nan)
-    stages = []
     if config.jitter != "none":
         if config.jitter == "one_euro":
             detail = (f"one_euro: min cutoff {config.min_cutoff_hz:g} Hz, beta {config.beta:g} Hz per m/s, "
@@ -171,9 +193,10 @@ def clean_motion(motion: Motion, config: CleanConfig | None = None) -> Cleaned:
     )
     report = CleanReport(
         tuple(stages),
-        _mean_cv(motion.positions, js.parents, mask),
+        gaps,
+        _mean_cv(source.positions, js.parents, source.position_mask),
         _mean_cv(positions, js.parents, mask),
-        mean_jerk(motion.positions, fps, mask),
+        mean_jerk(source.positions, fps, source.position_mask),
         mean_jerk(positions, fps, mask),
     )
     return Cleaned(cleaned, report)

@@ -12,6 +12,10 @@ from kinectdata.cli.options import reader_options
 @click.command("clean")
 @click.argument("recording", type=click.Path(path_type=str))
 @click.option("-o", "--out", required=True, type=click.Path(dir_okay=False), help="the cleaned recording (any format)")
+@click.option("--gaps/--no-gaps", default=True, show_default=True, help="take out inferred jumps, fill short gaps")
+@click.option("--max-gap", type=click.FloatRange(min=0), default=None, help="the longest gap filled, s (0.2)")
+@click.option("--jump", type=click.FloatRange(min=0, min_open=True), default=None,
+              help="how far an inferred joint may lie from its tracked neighbours' line, m (0.1)")  # fmt: skip
 @click.option(
     "--jitter",
     type=click.Choice(["butterworth", "savgol", "one-euro", "none"]),
@@ -30,10 +34,11 @@ from kinectdata.cli.options import reader_options
               help='JSON {"child joint": metres} of a measured body (other bones: the median)')  # fmt: skip
 @click.option("--report", "report_path", type=click.Path(dir_okay=False), default=None, help="write the report as JSON")
 @reader_options(format_flag="--from")
-def clean(recording, out, jitter, min_cutoff, beta, d_cutoff, cutoff, order, window, bones, bone_lengths, report_path,
-          reading) -> None:  # fmt: skip
+def clean(recording, out, gaps, max_gap, jump, jitter, min_cutoff, beta, d_cutoff, cutoff, order, window, bones,
+          bone_lengths, report_path, reading) -> None:  # fmt: skip
     """Clean RECORDING (any 3-D recording kinectdata reads) and write it to OUT in the format its
-    extension names: the jitter filtered per joint (each sample weighted by its confidence), each
+    extension names: inferred joints that jump away taken out and short gaps filled, the jitter
+    filtered per joint (each sample weighted by its confidence), each
     bone held to the recording's median length along its own direction. Prints what each stage
     changed, and the bone-length CV and jerk before and after. The joint set, frame times,
     confidences, orientations and placement are kept."""
@@ -44,7 +49,7 @@ def clean(recording, out, jitter, min_cutoff, beta, d_cutoff, cutoff, order, win
     from kinectdata.formats import read_motion
 
     chosen = {"min_cutoff_hz": min_cutoff, "beta": beta, "d_cutoff_hz": d_cutoff}
-    chosen |= {"cutoff_hz": cutoff, "order": order, "window_s": window}
+    chosen |= {"cutoff_hz": cutoff, "order": order, "window_s": window, "max_gap_s": max_gap, "jump_m": jump}
     given = {}
     if bone_lengths is not None:
         try:
@@ -54,6 +59,7 @@ def clean(recording, out, jitter, min_cutoff, beta, d_cutoff, cutoff, order, win
         if not isinstance(given, dict):
             raise InputError(bone_lengths, 'expected a JSON object {"child joint": metres, ...}')
     config = CleanConfig(
+        gaps=gaps,
         jitter=jitter.replace("-", "_"),
         bones=bones,
         bone_lengths=given,

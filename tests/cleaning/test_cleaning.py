@@ -170,3 +170,38 @@ def test_what_cleaning_cannot_do_is_one_line():
         kd.clean_motion(flat)
     with pytest.raises(ConfigError, match="jitter filter 'median' is not one of"):
         kd.CleanConfig(jitter="median")
+
+
+def test_short_gaps_are_filled_long_ones_left_and_inferred_jumps_taken_out():
+    """A joint moving in a straight line at constant speed: a 3-frame gap comes back exactly (filled
+    linearly, confidence 0.5), a 1-second gap stays masked and is named, an inferred sample 30 cm
+    off the line is taken out and filled, and one 2 cm off (an inferred joint's usual bias) is kept."""
+    from kinectdata.cleaning.gaps import fill_gaps
+
+    js = kd.load_joint_set("kinect_v2")
+    t = np.arange(120) / 30.0
+    p = np.zeros((120, len(js), 3))
+    p[:, :, 0] = 0.5 * t[:, None]  # every joint at 0.5 m/s along x
+    mask = np.ones((120, len(js)), bool)
+    confidence = np.ones((120, len(js)))
+    hand = js.index("HandLeft")
+    mask[10:13, hand] = False  # 0.1 s
+    mask[50:80, hand] = False  # 1 s
+    far, near = 30, 95
+    p[far, hand, 1] += 0.30
+    p[near, hand, 1] += 0.02
+    confidence[[far, near], hand] = 0.5
+    motion = kd.Motion(times=t, positions=p, joint_set=js, position_mask=mask, confidence=confidence)
+    filled, report = fill_gaps(motion, max_gap_s=0.2, jump_m=0.1)
+    truth = 0.5 * t
+    np.testing.assert_allclose(filled.positions[10:13, hand, 0], truth[10:13], atol=1e-12)
+    np.testing.assert_allclose(filled.positions[far, hand], [truth[far], 0.0, 0.0], atol=1e-12)
+    assert filled.confidence[11, hand] == pytest.approx(0.5) and filled.positions[near, hand, 1] == pytest.approx(0.02)
+    assert not filled.position_mask[50:80, hand].any()
+    assert (report.jumps_replaced, report.gaps_filled, report.samples_filled) == (1, 2, 4)
+    assert report.gaps_left == 1 and report.joints_left == ("HandLeft",)
+    assert report.longest_left_s == pytest.approx(1.0, abs=0.04)
+    unchanged = np.ones_like(mask)
+    unchanged[[10, 11, 12, far], hand] = False
+    unchanged[50:80, hand] = False
+    np.testing.assert_array_equal(filled.positions[unchanged], p[unchanged])  # valid samples as they were
