@@ -18,7 +18,6 @@ damaged: delete the ``*.nbi`` and ``*.nbc`` files under ``librosa/util/__pycache
 
 from __future__ import annotations
 
-import importlib.util
 import os
 import tempfile
 from pathlib import Path
@@ -29,7 +28,8 @@ from kinectdata.core.errors import KinectDataError
 LOCK_TIMEOUT_S = 300.0
 """How long a process waits for another to finish compiling before it goes on without the lock."""
 
-_ready: ModuleType | None = None
+_compiled = False
+"""Whether this process has imported librosa and compiled (or loaded) its cached functions."""
 
 
 def lock_path() -> Path:
@@ -49,19 +49,22 @@ def import_librosa(needed_for: str) -> ModuleType:
     Raises:
         KinectDataError: librosa is not installed (one line with the command that installs it).
     """
-    global _ready
-    if _ready is not None:
-        return _ready
-    if importlib.util.find_spec("librosa") is None:
-        raise KinectDataError(f"{needed_for} needs librosa: pip install 'kinectdata[music]'")
+    global _compiled
     from filelock import FileLock, Timeout
 
     try:
-        with FileLock(str(lock_path()), timeout=LOCK_TIMEOUT_S):
-            _ready = _import_and_compile()
-    except (Timeout, OSError):  # a lock that cannot be had: go on as librosa alone would
-        _ready = _import_and_compile()
-    return _ready
+        if _compiled:
+            import librosa
+        else:
+            try:
+                with FileLock(str(lock_path()), timeout=LOCK_TIMEOUT_S):
+                    librosa = _import_and_compile()
+            except (Timeout, OSError):  # a lock that cannot be had: go on as librosa alone would
+                librosa = _import_and_compile()
+            _compiled = True
+    except ImportError:
+        raise KinectDataError(f"{needed_for} needs librosa: pip install 'kinectdata[music]'") from None
+    return librosa
 
 
 def _import_and_compile() -> ModuleType:

@@ -48,9 +48,10 @@ def test_a_process_that_needs_librosa_waits_for_the_one_compiling_it(tmp_path):
     assert (tmp_path / librosa_import.lock_path().name).exists()
 
 
-def test_missing_librosa_is_one_line_naming_what_needed_it(monkeypatch):
-    monkeypatch.setattr(librosa_import, "_ready", None)
-    monkeypatch.setattr(librosa_import.importlib.util, "find_spec", lambda name: None)
+@pytest.mark.parametrize("compiled", [False, True])
+def test_missing_librosa_is_one_line_naming_what_needed_it(monkeypatch, compiled):
+    monkeypatch.setattr(librosa_import, "_compiled", compiled)
+    monkeypatch.setitem(sys.modules, "librosa", None)  # import librosa raises ImportError
     said = r"^music beat tracking needs librosa: pip install 'kinectdata\[music\]'$"
     with pytest.raises(KinectDataError, match=said):
         librosa_import.import_librosa("music beat tracking")

@@ -71,7 +71,10 @@ def test_the_frames_after_the_context_are_the_stepped_networks(inputs, output, s
     with torch.no_grad():
         got = net(audio, previous, skip=skip)
     assert got.shape == (2, 200 - skip, D)
-    assert torch.allclose(got, every[:, skip:], rtol=0, atol=1e-5)
+    # float32 sums taken in another order by the batched and the stepped convolutions, block after
+    # block: on an Intel Xeon with AVX-512 FP16 the residual outputs differ by up to 1.8e-5 (under 1e-5
+    # on the AMD EPYC machines before); a wrong frame differs by 1e-2 (the last assert)
+    assert torch.allclose(got, every[:, skip:], rtol=0, atol=5e-5)
     assert (every[:, 1:] - every[:, :-1]).abs().max() > 1e-2  # the frames differ: the comparison can fail
 
 
