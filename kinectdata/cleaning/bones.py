@@ -15,6 +15,7 @@ from collections.abc import Mapping, Sequence
 import numpy as np
 
 from kinectdata.core.errors import ConfigError
+from kinectdata.core.jointsets import parents_first
 
 
 def robust_lengths(positions: np.ndarray, parents: Sequence[int], mask: np.ndarray) -> np.ndarray:
@@ -53,7 +54,7 @@ def hold_bone_lengths(
     own = robust_lengths(p, parents, mask)
     held = own if lengths is None else np.where(np.isfinite(lengths), lengths, own)
     out = p.copy()
-    for j in _parents_first(parents):
+    for j in parents_first(parents):
         parent = parents[j]
         if parent < 0 or not np.isfinite(held[j]):
             continue
@@ -77,17 +78,3 @@ def lengths_by_name(names: Sequence[str], given: Mapping[str, float]) -> np.ndar
             raise ConfigError(f"the bone to {name} must have a positive length in metres, not {length!r}")
         out[list(names).index(name)] = float(length)
     return out
-
-
-def _parents_first(parents: Sequence[int]) -> list[int]:
-    order, placed = [], set()
-    while len(order) < len(parents):
-        grew = False
-        for j, parent in enumerate(parents):
-            if j not in placed and (parent < 0 or parent in placed):
-                order.append(j)
-                placed.add(j)
-                grew = True
-        if not grew:
-            raise ConfigError("the joint set's parents make a cycle")
-    return order

@@ -226,6 +226,19 @@ def find_cycle(parents: Sequence[int]) -> int | None:
     return None
 
 
+def parents_first(parents: Sequence[int]) -> list[int]:
+    """The joint indices ordered by their depth in the tree (roots first, then their children...),
+    so that a walk in this order meets every joint after its parent; joints of one depth keep their
+    order. ``parents`` [J] (-1 marks roots) must hold no cycle (:func:`find_cycle`; a JointSet has none)."""
+    depth = []
+    for j in range(len(parents)):
+        d, k = 0, j
+        while parents[k] >= 0:
+            d, k = d + 1, parents[k]
+        depth.append(d)
+    return sorted(range(len(parents)), key=lambda j: depth[j])
+
+
 @cache
 def _load_shipped(name: str) -> JointSet:
     path = shipped_path("jointsets", name)

@@ -31,7 +31,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from kinectdata.core.errors import ConfigError
-from kinectdata.core.jointsets import JointSet, load_joint_set
+from kinectdata.core.jointsets import JointSet, load_joint_set, parents_first
 from kinectdata.core.motion import Motion
 from kinectdata.core.quaternions import make_continuous
 from kinectdata.synth.music import BEATS_PER_BAR, INTRO_BARS
@@ -167,7 +167,7 @@ def make_body(height_m: float = 1.70) -> Body:
         wrist_frame = (_min_rotation(lower, _unit(hand - wrist)) * elbow_frame).as_matrix()
         frames[js.index(f"Elbow{side}")] = elbow_frame.as_matrix()[0]
         frames[js.index(f"Wrist{side}")] = frames[js.index(f"Hand{side}")] = wrist_frame[0]
-    order = _topological_order(js)
+    order = tuple(parents_first(js.parents))
     for j in order:  # leaves take their parent's frame (never written, only for completeness)
         if js.names[j] not in _PRIMARY_CHILD:
             frames[j] = frames[js.parents[j]]
@@ -792,13 +792,3 @@ def _two_bone_ik(root, target, l1, l2, pole, alt_pole):
     lower = _unit(dc[:, None] * u - mid)
     normal = _unit(np.cross(u, v))
     return upper, lower, normal, d / (l1 + l2)
-
-
-def _topological_order(js: JointSet) -> tuple[int, ...]:
-    order, placed = [], set()
-    while len(order) < len(js):
-        for j, par in enumerate(js.parents):
-            if j not in placed and (par < 0 or par in placed):
-                order.append(j)
-                placed.add(j)
-    return tuple(order)

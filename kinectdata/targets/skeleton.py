@@ -25,6 +25,7 @@ from typing import Any
 
 import numpy as np
 
+from kinectdata.core.jointsets import parents_first
 from kinectdata.core.motion import Motion
 from kinectdata.targets.specs import TargetSpec
 
@@ -122,7 +123,7 @@ def rebuild_positions(
     quats = {name: values[:, spec.columns(name, "orientation")] for name in spec.orientations}
     placed = {js.names[j] for j in range(J) if np.isfinite(positions[:, j]).all()}
     chain = []  # (joint, parent, the joint whose orientation turns its bone, the bone), parents first
-    for j in _parents_first(js):
+    for j in parents_first(js.parents):
         name, p = js.names[j], js.parents[j]
         bone = skeleton.get(name)
         if p < 0 or bone is None or name in placed or js.names[p] not in placed:
@@ -142,13 +143,3 @@ def rebuild_positions(
         for k, (j, p, _, _) in enumerate(chain):
             positions[:, j] = positions[:, p] + rotated[:, k]
     return positions, np.isfinite(positions).all(axis=-1)
-
-
-def _parents_first(js) -> list[int]:
-    depth = []
-    for j in range(len(js)):
-        d, k = 0, j
-        while js.parents[k] >= 0:
-            d, k = d + 1, js.parents[k]
-        depth.append(d)
-    return sorted(range(len(js)), key=lambda j: depth[j])
