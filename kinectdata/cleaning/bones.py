@@ -14,6 +14,7 @@ from collections.abc import Mapping, Sequence
 
 import numpy as np
 
+from kinectdata.core.body_quality import bone_lengths
 from kinectdata.core.errors import ConfigError
 from kinectdata.core.jointsets import parents_first
 
@@ -21,13 +22,12 @@ from kinectdata.core.jointsets import parents_first
 def robust_lengths(positions: np.ndarray, parents: Sequence[int], mask: np.ndarray) -> np.ndarray:
     """[J] each bone's median length over the frames where both its ends are valid (metres; NaN for
     a root and for a bone never seen whole)."""
+    lengths = bone_lengths(positions, parents, mask)
     out = np.full(len(parents), np.nan)
-    for j, parent in enumerate(parents):
-        if parent < 0:
-            continue
-        both = mask[:, j] & mask[:, parent]
-        if both.any():
-            out[j] = float(np.median(np.linalg.norm(positions[both, j] - positions[both, parent], axis=-1)))
+    for j in range(len(parents)):
+        seen = lengths[np.isfinite(lengths[:, j]), j]
+        if seen.size:
+            out[j] = float(np.median(seen))
     return out
 
 

@@ -22,6 +22,7 @@ import numpy as np
 
 from kinectdata.cleaning.recurrence import smooth
 from kinectdata.core.errors import ConfigError
+from kinectdata.core.motion import held_from_nearest
 
 ONE_EURO_DEFAULTS = {"min_cutoff_hz": 1.0, "beta": 50.0, "d_cutoff_hz": 1.0}
 """Defaults for dance at 30 fps, positions in metres: a still joint smoothed below 1 Hz, a joint
@@ -70,7 +71,7 @@ def one_euro(
     valid = np.isfinite(p).all(axis=-1) if mask is None else np.asarray(mask, bool) & np.isfinite(p).all(axis=-1)
     weight = np.ones(valid.shape) if confidence is None else np.clip(np.asarray(confidence, np.float64), 0.0, 1.0)
     weight = np.where(valid, weight, 0.0)
-    held = _held(p, valid)  # a masked sample repeats the last valid one: no speed, and its weight is 0
+    held = held_from_nearest(p, valid)  # a masked sample repeats the last valid one: no speed, and weight 0
     dt = np.diff(t, prepend=t[0] - (t[1] - t[0] if len(t) > 1 else 1.0))[:, None]
     speed = np.zeros(valid.shape)
     speed[1:] = np.linalg.norm(np.diff(held, axis=0), axis=-1) / dt[1:]
@@ -85,17 +86,6 @@ def one_euro(
     out = smooth(a[..., None], np.nan_to_num(held), np.zeros(p.shape[1:]))
     out[~valid] = np.nan
     return out
-
-
-def _held(p: np.ndarray, valid: np.ndarray) -> np.ndarray:
-    """[T, J, D] positions with each masked sample the last valid one before it (the first valid one
-    before a joint is first seen)."""
-    T = p.shape[0]
-    index = np.where(valid, np.arange(T)[:, None], -1)
-    last = np.maximum.accumulate(index, axis=0)
-    first = np.argmax(valid, axis=0)
-    last = np.where(last < 0, first[None, :], last)
-    return np.take_along_axis(p, last[..., None], axis=0)
 
 
 def zero_phase(

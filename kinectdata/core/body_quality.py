@@ -15,6 +15,29 @@ import numpy as np
 from kinectdata.core.errors import KinectDataError
 
 
+def bone_lengths(positions: np.ndarray, parents: Sequence[int], mask: np.ndarray | None = None) -> np.ndarray:
+    """[T, J] the length of the bone from ``parents[j]`` to ``j`` in each frame (the positions'
+    unit), NaN for a root and where either end is not valid.
+
+    Args:
+        positions: [T, J, D] joint positions.
+        parents: [J] parent index of each joint, -1 for a root.
+        mask: [T, J] bool, True where valid, or None (valid where finite).
+    """
+    p = np.asarray(positions, dtype=np.float64)
+    if p.ndim != 3 or len(parents) != p.shape[1]:
+        raise KinectDataError(f"positions [T, J, D] with J = {len(parents)} parents needed, got shape {p.shape}")
+    valid = np.isfinite(p).all(axis=2)
+    if mask is not None:
+        valid &= np.asarray(mask, dtype=bool)
+    out = np.full(valid.shape, np.nan)
+    children = [j for j, parent in enumerate(parents) if parent >= 0]
+    ends = [parents[j] for j in children]
+    both = valid[:, children] & valid[:, ends]
+    out[:, children] = np.where(both, np.linalg.norm(p[:, children] - p[:, ends], axis=2), np.nan)
+    return out
+
+
 def bone_length_variation(positions: np.ndarray, parents: Sequence[int], mask: np.ndarray | None = None) -> np.ndarray:
     """Per-bone coefficient of variation of the bone's length over time.
 
@@ -28,21 +51,11 @@ def bone_length_variation(positions: np.ndarray, parents: Sequence[int], mask: n
         frames where both ends are valid (ddof 0); NaN for roots and bones with fewer than 2 such
         frames or zero mean length.
     """
-    p = np.asarray(positions, dtype=np.float64)
-    if p.ndim != 3 or len(parents) != p.shape[1]:
-        raise KinectDataError(f"positions [T, J, D] with J = {len(parents)} parents needed, got shape {p.shape}")
-    valid = np.isfinite(p).all(axis=2)
-    if mask is not None:
-        valid &= np.asarray(mask, dtype=bool)
-    result = np.full(p.shape[1], np.nan)
-    for j, parent in enumerate(parents):
-        if parent < 0:
-            continue
-        both = valid[:, j] & valid[:, parent]
-        if both.sum() < 2:
-            continue
-        length = np.linalg.norm(p[both, j] - p[both, parent], axis=1)
-        if length.mean() > 0:
+    lengths = bone_lengths(positions, parents, mask)
+    result = np.full(lengths.shape[1], np.nan)
+    for j in range(lengths.shape[1]):
+        length = lengths[np.isfinite(lengths[:, j]), j]
+        if length.size >= 2 and length.mean() > 0:
             result[j] = length.std() / length.mean()
     return result
 

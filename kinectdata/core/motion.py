@@ -191,6 +191,22 @@ class Motion:
         )
 
 
+def held_from_nearest(values: np.ndarray, mask: np.ndarray) -> np.ndarray:
+    """``values`` [T, J, ...] with each masked entry taken from the nearest valid frame before it
+    (after it, before a joint's first valid frame); a joint never valid is left as it is.
+
+    Args:
+        values: [T, J, ...] per-frame, per-joint values (positions [T, J, 3], ...).
+        mask: [T, J] True where valid.
+    """
+    T = values.shape[0]
+    frames = np.arange(T)[:, None]
+    last = np.maximum.accumulate(np.where(mask, frames, -1), axis=0)
+    source = np.where(last >= 0, last, np.argmax(mask, axis=0)[None, :])
+    source = np.where(mask.any(axis=0)[None, :], source, frames)
+    return np.take_along_axis(values, source.reshape(source.shape + (1,) * (values.ndim - 2)), axis=0)
+
+
 def frame_clock(times: np.ndarray) -> tuple[float, np.ndarray]:
     """The frame interval of timestamps, and the frame number of each timestamp.
 

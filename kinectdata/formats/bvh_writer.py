@@ -37,8 +37,9 @@ from pathlib import Path
 import numpy as np
 
 from kinectdata.core.atomic import atomic_output
+from kinectdata.core.body_quality import bone_lengths
 from kinectdata.core.errors import KinectDataError
-from kinectdata.core.motion import Motion, frame_clock
+from kinectdata.core.motion import Motion, frame_clock, held_from_nearest
 from kinectdata.formats.common import UNITS_TO_M
 from kinectdata.formats.writers import register_writer
 
@@ -79,15 +80,12 @@ def bvh_loses(motion: Motion) -> list[str]:
 
 def _bone_spread(motion: Motion) -> float:
     """The largest distance, in metres, of a bone's length in a frame from its median length."""
+    lengths = bone_lengths(motion.positions, motion.joint_set.parents, motion.position_mask)
     worst = 0.0
-    for child, parent in enumerate(motion.joint_set.parents):
-        if parent < 0:
-            continue
-        both = motion.position_mask[:, child] & motion.position_mask[:, parent]
-        if both.sum() < 2:
-            continue
-        lengths = np.linalg.norm(motion.positions[both, child] - motion.positions[both, parent], axis=-1)
-        worst = max(worst, float(np.max(np.abs(lengths - np.median(lengths)))))
+    for j in range(lengths.shape[1]):
+        length = lengths[np.isfinite(lengths[:, j]), j]
+        if length.size >= 2:
+            worst = max(worst, float(np.max(np.abs(length - np.median(length)))))
     return worst
 
 
@@ -124,7 +122,7 @@ def write_bvh(motion: Motion, path: str | Path, *, unit: str = "cm", decimals: i
     if not motion.position_mask[:, roots[0]].any():
         raise KinectDataError(f"{path}: the root joint {js.names[roots[0]]!r} has no valid position in any frame")
     interval, _ = frame_clock(motion.times)
-    positions = _held(motion.positions, motion.position_mask)
+    positions = held_from_nearest(motion.positions, motion.position_mask)
     order = [j for j in _parents_first(js.parents, roots[0]) if motion.position_mask[:, j].any()]
     kept = set()
     for j in order:  # a joint never seen is left out, and so are the joints below it
@@ -194,20 +192,6 @@ def _parents_first(parents: tuple[int, ...], root: int) -> list[int]:
         order.append(j)
         stack.extend(c for c, p in reversed(list(enumerate(parents))) if p == j)
     return order
-
-
-def _held(values: np.ndarray, mask: np.ndarray) -> np.ndarray:
-    """``values`` [T, J, K] with each masked entry taken from the nearest valid frame before it
-    (after it, before the first valid one)."""
-    T = values.shape[0]
-    out = values.copy()
-    for j in range(values.shape[1]):
-        valid = np.flatnonzero(mask[:, j])
-        if valid.size == T or not valid.size:
-            continue
-        before = np.searchsorted(valid, np.arange(T), side="right") - 1
-        out[:, j] = values[valid[np.maximum(before, 0)], j]
-    return out
 
 
 def _from_orientations(motion: Motion, order: list[int], Rotation):
