@@ -23,7 +23,6 @@ from __future__ import annotations
 import dataclasses
 import json
 from dataclasses import dataclass, field
-from typing import Any
 
 import numpy as np
 
@@ -72,9 +71,6 @@ class CleanConfig:
     def __post_init__(self) -> None:
         if self.jitter not in JITTER_FILTERS:
             raise ConfigError(f"jitter filter {self.jitter!r} is not one of {', '.join(JITTER_FILTERS)}")
-
-    def to_dict(self) -> dict[str, Any]:
-        return dataclasses.asdict(self)
 
 
 @dataclass(frozen=True)

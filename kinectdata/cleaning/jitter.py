@@ -39,6 +39,18 @@ def _alpha(cutoff_hz: np.ndarray | float, dt: np.ndarray) -> np.ndarray:
     return 1.0 / (1.0 + tau / dt)
 
 
+def _valid_and_weight(
+    p: np.ndarray, mask: np.ndarray | None, confidence: np.ndarray | None
+) -> tuple[np.ndarray, np.ndarray]:
+    """[T, J] where a sample is valid (finite, and in ``mask`` when given), and its weight: its
+    confidence clipped to 0..1 (1 without confidences), 0 where not valid."""
+    valid = np.isfinite(p).all(axis=-1)
+    if mask is not None:
+        valid &= np.asarray(mask, bool)
+    weight = np.ones(valid.shape) if confidence is None else np.clip(np.asarray(confidence, np.float64), 0.0, 1.0)
+    return valid, np.where(valid, weight, 0.0)
+
+
 def one_euro(
     positions: np.ndarray,
     times: np.ndarray,
@@ -68,9 +80,7 @@ def one_euro(
     if min_cutoff_hz <= 0 or d_cutoff_hz <= 0 or beta < 0:
         raise ConfigError(f"1-euro filter: cutoffs must be positive and beta not negative, not {min_cutoff_hz}, "
                           f"{d_cutoff_hz}, {beta}")  # fmt: skip
-    valid = np.isfinite(p).all(axis=-1) if mask is None else np.asarray(mask, bool) & np.isfinite(p).all(axis=-1)
-    weight = np.ones(valid.shape) if confidence is None else np.clip(np.asarray(confidence, np.float64), 0.0, 1.0)
-    weight = np.where(valid, weight, 0.0)
+    valid, weight = _valid_and_weight(p, mask, confidence)
     held = held_from_nearest(p, valid)  # a masked sample repeats the last valid one: no speed, and weight 0
     dt = np.diff(t, prepend=t[0] - (t[1] - t[0] if len(t) > 1 else 1.0))[:, None]
     speed = np.zeros(valid.shape)
@@ -119,9 +129,7 @@ def zero_phase(
     from scipy import signal  # here: scipy.signal costs time at start-up
 
     p = np.asarray(positions, dtype=np.float64)
-    valid = np.isfinite(p).all(axis=-1) if mask is None else np.asarray(mask, bool) & np.isfinite(p).all(axis=-1)
-    weight = np.ones(valid.shape) if confidence is None else np.clip(np.asarray(confidence, np.float64), 0.0, 1.0)
-    weight = np.where(valid, weight, 0.0)
+    valid, weight = _valid_and_weight(p, mask, confidence)
     if method == "butterworth":
         if not 0 < cutoff_hz < fps / 2:
             raise ConfigError(f"a Butterworth cutoff must lie between 0 and half the frame rate ({fps / 2:g} Hz), "

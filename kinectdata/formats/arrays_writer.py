@@ -36,14 +36,9 @@ def companions(path: str | Path) -> tuple[Path, Path]:
     return path.with_name(stem + SCHEMA_SUFFIX), path.with_name(stem + JOINTS_SUFFIX)
 
 
-def _nothing_lost(motion: Motion) -> list[str]:
-    return []
-
-
 @register_writer(
     "arrays",
     extensions=(".npz",),
-    loses=_nothing_lost,
     description="Joint arrays (.npz) with their array schema (.schema.json) beside them",
 )
 def write_arrays(motion: Motion, path: str | Path) -> Path:

@@ -163,13 +163,7 @@ def write_csv(
             )
 
 
-def _canonical_loses(motion: Motion) -> list[str]:
-    return []
-
-
-@register_writer(
-    "csv", extensions=(".csv",), loses=_canonical_loses, description="kinectdata's canonical CSV (lossless)"
-)
+@register_writer("csv", extensions=(".csv",), description="kinectdata's canonical CSV (lossless)")
 def write_canonical_csv(motion: Motion, path: str | Path, *, decimals: int = 6) -> Path:
     """Write ``motion`` as kinectdata's canonical CSV (:func:`write_csv` with ``canonical``): every
     joint, confidence and orientation, the frame times, a joint set kinectdata does not ship, and

@@ -3,10 +3,11 @@ format cannot carry.
 
 A writer is a function ``write(motion, path, **options) -> Path`` registered under a format name
 with its extensions and ``loses(motion) -> list[str]``: what of that motion the file will not hold
-(a BVH has no confidences), each a short phrase. :func:`write_motion` picks the writer from
-``format`` when given, else from the output's extension, writes atomically (the writers use
-:func:`~kinectdata.core.atomic.atomic_output`) and returns a :class:`Written` naming what was left
-out, so that a conversion says it in one line instead of losing it silently.
+(a BVH has no confidences), each a short phrase (none for a lossless format: the default).
+:func:`write_motion` picks the writer from ``format`` when given, else from the output's extension,
+writes atomically (the writers use :func:`~kinectdata.core.atomic.atomic_output`) and returns a
+:class:`Written` naming what was left out, so that a conversion says it in one line instead of
+losing it silently.
 """
 
 from __future__ import annotations
@@ -65,7 +66,7 @@ def register_writer(
     name: str,
     *,
     extensions: tuple[str, ...],
-    loses: Callable[[Motion], list[str]],
+    loses: Callable[[Motion], list[str]] | None = None,
     description: str = "",
 ) -> Callable[[Callable[..., Path]], Callable[..., Path]]:
     """Decorator registering ``write(motion, path, *, options...) -> Path`` as format ``name``."""
@@ -75,10 +76,14 @@ def register_writer(
             raise ConfigError(f"a writer named {name!r} is already registered")
         exts = tuple(e.lower() for e in extensions)
         text = description or (write.__doc__ or "").split("\n")[0]
-        _WRITERS[name] = Writer(name, write, exts, loses, text)
+        _WRITERS[name] = Writer(name, write, exts, loses or _lossless, text)
         return write
 
     return decorate
+
+
+def _lossless(motion: Motion) -> list[str]:
+    return []
 
 
 def writers() -> dict[str, Writer]:
