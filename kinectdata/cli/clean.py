@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+from pathlib import Path
 
 import click
 
@@ -38,8 +39,8 @@ def clean(recording, out, gaps, max_gap, jump, jitter, min_cutoff, beta, d_cutof
           bone_lengths, report_path, reading) -> None:  # fmt: skip
     """Clean RECORDING (any 3-D recording kinectdata reads) and write it to OUT in the format its
     extension names: inferred joints that jump away taken out and short gaps filled, the jitter
-    filtered per joint (each sample weighted by its confidence), each
-    bone held to the recording's median length along its own direction. Prints what each stage
+    filtered per joint (each sample weighted by its confidence), each bone held to the recording's
+    median length along its own direction. Prints what each stage
     changed, and the bone-length CV and jerk before and after. The joint set, frame times,
     confidences, orientations and placement are kept."""
     from kinectdata.apps.convert import write_motion
@@ -53,7 +54,7 @@ def clean(recording, out, gaps, max_gap, jump, jitter, min_cutoff, beta, d_cutof
     given = {}
     if bone_lengths is not None:
         try:
-            given = json.loads(open(bone_lengths, encoding="utf-8").read())
+            given = json.loads(Path(bone_lengths).read_text(encoding="utf-8"))
         except (OSError, ValueError) as exc:
             raise InputError(bone_lengths, f"cannot read it as JSON ({exc})") from None
         if not isinstance(given, dict):
