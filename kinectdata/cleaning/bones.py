@@ -2,10 +2,20 @@
 length by 1-5 cm within a dance; bone-length CV 0.10), a body does not.
 
 Each bone gets the recording's robust length, the median over the frames where both its ends are
-valid (or a length given, for a body that was measured), and the skeleton is rebuilt from the root
-out: a joint is put at its parent's new place plus that length along the bone's own direction in
-that frame, so that every bone keeps its direction and only its length changes. A joint whose parent
-is masked in a frame keeps its place (it starts the chain below it), and a masked joint stays masked.
+valid (or a length given, for a body that was measured), in two passes:
+
+1. **spread** (:func:`spread_to_lengths`): each bone's error in length is shared between its two ends,
+   bone after bone from the root out, over ``iterations`` rounds (the projection of position-based
+   dynamics, Mueller et al. 2007, vectorised over frames): every joint moves a little, along its
+   bones, towards the lengths, so a noisy joint is pulled back by all its neighbours;
+2. **from the root out**: a joint is put at its parent's new place plus the length along the bone's
+   own direction in that frame, so that every bone keeps its direction and has its length exactly.
+
+After the first pass the second moves the joints by a fraction of a millimetre. Rebuilding from the
+root alone (the second pass on the raw joints) carries each bone's direction noise to every joint
+below it: on the simulated Kinect it left the joints 4.1 mm from the truth where the spread pass
+leaves them 2.8 mm (the filter alone 3.2 mm; ``bench_clean``). A joint whose parent is masked in a
+frame keeps its place (it starts the chain below it), and a masked joint stays masked.
 """
 
 from __future__ import annotations
@@ -31,11 +41,35 @@ def robust_lengths(positions: np.ndarray, parents: Sequence[int], mask: np.ndarr
     return out
 
 
+SPREAD_ROUNDS = 20
+"""Rounds of the spread pass: on the simulated Kinect 5 leave the joints within 0.02 mm of 50's."""
+
+
+def spread_to_lengths(positions: np.ndarray, parents: Sequence[int], mask: np.ndarray, lengths: np.ndarray,
+                      rounds: int = SPREAD_ROUNDS) -> np.ndarray:  # fmt: skip
+    """[T, J, D] the joints moved towards bones of ``lengths`` [J] (metres; NaN: a bone left as it is),
+    each bone's error in length shared equally by its two valid ends, for ``rounds`` rounds over the
+    bones in parents-first order. ``positions`` [T, J, D] metres, ``mask`` [T, J]."""
+    x = np.where(mask[..., None], np.asarray(positions, np.float64), 0.0)
+    bones = [j for j in parents_first(parents) if parents[j] >= 0 and np.isfinite(lengths[j])]
+    both = {j: (mask[:, j] & mask[:, parents[j]])[:, None] for j in bones}
+    for _ in range(rounds):
+        for j in bones:
+            parent = parents[j]
+            bone = x[:, j] - x[:, parent]
+            size = np.linalg.norm(bone, axis=-1, keepdims=True)
+            half = np.where(both[j] & (size > 0), 0.5 * (size - lengths[j]) / np.where(size > 0, size, 1.0), 0.0)
+            x[:, j] -= half * bone
+            x[:, parent] += half * bone
+    return np.where(mask[..., None], x, np.nan)
+
+
 def hold_bone_lengths(
     positions: np.ndarray,
     parents: Sequence[int],
     mask: np.ndarray,
     lengths: np.ndarray | None = None,
+    spread: bool = True,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Rebuild the skeleton with each bone at one length (see the module docstring).
 
@@ -45,6 +79,7 @@ def hold_bone_lengths(
         mask: [T, J] True where valid.
         lengths: [J] the lengths to hold, metres (NaN for a root, or to use the recording's own);
             default :func:`robust_lengths`.
+        spread: run the spread pass first (False: only the rebuild from the root out).
 
     Returns:
         ``(positions [T, J, D], lengths [J])``: the rebuilt positions (NaN where masked) and the
@@ -53,6 +88,8 @@ def hold_bone_lengths(
     p = np.where(mask[..., None], np.asarray(positions, np.float64), np.nan)
     own = robust_lengths(p, parents, mask)
     held = own if lengths is None else np.where(np.isfinite(lengths), lengths, own)
+    if spread:
+        p = spread_to_lengths(p, parents, mask, held)
     out = p.copy()
     for j in parents_first(parents):
         parent = parents[j]

@@ -2,13 +2,15 @@
 
 :func:`clean_motion` runs the stages :class:`CleanConfig` asks for, in this order:
 
+0. **sides** (:mod:`.sides`): the stretches where a frontal tracker mirrored a dancer seen from
+   behind (her left joints labelled right) found and swapped back;
 1. **gaps** (:mod:`.gaps`): inferred samples that jump away from their tracked neighbours taken out,
    and gaps up to ``max_gap_s`` filled as ``align`` fills them; longer ones left masked and listed;
 2. **jitter** (:mod:`.jitter`): a zero-phase Butterworth low-pass at 6 Hz (the default: offline,
    no delay), a Savitzky-Golay smoother, or the 1-euro filter (causal: what a live system can do,
    at the price of a lag on fast joints), per joint, each sample weighted by its confidence;
-3. **bone lengths** (:mod:`.bones`): each bone held to the recording's median length (or one given),
-   from the root out, each bone keeping its direction.
+3. **bone lengths** (:mod:`.bones`): each bone held to the recording's median length (or one given):
+   each bone's error shared by both its ends, then exact from the root out along its direction.
 
 The cleaned recording keeps the joint set, the frame times, the masks (but where gaps were filled),
 the confidences (a filled sample's at most 0.5), the orientations (filled across short gaps too, not
@@ -22,13 +24,16 @@ from __future__ import annotations
 
 import dataclasses
 import json
+from collections.abc import Mapping
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
 from kinectdata.cleaning.bones import hold_bone_lengths, lengths_by_name
 from kinectdata.cleaning.gaps import GapReport, fill_gaps
 from kinectdata.cleaning.jitter import ONE_EURO_DEFAULTS, one_euro, zero_phase
+from kinectdata.cleaning.sides import SideSwaps, find_side_swaps, unswap_sides
 from kinectdata.core.body_quality import bone_length_variation, mean_jerk
 from kinectdata.core.errors import ConfigError
 from kinectdata.core.motion import Motion, frame_clock
@@ -43,6 +48,9 @@ class CleanConfig:
     """What :func:`clean_motion` does.
 
     Attributes:
+        sides: find and swap back the stretches whose left and right labels are mirrored.
+        up: the unit vector pointing up in the recording's right-handed coordinates (+y: Kinect
+            v1/v2 camera space, BVH; -y: Azure Kinect's camera space), for the sides' feet.
         gaps: take out inferred jumps and fill short gaps.
         max_gap_s: the longest gap filled, seconds.
         jump_m: how far an inferred sample may lie from its tracked neighbours' line, metres.
@@ -55,6 +63,8 @@ class CleanConfig:
             recording's own median).
     """
 
+    sides: bool = True
+    up: tuple[float, float, float] = (0.0, 1.0, 0.0)
     gaps: bool = True
     max_gap_s: float = 0.2
     jump_m: float = 0.1
@@ -68,7 +78,38 @@ class CleanConfig:
     bones: bool = True
     bone_lengths: dict[str, float] = field(default_factory=dict)
 
+    @classmethod
+    def from_settings(cls, settings: Mapping[str, Any], where: str = "clean") -> CleanConfig:
+        """The configuration of ``settings`` (field names to values, as a recordings manifest's
+        ``clean`` or a dataset's configuration gives them: lists for ``up``); ConfigError naming
+        ``where`` and the first unknown field or bad value."""
+        names = {f.name for f in dataclasses.fields(cls)}
+        unknown = sorted(set(settings) - names)
+        if unknown:
+            raise ConfigError(f"{where}: no cleaning setting {', '.join(unknown)} (known: {', '.join(sorted(names))})")
+        given = dict(settings)
+        if "up" in given:
+            given["up"] = tuple(float(v) for v in given["up"])
+        try:
+            return cls(**given)
+        except ConfigError as error:
+            raise ConfigError(f"{where}: {error}") from None
+
+    def settings(self) -> dict[str, Any]:
+        """The fields that differ from the defaults (JSON values), as :meth:`from_settings` takes them."""
+        default = CleanConfig()
+        out = {
+            f.name: getattr(self, f.name)
+            for f in dataclasses.fields(self)
+            if getattr(self, f.name) != getattr(default, f.name)
+        }
+        if "up" in out:
+            out["up"] = list(out["up"])
+        return out
+
     def __post_init__(self) -> None:
+        if len(self.up) != 3 or not np.isclose(np.linalg.norm(self.up), 1.0):
+            raise ConfigError(f"up must be a unit vector of 3 numbers, not {self.up!r}")
         if self.jitter not in JITTER_FILTERS:
             raise ConfigError(f"jitter filter {self.jitter!r} is not one of {', '.join(JITTER_FILTERS)}")
 
@@ -97,10 +138,29 @@ class StageReport:
 
 
 @dataclass(frozen=True)
+class SidesReport:
+    """What the sides stage found and swapped back.
+
+    Attributes:
+        intervals_s: ``(start, end)`` seconds of each mirrored stretch repaired.
+        frames: frames repaired.
+        flips: frames where the labels jumped.
+        judged_by: ``feet`` or ``majority`` (:class:`~.sides.SideSwaps`).
+        skipped: why the stage could not run (a joint set without mirrored pairs), else empty.
+    """
+
+    intervals_s: tuple[tuple[float, float], ...]
+    frames: int
+    flips: int
+    judged_by: str
+    skipped: str = ""
+
+
+@dataclass(frozen=True)
 class CleanReport:
     """What :func:`clean_motion` did: its stages, the gaps (None when not asked), and the bone-length
     CV (mean over bones) and the mean jerk (m/s^3, on the recording's median frame interval) before
-    and after."""
+    and after; ``sides`` is None when that stage was not asked for."""
 
     stages: tuple[StageReport, ...]
     gaps: GapReport | None
@@ -108,10 +168,21 @@ class CleanReport:
     bone_cv_after: float
     jerk_before: float
     jerk_after: float
+    sides: SidesReport | None = None
 
     def lines(self) -> list[str]:
         """The report as lines for a person."""
         out = []
+        if self.sides is not None and self.sides.skipped:
+            out.append(f"sides: not looked at ({self.sides.skipped})")
+        elif self.sides is not None and not self.sides.intervals_s:
+            out.append("sides: no mirrored stretch found")
+        elif self.sides is not None:
+            where = ", ".join(f"{a:.2f}-{b:.2f} s" for a, b in self.sides.intervals_s)
+            out.append(
+                f"sides: {len(self.sides.intervals_s)} mirrored stretches swapped back ({self.sides.frames} frames; "
+                f"judged by the {self.sides.judged_by}){': ' + where if where else ''}"
+            )
         g = self.gaps
         if g is not None:
             left = f" ({', '.join(g.joints_left)}; the longest {g.longest_left_s:.2f} s)" if g.gaps_left else ""
@@ -155,8 +226,10 @@ def clean_motion(motion: Motion, config: CleanConfig | None = None) -> Cleaned:
         raise ConfigError(f"{where}cleaning needs at least 4 frames, the recording has {motion.n_frames}")
     interval, _ = frame_clock(motion.times)
     fps = 1.0 / interval
-    stages, gaps = [], None
+    stages, gaps, sides = [], None, None
     source = motion
+    if config.sides:
+        motion, sides = _swap_sides(motion, config.up)
     if config.gaps:
         motion, gaps = fill_gaps(motion, config.max_gap_s, config.jump_m)
     mask = motion.position_mask
@@ -178,7 +251,7 @@ def clean_motion(motion: Motion, config: CleanConfig | None = None) -> Cleaned:
         given = lengths_by_name(js.names, config.bone_lengths) if config.bone_lengths else None
         moved, held = hold_bone_lengths(positions, js.parents, mask, given)
         told = f" ({len(config.bone_lengths)} given)" if config.bone_lengths else ""
-        detail = f"each bone at its median length{told}, from the root out"
+        detail = f"each bone at its median length{told}: its error spread over both ends, then exact from the root out"
         stages.append(_stage("bones", detail, positions, moved, mask, js.names))
         positions = moved
     cleaned = dataclasses.replace(
@@ -194,8 +267,27 @@ def clean_motion(motion: Motion, config: CleanConfig | None = None) -> Cleaned:
         _mean_cv(positions, js.parents, mask),
         mean_jerk(source.positions, fps, source.position_mask),
         mean_jerk(positions, fps, mask),
+        sides,
     )
     return Cleaned(cleaned, report)
+
+
+def _swap_sides(motion: Motion, up) -> tuple[Motion, SidesReport]:
+    try:
+        found: SideSwaps = find_side_swaps(motion.positions, motion.position_mask, motion.joint_set, up)
+    except ConfigError as error:  # a joint set with no left and right to swap: nothing to repair
+        return motion, SidesReport((), 0, 0, "", str(error))
+    frames = found.frames(motion.n_frames)
+    names = ("positions", "position_mask", "confidence", "orientations", "orientation_mask")
+    swapped = unswap_sides({n: getattr(motion, n) for n in names}, frames, motion.joint_set)
+    t = motion.times
+    report = SidesReport(
+        tuple((float(t[a]), float(t[b])) for a, b in found.intervals),
+        int(frames.sum()),
+        len(found.flips),
+        found.judged_by,
+    )
+    return dataclasses.replace(motion, **swapped), report
 
 
 def _stage(stage: str, detail: str, before: np.ndarray, after: np.ndarray, mask: np.ndarray, names) -> StageReport:

@@ -1,4 +1,4 @@
-"""``kinectdata clean``: a recording's jitter filtered and bones held to one length, with a report."""
+"""``kinectdata clean``: a recording's sides, gaps, jitter and bone lengths repaired, with a report."""
 
 from __future__ import annotations
 
@@ -13,6 +13,10 @@ from kinectdata.cli.options import reader_options
 @click.command("clean")
 @click.argument("recording", type=click.Path(path_type=str))
 @click.option("-o", "--out", required=True, type=click.Path(dir_okay=False), help="the cleaned recording (any format)")
+@click.option("--sides/--no-sides", default=True, show_default=True,
+              help="find and swap back the stretches where a frontal tracker mirrored left and right")  # fmt: skip
+@click.option("--up", type=click.Choice(["+y", "-y", "+z", "-z", "+x", "-x"]), default="+y", show_default=True,
+              help="the recording's up axis (Kinect v1/v2, BVH: +y; Azure Kinect camera: -y), for --sides")  # fmt: skip
 @click.option("--gaps/--no-gaps", default=True, show_default=True, help="take out inferred jumps, fill short gaps")
 @click.option("--max-gap", type=click.FloatRange(min=0), default=None, help="the longest gap filled, s (0.2)")
 @click.option("--jump", type=click.FloatRange(min=0, min_open=True), default=None,
@@ -35,10 +39,11 @@ from kinectdata.cli.options import reader_options
               help='JSON {"child joint": metres} of a measured body (other bones: the median)')  # fmt: skip
 @click.option("--report", "report_path", type=click.Path(dir_okay=False), default=None, help="write the report as JSON")
 @reader_options(format_flag="--from")
-def clean(recording, out, gaps, max_gap, jump, jitter, min_cutoff, beta, d_cutoff, cutoff, order, window, bones,
-          bone_lengths, report_path, reading) -> None:  # fmt: skip
+def clean(recording, out, sides, up, gaps, max_gap, jump, jitter, min_cutoff, beta, d_cutoff, cutoff, order, window,
+          bones, bone_lengths, report_path, reading) -> None:  # fmt: skip
     """Clean RECORDING (any 3-D recording kinectdata reads) and write it to OUT in the format its
-    extension names: inferred joints that jump away taken out and short gaps filled, the jitter
+    extension names: left and right swapped back where a frontal tracker mirrored a dancer seen from
+    behind, inferred joints that jump away taken out and short gaps filled, the jitter
     filtered per joint (each sample weighted by its confidence), each bone held to the recording's
     median length along its own direction. Prints what each stage
     changed, and the bone-length CV and jerk before and after. The joint set, frame times,
@@ -59,7 +64,10 @@ def clean(recording, out, gaps, max_gap, jump, jitter, min_cutoff, beta, d_cutof
             raise InputError(bone_lengths, f"cannot read it as JSON ({exc})") from None
         if not isinstance(given, dict):
             raise InputError(bone_lengths, 'expected a JSON object {"child joint": metres, ...}')
+    axis = "xyz".index(up[1])
     config = CleanConfig(
+        sides=sides,
+        up=tuple(float(up[0] + "1") if a == axis else 0.0 for a in range(3)),
         gaps=gaps,
         jitter=jitter.replace("-", "_"),
         bones=bones,

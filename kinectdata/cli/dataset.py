@@ -105,6 +105,12 @@ from kinectdata.targets.specs import shipped_target_specs
     "as a turntable), e.g. 0.9,1.1.",
 )
 @click.option(
+    "--clean",
+    is_flag=True,
+    help="Clean every skeleton before it is aligned, with kinectdata clean's default stages (sides, gaps, "
+    "a 6 Hz zero-phase filter, bone lengths); a manifest entry's own 'clean' wins.",
+)
+@click.option(
     "--shard-size",
     default=default_of(BuildConfig, "shard_size_mb"),
     show_default=True,
@@ -194,6 +200,7 @@ def build_dataset_command(
     seed,
     augment_snr,
     augment_tempo,
+    clean,
     shard_size,
     compression,
     fps,
@@ -208,7 +215,7 @@ def build_dataset_command(
     allow_outside_paths,
 ) -> None:
     """Build a training dataset from SOURCE: a recordings manifest (JSON, YAML or CSV with columns
-    recording, audio, split, offset, format, schema, body, person, video_fps, name) or a folder of
+    recording, audio, split, offset, format, schema, body, person, video_fps, name, clean) or a folder of
     aligned .h5 files or of sessions (a skeleton file or OpenPose folder + audio of the same name).
 
     Each motion frame gets an audio input (1x129x5 STFT, or 80 log-mel bands) and a normalised pose
@@ -236,6 +243,7 @@ def build_dataset_command(
         seed=seed,
         augment_snr=augment_snr,
         augment_tempo=augment_tempo,
+        clean={} if clean else None,
         shard_size_mb=shard_size,
         compression=None if compression == "none" else compression,
         max_gap=max_gap,

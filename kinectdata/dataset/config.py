@@ -41,6 +41,9 @@ class BuildConfig:
         shard_size_mb: a new shard starts before one would exceed this (uncompressed MB).
         compression: None, "gzip" or "lzf" for the shard datasets.
         max_gap, min_coverage: alignment options (see :func:`kinectdata.align.recipe.align`).
+        clean: clean every skeleton before it is aligned (``build-dataset --clean``): the settings of
+            :class:`kinectdata.cleaning.CleanConfig` that differ from its defaults (``{}``: the
+            default stages), or None (no cleaning); a recordings manifest entry's own ``clean`` wins.
     """
 
     features: FeatureConfig
@@ -57,8 +60,13 @@ class BuildConfig:
     compression: str | None = None
     max_gap: float = 0.2
     min_coverage: float = 0.9
+    clean: dict[str, Any] | None = None
 
     def __post_init__(self) -> None:
+        if self.clean is not None:
+            from kinectdata.cleaning import CleanConfig
+
+            object.__setattr__(self, "clean", CleanConfig.from_settings(self.clean, "clean").settings())
         if isinstance(self.features, dict):
             try:
                 object.__setattr__(self, "features", feature_config(self.features))
@@ -138,12 +146,16 @@ class BuildConfig:
         d["augment_tempo"] = list(self.augment_tempo)
         if not d["augment_tempo"]:  # the configuration of every dataset built before tempo copies existed
             del d["augment_tempo"]
+        if d["clean"] is None:  # and before cleaning existed
+            del d["clean"]
         return d
 
     def unit_config(self, noisy: bool) -> dict[str, Any]:
         """The part of the configuration a work file depends on (the seed only for noisy copies)."""
         keys = ("features", "target", "fps", "sample_rate", "root_centre", "max_gap", "min_coverage")
-        return {k: self.to_dict()[k] for k in keys + (("seed",) if noisy else ())}
+        keys += ("seed",) if noisy else ()
+        keys += ("clean",) if self.clean is not None else ()
+        return {k: self.to_dict()[k] for k in keys}
 
     def __repr__(self) -> str:
         snr = f", augment_snr={list(self.augment_snr)}" if self.augment_snr else ""

@@ -48,6 +48,7 @@ class RecordingEntry:
     rest_joints: str | None = None
     style: str | None = None
     beats_per_bar: int | None = None
+    clean: bool | dict[str, Any] | None = None
 
     @property
     def aligned(self) -> bool:
@@ -99,6 +100,8 @@ CSV_NUMBERS = (
     ("beats_per_bar", int, "not a whole number"),
     ("offset", float, "neither a number nor auto"),
 )
+CSV_BOOLEANS = {"true": True, "yes": True, "1": True, "false": False, "no": False, "0": False}
+"""The values a CSV manifest's ``clean`` column may take."""
 """The CSV manifest columns read as numbers: (column, conversion, what a value that fails is not)."""
 MANIFEST_KEYS = ("recordings", "root", "corpus", "description")
 """What a JSON or YAML manifest written as an object may hold (its recordings under ``recordings``)."""
@@ -130,6 +133,10 @@ def _read_manifest(path: Path) -> tuple[list[dict[str, Any]], list[int] | None, 
                         doc[key] = convert(doc[key])
                     except ValueError:
                         raise SchemaError(path, f"{key} {doc[key]!r} is {what}", line=line) from None
+            if "clean" in doc:
+                if doc["clean"].lower() not in CSV_BOOLEANS:
+                    raise SchemaError(path, f"clean {doc['clean']!r} is neither true nor false", line=line)
+                doc["clean"] = CSV_BOOLEANS[doc["clean"].lower()]
             docs.append(doc)
             lines.append(line)
         return docs, lines, None
@@ -311,6 +318,7 @@ def _read_recordings(source: Path, allow_outside: bool) -> list[RecordingEntry]:
                 ),
                 style=d.get("style"),
                 beats_per_bar=None if d.get("beats_per_bar") is None else int(d["beats_per_bar"]),
+                clean=d.get("clean"),
             )
         )
     return entries

@@ -33,6 +33,7 @@ from kinectdata.align.recipe import plan_timeline, resample_onto, resolve_offset
 from kinectdata.core.atomic import atomic_hdf5, write_failure
 from kinectdata.core.errors import KinectDataError
 from kinectdata.core.hashing import file_sha256
+from kinectdata.core.motion import Motion
 from kinectdata.dataset.config import BuildConfig
 from kinectdata.dataset.inputs import RecordingEntry
 from kinectdata.features import FeatureConfig, needs_metre
@@ -89,6 +90,26 @@ def unit_key(
     if needs_metre(config.feature_config):  # the features count the song's bars
         doc["beats_per_bar"] = entry.beats_per_bar
     return hashlib.sha256(json.dumps(doc, sort_keys=True, default=str).encode()).hexdigest()[:32]
+
+
+def cleaning_for(entry: RecordingEntry, config: BuildConfig) -> dict[str, Any] | None:
+    """The cleaning settings a recording is built with (its manifest entry's ``clean`` if it says,
+    else the build's ``clean``), None for none."""
+    if entry.clean is None:
+        return config.clean
+    if isinstance(entry.clean, bool):
+        return {} if entry.clean else None
+    return entry.clean
+
+
+def cleaned_for_build(motion: Motion, entry: RecordingEntry, config: BuildConfig) -> Motion:
+    """The recording cleaned as :func:`cleaning_for` says (as it is, when it says none)."""
+    settings = cleaning_for(entry, config)
+    if settings is None:
+        return motion
+    from kinectdata.cleaning import CleanConfig, clean_motion
+
+    return clean_motion(motion, CleanConfig.from_settings(settings, f"{entry.recording}: clean")).motion
 
 
 def _read_unit(path: Path) -> Unit | None:
@@ -231,7 +252,7 @@ def _prepare_variants(
                 f"{entry.recording}: aligned at {rec.fps:g} fps and {rec.sample_rate} Hz, but the dataset is built "
                 f"at {config.fps:g} fps and {sr} Hz; align it again with --fps / --sample-rate"
             )
-        motion, n = rec.motion, rec.n_frames
+        motion, n = cleaned_for_build(rec.motion, entry, config), rec.n_frames
         starts = np.round(np.arange(n) * sr / config.fps).astype(np.int64)
         offset, summary = rec.offset, rec.summary
 
@@ -240,7 +261,7 @@ def _prepare_variants(
 
         mean_square = _mean_square(blocks()) if snrs else 0.0
     else:
-        source = entry.read_motion()
+        source = cleaned_for_build(entry.read_motion(), entry, config)
         reader = AudioReader(entry.audio, sr if tempo is None else round(sr / tempo))
         given = entry.offset
         if tempo is not None:  # the song read at sr / r and taken as sr: r times as fast (the rate rounded)
