@@ -38,8 +38,10 @@ CLEANINGS = {
     "gaps + savgol 0.2 s": {"jitter": "savgol", "window_s": 0.2, "bones": False},
     "gaps + one_euro (causal)": {"jitter": "one_euro", "bones": False},
     "gaps + butterworth + bones (default)": {},
+    "gaps + butterworth + bones from the root only": {"spread": False},
     "gaps alone": {"jitter": "none", "bones": False},
     "bones alone": {"jitter": "none", "gaps": False},
+    "bones from the root alone": {"jitter": "none", "gaps": False, "spread": False},
 }
 
 
@@ -190,9 +192,17 @@ def real_files(paths=REAL_FILES) -> list[tuple[str, list[str]]]:
     return [(path.name, kd.clean_motion(kd.read_motion(path)).report.lines()) for path in paths]
 
 
+def _pfc(motion) -> float:
+    """EDGE's physical foot contact score of one recording (x 10 000), on its SMPL-24 joints at 30 fps."""
+    from kinectdata.evaluation.metrics.foot_contact import physical_foot_contact
+    from kinectdata.evaluation.motion_sets import smpl24_joints
+
+    return physical_foot_contact([smpl24_joints(motion, 30.0).positions], 30.0, up_axis=1)
+
+
 def real(path: Path) -> list[tuple[str, float, float, float, float, float]]:
     """Per tang2018 dance: (name, bone CV before, after, jerk before, after, period change, periods,
-    mirrored stretches found)."""
+    mirrored stretches found, (PFC before, after))."""
     import kinectdata as kd
     from kinectdata.align.timeline import resample_motion
 
@@ -203,9 +213,10 @@ def real(path: Path) -> list[tuple[str, float, float, float, float, float]]:
         motion = resample_motion(motion, grid).motion
         cleaned = kd.clean_motion(motion)
         before, after = _quality(motion), _quality(cleaned.motion)
+        pfc = (_pfc(motion), _pfc(cleaned.motion))
         periods = (_period(motion, 30.0), _period(cleaned.motion, 30.0))
         rows.append((folder.name, before[0], after[0], before[1], after[1], _shift(periods[1], periods[0]),
-                     tuple(p.period_s for p in periods), len(cleaned.report.sides.intervals_s)))  # fmt: skip
+                     tuple(p.period_s for p in periods), len(cleaned.report.sides.intervals_s), pfc))  # fmt: skip
     return rows
 
 
@@ -255,6 +266,9 @@ def main(corpus: Path | None = None) -> None:
         print(f"  tang2018, {len(rows)} dances: bone CV {cv_b:.3f} -> {cv_a:.4f} (goal at most 0.02: "
               f"{'yes' if cv_a <= 0.02 else 'no'}); jerk lower in {jerk_lower} of {len(rows)}; period within 2 % "
               f"in {kept} of {len(rows)}; mirrored stretches found {sum(r[7] for r in rows)}")  # fmt: skip
+        pfc_b, pfc_a = np.mean([r[8][0] for r in rows]), np.mean([r[8][1] for r in rows])
+        print(f"  tang2018 physical foot contact (EDGE's PFC, mean over the dances) {pfc_b:.2f} -> {pfc_a:.2f}; lower "
+              f"in {sum(r[8][1] < r[8][0] for r in rows)} of {len(rows)}")  # fmt: skip
         for r in rows:
             if r[5] > 0.02:
                 before, after = (f"{p:.2f} s" if p is not None else "none" for p in r[6])

@@ -59,6 +59,8 @@ class CleanConfig:
         cutoff_hz, order: the Butterworth low-pass (Hz, order before the backward pass).
         window_s: the Savitzky-Golay window, seconds.
         bones: hold each bone to one length.
+        spread: share each bone's error in length between its two ends before the exact pass from the
+            root out (False: only that pass, every bone keeping its measured direction exactly).
         bone_lengths: ``{child joint: metres}`` for the bones of a measured body (the others the
             recording's own median).
     """
@@ -76,6 +78,7 @@ class CleanConfig:
     order: int = 2
     window_s: float = 0.3
     bones: bool = True
+    spread: bool = True
     bone_lengths: dict[str, float] = field(default_factory=dict)
 
     @classmethod
@@ -249,9 +252,10 @@ def clean_motion(motion: Motion, config: CleanConfig | None = None) -> Cleaned:
         positions = moved
     if config.bones:
         given = lengths_by_name(js.names, config.bone_lengths) if config.bone_lengths else None
-        moved, held = hold_bone_lengths(positions, js.parents, mask, given)
+        moved, held = hold_bone_lengths(positions, js.parents, mask, given, config.spread)
         told = f" ({len(config.bone_lengths)} given)" if config.bone_lengths else ""
-        detail = f"each bone at its median length{told}: its error spread over both ends, then exact from the root out"
+        how = "its error spread over both ends, then exact from the root out" if config.spread else "from the root out"
+        detail = f"each bone at its median length{told}: {how}"
         stages.append(_stage("bones", detail, positions, moved, mask, js.names))
         positions = moved
     cleaned = dataclasses.replace(

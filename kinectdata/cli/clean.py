@@ -35,12 +35,14 @@ from kinectdata.cli.options import reader_options
 @click.option("--order", type=click.IntRange(min=1), default=None, help="Butterworth: its order (2)")
 @click.option("--window", type=click.FloatRange(min=0, min_open=True), default=None, help="Savitzky-Golay: s (0.3)")
 @click.option("--bones/--no-bones", default=True, show_default=True, help="hold each bone to one length")
+@click.option("--spread/--no-spread", default=True, show_default=True,
+              help="share each bone's error by its ends first (--no-spread: each keeps its direction)")  # fmt: skip
 @click.option("--bone-lengths", type=click.Path(dir_okay=False), default=None,
               help='JSON {"child joint": metres} of a measured body (other bones: the median)')  # fmt: skip
 @click.option("--report", "report_path", type=click.Path(dir_okay=False), default=None, help="write the report as JSON")
 @reader_options(format_flag="--from")
 def clean(recording, out, sides, up, gaps, max_gap, jump, jitter, min_cutoff, beta, d_cutoff, cutoff, order, window,
-          bones, bone_lengths, report_path, reading) -> None:  # fmt: skip
+          bones, spread, bone_lengths, report_path, reading) -> None:  # fmt: skip
     """Clean RECORDING (any 3-D recording kinectdata reads) and write it to OUT in the format its
     extension names: left and right swapped back where a frontal tracker mirrored a dancer seen from
     behind, inferred joints that jump away taken out and short gaps filled, the jitter
@@ -71,6 +73,7 @@ def clean(recording, out, sides, up, gaps, max_gap, jump, jitter, min_cutoff, be
         gaps=gaps,
         jitter=jitter.replace("-", "_"),
         bones=bones,
+        spread=spread,
         bone_lengths=given,
         **{k: v for k, v in chosen.items() if v is not None},
     )
