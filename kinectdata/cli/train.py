@@ -70,6 +70,12 @@ _LOOP_OPTIONS = (
         "the real motion's, finer than the multi-resolution spectra tell (a waltz's bar from a cha-cha's); 0: none.",
     ),
     (
+        "low_energy_weight",
+        click.FloatRange(min=0),
+        "Weight of the slow motion's speed in the free-running loss: the motion below about 1.5 Hz against the real "
+        "motion's, per 2 s (large, slow moves: a sway, a step); 0: none.",
+    ),
+    (
         "bone_jitter_weight",
         click.FloatRange(min=0),
         "Weight of the bones' jitter in the free-running loss: how fast each bone's length changes from frame to "

@@ -66,6 +66,7 @@ PAPER_LOOP: dict[str, Any] = {
     "jitter_weight": 0.0,
     "periodogram_weight": 0.0,
     "bone_jitter_weight": 0.0,
+    "low_energy_weight": 0.0,
     "song_starts": False,
     "turning": False,
     "travel": False,

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, replace
 from typing import Any
 
@@ -177,6 +178,51 @@ def masked_energy_loss(prediction, target, mask, chunk: int | None = None, exces
     ratio = (made + floor) / (real + floor) if excess else (real + floor) / (made + floor)
     divergence = 2.0 * (ratio - torch.log(ratio) - 1.0)
     return (divergence * counted).sum() / counted.sum().clamp(min=1.0)
+
+
+LOW_BAND_HZ = 1.5
+"""Where :func:`masked_low_band_energy_loss` cuts: the Gaussian smoother's standard deviation is
+``1 / (2 pi LOW_BAND_HZ)`` seconds (its gain is 0.61 at this frequency, 0.14 at twice it)."""
+
+
+def low_passed(x, mask, fps: float, hz: float = LOW_BAND_HZ):
+    """[B, L', D] windows [B, L, D] smoothed by a Gaussian of standard deviation ``1 / (2 pi hz)``
+    seconds (``fps`` frames a second; cut at three deviations), over the frames whose whole reach
+    is valid (``L' = L - 2r``), and their mask [B, L', D]; None when the windows are shorter than
+    the kernel. Torch tensors; differentiable."""
+    import torch
+    import torch.nn.functional as F
+
+    sigma = fps / (2.0 * math.pi * hz)
+    reach = max(1, math.ceil(3.0 * sigma))
+    B, L, D = x.shape
+    if L <= 2 * reach:
+        return None
+    t = torch.arange(-reach, reach + 1, dtype=x.dtype, device=x.device)
+    kernel = torch.exp(-0.5 * (t / sigma) ** 2)
+    kernel = (kernel / kernel.sum()).view(1, 1, -1)
+    valid = mask.to(x.dtype)
+
+    def conv(v, k):
+        return F.conv1d(v.permute(0, 2, 1).reshape(B * D, 1, L), k).reshape(B, D, -1).permute(0, 2, 1)
+
+    whole = conv(valid, torch.ones_like(kernel)) > 2 * reach + 0.5
+    return conv(x * valid, kernel), whole
+
+
+def masked_low_band_energy_loss(prediction, target, mask, fps: float, chunk: int | None = None):
+    """:func:`masked_energy_loss` of the motions' slow part (:func:`low_passed`, below about
+    :data:`LOW_BAND_HZ`): how far the speed of the large, slow motion (a sway, a step across the
+    floor) is from the target's, per ``chunk`` frames. The cdhc model moved at half the dancers' energy
+    with 1.9-2 x their jerk: faster for its size than they are; a gain on its output below 1.5 Hz
+    brought the energy but made the feet slide (docs/notebook/2026-12-real-dance-variety.md), so the
+    slow motion is asked for in training, where the foot loss sees it. [B, L, D] tensors; a scalar
+    (0 for windows shorter than the smoother)."""
+    made = low_passed(prediction, mask, fps)
+    if made is None:
+        return prediction.sum() * 0.0
+    real, valid = low_passed(target, mask, fps)
+    return masked_energy_loss(made[0], real, valid & made[1], chunk)
 
 
 def masked_jitter_loss(prediction, target, mask, chunk: int | None = None):
@@ -449,6 +495,7 @@ def masked_rhythm_loss(
     jitter_weight: float = 0.0,
     periodogram_weight: float = 0.0,
     bone_jitter_weight: float = 0.0,
+    low_energy_weight: float = 0.0,
 ):
     """The free-running loss of training (``TrainConfig.free_weight``): the spectra of the motion's
     changes (:func:`masked_rhythm_spectrum_loss`: how often and how much at each tempo, whatever the
@@ -457,7 +504,8 @@ def masked_rhythm_loss(
     motion made from the music alone from jittering), its postures' means and spreads
     (:func:`masked_posture_loss`, times ``posture_weight``: ``TrainConfig.posture_weight``), how much
     more it jitters (:func:`masked_jitter_loss`, times ``jitter_weight``: ``TrainConfig.jitter_weight``),
-    where its periods lie (:func:`masked_periodogram_loss`, times ``periodogram_weight``) and,
+    where its periods lie (:func:`masked_periodogram_loss`, times ``periodogram_weight``), the
+    speed of its slow part (:func:`masked_low_band_energy_loss`, times ``low_energy_weight``) and,
     given a :class:`Body`, how much its bones stretch against the target's (times
     :data:`BONE_WEIGHT`), its joints' speeds in the world (:func:`masked_world_speed_loss`, per
     :data:`ENERGY_CHUNK_S`, times :data:`WORLD_SPEED_WEIGHT`), how much faster its bones change
@@ -474,6 +522,8 @@ def masked_rhythm_loss(
         loss = loss + jitter_weight * masked_jitter_loss(prediction, target, mask, chunk)
     if periodogram_weight > 0:
         loss = loss + periodogram_weight * masked_periodogram_loss(prediction, target, mask, fps)
+    if low_energy_weight > 0:
+        loss = loss + low_energy_weight * masked_low_band_energy_loss(prediction, target, mask, fps, chunk)
     if body is not None:
         loss = loss + BONE_WEIGHT * masked_bone_loss(
             prediction, target, mask, body.bones, body.scale, body.offset, body.dims

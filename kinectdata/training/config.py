@@ -46,6 +46,7 @@ ADDED_OFF = {
     "jitter_weight": 0.0,
     "periodogram_weight": 0.0,
     "bone_jitter_weight": 0.0,
+    "low_energy_weight": 0.0,
     "song_starts": False,
     "context": 0,
     "balance": None,
@@ -114,6 +115,9 @@ class TrainConfig:
             (:func:`~kinectdata.models.losses.masked_bone_jitter_loss`: how fast each bone's length
             changes from frame to frame against the real one's, an excess costing in proportion).
             Runs written before it had none.
+        low_energy_weight: weight of the slow motion's speed in the free-running loss
+            (:func:`~kinectdata.models.losses.masked_low_band_energy_loss`: the motion below about
+            1.5 Hz against the real one's, per 2 s). Runs written before it had none.
         song_starts: also train on each song's first frames: windows whose ``context`` runs before
             the recording's first frame, silence there (audio zeros; no pose, masked:
             :class:`~kinectdata.dataset.windows.WindowDataset`'s ``lead``). Without them a model
@@ -189,6 +193,7 @@ class TrainConfig:
     jitter_weight: float
     periodogram_weight: float
     bone_jitter_weight: float
+    low_energy_weight: float
     song_starts: bool
     silence_share: float
     keep: str
@@ -237,6 +242,8 @@ class TrainConfig:
             raise ConfigError(f"jitter_weight must be at least 0, not {self.jitter_weight!r}")
         if not self.periodogram_weight >= 0:
             raise ConfigError(f"periodogram_weight must be at least 0, not {self.periodogram_weight!r}")
+        if not self.low_energy_weight >= 0:
+            raise ConfigError(f"low_energy_weight must be at least 0, not {self.low_energy_weight!r}")
         if not self.bone_jitter_weight >= 0:
             raise ConfigError(f"bone_jitter_weight must be at least 0, not {self.bone_jitter_weight!r}")
         if not isinstance(self.song_starts, bool):

@@ -452,6 +452,7 @@ def validate(
             config.jitter_weight,
             config.periodogram_weight,
             config.bone_jitter_weight,
+            config.low_energy_weight,
         )
     )
     return loss, smape(generated, real, masks), rhythm
@@ -791,6 +792,7 @@ def train(
                         config.jitter_weight,
                         config.periodogram_weight,
                         config.bone_jitter_weight,
+                        config.low_energy_weight,
                     )
                 else:
                     with forward_precision:
