@@ -33,10 +33,10 @@ import numpy as np
 from kinectdata.cleaning.bones import hold_bone_lengths, lengths_by_name
 from kinectdata.cleaning.gaps import GapReport, fill_gaps
 from kinectdata.cleaning.jitter import ONE_EURO_DEFAULTS, one_euro, zero_phase
-from kinectdata.cleaning.sides import SideSwaps, find_side_swaps, unswap_sides
+from kinectdata.cleaning.sides import SideSwaps, find_side_swaps
 from kinectdata.core.body_quality import bone_length_variation, mean_jerk
 from kinectdata.core.errors import ConfigError
-from kinectdata.core.motion import Motion, frame_clock
+from kinectdata.core.motion import Motion, frame_clock, sides_exchanged
 
 JITTER_FILTERS = ("one_euro", "butterworth", "savgol", "none")
 MOVED_M = 1e-4
@@ -282,8 +282,6 @@ def _swap_sides(motion: Motion, up) -> tuple[Motion, SidesReport]:
     except ConfigError as error:  # a joint set with no left and right to swap: nothing to repair
         return motion, SidesReport((), 0, 0, "", str(error))
     frames = found.frames(motion.n_frames)
-    names = ("positions", "position_mask", "confidence", "orientations", "orientation_mask")
-    swapped = unswap_sides({n: getattr(motion, n) for n in names}, frames, motion.joint_set)
     t = motion.times
     report = SidesReport(
         tuple((float(t[a]), float(t[b])) for a, b in found.intervals),
@@ -291,7 +289,7 @@ def _swap_sides(motion: Motion, up) -> tuple[Motion, SidesReport]:
         len(found.flips),
         found.judged_by,
     )
-    return dataclasses.replace(motion, **swapped), report
+    return sides_exchanged(motion, frames), report
 
 
 def _stage(stage: str, detail: str, before: np.ndarray, after: np.ndarray, mask: np.ndarray, names) -> StageReport:

@@ -19,8 +19,8 @@ faces away, and the labels jump from one side to the other as she turns past sid
    they do not tell clearly (the two parities' mean signs less than 0.5 apart), the parity with fewer
    frames is taken as mirrored: a frontal tracker is right while the dancer faces it.
 
-:func:`unswap_sides` swaps every mirrored pair's positions, masks, confidences and orientations back
-in the frames found.
+:func:`kinectdata.core.motion.sides_exchanged` swaps every mirrored pair's positions, masks,
+confidences and orientations back in the frames found.
 """
 
 from __future__ import annotations
@@ -31,7 +31,7 @@ import numpy as np
 
 from kinectdata.core.errors import ConfigError
 from kinectdata.core.jointsets import JointSet
-from kinectdata.core.motion import held_from_nearest
+from kinectdata.core.motion import held_from_nearest, true_runs
 
 FLIP_VOTE = 0.75
 """The share of mirrored pairs whose swapped pairing must be the closer one for a flip."""
@@ -154,25 +154,4 @@ def find_side_swaps(
         if abs(agree[0] - agree[1]) > 0.5:  # the feet say clearly which parity faces its hips round
             odd = agree[1] < agree[0]
             judged_by = "feet"
-    mirrored = parity == (1 if odd else 0)
-    edges = np.diff(np.concatenate([[0], mirrored.astype(np.int8), [0]]))
-    intervals = tuple((int(a), int(b) - 1) for a, b in zip(np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)))
-    return SideSwaps(intervals, tuple(int(f) for f in flips), judged_by)
-
-
-def unswap_sides(arrays: dict[str, np.ndarray | None], frames: np.ndarray, joint_set: JointSet) -> dict:
-    """Each mirrored pair's values swapped back in ``frames`` ([T] bool): ``arrays`` maps names to
-    [T, J, ...] arrays (positions, masks, confidences, orientations; None is passed through);
-    copies are returned."""
-    pairs = mirrored_pairs(joint_set)
-    order = np.arange(len(joint_set))
-    order[pairs[:, 0]], order[pairs[:, 1]] = pairs[:, 1], pairs[:, 0]
-    out = {}
-    for name, values in arrays.items():
-        if values is None:
-            out[name] = None
-            continue
-        swapped = np.array(values, copy=True)
-        swapped[frames] = values[frames][:, order]
-        out[name] = swapped
-    return out
+    return SideSwaps(true_runs(parity == (1 if odd else 0)), tuple(int(f) for f in flips), judged_by)

@@ -191,6 +191,27 @@ class Motion:
         )
 
 
+def true_runs(flags: np.ndarray) -> tuple[tuple[int, int], ...]:
+    """The runs of True in ``flags`` [T] as ``(first, last)`` indices, inclusive, in order."""
+    edges = np.diff(np.concatenate([[0], np.asarray(flags, bool).astype(np.int8), [0]]))
+    return tuple((int(a), int(b) - 1) for a, b in zip(np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)))
+
+
+def sides_exchanged(motion: Motion, frames: np.ndarray) -> Motion:
+    """The motion with each joint's positions, masks, confidences and orientations exchanged with
+    its mirror image's (:meth:`JointSet.mirror_image`: left and right) in ``frames`` [T] bool: what a
+    tracker that mirrored a body writes, and the repair of it (exchanging twice is the identity)."""
+    image = motion.joint_set.mirror_image()
+    exchanged = {}
+    for name in ("positions", "position_mask", "confidence", "orientations", "orientation_mask"):
+        values = getattr(motion, name)
+        if values is not None:
+            values = np.array(values, copy=True)
+            values[frames] = values[frames][:, image]
+            exchanged[name] = values
+    return replace(motion, **exchanged)
+
+
 def held_from_nearest(values: np.ndarray, mask: np.ndarray) -> np.ndarray:
     """``values`` [T, J, ...] with each masked entry taken from the nearest valid frame before it
     (after it, before a joint's first valid frame); a joint never valid is left as it is.

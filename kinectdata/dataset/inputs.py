@@ -100,9 +100,9 @@ CSV_NUMBERS = (
     ("beats_per_bar", int, "not a whole number"),
     ("offset", float, "neither a number nor auto"),
 )
+"""The CSV manifest columns read as numbers: (column, conversion, what a value that fails is not)."""
 CSV_BOOLEANS = {"true": True, "yes": True, "1": True, "false": False, "no": False, "0": False}
 """The values a CSV manifest's ``clean`` column may take."""
-"""The CSV manifest columns read as numbers: (column, conversion, what a value that fails is not)."""
 MANIFEST_KEYS = ("recordings", "root", "corpus", "description")
 """What a JSON or YAML manifest written as an object may hold (its recordings under ``recordings``)."""
 

@@ -21,7 +21,7 @@ import dataclasses
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from kinectdata.core.motion import Motion
+from kinectdata.core.motion import Motion, sides_exchanged, true_runs
 
 
 def _smootherstep(x: np.ndarray) -> np.ndarray:
@@ -87,17 +87,5 @@ def frontal_tracker(motion: Motion, left: str, right: str) -> tuple[Motion, tupl
     along x than it does facing the sensor (+x, Kinect camera space); and those stretches
     ``(first frame, last frame)``, inclusive."""
     js = motion.joint_set
-    across = motion.positions[:, js.index(right), 0] - motion.positions[:, js.index(left), 0]
-    away = across < 0
-    image = js.mirror_image()
-    swapped = {}
-    for name in ("positions", "position_mask", "confidence", "orientations", "orientation_mask"):
-        values = getattr(motion, name)
-        if values is None:
-            continue
-        values = np.array(values, copy=True)
-        values[away] = values[away][:, image]
-        swapped[name] = values
-    edges = np.diff(np.concatenate([[0], away.astype(np.int8), [0]]))
-    intervals = tuple((int(a), int(b) - 1) for a, b in zip(np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)))
-    return dataclasses.replace(motion, **swapped), intervals
+    away = motion.positions[:, js.index(right), 0] < motion.positions[:, js.index(left), 0]
+    return sides_exchanged(motion, away), true_runs(away)
