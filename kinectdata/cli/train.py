@@ -156,6 +156,12 @@ _LOOP_OPTIONS = (
         "model.pt: the last epoch, or the one with the best free-running validation rhythm loss among those whose "
         "validation songs, run whole, move at 0.5-2 x the real energy.",
     ),  # fmt: skip
+    (
+        "keep_energy_weight",
+        click.FloatRange(min=0),
+        "With --keep best, how much an epoch's energy counts beside its rhythm loss: the epoch kept has the lowest "
+        "loss x exp(WEIGHT x |ln energy ratio|); 0: the loss alone.",
+    ),
 )
 """The training loop's options (:data:`kinectdata.training.config.LOOP_DEFAULTS`): every model's."""
 

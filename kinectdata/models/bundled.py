@@ -359,6 +359,7 @@ class CdhcKind(ModelKind):
         "periodogram_weight": 0.0,
         "bone_jitter_weight": 0.0,
         "low_energy_weight": 0.0,
+        "keep_energy_weight": 0.0,
         "song_starts": False,
         "silence_share": 0.0,
         "keep": "last",

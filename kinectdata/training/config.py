@@ -47,6 +47,7 @@ ADDED_OFF = {
     "periodogram_weight": 0.0,
     "bone_jitter_weight": 0.0,
     "low_energy_weight": 0.0,
+    "keep_energy_weight": 0.0,
     "song_starts": False,
     "context": 0,
     "balance": None,
@@ -131,6 +132,12 @@ class TrainConfig:
             free-running validation rhythm loss (``val_rhythm`` in ``log.csv``) is lowest among those
             whose validation songs, run whole, move at 0.5-2 x the real energy (``val_energy``:
             :class:`kinectdata.training.whole_songs.WholeSongs`), or among all while none does.
+        keep_energy_weight: with ``keep`` ``best``, how much an epoch's energy counts beside its
+            rhythm loss: the epoch kept is the one whose rhythm loss times
+            ``exp(keep_energy_weight * |ln val_energy|)`` is lowest (0: the loss alone). The
+            validation loss moves by 5-15 % from epoch to epoch; with 0 the keep rule picks the
+            stillest of the alive epochs whose loss is about the lowest. Runs written before it had
+            none.
         context: frames of real input before each training and validation window that no loss
             counts, so that the window's first outputs see music, not the zero padding of its edge
             (None: the model's own, ``ModelKind.context_frames``: the cdhc model's receptive field
@@ -197,6 +204,7 @@ class TrainConfig:
     song_starts: bool
     silence_share: float
     keep: str
+    keep_energy_weight: float
     context: int | None
     balance: str | None
     weight_average: float
@@ -242,6 +250,8 @@ class TrainConfig:
             raise ConfigError(f"jitter_weight must be at least 0, not {self.jitter_weight!r}")
         if not self.periodogram_weight >= 0:
             raise ConfigError(f"periodogram_weight must be at least 0, not {self.periodogram_weight!r}")
+        if not self.keep_energy_weight >= 0:
+            raise ConfigError(f"keep_energy_weight must be at least 0, not {self.keep_energy_weight!r}")
         if not self.low_energy_weight >= 0:
             raise ConfigError(f"low_energy_weight must be at least 0, not {self.low_energy_weight!r}")
         if not self.bone_jitter_weight >= 0:

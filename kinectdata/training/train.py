@@ -540,10 +540,21 @@ def _alive(row: dict) -> bool:
     return energy is not None and ALIVE_RANGE[0] <= energy <= ALIVE_RANGE[1]
 
 
-def _better(history: list[dict]) -> bool:
-    """Whether the newest epoch is the one to keep so far: its free-running validation rhythm
-    loss is the lowest (the first finite one counts) among the epochs whose validation songs are
-    alive (:func:`_alive`), or among all of them while none is. The rhythm loss alone can prefer a
+def _keep_score(row: dict, energy_weight: float) -> float:
+    """An epoch's score for the keep rule (lower is better): its free-running validation rhythm
+    loss times ``exp(energy_weight * |ln val_energy|)``, the energy's distance from the real
+    motion's in either direction (the loss alone with weight 0 or no energy logged)."""
+    energy = row.get("val_energy")
+    if energy_weight == 0 or energy is None or not energy > 0:
+        return row["val_rhythm"]
+    return row["val_rhythm"] * math.exp(energy_weight * abs(math.log(energy)))
+
+
+def _better(history: list[dict], energy_weight: float = 0.0) -> bool:
+    """Whether the newest epoch is the one to keep so far: its score (:func:`_keep_score`: the
+    free-running validation rhythm loss, the energy counted by ``energy_weight``) is the lowest
+    (the first finite one counts) among the epochs whose validation songs are alive
+    (:func:`_alive`), or among all of them while none is. The rhythm loss alone can prefer a
     nearly still epoch to one that moves at the wrong moments (the cdhc model on tang2018 kept one
     at 0.05 x the real energy: docs/notebook/2026-11-real-dance.md); an epoch that moves always wins over one that
     does not."""
@@ -555,7 +566,8 @@ def _better(history: list[dict]) -> bool:
         rivals = [r for r in rivals if _alive(r)]
     elif any(_alive(r) for r in rivals):
         return False
-    return all(last["val_rhythm"] < r["val_rhythm"] for r in rivals)
+    score = _keep_score(last, energy_weight)
+    return all(score < _keep_score(r, energy_weight) for r in rivals)
 
 
 def _averager(net: torch.nn.Module, decay: float, state: dict[str, Any] | None):
@@ -841,7 +853,7 @@ def train(
                     row.update(epoch_metrics(judged))
                 judged.train()
             history.append(row)
-            if config.keep == "best" and world.main and _better(history):
+            if config.keep == "best" and world.main and _better(history, config.keep_energy_weight):
                 best = {"epoch": epoch, "model": {k: v.detach().clone().cpu() for k, v in judged.state_dict().items()}}
             for said in (loss_warning(history, config.lr), validation_warning(history)) if world.main else ():
                 if said:

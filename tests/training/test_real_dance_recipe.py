@@ -276,6 +276,20 @@ def test_an_epoch_that_moves_is_kept_before_a_still_one_with_a_lower_rhythm_loss
     assert _better(epochs((20.0, None), (19.0, None)))  # runs written before val_energy: the loss alone
 
 
+def test_the_energy_weight_keeps_a_livelier_epoch_of_about_the_lowest_loss():
+    def epochs(*figures):
+        return [{"epoch": i + 1, "val_rhythm": r, "val_energy": e} for i, (r, e) in enumerate(figures)]
+
+    # 22.25 * exp(0.5 * |ln 0.55|) = 30.0 against 22.7 * exp(0.5 * |ln 0.73|) = 26.6
+    assert not _better(epochs((22.25, 0.55), (22.7, 0.73)))
+    assert _better(epochs((22.25, 0.55), (22.7, 0.73)), energy_weight=0.5)
+    assert not _better(epochs((22.25, 0.55), (40.0, 0.73)), energy_weight=0.5)  # far worse loss: not kept
+    # the distance from the real energy counts both ways: 1.6 x is as far as 1 / 1.6 = 0.625 x
+    assert not _better(epochs((20.0, 0.625), (20.0, 1.6)), energy_weight=0.5)
+    assert _better(epochs((20.0, 1.6), (19.9, 0.625)), energy_weight=0.5)
+    assert not _better(epochs((20.0, 0.9), (19.0, 0.05)), energy_weight=0.5)  # the alive rule still first
+
+
 @pytest.fixture(scope="module")
 def pulse_mel_dataset(tmp_path_factory):
     """The sample sessions with log-mel and pulse inputs and maxabs-normalised 3-D positions: what
