@@ -50,18 +50,24 @@ def spread_to_lengths(positions: np.ndarray, parents: Sequence[int], mask: np.nd
     """[T, J, D] the joints moved towards bones of ``lengths`` [J] (metres; NaN: a bone left as it is),
     each bone's error in length shared equally by its two valid ends, for ``rounds`` rounds over the
     bones in parents-first order. ``positions`` [T, J, D] metres, ``mask`` [T, J]."""
-    x = np.where(mask[..., None], np.asarray(positions, np.float64), 0.0)
+    # joint-major [J, D, T]: each bone's step reads and writes two contiguous blocks, in place
+    x = np.ascontiguousarray(np.where(mask[..., None], np.asarray(positions, np.float64), 0.0).transpose(1, 2, 0))
     bones = [j for j in parents_first(parents) if parents[j] >= 0 and np.isfinite(lengths[j])]
-    both = {j: (mask[:, j] & mask[:, parents[j]])[:, None] for j in bones}
+    share = {j: 0.5 * (mask[:, j] & mask[:, parents[j]]) for j in bones}
+    bone, size, half = np.empty(x.shape[1:]), np.empty(x.shape[2]), np.empty(x.shape[2])
     for _ in range(rounds):
         for j in bones:
             parent = parents[j]
-            bone = x[:, j] - x[:, parent]
-            size = np.linalg.norm(bone, axis=-1, keepdims=True)
-            half = np.where(both[j] & (size > 0), 0.5 * (size - lengths[j]) / np.where(size > 0, size, 1.0), 0.0)
-            x[:, j] -= half * bone
-            x[:, parent] += half * bone
-    return np.where(mask[..., None], x, np.nan)
+            np.subtract(x[j], x[parent], out=bone)
+            np.sqrt(np.einsum("dt,dt->t", bone, bone), out=size)
+            np.subtract(size, lengths[j], out=half)
+            np.divide(half, size, out=half, where=size > 0)
+            half[size <= 0] = 0.0
+            half *= share[j]
+            bone *= half
+            x[j] -= bone
+            x[parent] += bone
+    return np.where(mask[..., None], x.transpose(2, 0, 1), np.nan)
 
 
 def hold_bone_lengths(
@@ -90,17 +96,18 @@ def hold_bone_lengths(
     held = own if lengths is None else np.where(np.isfinite(lengths), lengths, own)
     if spread:
         p = spread_to_lengths(p, parents, mask, held)
+    p = np.ascontiguousarray(p.transpose(1, 2, 0))  # joint-major [J, D, T], as in the spread pass
     out = p.copy()
     for j in parents_first(parents):
         parent = parents[j]
         if parent < 0 or not np.isfinite(held[j]):
             continue
-        bone = p[:, j] - p[:, parent]
-        size = np.linalg.norm(bone, axis=-1, keepdims=True)
-        both = mask[:, j] & mask[:, parent] & (size[:, 0] > 0)
-        direction = np.divide(bone, size, out=np.zeros_like(bone), where=size > 0)
-        out[both, j] = out[both, parent] + held[j] * direction[both]
-    return out, held
+        bone = p[j] - p[parent]
+        size = np.sqrt(np.einsum("dt,dt->t", bone, bone))
+        both = mask[:, j] & mask[:, parent] & (size > 0)
+        step = np.divide(held[j] * bone, size, out=np.zeros_like(bone), where=both)
+        out[j] = np.where(both, out[parent] + step, out[j])
+    return out.transpose(2, 0, 1).copy(), held
 
 
 def lengths_by_name(names: Sequence[str], given: Mapping[str, float]) -> np.ndarray:

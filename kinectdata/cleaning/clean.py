@@ -247,7 +247,8 @@ def clean_motion(motion: Motion, config: CleanConfig | None = None) -> Cleaned:
             detail = (f"butterworth: {config.cutoff_hz:g} Hz, order {config.order}, forwards and backwards"
                       if config.jitter == "butterworth" else f"savgol: cubic over {config.window_s:g} s")  # fmt: skip
             moved = zero_phase(positions, fps, mask, motion.confidence, method=config.jitter,
-                               cutoff_hz=config.cutoff_hz, order=config.order, window_s=config.window_s)  # fmt: skip
+                               cutoff_hz=config.cutoff_hz, order=config.order, window_s=config.window_s,
+                               times=motion.times)  # fmt: skip
         stages.append(_stage("jitter", detail, positions, moved, mask, js.names))
         positions = moved
     if config.bones:
