@@ -16,7 +16,8 @@ module on first use, so the import itself stays cheap (no torch, h5py or pandas)
   :class:`WindowDataset`;
 - models, training, evaluation, generation: :func:`register_model`, :class:`TrainConfig`,
   :func:`train`, :func:`evaluate`, :func:`generate`, :func:`export_run`, :func:`load_model`;
-  dancing live: :class:`LiveDancer`, :func:`run_live` (sources and sinks in ``kinectdata.live``);
+  dancing live: :class:`LiveDancer`, :func:`run_live` (sources and sinks in ``kinectdata.live``),
+  :func:`humanoid_mapping` (a joint set as Unity humanoid bones for VMC);
 - errors: :class:`KinectDataError`, :class:`InputError`, :class:`ConfigError`,
   :class:`KinectDataWarning`.
 """
@@ -72,6 +73,7 @@ _API = {
     "StartPose": ("kinectdata.inference.start", "StartPose"),
     "LiveDancer": ("kinectdata.live.session", "LiveDancer"),
     "run_live": ("kinectdata.live.session", "run_live"),
+    "humanoid_mapping": ("kinectdata.live.humanoid", "humanoid_mapping"),
     # the field's metrics of two sets of dance (numpy only)
     "load_dance_set": ("kinectdata.evaluation.motion_sets", "load_dance_set"),
     "motion_as_dance": ("kinectdata.evaluation.motion_sets", "motion_as_dance"),

@@ -3,10 +3,11 @@ the EVMC4U receiver in Unity...).
 
 The protocol speaks of a Unity humanoid: bones by their ``HumanBodyBones`` names, each with a
 position and a rotation local to its parent bone, in Unity's axes (left-handed: x to the avatar's
-right, y up, z forward). A run's joints become those bones by a mapping file, data not code
-(``schemas/vmc/<joint set>.json``, shipped for ``kinect_v2``, or ``--vmc-map FILE`` for another):
-each bone starts at a joint and points at another (its aim), with its direction in the avatar's
-T-pose (rest); the two hip joints give the avatar's facing.
+right, y up, z forward). A run's joints become those bones by a mapping, data not code: ``--vmc-map FILE``, else the
+file shipped for the joint set (``schemas/vmc/<joint set>.json``, for ``kinect_v2``), else one
+derived from the set's tree, roles and names (:mod:`kinectdata.live.humanoid`). Each bone starts at
+a joint and points at another (its aim), with its direction in the avatar's T-pose (rest); the two
+hip joints give the avatar's facing.
 
 Rotations are solved from positions (:class:`VmcRig`): kinectdata's right-handed axes become
 Unity's by mirroring x; the avatar's facing turns about y so that its hips lie along the dancer's;
@@ -30,6 +31,7 @@ import numpy as np
 from kinectdata.core.errors import KinectDataError, SchemaError
 from kinectdata.core.jointsets import JointSet
 from kinectdata.core.resources import load_json, schemas_dir, validate
+from kinectdata.live.humanoid import humanoid_mapping
 from kinectdata.live.sinks import LivePose, UdpSink
 
 HUMAN_BODY_BONES = (
@@ -75,14 +77,14 @@ class VmcRig:
                 "3-D joints"
             )
         path = Path(mapping) if mapping is not None else schemas_dir() / "vmc" / f"{joint_set.name}.json"
-        if not path.is_file():
-            raise SchemaError(
-                None if mapping is None else path,
-                f"no VMC mapping for joint set {joint_set.name!r} (shipped: kinect_v2): give one with --vmc-map FILE "
-                "(docs/live.md)",
-            )
-        doc = load_json(path)
+        if mapping is None and not path.is_file():
+            doc, path = humanoid_mapping(joint_set), None  # derived from the set's tree, roles and names
+        else:
+            if not path.is_file():
+                raise SchemaError(path, "no such VMC mapping file")
+            doc = load_json(path)
         validate(doc, "vmc-mapping.schema.json", path)
+        self.mapping = doc
         if doc["joint_set"] != joint_set.name:
             raise SchemaError(
                 path, f"joint_set: the mapping is for {doc['joint_set']!r}, the run's joints are {joint_set.name!r}"

@@ -245,7 +245,7 @@ def test_vmc_bones_turn_their_rest_directions_onto_the_dancers_bones():
         assert len(bones) == len(rig.bones)
 
 
-def test_vmc_frames_reach_a_receiver_and_a_joint_set_without_a_mapping_is_one_line(trained_run, tmp_path):
+def test_vmc_frames_reach_a_receiver_and_a_set_without_a_humanoid_is_one_line(trained_run, tmp_path):
     run, _ = trained_run
     receiver = Receiver()
     result = CliRunner().invoke(
@@ -268,8 +268,11 @@ def test_vmc_frames_reach_a_receiver_and_a_joint_set_without_a_mapping_is_one_li
     from kinectdata.core.jointsets import load_joint_set
     from kinectdata.live.vmc import VmcSink
 
-    with pytest.raises(SchemaError, match="no VMC mapping for joint set 'nite' .* --vmc-map FILE"):
-        VmcSink("127.0.0.1:39539", load_joint_set("nite"))
+    assert VmcSink("127.0.0.1:39539", load_joint_set("nite")).rig.bones[0].name == "Hips"  # derived
+    with pytest.raises(KinectDataError, match="openpose_mpi is 2-D"):
+        VmcSink("127.0.0.1:39539", load_joint_set("openpose_mpi"))
+    with pytest.raises(SchemaError, match="nowhere.json: no such VMC mapping file"):
+        VmcSink("127.0.0.1:39539", load_joint_set("kinect_v2"), tmp_path / "nowhere.json")
     bad = tmp_path / "map.json"
     bad.write_text(json.dumps({"joint_set": "kinect_v2", "left_hip": "HipLeft", "right_hip": "HipRight",
                                "bones": [{"bone": "Pelvis", "parent": None, "joint": "SpineBase", "aim": "SpineMid",
