@@ -3,13 +3,17 @@
 
 What is drawn, one panel of ``size`` pixels per motion, side by side:
 
-- 3-D joint sets (metres): a fixed orthographic camera for the whole clip, raised
-  :data:`VIEW_ELEVATION_DEG` and turned :data:`VIEW_AZIMUTH_DEG` from straight ahead, looking the
-  way the sensor looks (Kinect camera space: along +z, with x to the sensor's left and y up). A
-  dancer facing the sensor is seen from the front as the sensor saw them, not mirrored: their right
-  hand on the viewer's left. The up axis is y, or ``metadata["gravity_axis"]`` when a format gives
-  it (HTR). Limits come from the whole motion's valid joints, with one scale on the three axes; the
-  floor is a grid at the lowest valid joint height of the whole motion.
+- 3-D joint sets (metres): an orthographic camera raised :data:`VIEW_ELEVATION_DEG` and turned
+  :data:`VIEW_AZIMUTH_DEG` from straight ahead, looking the way the sensor looks (Kinect camera
+  space: along +z, with x to the sensor's left and y up). A dancer facing the sensor is seen from
+  the front as the sensor saw them, not mirrored: their right hand on the viewer's left. The up axis
+  is y, or ``metadata["gravity_axis"]`` when a format gives it (HTR). The camera frames the body,
+  not the floor it crosses: its window is as wide as the body's largest reach from its centre in
+  any frame (:func:`body_window`), one scale on the three axes, and follows the body's centre
+  across the floor, smoothed over :data:`FOLLOW_S` (it stays put for a dancer who keeps within the
+  window). The floor is a grid at the lowest valid joint height of the whole motion, fixed to the
+  floor, so that it slides by as the dancer travels. Motions compared side by side share one
+  window and one grid: a body is drawn the same size in every panel.
 - 2-D joint sets (pixels, or 0..1 for generated motion): image axes with y down, one scale on both
   axes, limits from the whole motion's valid joints.
 - Bones from the joint set's parents (the person's right side red, left side blue, from the joint
@@ -49,6 +53,8 @@ VIEW_ELEVATION_DEG = 20.0
 """Degrees the 3-D camera is raised above the horizontal."""
 VIEW_AZIMUTH_DEG = -65.0
 """matplotlib azimuth of the 3-D camera, degrees: -90 looks straight along the sensor's axis."""
+FOLLOW_S = 1.0
+"""Seconds over which the 3-D camera's centre is smoothed as it follows a travelling dancer."""
 VIDEO_CODEC = "libx264"
 AUDIO_CODEC = "aac"
 ALIGNED_SUFFIXES = (".h5", ".hdf5")
@@ -244,43 +250,91 @@ class _Panel:
         raise NotImplementedError
 
 
-class _Panel3D(_Panel):
-    """A fixed orthographic camera over a floor grid (see the module docstring)."""
+def body_window(motion: Motion) -> tuple[float, float]:
+    """(half width, height) in metres of the window a 3-D camera needs to frame ``motion``'s body in
+    every frame: the largest horizontal distance of a valid joint from its frame's centre (the mean
+    of the frame's valid joints), and the highest valid joint above the whole motion's floor."""
+    points = view_coordinates(motion.positions, up_axis(motion))
+    mask = motion.position_mask
+    centre = _centres(points, mask)
+    reach = np.where(mask, np.linalg.norm(points[..., :2] - centre[:, None, :], axis=-1), 0.0)
+    floor = float(points[..., 2][mask].min())
+    return float(reach.max()) or 0.5, float(points[..., 2][mask].max() - floor) or 1.0
 
-    def __init__(self, figure, x0: float, width: float, motion: Motion, label: str) -> None:
+
+def _centres(points: np.ndarray, mask: np.ndarray) -> np.ndarray:
+    """[T, 2] the horizontal mean of each frame's valid joints (the last seen where none is)."""
+    count = mask.sum(axis=1, keepdims=True)
+    centre = np.where(mask[..., None], points[..., :2], 0.0).sum(axis=1) / np.maximum(count, 1)
+    seen = count[:, 0] > 0
+    last = np.maximum.accumulate(np.where(seen, np.arange(len(seen)), 0))
+    first = int(np.argmax(seen))
+    return centre[np.where(seen[last], last, first)]
+
+
+class _Panel3D(_Panel):
+    """An orthographic camera that follows the body over a floor grid (see the module docstring);
+    ``window``: the (half width, height) in metres it frames, shared by compared motions."""
+
+    def __init__(self, figure, x0: float, width: float, motion: Motion, label: str,
+                 window: tuple[float, float] | None = None) -> None:  # fmt: skip
         from matplotlib.ticker import MaxNLocator
         from mpl_toolkits.mplot3d.art3d import Line3DCollection
 
+        from kinectdata.core.motion import frame_clock
+
         super().__init__(figure, x0, width, motion, label)
         self.points = view_coordinates(motion.positions, up_axis(motion))  # [T, J, 3]
-        valid = self.points[motion.position_mask]
-        lo, hi = _limits(valid)
-        half = np.max(hi[:2] - lo[:2]) / 2  # a square floor, as deep as it is wide
-        lo[:2], hi[:2] = (lo[:2] + hi[:2]) / 2 - half, (lo[:2] + hi[:2]) / 2 + half
-        floor = float(valid[:, 2].min())
-        lo[2] = floor
-        ax = figure.add_axes((x0, 0.07, width, 0.86), projection="3d")
+        mask = motion.position_mask
+        half, height = window or body_window(motion)
+        self.half = half * 1.1  # a margin round the widest reach
+        self.floor = float(self.points[..., 2][mask].min())
+        self.top = self.floor + max(height * 1.05, 2 * self.half * 0.2)
+        centre = _centres(self.points, mask)
+        travel = centre.max(axis=0) - centre.min(axis=0)
+        if np.all(travel <= 0.5 * self.half):  # keeps within the window: a camera that stays put
+            self.centres = np.broadcast_to((centre.max(axis=0) + centre.min(axis=0)) / 2, centre.shape)
+        else:
+            from scipy.ndimage import uniform_filter1d
+
+            frames = max(1, int(round(FOLLOW_S / frame_clock(motion.times)[0]))) if motion.n_frames > 1 else 1
+            self.centres = uniform_filter1d(centre, frames, axis=0, mode="nearest")
+        self.step = float(np.diff(MaxNLocator(nbins=6).tick_values(0, 2 * self.half))[0])
+        self.ax = ax = figure.add_axes((x0, 0.07, width, 0.86), projection="3d")
         ax.set_proj_type("ortho")
         ax.view_init(elev=VIEW_ELEVATION_DEG, azim=VIEW_AZIMUTH_DEG)
         ax.set_axis_off()
         ax.computed_zorder = False  # dots over bones over floor, whatever their depth
-        step = float(np.diff(MaxNLocator(nbins=6).tick_values(0, 2 * half))[0])
-        across = np.arange(np.ceil(lo[0] / step), np.floor(hi[0] / step) + 1) * step
-        along = np.arange(np.ceil(lo[1] / step), np.floor(hi[1] / step) + 1) * step
-        grid = [[(x, lo[1], floor), (x, hi[1], floor)] for x in across]
-        grid += [[(lo[0], y, floor), (hi[0], y, floor)] for y in along]
-        ax.add_collection3d(Line3DCollection(grid, colors="0.82", linewidths=0.8, zorder=1))
+        lo, hi = self._window(0)
+        self.grid = Line3DCollection([[lo, hi]], colors="0.82", linewidths=0.8, zorder=1)
+        ax.add_collection3d(self.grid)
         self.lines = Line3DCollection([[lo, hi]], linewidths=2.5 * self.scale, zorder=2)
         ax.add_collection3d(self.lines)
         (self.dots,) = ax.plot(*np.stack([lo, hi], axis=1), "o", color="k", markersize=4 * self.scale, zorder=3)
-        ax.set_xlim(lo[0], hi[0])
-        ax.set_ylim(lo[1], hi[1])
-        ax.set_zlim(lo[2], hi[2])
         ax.set_box_aspect(hi - lo, zoom=1.25)
-        self.text_line(1, f"floor grid {step:g} m")
+        self._place(0)
+        self.text_line(1, f"floor grid {self.step:g} m")
+
+    def _window(self, k: int) -> tuple[np.ndarray, np.ndarray]:
+        c = self.centres[k]
+        return (np.array([c[0] - self.half, c[1] - self.half, self.floor]),
+                np.array([c[0] + self.half, c[1] + self.half, self.top]))  # fmt: skip
+
+    def _place(self, k: int) -> None:
+        """The camera's window and the floor grid's lines (fixed to the floor) for frame ``k``."""
+        lo, hi = self._window(k)
+        across = np.arange(np.ceil(lo[0] / self.step), np.floor(hi[0] / self.step) + 1) * self.step
+        along = np.arange(np.ceil(lo[1] / self.step), np.floor(hi[1] / self.step) + 1) * self.step
+        grid = [[(x, lo[1], self.floor), (x, hi[1], self.floor)] for x in across]
+        grid += [[(lo[0], y, self.floor), (hi[0], y, self.floor)] for y in along]
+        self.grid.set_segments(grid)
+        self.ax.set_xlim(lo[0], hi[0])
+        self.ax.set_ylim(lo[1], hi[1])
+        self.ax.set_zlim(lo[2], hi[2])
 
     def _draw(self, k: int, valid: np.ndarray, bone_valid: np.ndarray) -> None:
         p = self.points[k]
+        self._place(k)
         self.lines.set_segments(p[self.bones[bone_valid]])
         self.lines.set_color(self.bone_colours[bone_valid])
         self.lines.set_visible(bool(bone_valid.any()))
@@ -324,8 +378,9 @@ class _Panel2D(_Panel):
 class SkeletonRenderer:
     """Motions side by side on one reused Agg figure, a panel of ``size`` (width, height) pixels each.
 
-    Axis limits, camera and floor are fixed from each whole motion when the renderer is made;
-    :meth:`render` then only moves the bones and dots.
+    Each panel's window, floor and the camera's path are worked out from the whole motion when the
+    renderer is made (one window for all the 3-D motions); :meth:`render` then moves the camera,
+    the bones and the dots.
     """
 
     def __init__(
@@ -340,8 +395,12 @@ class SkeletonRenderer:
         self.figure = Figure(figsize=(self.size[0] / _DPI, height / _DPI), dpi=_DPI, facecolor="white")
         FigureCanvasAgg(self.figure)
         share = 1.0 / len(motions)
+        windows = [body_window(m) for m in motions if m.joint_set.dimensions == 3]
+        window = tuple(np.max(windows, axis=0)) if windows else None  # one scale for every 3-D panel
         self.panels = [
-            (_Panel3D if m.joint_set.dimensions == 3 else _Panel2D)(self.figure, i * share, share, m, label)
+            _Panel3D(self.figure, i * share, share, m, label, window)
+            if m.joint_set.dimensions == 3
+            else _Panel2D(self.figure, i * share, share, m, label)
             for i, (m, label) in enumerate(zip(motions, labels))
         ]
 

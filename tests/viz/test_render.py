@@ -200,6 +200,29 @@ def test_2d_image_axes_y_down_equal_scale():
     assert across / 400 == pytest.approx(down / 300, rel=0.04)
 
 
+def test_a_travelling_dancer_is_drawn_as_large_as_one_who_stays_and_kept_in_view():
+    # the same standing body twice: once where it stands, once crossing 5 m of floor in 2 s
+    js = load_joint_set("kinect_v2")
+    base = np.array([STANDING[n] for n in js.names])
+    T = 21
+    still = Motion(np.arange(T) / 10.0, np.repeat(base[None], T, axis=0), js)
+    path = np.zeros((T, 1, 3))
+    path[:, 0, 0] = np.linspace(0.0, 5.0, T)
+    travelling = Motion(np.arange(T) / 10.0, base[None] + path, js)
+    size = (240, 240)
+    r = render.SkeletonRenderer([still, travelling], size=size)
+    heights = []
+    for t in (0.0, 1.0, 2.0):
+        frame = r.render(t)
+        for panel in (frame[:, : size[0]], frame[:, size[0] :]):
+            dots = np.array(_dots(panel))
+            assert len(dots) >= 15  # the whole body in view (joints close together may merge)
+            assert dots[:, 1].min() > 0.1 * size[0] and dots[:, 1].max() < 0.9 * size[0]
+            heights.append(dots[:, 0].max() - dots[:, 0].min())
+    # head to feet as many pixels in both panels at every moment: one scale, and a camera that follows
+    assert max(heights) - min(heights) <= 2 and min(heights) > 0.4 * size[1]
+
+
 def test_compare_frame_is_twice_as_wide():
     js = load_joint_set("openpose_mpi")
     m = _one_joint_frames(js, {n: (i * 10.0, i * 20.0) for i, n in enumerate(js.names)}, [])
