@@ -186,21 +186,25 @@ def _on_the_frame_grid(run, values: np.ndarray, weight: np.ndarray, times: np.nd
     interval, numbers = frame_clock(times)
     frame = np.round(numbers).astype(np.int64)
     start = (times - frame * interval).mean()
-    offset = times - start - frame * interval  # [T] s off the grid
+    offset = (times - start - frame * interval)[:, None]  # [T, 1] s off the grid
     dropped, fill, fill_weight = _dropped_frames(frame, times, values, weight, start, interval)
     J, D, T = values.shape
-    grid_values = np.zeros((J, D, frame[-1] + 1))
-    grid_weight = np.zeros((J, frame[-1] + 1))
-    grid_weight[:, frame], grid_weight[:, dropped] = weight, fill_weight
-    grid_values[..., dropped] = fill
-    total = _nonzero(run(grid_weight))[:, None, :]
-    velocity = np.zeros_like(grid_values)
+    K = frame[-1] + 1
+    # time-first [K, J * D] on the grid: a frame's samples are one row to gather or scatter
+    samples, sample_weight = values.reshape(J * D, T).T, np.repeat(weight, D, axis=0).T  # [T, J * D]
+    grid_weight = np.zeros((K, J))
+    grid_weight[frame], grid_weight[dropped] = weight.T, fill_weight.T
+    grid_values = np.zeros((K, J * D))
+    grid_values[dropped] = fill.reshape(J * D, -1).T
+    total = np.repeat(_nonzero(run(grid_weight.T)), D, axis=0).T  # [K, J * D]
+    velocity = np.zeros((T, J * D))
     for _ in range(2):
-        grid_values[..., frame] = values - weight[:, None, :] * velocity[..., frame] * offset
-        grid = run(grid_values.reshape(J * D, -1)).reshape(grid_values.shape) / total
-        if grid.shape[-1] > 1:
-            velocity = np.nan_to_num(np.gradient(grid, interval, axis=-1))
-    return grid[..., frame] + velocity[..., frame] * offset
+        grid_values[frame] = samples - sample_weight * velocity * offset
+        grid = run(grid_values.T).T / total
+        if K > 1:
+            velocity = np.nan_to_num(np.gradient(grid, interval, axis=0)[frame])
+    out = grid[frame] + velocity * offset  # [T, J * D]
+    return out.T.reshape(J, D, T)
 
 
 def _dropped_frames(frame: np.ndarray, times: np.ndarray, values: np.ndarray, weight: np.ndarray, start: float,
