@@ -33,7 +33,14 @@ from kinectdata.core.errors import KinectDataError
     "--vmc-map",
     default=None,
     type=click.Path(dir_okay=False, path_type=str),
-    help="The run's joints as Unity humanoid bones (docs/live.md); default: the one shipped for its joint set.",
+    help="The run's joints as Unity humanoid bones (docs/live.md); default: the one shipped for its joint set, "
+    "else one derived from its names.",
+)
+@click.option(
+    "--view",
+    default=None,
+    metavar="[HOST:]PORT",
+    help="Serve a live view of the dance on this local address (open it in a browser; port 0: any free one).",
 )
 @click.option(
     "--record",
@@ -71,6 +78,7 @@ def live(
     osc,
     vmc,
     vmc_map,
+    view,
     record,
     duration,
     stats,
@@ -86,7 +94,8 @@ def live(
     motion frame as the audio arrives, and send each pose at once to OSC receivers (--osc), avatar
     tools (--vmc) and into a recording (--record). Runs until the file ends, --duration, or Ctrl-C;
     then prints the latency from a frame's audio to its pose, the processing time, late and dropped
-    frames and overruns."""
+    frames and overruns. --view serves a page that draws the dance as it is made, with the music's
+    beat and each frame's latency."""
     _torch_or_fail()
     import torch
 
@@ -108,6 +117,12 @@ def live(
         from kinectdata.live.vmc import VmcSink
 
         sinks += [VmcSink(address, dancer.joint_set, vmc_map) for address in vmc]
+    if view is not None:
+        from kinectdata.live.view import ViewSink
+
+        viewer = ViewSink(view, dancer.joint_set, dancer.fps, _file_beats(source, dancer.sample_rate))
+        sinks.append(viewer)
+        click.echo(f"live view: open {viewer.url} in a browser")
     recorder = None
     if record is not None:
         recorder = RecordSink(Path(record), dancer.joint_set, dancer.fps, dancer.sample_rate, source.name)
@@ -137,6 +152,18 @@ def live(
         click.echo(f"wrote {stats}")
     if figures.fault is not None:
         raise KinectDataError(figures.fault)
+
+
+def _file_beats(source, sample_rate: int):
+    """The beat times (s) of a file played live, for the view; None for a device."""
+    whole = getattr(source, "reader", None)
+    if whole is None:
+        return None
+    import numpy as np
+
+    from kinectdata.features.beats import music_beats
+
+    return music_beats(np.concatenate([np.zeros(0, np.float32), *whole.blocks()]), sample_rate)[0]
 
 
 COMMANDS = [live]

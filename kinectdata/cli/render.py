@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import click
+import numpy as np
 
 from kinectdata.cli.options import reader_options
 from kinectdata.cli.progress import progress_bar
@@ -28,10 +29,17 @@ class SizeType(click.ParamType):
 @click.option(
     "-o",
     "--out",
-    required=True,
+    default=None,
     type=click.Path(dir_okay=False, path_type=str),
     help="Animation to write: .mp4 (H.264 with the music as AAC; needs imageio-ffmpeg, pip install "
     "'kinectdata[video]') or .gif (no sound). Written atomically: nothing appears if anything fails.",
+)
+@click.option(
+    "--view",
+    default=None,
+    metavar="[HOST:]PORT",
+    help="Instead of writing a file, play MOTION at its own pace in a live view served on this local address "
+    "(open it in a browser; port 0: any free one), with the music's beat when it has music.",
 )
 @click.option(
     "--audio",
@@ -89,12 +97,20 @@ class SizeType(click.ParamType):
     help="With --over: draw over the take's depth frames or its colour frames.",
 )
 @reader_options
-def render(motion, out, audio, compare, start, end, fps, size, over, over_track, reading) -> None:
+def render(motion, out, view, audio, compare, start, end, fps, size, over, over_track, reading) -> None:
     """Draw MOTION as a skeleton animation: any readable recording, an aligned .h5 or generated motion
     (CSV, OpenPose JSON Lines). 3-D skeletons (metres) are seen by a fixed raised camera looking the way
     the sensor looks, over a floor grid; 2-D ones (pixels) on image axes, y down. --format applies to
     MOTION, the other reader options to MOTION and OTHER where their format takes them."""
 
+    if (out is None) == (view is None):
+        raise click.UsageError("give -o OUT (an animation file) or --view PORT (a live view in the browser)")
+    if view is not None:
+        for given, name in ((compare, "--compare"), (over, "--over"), (fps, "--fps")):
+            if given is not None:
+                raise click.UsageError(f"{name} does not go with --view: the view plays one motion at its own pace")
+        _render_view(motion, view, audio, start, end, reading)
+        return
     if over is not None:
         _render_over(motion, over, over_track, out, audio, compare, start, end, fps, reading)
         return
@@ -113,6 +129,31 @@ def render(motion, out, audio, compare, start, end, fps, size, over, over_track,
     )
     for source in result["ended"]:
         click.echo(f"{source} ends before the clip: shown frozen on its last frame after that")
+
+
+def _render_view(motion, view, audio, start, end, reading) -> None:
+    from kinectdata.align.audio import load_audio
+    from kinectdata.features.beats import music_beats
+    from kinectdata.live.view import ViewSink, play_motion
+    from kinectdata.viz.render import load_input
+
+    shown = load_input(motion, with_audio=audio is None, **reading)
+    samples, rate = shown.audio, shown.sample_rate
+    if audio is not None:
+        heard = load_audio(audio)
+        samples, rate = heard.samples, heard.sample_rate
+    beats = None if samples is None else music_beats(samples, rate)[0]
+    frames = shown.motion.times
+    fps = 1.0 / float(np.median(np.diff(frames))) if len(frames) > 1 else 30.0
+    sink = ViewSink(view, shown.motion.joint_set, fps, beats)
+    click.echo(f"live view: open {sink.url} in a browser; playing {shown.label} (Ctrl-C stops)")
+    try:
+        played = play_motion(shown.motion, sink, start=start, end=end)
+    except KeyboardInterrupt:
+        played = "stopped (Ctrl-C)"
+    finally:
+        sink.close()
+    click.echo(f"{played}; {sink.summary()}")
 
 
 def _render_over(motion, over, over_track, out, audio, compare, start, end, fps, reading) -> None:

@@ -152,6 +152,23 @@ _SIDE_WORD = re.compile("|".join(_SIDE_WORDS))
 _SIDE_LETTER = re.compile(r"^([LR])(?=[A-Z])")
 
 
+def joint_words(name: str) -> list[str]:
+    """A joint name's words, lower case: ``mixamorig:LeftForeArm`` -> mixamorig, left, fore, arm;
+    ``LHip`` -> l, hip; ``HIP_LEFT`` -> hip, left; ``RElbow`` -> r, elbow."""
+    return [w.lower() for w in re.findall(r"[A-Z]+(?=[A-Z][a-z])|[A-Z]?[a-z]+|[A-Z]+|\d+", name)]
+
+
+def joint_side(name: str) -> str:
+    """``"left"``, ``"right"`` or ``"centre"`` from a joint name: a left/right word (``HandRight``,
+    ``RIGHT_HAND``, ``left_hip``), or an L/R before the first word (``RElbow``, ``lShldr``; not a
+    vertebra's ``L5``)."""
+    words = joint_words(name)
+    for side in ("left", "right"):
+        if side in words or (len(words) > 1 and words[0] == side[0] and words[1].isalpha()):
+            return side
+    return "centre"
+
+
 def _other_side(name: str) -> str | None:
     """The name with its side's word swapped (see :meth:`JointSet.mirror_image`), or None when
     it names no side."""

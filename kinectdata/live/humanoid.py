@@ -30,7 +30,7 @@ import re
 from collections.abc import Sequence
 
 from kinectdata.core.errors import KinectDataError
-from kinectdata.core.jointsets import JointSet
+from kinectdata.core.jointsets import JointSet, joint_side, joint_words
 
 SPINE_BONES = ("Spine", "Chest", "UpperChest")
 UP, DOWN, FORWARD = [0, 1, 0], [0, -1, 0], [0, 0, 1]
@@ -51,26 +51,15 @@ class MappingError(KinectDataError):
     """A joint set in which no humanoid can be found (its one line says what is missing)."""
 
 
-def words(name: str) -> list[str]:
-    """A joint name's words, lower case: ``mixamorig:LeftForeArm`` -> mixamorig, left, fore, arm;
-    ``LHip`` -> l, hip; ``HIP_LEFT`` -> hip, left."""
-    return [w.lower() for w in re.findall(r"[A-Z]+(?=[A-Z][a-z])|[A-Z]?[a-z]+|[A-Z]+|\d+", name)]
-
-
 def side_of(name: str) -> str | None:
-    """``Left``, ``Right`` or None: a ``left``/``right`` word, or an ``L``/``R`` word that starts the
-    name (``LHip``, ``rThigh``)."""
-    w = words(name)
-    if "left" in w or (w and w[0] == "l"):
-        return "Left"
-    if "right" in w or (w and w[0] == "r"):
-        return "Right"
-    return None
+    """``Left``, ``Right`` or None (Unity's spelling of :func:`~kinectdata.core.jointsets.joint_side`)."""
+    side = joint_side(name)
+    return None if side == "centre" else side.capitalize()
 
 
 def _part(name: str) -> str:
     """The name's words without its side, run together: ``LeftUpLeg`` -> upleg."""
-    return "".join(w for w in words(name) if w not in ("left", "right", "l", "r") and not w.isdigit())
+    return "".join(w for w in joint_words(name) if w not in ("left", "right", "l", "r") and not w.isdigit())
 
 
 def humanoid_mapping(joint_set: JointSet) -> dict:

@@ -247,6 +247,7 @@ def run_live(
     ends = starts + dancer.features.span[1]
     heard = _HeardClock(sr)
     got = [0.0]
+    watching = [sink for sink in sinks if hasattr(sink, "heard_latency")]  # the live view shows it
 
     def step(k0: int, features: np.ndarray, padded: np.ndarray) -> None:
         for i in range(features.shape[0]):
@@ -256,6 +257,8 @@ def run_live(
                 sink.send(pose)
             sent = clock.now()
             stats.latency_ms.append(1000.0 * (sent - heard.at(min(int(ends[k]), heard.samples))))
+            for sink in watching:
+                sink.heard_latency(stats.latency_ms[-1])
             stats.processing_ms.append(1000.0 * (sent - got[0]))
             stats.sent_s.append(sent)
 

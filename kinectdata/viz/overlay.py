@@ -126,11 +126,11 @@ def draw_overlays(motion: Motion, take, plan: Overlay) -> Iterator[np.ndarray]:
     """Each planned frame (depth, or colour) with its body drawn: uint8 RGB [H, W, 3]."""
     from PIL import Image, ImageDraw
 
-    from .render import body_side
+    from kinectdata.core.jointsets import joint_side
 
     names = motion.joint_set.names
     bones = motion.joint_set.bones()  # (parent, child)
-    colours = [_SIDE_COLOURS[body_side(names[child])] for _, child in bones]
+    colours = [_SIDE_COLOURS[joint_side(names[child])] for _, child in bones]
     track = take.track(plan.track)
     for k, index in enumerate(plan.frames.tolist()):
         raw = take.frame(track, index)

@@ -28,7 +28,6 @@ last frame, captioned "ended", until the longer one ends.
 
 from __future__ import annotations
 
-import re
 import subprocess
 import tempfile
 from collections.abc import Callable, Iterable, Iterator, Sequence
@@ -41,6 +40,7 @@ import numpy as np
 
 from kinectdata.core.atomic import atomic_output
 from kinectdata.core.errors import KinectDataError
+from kinectdata.core.jointsets import joint_side
 from kinectdata.core.motion import Motion
 
 DEFAULT_SIZE = (640, 480)
@@ -154,15 +154,6 @@ def view_coordinates(positions: np.ndarray, up: int = 1) -> np.ndarray:
     return np.stack([-positions[..., across], positions[..., depth], positions[..., up]], axis=-1)
 
 
-def body_side(name: str) -> str:
-    """``"right"``, ``"left"`` or ``"centre"`` from a joint name: ``HandRight``, ``RIGHT_HAND``,
-    ``ELBOW_RIGHT`` and OpenPose's ``RElbow`` are right."""
-    for side in ("right", "left"):
-        if side in name.lower() or re.match(rf"{side[0].upper()}[A-Z][a-z]", name):
-            return side
-    return "centre"
-
-
 def motion_span(motion: Motion) -> float:
     """Seconds a motion lasts: from its first frame to one median frame interval after its last
     (1 / :data:`MAX_DEFAULT_FPS` for a single frame)."""
@@ -219,7 +210,7 @@ class _Panel:
         self.span = motion_span(motion)
         self.bones = np.array(motion.joint_set.bones(), dtype=np.intp).reshape(-1, 2)
         names = motion.joint_set.names
-        self.bone_colours = to_rgba_array([_COLOURS[body_side(names[c])] for _, c in self.bones]).reshape(-1, 4)
+        self.bone_colours = to_rgba_array([_COLOURS[joint_side(names[c])] for _, c in self.bones]).reshape(-1, 4)
         self.figure, self.x0, self.width = figure, x0, width
         self.scale = max(0.6, min(1.0, width * figure.bbox.width / 640, figure.bbox.height / 480))  # small panels
         self.font = 8.0 * self.scale  # points

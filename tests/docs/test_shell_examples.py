@@ -72,6 +72,7 @@ SHRINK = {
     ],
     "kinectdata render": ["--fps", "5", "--size", "160x120"],
     "kinectdata render take_body.json --over": [],  # the take's 60 depth frames at their own rate and size
+    "kinectdata render s1.h5 --view": [],  # played at its own pace: no frame rate or size to shrink
     "kinectdata synth ltd": ["--duration", "10"],
 }
 """Options appended to commands that start so (the last value of an option wins), to keep the

@@ -5,6 +5,7 @@ recording read back; the poses against ``generate``'s and the latency against it
 from __future__ import annotations
 
 import json
+import re
 import socket
 import threading
 
@@ -250,9 +251,11 @@ def test_vmc_frames_reach_a_receiver_and_a_set_without_a_humanoid_is_one_line(tr
     receiver = Receiver()
     result = CliRunner().invoke(
         main, ["live", "--run", str(run), "--input", str(SONG), "--vmc", f"127.0.0.1:{receiver.port}",
-               "--duration", "1", "--engine", "torch"],
+               "--duration", "1", "--engine", "torch", "--view", "127.0.0.1:0"],
     )  # fmt: skip
     assert result.exit_code == 0, result.output
+    assert re.search(r"live view: open http://127\.0\.0\.1:\d+/ in a browser", result.output)
+    assert re.search(r"view http://127\.0\.0\.1:\d+/: 29 frames sent", result.output)
     bundles = receiver.frames()
     assert len(bundles) == 29
     messages = list(bundles[3])

@@ -16,7 +16,7 @@ from scipy import ndimage
 from kinectdata.align.aligned import AlignedRecording
 from kinectdata.cli import main
 from kinectdata.core.errors import KinectDataError
-from kinectdata.core.jointsets import load_joint_set
+from kinectdata.core.jointsets import joint_side, load_joint_set
 from kinectdata.core.motion import Motion
 from kinectdata.formats.csv_writer import write_csv
 from kinectdata.viz import render
@@ -129,10 +129,13 @@ def test_kinect_axes_seen_from_the_sensor():
         ("NECK", "centre"),
         ("LOWER_BACK", "centre"),
         ("Head", "centre"),
+        ("lShldr", "left"),
+        ("L5", "centre"),
+        ("mixamorig:RightForeArm", "right"),
     ],
 )
-def test_body_side(name, side):
-    assert render.body_side(name) == side
+def test_joint_side(name, side):
+    assert joint_side(name) == side
 
 
 def test_frame_times_and_nearest_frames():
