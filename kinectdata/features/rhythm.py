@@ -213,8 +213,12 @@ class RhythmConfig:
         """True when the output depends on the song's beats per bar (``bar_levels``)."""
         return bool(self.bar_levels)
 
-    def new_state(self) -> PulseCount | None:
-        """A fresh count for a stream of calls (:class:`PulseCount`), or None without counted levels."""
+    def new_state(self, live: bool = False) -> PulseCount | None:
+        """A fresh count for a stream of calls (:class:`PulseCount`), or None without counted levels;
+        ``live``: a stream of a frame or two per call, which keeps the onset spectra it computed
+        (:class:`OnsetSpectra`: the same output, a fraction of the work)."""
+        if live:
+            return PulseCount(spectra=OnsetSpectra())
         return PulseCount() if self.counted_levels else None
 
     def beat_multiples(self, beats_per_bar: int) -> tuple[int, ...]:
@@ -307,18 +311,37 @@ def _windowed_sums(onsets: np.ndarray, config: RhythmConfig) -> np.ndarray:
     return out
 
 
-def onset_envelope(samples: np.ndarray, config: RhythmConfig) -> np.ndarray:
+def onset_envelope(
+    samples: np.ndarray,
+    config: RhythmConfig,
+    spectra: OnsetSpectra | None = None,
+    at: int = 0,
+    real: tuple[int, int] | None = None,
+) -> np.ndarray:
     """o [H] >= 0: the detrended, rectified log-mel flux at hops ``n * hop_samples`` (n = 0..H-1) of
     ``samples`` [S] (value n from the window ending at sample ``n * hop_samples``; zeros before the
-    first sample), H = S // hop_samples + 1."""
-    x = np.asarray(samples, np.float64)
+    first sample), H = S // hop_samples + 1. ``spectra``: the spectra a stream of calls computed,
+    reused and added to, ``samples[0]`` being the stream's sample ``at``, its samples ``real[0]`` to
+    ``real[1]`` the stream's own audio (the rest zeros put in; before the stream's first sample,
+    its own silence)."""
+    x = np.asarray(samples, np.float32)
     hops = x.size // config.hop_samples + 1
-    padded = np.concatenate([np.zeros(config.frame_samples), x])
+    padded = np.concatenate([np.zeros(config.frame_samples, np.float32), x])
     ends = np.arange(hops) * config.hop_samples + config.frame_samples  # window [end - frame, end) of padded
     frames = np.lib.stride_tricks.sliding_window_view(padded, config.frame_samples)[ends - config.frame_samples]
     window = np.hanning(config.frame_samples + 1)[:-1]
-    power = np.abs(np.fft.rfft(frames * window, axis=1)) ** 2
-    db = 10 * np.log10(np.maximum(power @ _mel_bank(config).T, 1e-10))
+
+    def log_mel(windows: np.ndarray) -> np.ndarray:
+        power = np.abs(np.fft.rfft(windows.astype(np.float64) * window, axis=1)) ** 2
+        return 10 * np.log10(np.maximum(power @ _mel_bank(config).T, 1e-10))
+
+    if spectra is None:
+        db = log_mel(frames)
+    else:
+        lo, hi = real if real is not None else (at, at + x.size)
+        end = at + ends - config.frame_samples  # where each window ends in the stream
+        reusable = ((end - config.frame_samples >= lo) & (end <= hi)) | (end <= 0)
+        db = spectra.spectra(frames, end, reusable, config.hop_samples, log_mel)
     flux = np.zeros(hops)
     flux[1:] = np.maximum(np.diff(db, axis=0), 0.0).sum(axis=1)
     k = config._detrend_hops
@@ -329,7 +352,12 @@ def onset_envelope(samples: np.ndarray, config: RhythmConfig) -> np.ndarray:
 
 
 def _pulse_values(
-    x: np.ndarray, starts: np.ndarray, phase: int, config: RhythmConfig, beats_per_bar: int
+    x: np.ndarray,
+    starts: np.ndarray,
+    phase: int,
+    config: RhythmConfig,
+    beats_per_bar: int,
+    spectra: OnsetSpectra | None = None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The values [F, c, V] of frames ``starts`` whose last instants lie at ``phase`` modulo the hop,
     with every tempo's salience and phase [F, c, K] (for the counted levels)."""
@@ -341,7 +369,11 @@ def _pulse_values(
     piece = np.zeros(last - first, np.float32)
     if hi > lo:
         piece[lo - first : hi - first] = x[lo:hi]
-    sums = _windowed_sums(onset_envelope(piece, config), config)  # hop j at sample first + j * hop
+    origin = 0 if spectra is None else spectra.origin
+    # the stream's own audio in the piece: the buffer's samples, and its silence before its first sample
+    real = (origin + lo if origin + lo > 0 else -(1 << 62), origin + hi)
+    envelope = onset_envelope(piece, config, spectra, origin + first, real)
+    sums = _windowed_sums(envelope, config)  # hop j at sample first + j * hop
     at = (starts[:, None] + config.instants[None, :] - first) // hop  # [F, c]: the hop at or before each instant
     pulse, total = sums[at, :-1], sums[at, -1].real  # [F, c, tempi], [F, c]
     salience = np.where(total[..., None] > 0, np.abs(pulse) / np.maximum(total[..., None], 1e-30), 0.0)
@@ -414,10 +446,68 @@ class PulseCount:
     Attributes:
         angles: [n_tempi] every tempo's phase at the last frame, radians (None before the first frame).
         phase: the beat's phase summed since the first frame, radians.
+        spectra: the onset spectra already computed (:class:`OnsetSpectra`), for a stream of calls a
+            frame or two apart (live), whose pieces of audio overlap by seconds; None: none kept.
     """
 
     angles: np.ndarray | None = None
     phase: float = 0.0
+    spectra: OnsetSpectra | None = None
+
+
+class OnsetSpectra:
+    """The log-mel spectra of onset windows a stream of calls has computed, by where each window ends
+    in the stream (``origin``: the stream's sample index of the ``samples`` passed in, which
+    :class:`~kinectdata.features.streaming.StreamingFeatures` sets before each call). Only windows
+    that lie wholly in the stream's audio are kept and reused, so the output is what it would be
+    without them. A pulse frame reads seconds of onsets; one frame later all but a few are the same.
+    Kept per hop grid (each phase of the hop), the ``keep`` most recent hops of each."""
+
+    def __init__(self, keep: int = 1 << 14):
+        self.origin = 0
+        self.keep = keep
+        self.grids: dict[int, tuple[int, np.ndarray, np.ndarray]] = {}  # phase: (first hop, rows, known)
+
+    def spectra(self, frames: np.ndarray, ends: np.ndarray, reusable: np.ndarray, hop: int, compute) -> np.ndarray:
+        """[H, n_mels] the spectra of ``frames`` [H, frame], whose windows end at stream samples
+        ``ends`` [H] (``hop`` apart); ``reusable`` [H]: the windows wholly in the stream's audio;
+        ``compute`` ([M, frame] -> [M, n_mels]) called once for the others and those not kept yet."""
+        if ends.size == 0:
+            return compute(frames)
+        phase, number = int(ends[0] % hop), ends // hop
+        first, rows, known = self._grid(phase, int(number[0]), int(number[-1]))
+        at = number - first
+        old = known[at] & reusable
+        out = np.empty((ends.size, rows.shape[1] if rows.size else 0))
+        fresh = np.flatnonzero(~old)
+        if fresh.size:
+            computed = compute(frames[fresh])
+            if out.shape[1] != computed.shape[1]:
+                out = np.empty((ends.size, computed.shape[1]))
+                first, rows, known = self._grid(phase, int(number[0]), int(number[-1]), computed.shape[1])
+            out[fresh] = computed
+            keep = reusable[fresh]
+            rows[at[fresh[keep]]], known[at[fresh[keep]]] = computed[keep], True
+        out[old] = rows[at[old]]
+        return out
+
+    def _grid(self, phase: int, lo: int, hi: int, width: int | None = None) -> tuple[int, np.ndarray, np.ndarray]:
+        """The phase's grid, moved on to cover hops ``lo``..``hi`` (the ones before ``hi - keep`` let go)."""
+        first, rows, known = self.grids.get(phase, (lo, np.zeros((0, width or 0)), np.zeros(0, bool)))
+        width = rows.shape[1] if width is None else width
+        start = max(min(first, lo), hi - self.keep + 1) if known.size else lo
+        end = max(first + known.size, hi + 1)
+        if start != first or end != first + known.size or rows.shape[1] != width:
+            new_rows, new_known = np.zeros((end - start, width)), np.zeros(end - start, bool)
+            a, b = max(first, start), min(first + known.size, end)
+            if b > a and rows.shape[1] == width:
+                new_rows[a - start : b - start], new_known[a - start : b - start] = (
+                    rows[a - first : b - first],
+                    known[a - first : b - first],
+                )
+            first, rows, known = start, new_rows, new_known
+            self.grids[phase] = (first, rows, known)
+        return first, rows, known
 
 
 def _counted_levels(
@@ -459,7 +549,7 @@ def rhythm_features(
         chunk_frames: frames computed at once (bounds the memory).
         beats_per_bar: the song's metre, for ``config.bar_levels`` (None: :data:`DEFAULT_BEATS_PER_BAR`).
         state: with ``config.counted_levels``, the count so far of a stream of calls (advanced here;
-            None: counted from this call's first frame).
+            None: counted from this call's first frame); its ``spectra``, when kept, are reused.
 
     Returns:
         ``(features float32 [N, *config.output_shape], padded bool [N])``; padded where a frame's own
@@ -489,7 +579,9 @@ def rhythm_features(
         angle = np.empty_like(salience)
         for p in np.unique(phase):
             rows = np.flatnonzero(phase == p)
-            values[rows], salience[rows], angle[rows] = _pulse_values(x, block[rows], int(p), config, metre)
+            values[rows], salience[rows], angle[rows] = _pulse_values(
+                x, block[rows], int(p), config, metre, None if state is None else state.spectra
+            )
         if config.counted_levels:  # above the beat (the beat keeps its own phase)
             above = np.asarray(config.beat_multiples(metre)) > 1
             levels = values[:, 0, -2 * above.size :].reshape(block.size, above.size, 2)

@@ -61,12 +61,12 @@ class StackConfig:
     def span(self) -> tuple[int, int]:
         return min(p.span[0] for p in self.parts), max(p.span[1] for p in self.parts)
 
-    def new_state(self) -> tuple[Any, ...] | None:
+    def new_state(self, live: bool = False) -> tuple[Any, ...] | None:
         """Each part's fresh stream state (``kinectdata.features.feature_state``), or None when no
         part has one."""
         from kinectdata.features import feature_state
 
-        states = tuple(feature_state(p) for p in self.parts)
+        states = tuple(feature_state(p, live) for p in self.parts)
         return None if all(s is None for s in states) else states
 
     def to_dict(self) -> dict[str, Any]:

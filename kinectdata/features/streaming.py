@@ -21,7 +21,8 @@ class StreamingFeatures:
     ``starts`` [N] are absolute sample indices of the frames' slices; a frame is computed as soon
     as the samples it reads (``config.span`` around its start) have arrived, the rest at
     :meth:`finish` (zero-padded and flagged past the end). ``beats_per_bar``: the song's metre, for
-    features that count its bars (:func:`~kinectdata.features.needs_metre`).
+    features that count its bars (:func:`~kinectdata.features.needs_metre`). ``live``: blocks of a
+    frame or so, which keep what one call computed for the next (:func:`~kinectdata.features.feature_state`).
     """
 
     def __init__(
@@ -30,6 +31,7 @@ class StreamingFeatures:
         config: FeatureConfig,
         sink: Callable[[int, np.ndarray, np.ndarray], None],
         beats_per_bar: int | None = None,
+        live: bool = False,
     ):
         self.starts, self.config, self.sink = starts, config, sink
         self.beats_per_bar = beats_per_bar
@@ -38,7 +40,7 @@ class StreamingFeatures:
         self.k = 0
         self.buffer = np.zeros(0, np.float32)
         self.buffer_start = 0
-        self.state = feature_state(config)  # what frames that depend on earlier frames carry on
+        self.state = feature_state(config, live)  # what frames that depend on earlier frames carry on
 
     def push(self, block: np.ndarray) -> None:
         self.buffer = np.concatenate([self.buffer, block])
@@ -55,6 +57,7 @@ class StreamingFeatures:
             self._emit(self.starts.size)
 
     def _emit(self, upto: int) -> None:
+        _set_origin(self.state, self.buffer_start)
         feats, padded = compute_features(
             self.buffer,
             self.starts[self.k : upto] - self.buffer_start,
@@ -64,3 +67,13 @@ class StreamingFeatures:
         )
         self.sink(self.k, feats, padded)
         self.k = upto
+
+
+def _set_origin(state, origin: int) -> None:
+    """Tell the pulse's kept onset spectra (:class:`~kinectdata.features.rhythm.OnsetSpectra`) in a
+    stream state where the buffer passed next starts in the stream."""
+    if isinstance(state, tuple):
+        for part in state:
+            _set_origin(part, origin)
+    elif getattr(state, "spectra", None) is not None:
+        state.spectra.origin = origin

@@ -262,7 +262,7 @@ def run_live(
             stats.processing_ms.append(1000.0 * (sent - got[0]))
             stats.sent_s.append(sent)
 
-    featurizer = StreamingFeatures(starts, dancer.features, step, beats_per_bar=bar if counts_bars else None)
+    featurizer = StreamingFeatures(starts, dancer.features, step, beats_per_bar=bar if counts_bars else None, live=True)
     limit = int(round(planned * sr))  # samples to hear
     exhausted = False
     try:

@@ -464,6 +464,47 @@ def test_streaming_equals_the_whole_audio(preset, block):
     np.testing.assert_array_equal(padded, expected_padded)
 
 
+@pytest.mark.parametrize("preset", ["listen_to_dance_rhythm_counted", "listen_to_dance_rhythm_bars"])
+def test_a_live_stream_reuses_its_onset_spectra_and_gives_the_same_features(preset):
+    """Blocks of 5 ms, as a live session pushes them: the stream that keeps its onset spectra
+    (``live``) gives exactly the features of one that computes them afresh for every frame, and
+    computes a small part of them."""
+    from kinectdata.features import rhythm
+
+    config = PRESETS[preset]
+    audio = random_clicks(5.0, seed=3)
+    starts = frame_starts(audio.size)
+    computed = []
+    original = rhythm.onset_envelope
+
+    def counting(samples, config, spectra=None, at=0, real=None):
+        if spectra is not None:
+            kept = lambda: sum(int(known.sum()) for _, _, known in spectra.grids.values())  # noqa: E731
+            before = kept()
+            out = original(samples, config, spectra, at, real)
+            computed.append(kept() - before)
+            return out
+        return original(samples, config, spectra, at, real)
+
+    results = []
+    for live in (False, True):
+        got = np.full((starts.size, *config.output_shape), np.nan, np.float32)
+
+        def sink(k0, feats, pad, got=got):
+            got[k0 : k0 + len(feats)] = feats
+
+        stream = StreamingFeatures(starts, config, sink, beats_per_bar=3, live=live)
+        with pytest.MonkeyPatch.context() as patch:
+            patch.setattr(rhythm, "onset_envelope", counting)
+            for i in range(0, audio.size, 80):
+                stream.push(audio[i : i + 80])
+            stream.finish()
+        results.append(got)
+    np.testing.assert_array_equal(results[1], results[0])
+    hops = PRESETS[preset].parts[-1].history // 80 if hasattr(PRESETS[preset], "parts") else config.history // 80
+    assert len(computed) >= starts.size - 1 and np.median(computed) < 0.05 * hops  # a few new hops a frame
+
+
 # ---------------------------------------------------------------- configurations
 
 
