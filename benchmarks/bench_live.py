@@ -9,7 +9,9 @@ minus the moment the last sample of its audio was heard. Goals: median within 10
 percentile within 25 ms, no frame dropped, and the poses those ``kinectdata generate`` makes from
 the same audio with the same engine (the recording written by ``--record`` against them).
 
-``python -m benchmarks.bench_live [--minutes 10]``
+``python -m benchmarks.bench_live [--minutes 10] [--run RUN ...] [--music SONG]``: ``--run`` adds a
+trained run (the real-dance runs of ``bench_learning --corpus tang2018``) measured the same way,
+``--music`` a song to loop instead of the sample songs (a corpus song: real music).
 """
 
 from __future__ import annotations
@@ -79,17 +81,59 @@ class StampingReceiver:
         return self.arrivals
 
 
-def _song(folder: Path, seconds: float) -> Path:
-    """The sample songs end to end, looped to ``seconds``, as a 16 kHz WAV."""
-    parts = [load_audio(p, 16000).samples for p in sorted(SAMPLES.glob("synth_*.flac"))]
-    one = np.concatenate(parts)
+def _song(folder: Path, seconds: float, music: Path | None = None) -> Path:
+    """``music`` (default: the sample songs end to end), looped to ``seconds``, as a 16 kHz WAV."""
+    sources = [music] if music is not None else sorted(SAMPLES.glob("synth_*.flac"))
+    one = np.concatenate([load_audio(p, 16000).samples for p in sources])
     song = np.tile(one, int(np.ceil(seconds * 16000 / one.size)))[: int(seconds * 16000)]
     path = folder / "song.wav"
     soundfile.write(path, song.astype(np.float32), 16000, subtype="FLOAT")
     return path
 
 
-def main(minutes: float = 10.0) -> None:
+def measure(run: Path, song: Path, minutes: float, work: Path, name: str) -> dict:
+    """Dance ``run`` live to ``song`` into a stamping receiver and a recording; the figures and verdicts."""
+    dancer = LiveDancer(run)
+    clock = MonotonicClock()
+    source = FileSource(song, dancer.sample_rate, round(dancer.sample_rate * 0.005), clock)
+    receiver = StampingReceiver()
+    osc = OscSink(f"127.0.0.1:{receiver.port}", dancer.joint_set)
+    recorder = RecordSink(work / f"{name}.h5", dancer.joint_set, dancer.fps, dancer.sample_rate, source.name)
+    print(f"  [{name}] dancing live to {minutes:g} min of music ({dancer.engine}, 5 ms blocks)...", flush=True)
+    stats = run_live(dancer, source, [osc, recorder], clock, record=recorder)
+    arrivals = dict(receiver.stop())
+    osc.close()
+    heard = np.asarray(stats.sent_s) - np.asarray(stats.latency_ms) / 1000
+    arrived = np.array([arrivals.get(k, np.nan) for k in range(stats.frames)])
+    latency = (arrived - heard) * 1000
+    got = np.isfinite(latency)
+    median, p99 = np.percentile(latency[got], 50), np.percentile(latency[got], 99)
+    dropped = stats.expected_frames - int(got.sum())
+    recorder.write("bench_live")
+    danced = AlignedRecording.load(work / f"{name}.h5").motion.positions
+    engine, precision = dancer.engine.split()
+    expected, _ = generate(run, song, engine=engine, precision=precision)
+    same = danced.shape == expected.positions.shape
+    same = same and np.allclose(danced, expected.positions, atol=1e-6, equal_nan=True)
+    s = stats.summary()
+    goal_median, goal_p99 = LATENCY_GOAL_MS
+    print(f"  [{name}] {stats.frames} frames over {stats.heard_s / 60:.1f} min; processing per frame median "
+          f"{s['processing_median_ms']:.2f} ms, 99th percentile {s['processing_p99_ms']:.2f} ms")  # fmt: skip
+    print(f"  [{name}] latency, audio heard -> pose arrived at the receiver: median {median:.1f} ms (goal "
+          f"{goal_median:g}: {'yes' if median <= goal_median else 'no'}), 99th percentile {p99:.1f} ms (goal "
+          f"{goal_p99:g}: {'yes' if p99 <= goal_p99 else 'no'})")  # fmt: skip
+    print(f"  [{name}] frames dropped: {dropped} (goal 0: {'yes' if dropped == 0 else 'no'}); late: "
+          f"{s['frames_late']}; input overruns: {s['input_overruns']}")  # fmt: skip
+    print(f"  [{name}] poses identical to kinectdata generate on the same audio ({dancer.engine}): "
+          f"{'yes' if same else 'no'}")  # fmt: skip
+    record("live", f"{name}: latency to the receiver, median / p99", f"{median:.1f} / {p99:.1f} ms")
+    record("live", f"{name}: frames dropped over {minutes:g} min", str(dropped))
+    return {"median_ms": median, "p99_ms": p99, "dropped": dropped, "same": same}
+
+
+def main(minutes: float = 10.0, runs: tuple[Path, ...] = (), music: Path | None = None) -> None:
+    """The small model trained here for a moment, then each of ``runs`` (the real-dance runs of
+    ``bench_learning --corpus tang2018``), on ``music`` looped (default: the sample songs)."""
     import torch
 
     torch.set_num_threads(1)
@@ -100,47 +144,17 @@ def main(minutes: float = 10.0) -> None:
             warnings.simplefilter("ignore")
             build_dataset(SAMPLES, tmp / "ds", config)
             train(tmp / "ds", tmp / "run", TrainConfig(epochs=1, sequence=60, stride=300))
-        song = _song(tmp, minutes * 60)
-        dancer = LiveDancer(tmp / "run")
-        clock = MonotonicClock()
-        source = FileSource(song, dancer.sample_rate, round(dancer.sample_rate * 0.005), clock)
-        receiver = StampingReceiver()
-        osc = OscSink(f"127.0.0.1:{receiver.port}", dancer.joint_set)
-        recorder = RecordSink(tmp / "live.h5", dancer.joint_set, dancer.fps, dancer.sample_rate, source.name)
-        print(f"  dancing live to {minutes:g} min of music ({dancer.engine}, 5 ms blocks)...", flush=True)
-        stats = run_live(dancer, source, [osc, recorder], clock, record=recorder)
-        arrivals = dict(receiver.stop())
-        osc.close()
-        heard = np.asarray(stats.sent_s) - np.asarray(stats.latency_ms) / 1000
-        arrived = np.array([arrivals.get(k, np.nan) for k in range(stats.frames)])
-        latency = (arrived - heard) * 1000
-        got = np.isfinite(latency)
-        median, p99 = np.percentile(latency[got], 50), np.percentile(latency[got], 99)
-        dropped = stats.expected_frames - int(got.sum())
-        recorder.write("bench_live")
-        danced = AlignedRecording.load(tmp / "live.h5").motion.positions
-        engine, precision = dancer.engine.split()
-        expected, _ = generate(tmp / "run", song, engine=engine, precision=precision)
-        same = danced.shape == expected.positions.shape and np.allclose(
-            danced, expected.positions, atol=1e-6, equal_nan=True
-        )
-        s = stats.summary()
-        goal_median, goal_p99 = LATENCY_GOAL_MS
-        print(f"  {stats.frames} frames over {stats.heard_s / 60:.1f} min; processing per frame median "
-              f"{s['processing_median_ms']:.2f} ms, 99th percentile {s['processing_p99_ms']:.2f} ms")  # fmt: skip
-        print(f"  latency, audio heard -> pose arrived at the receiver: median {median:.1f} ms (goal {goal_median:g}: "
-              f"{'yes' if median <= goal_median else 'no'}), 99th percentile {p99:.1f} ms (goal {goal_p99:g}: "
-              f"{'yes' if p99 <= goal_p99 else 'no'})")  # fmt: skip
-        print(f"  frames dropped: {dropped} (goal 0: {'yes' if dropped == 0 else 'no'}); late: {s['frames_late']}; "
-              f"input overruns: {s['input_overruns']}")  # fmt: skip
-        print(
-            f"  poses identical to kinectdata generate on the same audio ({dancer.engine}): {'yes' if same else 'no'}"
-        )
-        record("live", "latency to the receiver, median / p99", f"{median:.1f} / {p99:.1f} ms")
-        record("live", f"frames dropped over {minutes:g} min", str(dropped))
+        song = _song(tmp, minutes * 60, music)
+        measure(tmp / "run", song, minutes, tmp, "small yalta")
+        for run in runs:
+            measure(Path(run), song, minutes, tmp, Path(run).name)
 
 
 if __name__ == "__main__":
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--minutes", type=float, default=10.0)
-    main(parser.parse_args().minutes)
+    parser.add_argument("--run", action="append", default=[], type=Path,
+                        help="a trained run to measure too (repeatable): the real-dance runs")  # fmt: skip
+    parser.add_argument("--music", type=Path, default=None, help="the song to loop (default: the sample songs)")
+    args = parser.parse_args()
+    main(args.minutes, tuple(args.run), args.music)
