@@ -219,11 +219,13 @@ def _dropped_frames(frame: np.ndarray, times: np.ndarray, values: np.ndarray, we
     inside = (around >= 0).all(axis=1) & (around < frame.size).all(axis=1)
     around = np.clip(around, 0, frame.size - 1)
     x, at = times[around], start + missing * interval  # [M, 4], [M]
+    x[~inside] = np.arange(4)  # a drop without two samples on each side is not filled (weight 0 below)
     lagrange = np.ones(around.shape)
     for a in range(4):
         for b in range(4):
             if a != b:
                 lagrange[:, a] *= (at - x[:, b]) / (x[:, a] - x[:, b])
+    lagrange[~inside] = 0.0
     w = weight[:, around]  # [J, M, 4]
     fill_weight = np.where(inside & (w > 0).all(axis=-1), w.min(axis=-1), 0.0)  # [J, M]
     sample = values[..., around] / np.where(w > 0, w, 1.0)[:, None]  # [J, D, M, 4]: positions, unweighted

@@ -133,11 +133,14 @@ def render(motion, out, view, audio, compare, start, end, fps, size, over, over_
 
 def _render_view(motion, view, audio, start, end, reading) -> None:
     from kinectdata.align.audio import load_audio
+    from kinectdata.core.errors import KinectDataError
     from kinectdata.features.beats import music_beats
     from kinectdata.live.view import ViewSink, play_motion
-    from kinectdata.viz.render import load_input
+    from kinectdata.viz.render import load_input, up_axis
 
     shown = load_input(motion, with_audio=audio is None, **reading)
+    if shown.motion.n_frames == 0:
+        raise KinectDataError(f"{motion}: no frames to play")
     samples, rate = shown.audio, shown.sample_rate
     if audio is not None:
         heard = load_audio(audio)
@@ -145,7 +148,7 @@ def _render_view(motion, view, audio, start, end, reading) -> None:
     beats = None if samples is None else music_beats(samples, rate)[0]
     frames = shown.motion.times
     fps = 1.0 / float(np.median(np.diff(frames))) if len(frames) > 1 else 30.0
-    sink = ViewSink(view, shown.motion.joint_set, fps, beats)
+    sink = ViewSink(view, shown.motion.joint_set, fps, beats, up_axis(shown.motion))
     click.echo(f"live view: open {sink.url} in a browser; playing {shown.label} (Ctrl-C stops)")
     try:
         played = play_motion(shown.motion, sink, start=start, end=end)

@@ -158,14 +158,27 @@ def joint_words(name: str) -> list[str]:
     return [w.lower() for w in re.findall(r"[A-Z]+(?=[A-Z][a-z])|[A-Z]?[a-z]+|[A-Z]+|\d+", name)]
 
 
+_BODY_PARTS = frozenset(
+    "hip hipjoint thigh femur upleg upperleg leg knee shin calf tibia lowerleg ankle foot heel toe toes ball "
+    "clavicle collar shoulder shldr humerus arm uparm upperarm elbow forearm lowerarm radius ulna wrist hand "
+    "palm thumb finger fingers handtip eye ear".split()
+)
+"""Words for a limb's parts, which a side's letter may be run into (a CMU skeleton's ``lhumerus``)."""
+
+
 def joint_side(name: str) -> str:
     """``"left"``, ``"right"`` or ``"centre"`` from a joint name: a left/right word (``HandRight``,
-    ``RIGHT_HAND``, ``left_hip``), or an L/R before the first word (``RElbow``, ``lShldr``; not a
-    vertebra's ``L5``)."""
+    ``RIGHT_HAND``, ``left_hip``, ``leftknee``), an L/R before the first word (``RElbow``,
+    ``lShldr``; not a vertebra's ``L5``), or an l/r run into a body part's word (``lhumerus``,
+    ``LHIP``)."""
     words = joint_words(name)
     for side in ("left", "right"):
         if side in words or (len(words) > 1 and words[0] == side[0] and words[1].isalpha()):
             return side
+        for word in words[:1]:
+            rest = word[len(side) :] if word.startswith(side) else word[1:] if word[:1] == side[0] else ""
+            if rest in _BODY_PARTS or (word.startswith(side) and rest.isalpha()):
+                return side
     return "centre"
 
 

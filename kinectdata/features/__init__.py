@@ -189,7 +189,9 @@ def feature_state(config: FeatureConfig, live: bool = False) -> Any:
     :class:`~kinectdata.features.rhythm.PulseCount`). ``live``: calls a frame or two apart, which may
     keep what one call computed for the next (the pulse's onset spectra) without changing the output."""
     new_state = getattr(config, "new_state", None)
-    return None if new_state is None else new_state(live)
+    if new_state is None:
+        return None
+    return new_state(live) if live else new_state()  # a plugin's new_state may take no argument
 
 
 def needs_metre(config: FeatureConfig) -> bool:

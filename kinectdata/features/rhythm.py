@@ -461,52 +461,54 @@ class OnsetSpectra:
     :class:`~kinectdata.features.streaming.StreamingFeatures` sets before each call). Only windows
     that lie wholly in the stream's audio are kept and reused, so the output is what it would be
     without them. A pulse frame reads seconds of onsets; one frame later all but a few are the same.
-    Kept per hop grid (each phase of the hop), the ``keep`` most recent hops of each."""
+    Kept per hop grid (each phase of the hop; the ``phases`` used last), at least the ``keep`` most
+    recent hops of each; a call that reads more than ``keep`` hops keeps nothing."""
 
-    def __init__(self, keep: int = 1 << 14):
+    def __init__(self, keep: int = 4096, phases: int = 8):
         self.origin = 0
-        self.keep = keep
+        self.keep, self.phases = keep, phases
         self.grids: dict[int, tuple[int, np.ndarray, np.ndarray]] = {}  # phase: (first hop, rows, known)
 
     def spectra(self, frames: np.ndarray, ends: np.ndarray, reusable: np.ndarray, hop: int, compute) -> np.ndarray:
         """[H, n_mels] the spectra of ``frames`` [H, frame], whose windows end at stream samples
         ``ends`` [H] (``hop`` apart); ``reusable`` [H]: the windows wholly in the stream's audio;
         ``compute`` ([M, frame] -> [M, n_mels]) called once for the others and those not kept yet."""
-        if ends.size == 0:
+        if ends.size == 0 or ends.size > self.keep:
             return compute(frames)
         phase, number = int(ends[0] % hop), ends // hop
-        first, rows, known = self._grid(phase, int(number[0]), int(number[-1]))
+        grid = self.grids.pop(phase, None)  # put back last: the phases are kept in the order used
+        first, rows, known = grid if grid is not None else (int(number[0]), None, None)
         at = number - first
-        old = known[at] & reusable
-        out = np.empty((ends.size, rows.shape[1] if rows.size else 0))
+        old = np.zeros(ends.size, bool) if known is None or at[0] < 0 else known[np.minimum(at, known.size - 1)]
+        old &= reusable & (at < (0 if known is None else known.size))
         fresh = np.flatnonzero(~old)
-        if fresh.size:
-            computed = compute(frames[fresh])
-            if out.shape[1] != computed.shape[1]:
-                out = np.empty((ends.size, computed.shape[1]))
-                first, rows, known = self._grid(phase, int(number[0]), int(number[-1]), computed.shape[1])
+        computed = compute(frames[fresh]) if fresh.size else None
+        width = computed.shape[1] if computed is not None else rows.shape[1]
+        first, rows, known = self._moved_on(first, rows, known, int(number[0]), int(number[-1]), width)
+        at = number - first
+        out = np.empty((ends.size, width))
+        out[old] = rows[at[old]]
+        if computed is not None:
             out[fresh] = computed
             keep = reusable[fresh]
             rows[at[fresh[keep]]], known[at[fresh[keep]]] = computed[keep], True
-        out[old] = rows[at[old]]
+        self.grids[phase] = (first, rows, known)
+        while len(self.grids) > self.phases:
+            del self.grids[next(iter(self.grids))]
         return out
 
-    def _grid(self, phase: int, lo: int, hi: int, width: int | None = None) -> tuple[int, np.ndarray, np.ndarray]:
-        """The phase's grid, moved on to cover hops ``lo``..``hi`` (the ones before ``hi - keep`` let go)."""
-        first, rows, known = self.grids.get(phase, (lo, np.zeros((0, width or 0)), np.zeros(0, bool)))
-        width = rows.shape[1] if width is None else width
-        start = max(min(first, lo), hi - self.keep + 1) if known.size else lo
-        end = max(first + known.size, hi + 1)
-        if start != first or end != first + known.size or rows.shape[1] != width:
-            new_rows, new_known = np.zeros((end - start, width)), np.zeros(end - start, bool)
-            a, b = max(first, start), min(first + known.size, end)
-            if b > a and rows.shape[1] == width:
-                new_rows[a - start : b - start], new_known[a - start : b - start] = (
-                    rows[a - first : b - first],
-                    known[a - first : b - first],
-                )
-            first, rows, known = start, new_rows, new_known
-            self.grids[phase] = (first, rows, known)
+    def _moved_on(self, first: int, rows, known, lo: int, hi: int, width: int):
+        """A grid of ``2 keep`` hops that holds hops ``lo``..``hi``: the one given, its rows moved
+        down (the oldest let go) when ``hi`` runs past its end, or a new one."""
+        size = 2 * self.keep
+        if rows is None or rows.shape[1] != width or lo < first:
+            return lo, np.zeros((size, width)), np.zeros(size, bool)
+        if hi >= first + size:
+            shift = hi - self.keep + 1 - first
+            if shift < size:
+                rows[: size - shift], known[: size - shift] = rows[shift:].copy(), known[shift:].copy()
+            known[max(size - shift, 0) :] = False
+            first += shift
         return first, rows, known
 
 

@@ -14,7 +14,8 @@ others (a BVH's ``LeftShoulder`` is a collarbone, a Kinect's ``ShoulderLeft`` th
   on to the next joint, the toes to the one after; a collarbone (Unity's ``Shoulder``) runs from
   the shoulder's parent to the shoulder;
 - the spine is the tree's path from the root (the ``root`` role, else the tree's root) to the
-  neck (the ``neck`` role, else a joint named ``neck``/``thorax``, else the arms' common ancestor):
+  neck (the ``neck`` role, else a joint named ``neck``, else ``thorax``, else the arms' common
+  ancestor):
   its first segment is ``Hips``, the next up to three ``Spine``, ``Chest``, ``UpperChest`` (more
   are merged into the last); ``Neck`` runs from the neck to the head (the ``head`` role, else the
   nearest joint named ``head`` below the neck).
@@ -43,7 +44,7 @@ FINGER = r"thumb|index|middle|ring|pinky|little|finger|tip"
 ARM_ON = (re.compile(rf"^(?!.*({FINGER})).*(wrist|hand|palm)"), re.compile(r"middle"))
 LEG_ON = (re.compile(r"ankle|foot|toe|ball"),)
 """Which child a limb goes on to where a joint has several, in order of preference (then the first)."""
-NECK = re.compile(r"neck|thorax")
+NECK = (re.compile(r"neck"), re.compile(r"thorax"))
 HEAD = re.compile(r"head")
 
 
@@ -104,11 +105,14 @@ def humanoid_mapping(joint_set: JointSet) -> dict:
                        "toe_end": None if toe is None else next_on(toe, LEG_ON)}  # fmt: skip
 
     neck = joint_set.role("neck")
-    if neck is None:
+    for pattern in NECK if neck is None else ():  # a neck by name before a thorax
         try:
-            neck = find(NECK, None, "neck")
+            neck = find(pattern, None, "neck")
+            break
         except MappingError:
-            neck = _common_ancestor(parents, limbs["Left"]["shoulder"], limbs["Right"]["shoulder"])
+            continue
+    if neck is None:
+        neck = _common_ancestor(parents, limbs["Left"]["shoulder"], limbs["Right"]["shoulder"])
     spine = _path(parents, root, neck)
     if spine is None or len(spine) < 2:
         raise MappingError(f"{where}: no spine from the root {names[root]!r} up to the neck {names[neck]!r}")

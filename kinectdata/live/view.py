@@ -44,16 +44,18 @@ def parse_view_address(text: str) -> tuple[str, int]:
 
 class ViewSink:
     """Serves the live view at ``address`` (``HOST:PORT`` or ``PORT``; module docstring) and sends
-    each pose to its viewers. ``beats``: the music's beat times in seconds, when known (a file)."""
+    each pose to its viewers. ``beats``: the music's beat times in seconds, when known (a file);
+    ``up``: the vertical axis of 3-D positions (0, 1, 2: x, y, z; a recording's ``gravity_axis``)."""
 
     label = "view"
 
-    def __init__(self, address: str, joint_set: JointSet, fps: float, beats: np.ndarray | None = None):
+    def __init__(self, address: str, joint_set: JointSet, fps: float, beats: np.ndarray | None = None, up: int = 1):
         host, port = parse_view_address(address)
         self.joint_set, self.fps = joint_set, float(fps)
         self.beats = None if beats is None else np.asarray(beats, np.float64)
         self.latency_ms: float | None = None
         self.sent = 0
+        self.closed = False
         self.viewers: list[queue.Queue] = []
         self.lock = threading.Lock()
         self.skeleton = json.dumps(
@@ -63,6 +65,7 @@ class ViewSink:
                 "bones": [list(b) for b in joint_set.bones()],
                 "sides": [joint_side(n) for n in joint_set.names],
                 "dimensions": joint_set.dimensions,
+                "up": int(up),
                 "fps": self.fps,
             }
         ).encode()
@@ -100,30 +103,41 @@ class ViewSink:
         with self.lock:
             viewers = list(self.viewers)
         for viewer in viewers:
-            while True:
-                try:
-                    viewer.put_nowait(message)
-                    break
-                except queue.Full:  # the viewer is behind: it loses its oldest frame, the dancer nothing
-                    try:
-                        viewer.get_nowait()
-                    except queue.Empty:
-                        pass
+            _put_newest(viewer, message)
         self.sent += 1
 
     def summary(self) -> str:
         return f"view {self.url}: {self.sent} frames sent, {len(self.viewers)} viewer(s) at the end"
 
     def close(self) -> None:
-        with self.lock:
-            for viewer in self.viewers:
-                viewer.put_nowait(None)  # ends each stream
-        self.server.shutdown()
-        self.server.server_close()
+        """End every viewer's stream and stop serving."""
+        try:
+            with self.lock:
+                self.closed = True
+                for viewer in self.viewers:
+                    _put_newest(viewer, None)  # ends the stream, even for a viewer that fell behind
+        finally:
+            self.server.shutdown()
+            self.server.server_close()
+
+
+def _put_newest(viewer: queue.Queue, item) -> None:
+    """Put ``item`` in a viewer's queue; a full queue (a viewer that fell behind) loses its oldest."""
+    while True:
+        try:
+            viewer.put_nowait(item)
+            return
+        except queue.Full:
+            try:
+                viewer.get_nowait()
+            except queue.Empty:
+                pass
 
 
 def _handler(sink: ViewSink):
     class Handler(BaseHTTPRequestHandler):
+        timeout = 10  # seconds a write to a viewer that stopped reading may block before it is dropped
+
         def log_message(self, *args) -> None:  # the session's output stays the session's
             pass
 
@@ -149,6 +163,8 @@ def _handler(sink: ViewSink):
         def _stream(self) -> None:
             viewer: queue.Queue = queue.Queue(maxsize=max(2, int(2 * sink.fps)))
             with sink.lock:
+                if sink.closed:  # came after the end: an empty stream
+                    _put_newest(viewer, None)
                 sink.viewers.append(viewer)
             try:
                 self.send_response(200)
@@ -161,7 +177,7 @@ def _handler(sink: ViewSink):
                         break
                     self.wfile.write(message)
                     self.wfile.flush()
-            except (BrokenPipeError, ConnectionResetError):  # the viewer closed the page
+            except OSError:  # the viewer closed the page, or stopped reading (the timeout)
                 pass
             finally:
                 with sink.lock:

@@ -543,10 +543,13 @@ def _alive(row: dict) -> bool:
 def _keep_score(row: dict, energy_weight: float) -> float:
     """An epoch's score for the keep rule (lower is better): its free-running validation rhythm
     loss times ``exp(energy_weight * |ln val_energy|)``, the energy's distance from the real
-    motion's in either direction (the loss alone with weight 0 or no energy logged)."""
+    motion's in either direction (the loss alone with weight 0 or no energy logged; infinite for
+    an epoch that does not move at all)."""
     energy = row.get("val_energy")
-    if energy_weight == 0 or energy is None or not energy > 0:
+    if energy_weight == 0 or energy is None:
         return row["val_rhythm"]
+    if not energy > 0:  # still: as far from the real motion as can be
+        return math.inf
     return row["val_rhythm"] * math.exp(energy_weight * abs(math.log(energy)))
 
 

@@ -8,11 +8,11 @@ What is drawn, one panel of ``size`` pixels per motion, side by side:
   space: along +z, with x to the sensor's left and y up). A dancer facing the sensor is seen from
   the front as the sensor saw them, not mirrored: their right hand on the viewer's left. The up axis
   is y, or ``metadata["gravity_axis"]`` when a format gives it (HTR). The camera frames the body,
-  not the floor it crosses: its window is as wide as the body's largest reach from its centre in
-  any frame (:func:`body_window`), one scale on the three axes, and follows the body's centre
-  across the floor, smoothed over :data:`FOLLOW_S` (it stays put for a dancer who keeps within the
-  window). The floor is a grid at the lowest valid joint height of the whole motion, fixed to the
-  floor, so that it slides by as the dancer travels. Motions compared side by side share one
+  not the floor it crosses: it follows the body's centre across the floor, smoothed over
+  :data:`FOLLOW_S` (:func:`camera_path`; it stays put for a dancer who keeps near one spot), and its
+  window is as wide as the farthest joint from where it looks, in any frame (:func:`body_window`),
+  one scale on the three axes. The floor is a grid at the lowest valid joint height of the whole
+  motion, fixed to the floor, so that it slides by as the dancer travels. Motions compared side by side share one
   window and one grid: a body is drawn the same size in every panel.
 - 2-D joint sets (pixels, or 0..1 for generated motion): image axes with y down, one scale on both
   axes, limits from the whole motion's valid joints.
@@ -243,14 +243,36 @@ class _Panel:
 
 def body_window(motion: Motion) -> tuple[float, float]:
     """(half width, height) in metres of the window a 3-D camera needs to frame ``motion``'s body in
-    every frame: the largest horizontal distance of a valid joint from its frame's centre (the mean
-    of the frame's valid joints), and the highest valid joint above the whole motion's floor."""
+    every frame from where it stands (:func:`camera_path`): the largest horizontal distance of a
+    valid joint from the camera's centre, and the highest valid joint above the motion's floor."""
+    return _camera(motion)[1:]
+
+
+def camera_path(motion: Motion) -> np.ndarray:
+    """[T, 2] where the 3-D camera is centred, horizontally, in each frame (view coordinates): the
+    middle of the body's path when the body keeps within its reach of it, else the body's centre (the
+    mean of its valid joints) smoothed over :data:`FOLLOW_S`."""
+    return _camera(motion)[0]
+
+
+def _camera(motion: Motion) -> tuple[np.ndarray, float, float]:
+    from scipy.ndimage import uniform_filter1d
+
+    from kinectdata.core.motion import frame_clock
+
     points = view_coordinates(motion.positions, up_axis(motion))
     mask = motion.position_mask
     centre = _centres(points, mask)
-    reach = np.where(mask, np.linalg.norm(points[..., :2] - centre[:, None, :], axis=-1), 0.0)
+    reach = float(np.where(mask, np.linalg.norm(points[..., :2] - centre[:, None, :], axis=-1), 0.0).max()) or 0.5
+    travel = centre.max(axis=0) - centre.min(axis=0)
+    if np.all(travel <= 0.5 * reach) or motion.n_frames < 2:  # keeps near one spot: a camera that stays put
+        path = np.broadcast_to((centre.max(axis=0) + centre.min(axis=0)) / 2, centre.shape)
+    else:
+        frames = max(1, int(round(FOLLOW_S / frame_clock(motion.times)[0])))
+        path = uniform_filter1d(centre, frames, axis=0, mode="nearest")
+    half = float(np.where(mask, np.linalg.norm(points[..., :2] - path[:, None, :], axis=-1), 0.0).max()) or 0.5
     floor = float(points[..., 2][mask].min())
-    return float(reach.max()) or 0.5, float(points[..., 2][mask].max() - floor) or 1.0
+    return path, half, float(points[..., 2][mask].max() - floor) or 1.0
 
 
 def _centres(points: np.ndarray, mask: np.ndarray) -> np.ndarray:
@@ -272,24 +294,14 @@ class _Panel3D(_Panel):
         from matplotlib.ticker import MaxNLocator
         from mpl_toolkits.mplot3d.art3d import Line3DCollection
 
-        from kinectdata.core.motion import frame_clock
-
         super().__init__(figure, x0, width, motion, label)
         self.points = view_coordinates(motion.positions, up_axis(motion))  # [T, J, 3]
         mask = motion.position_mask
-        half, height = window or body_window(motion)
-        self.half = half * 1.1  # a margin round the widest reach
+        self.centres, own_half, own_height = _camera(motion)
+        half, height = window or (own_half, own_height)
+        self.half = half * 1.05  # a margin round the farthest joint
         self.floor = float(self.points[..., 2][mask].min())
         self.top = self.floor + max(height * 1.05, 2 * self.half * 0.2)
-        centre = _centres(self.points, mask)
-        travel = centre.max(axis=0) - centre.min(axis=0)
-        if np.all(travel <= 0.5 * self.half):  # keeps within the window: a camera that stays put
-            self.centres = np.broadcast_to((centre.max(axis=0) + centre.min(axis=0)) / 2, centre.shape)
-        else:
-            from scipy.ndimage import uniform_filter1d
-
-            frames = max(1, int(round(FOLLOW_S / frame_clock(motion.times)[0]))) if motion.n_frames > 1 else 1
-            self.centres = uniform_filter1d(centre, frames, axis=0, mode="nearest")
         self.step = float(np.diff(MaxNLocator(nbins=6).tick_values(0, 2 * self.half))[0])
         self.ax = ax = figure.add_axes((x0, 0.07, width, 0.86), projection="3d")
         ax.set_proj_type("ortho")

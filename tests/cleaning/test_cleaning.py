@@ -112,6 +112,18 @@ def test_the_zero_phase_filter_reads_each_sample_at_its_own_time():
     assert np.abs(timed - truth)[inner].mean() < 0.25 * np.abs(plain - truth)[inner].mean()
 
 
+@pytest.mark.parametrize("dropped", [[1], [298], [1, 2], [150]])
+@pytest.mark.parametrize("method", ["butterworth", "savgol"])
+def test_a_frame_dropped_near_an_edge_is_left_to_the_filter(dropped, method):
+    # without two samples on each side a dropped frame is not filled; it must not spoil the rest
+    t = np.delete(np.arange(300) / 30.0, dropped)
+    p = np.zeros((t.size, 2, 3))
+    p[:, 0, 0] = 0.1 * np.sin(2 * np.pi * 0.5 * t)
+    out = zero_phase(p, 30.0, method=method, times=t)
+    assert np.isfinite(out).all()
+    np.testing.assert_allclose(out[10:-10, 0, 0], p[10:-10, 0, 0], atol=0.003)
+
+
 def test_a_low_confidence_sample_counts_less_in_the_zero_phase_filter():
     p = np.zeros((90, 1, 3))
     p[45, 0, 0] = 0.5  # a spike

@@ -609,3 +609,30 @@ def test_bad_stack_dicts_are_config_errors():
     nested = {"extractor": "stack", "parts": [good, good["parts"][0]]}
     with pytest.raises(ConfigError, match="cannot hold stacked features"):
         feature_config(nested)
+
+
+def test_kept_onset_spectra_move_on_with_a_long_stream_and_stay_exact():
+    """A pulse reading 1 s of onsets (80-200 BPM) over 12 s of audio, its kept spectra 400 hops (2 s) a grid: the
+    grids move on many times, the stream's buffer is trimmed, and the features stay those computed
+    afresh."""
+    from kinectdata.features.rhythm import OnsetSpectra
+
+    config = RhythmConfig(window_s=1.0, tempo_range_bpm=(80.0, 200.0))
+    audio = random_clicks(12.0, seed=5)
+    starts = frame_starts(audio.size)
+    results = []
+    for live in (False, True):
+        got = np.full((starts.size, *config.output_shape), np.nan, np.float32)
+
+        def sink(k0, feats, pad, got=got):
+            got[k0 : k0 + len(feats)] = feats
+
+        stream = StreamingFeatures(starts, config, sink, live=live)
+        if live:
+            stream.state.spectra = OnsetSpectra(keep=400)
+        for i in range(0, audio.size, 80):
+            stream.push(audio[i : i + 80])
+        stream.finish()
+        results.append(got)
+    assert stream.buffer_start > 0 and all(first > 0 for first, _, _ in stream.state.spectra.grids.values())
+    np.testing.assert_array_equal(results[1], results[0])

@@ -161,3 +161,22 @@ def test_what_has_no_humanoid_says_so_in_one_line(tmp_path):
     written = tmp_path / "tang.json"  # a derived mapping is a mapping file a user can edit and give back
     written.write_text(json.dumps(humanoid_mapping(load_joint_set("tang2018"))))
     assert VmcRig(load_joint_set("tang2018"), written).mapping == VmcRig(load_joint_set("tang2018")).mapping
+
+
+def test_a_cmu_skeleton_with_its_anatomical_names_is_mapped():
+    # the CMU motion-capture skeleton (its ASF names: a side's letter run into the bone's name)
+    tree = [("root", None), ("lowerback", "root"), ("upperback", "lowerback"), ("thorax", "upperback"),
+            ("lowerneck", "thorax"), ("upperneck", "lowerneck"), ("head", "upperneck")]  # fmt: skip
+    for s in "lr":
+        tree += [(f"{s}hipjoint", "root"), (f"{s}femur", f"{s}hipjoint"), (f"{s}tibia", f"{s}femur"),
+                 (f"{s}foot", f"{s}tibia"), (f"{s}toes", f"{s}foot"), (f"{s}clavicle", "thorax"),
+                 (f"{s}humerus", f"{s}clavicle"), (f"{s}radius", f"{s}humerus"), (f"{s}wrist", f"{s}radius"),
+                 (f"{s}hand", f"{s}wrist")]  # fmt: skip
+    names, parents = zip(*tree)
+    doc = humanoid_mapping(JointSet.custom("cmu_asf", names, parents))
+    bones = {b["bone"]: (b["joint"], b["aim"]) for b in doc["bones"]}
+    assert (doc["left_hip"], doc["right_hip"]) == ("lfemur", "rfemur")
+    assert bones["LeftUpperLeg"] == ("lfemur", "ltibia") and bones["RightFoot"] == ("rfoot", "rtoes")
+    assert bones["LeftShoulder"] == ("lclavicle", "lhumerus") and bones["LeftLowerArm"] == ("lradius", "lwrist")
+    assert bones["Hips"] == ("root", "lowerback") and bones["UpperChest"] == ("thorax", "lowerneck")
+    assert bones["Neck"] == ("lowerneck", "head")

@@ -271,7 +271,9 @@ def test_vmc_frames_reach_a_receiver_and_a_set_without_a_humanoid_is_one_line(tr
     from kinectdata.core.jointsets import load_joint_set
     from kinectdata.live.vmc import VmcSink
 
-    assert VmcSink("127.0.0.1:39539", load_joint_set("nite")).rig.bones[0].name == "Hips"  # derived
+    derived = VmcSink("127.0.0.1:39539", load_joint_set("nite"))
+    assert derived.rig.bones[0].name == "Hips"  # derived from the set's names
+    derived.close()
     with pytest.raises(KinectDataError, match="openpose_mpi is 2-D"):
         VmcSink("127.0.0.1:39539", load_joint_set("openpose_mpi"))
     with pytest.raises(SchemaError, match="nowhere.json: no such VMC mapping file"):

@@ -23,9 +23,9 @@ from kinectdata.live.view import ViewSink
 KINECT = load_joint_set("kinect_v2")
 
 
-def _pose(k: int, fps: float = 30.0) -> LivePose:
+def _pose(k: int, fps: float = 30.0, step: float = 0.01) -> LivePose:
     rng = np.random.default_rng(k)
-    p = rng.normal(0, 0.3, (len(KINECT), 3)) + [0.01 * k, 1.0, 2.5]  # travelling along x, a cm a frame
+    p = rng.normal(0, 0.3, (len(KINECT), 3)) + [step * k, 1.0, 2.5]  # travelling along x, ``step`` m a frame
     p[3] = np.nan  # the head not placed
     return LivePose(k, k / fps, p)
 
@@ -89,7 +89,7 @@ def test_the_page_draws_the_frames_in_headless_chromium(tmp_path):
     def dance():  # 30 frames a second until the browser is done
         k = 0
         while not stop.is_set():
-            sink.send(_pose(k))
+            sink.send(_pose(k, step=0.05))  # 1.5 m/s across the floor
             sink.heard_latency(3.5)
             k += 1
             time.sleep(1 / 30)
@@ -106,9 +106,12 @@ def test_the_page_draws_the_frames_in_headless_chromium(tmp_path):
         stop.set()
         dancer.join(5)
         sink.close()
-    found = re.search(r'<p id="stats" data-frames="(\d+)" data-drawn="(\d+)" data-bones="(\d+)">', result.stdout)
+    found = re.search(
+        r'<p id="stats" data-frames="(\d+)" data-drawn="(\d+)" data-bones="(\d+)" data-outside="(\d+)">', result.stdout
+    )
     assert found, f"the page did not load: {result.stderr[-2000:]}"
-    frames, drawn, bones = (int(v) for v in found.groups())
+    frames, drawn, bones, outside = (int(v) for v in found.groups())
+    assert outside == 0  # the camera keeps a dancer crossing the floor at 1.5 m/s in view
     # the page stops listening after 45 frames (?frames=45), so that the browser finishes loading it
     assert frames == 45, (frames, result.stderr[-1000:])
     assert drawn == frames and bones == 24 - 1  # every frame drawn; the neck-head bone left out
@@ -148,3 +151,22 @@ def test_a_recording_plays_at_its_own_pace_and_render_serves_it():
     assert re.search(r"played (\d+) frames \(0 to 0\.\d+ s\); view .*: \1 frames sent", result.output)
     result = CliRunner().invoke(main, ["render", str(REPO / "sample_data" / "synth_001.csv")])
     assert result.exit_code != 0 and "give -o OUT" in result.output
+
+
+def test_a_viewer_that_stops_reading_costs_the_dancer_nothing():
+    import socket
+
+    sink = ViewSink("127.0.0.1:0", KINECT, 30.0)
+    port = int(sink.url.rsplit(":", 1)[1].strip("/"))
+    stalled = socket.create_connection(("127.0.0.1", port))
+    stalled.sendall(b"GET /frames HTTP/1.1\r\nHost: x\r\n\r\n")  # and never reads
+    while not sink.viewers:
+        time.sleep(0.01)
+    started = time.monotonic()
+    for k in range(3000):
+        sink.send(_pose(k))
+    assert time.monotonic() - started < 5  # sending never waited for the viewer
+    assert sink.viewers[0].qsize() <= 60  # at most two seconds of frames wait, the oldest let go
+    sink.close()  # a full queue still gets its end
+    assert not sink.thread.is_alive()
+    stalled.close()

@@ -288,6 +288,7 @@ def test_the_energy_weight_keeps_a_livelier_epoch_of_about_the_lowest_loss():
     assert not _better(epochs((20.0, 0.625), (20.0, 1.6)), energy_weight=0.5)
     assert _better(epochs((20.0, 1.6), (19.9, 0.625)), energy_weight=0.5)
     assert not _better(epochs((20.0, 0.9), (19.0, 0.05)), energy_weight=0.5)  # the alive rule still first
+    assert not _better(epochs((20.0, 0.3), (19.0, 0.0)), energy_weight=0.5)  # a still epoch is never best
 
 
 @pytest.fixture(scope="module")

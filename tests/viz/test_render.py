@@ -132,6 +132,15 @@ def test_kinect_axes_seen_from_the_sensor():
         ("lShldr", "left"),
         ("L5", "centre"),
         ("mixamorig:RightForeArm", "right"),
+        ("lhumerus", "left"),
+        ("rtibia", "right"),
+        ("LHIP", "left"),
+        ("leftknee", "left"),
+        ("lowerback", "centre"),
+        ("root", "centre"),
+        ("rhand", "right"),
+        ("thorax", "centre"),
+        ("ltoes", "left"),
     ],
 )
 def test_joint_side(name, side):
