@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import click
-import numpy as np
 
 from kinectdata.cli.options import reader_options
 from kinectdata.cli.progress import progress_bar
@@ -134,6 +133,7 @@ def render(motion, out, view, audio, compare, start, end, fps, size, over, over_
 def _render_view(motion, view, audio, start, end, reading) -> None:
     from kinectdata.align.audio import load_audio
     from kinectdata.core.errors import KinectDataError
+    from kinectdata.core.motion import frame_clock
     from kinectdata.features.beats import music_beats
     from kinectdata.live.view import ViewSink, play_motion
     from kinectdata.viz.render import load_input, up_axis
@@ -146,8 +146,7 @@ def _render_view(motion, view, audio, start, end, reading) -> None:
         heard = load_audio(audio)
         samples, rate = heard.samples, heard.sample_rate
     beats = None if samples is None else music_beats(samples, rate)[0]
-    frames = shown.motion.times
-    fps = 1.0 / float(np.median(np.diff(frames))) if len(frames) > 1 else 30.0
+    fps = 1.0 / frame_clock(shown.motion.times)[0] if shown.motion.n_frames > 1 else 30.0
     sink = ViewSink(view, shown.motion.joint_set, fps, beats, up_axis(shown.motion))
     click.echo(f"live view: open {sink.url} in a browser; playing {shown.label} (Ctrl-C stops)")
     try:
