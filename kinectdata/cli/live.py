@@ -120,7 +120,7 @@ def live(
     if view is not None:
         from kinectdata.live.view import ViewSink
 
-        viewer = ViewSink(view, dancer.joint_set, dancer.fps, _file_beats(source, dancer.sample_rate))
+        viewer = ViewSink(view, dancer.joint_set, dancer.fps)  # its beats: run_live's, from a file
         sinks.append(viewer)
         click.echo(f"live view: open {viewer.url} in a browser")
     recorder = None
@@ -152,18 +152,6 @@ def live(
         click.echo(f"wrote {stats}")
     if figures.fault is not None:
         raise KinectDataError(figures.fault)
-
-
-def _file_beats(source, sample_rate: int):
-    """The beat times (s) of a file played live, for the view; None for a device."""
-    whole = getattr(source, "reader", None)
-    if whole is None:
-        return None
-    import numpy as np
-
-    from kinectdata.features.beats import music_beats
-
-    return music_beats(np.concatenate([np.zeros(0, np.float32), *whole.blocks()]), sample_rate)[0]
 
 
 COMMANDS = [live]

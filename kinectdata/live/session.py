@@ -24,6 +24,7 @@ import numpy as np
 
 from kinectdata.core.errors import KinectDataError
 from kinectdata.features import feature_config, needs_metre
+from kinectdata.features.beats import music_beats
 from kinectdata.features.metre import recording_metre
 from kinectdata.features.silence import silent_frames
 from kinectdata.features.streaming import StreamingFeatures
@@ -237,11 +238,20 @@ def run_live(
     starts = np.round(np.arange(n) * sr / fps).astype(np.int64)
     bar = None
     counts_bars = needs_metre(dancer.features)
-    if counts_bars or dancer.draws_by_metre:  # the features' bars, or the draws' metre
-        samples = None
-        if beats_per_bar is None and whole is not None:
-            samples = np.concatenate([np.zeros(0, np.float32), *whole.blocks()])
-        bar = recording_metre(None, samples, sr, given=beats_per_bar).beats_per_bar
+    by_metre = counts_bars or dancer.draws_by_metre  # the features' bars, or the draws' metre
+    showing = [sink for sink in sinks if getattr(sink, "wants_beats", False)]  # the live view's beat
+    samples = beats = None
+    if whole is not None and (showing or (by_metre and beats_per_bar is None)):
+        samples = np.concatenate([np.zeros(0, np.float32), *whole.blocks()])  # the file read once
+        try:
+            beats = music_beats(samples, sr)[0]
+        except KinectDataError:  # no librosa: no beats to show, the metre's default
+            pass
+    for sink in showing:
+        sink.beats = beats
+    if by_metre:
+        known = None if beats_per_bar is not None or beats is None else samples
+        bar = recording_metre(None, known, sr, beats_s=beats, given=beats_per_bar).beats_per_bar
         if dancer.draws_by_metre:
             dancer.set_metre(bar)
     ends = starts + dancer.features.span[1]

@@ -48,6 +48,7 @@ class ViewSink:
     ``up``: the vertical axis of 3-D positions (0, 1, 2: x, y, z; a recording's ``gravity_axis``)."""
 
     label = "view"
+    wants_beats = True  # run_live tracks a file's beats once, for the metre and for this
 
     def __init__(self, address: str, joint_set: JointSet, fps: float, beats: np.ndarray | None = None, up: int = 1):
         host, port = parse_view_address(address)
