@@ -90,6 +90,10 @@ __all__ = ["DEFAULT_BEATS_PER_BAR", "PulseCount", "RhythmConfig", "predominant_b
 DEFAULT_BEATS_PER_BAR = 4
 """The metre a song's bar levels take when nothing says otherwise: most dance music is in 4."""
 
+DIRECT_SUMS_UPTO = 16
+"""A call that needs the pulse at this many instants or fewer (a live frame's one to five) sums each
+window directly; more share one recursion over the audio (:func:`_windowed_sums`)."""
+
 
 @dataclass(frozen=True)
 class RhythmConfig:
@@ -311,6 +315,32 @@ def _windowed_sums(onsets: np.ndarray, config: RhythmConfig) -> np.ndarray:
     return out
 
 
+@functools.lru_cache(maxsize=8)
+def _window_weights(config: RhythmConfig) -> tuple[np.ndarray, np.ndarray]:
+    """The real and imaginary parts [L, n_tempi + 1] of ``pole ** (L - 1 - i)`` for each pole of
+    :func:`_poles`: a window of L onsets in time order times these is its pulse at every tempo."""
+    poles, length = _poles(config)
+    weights = poles[None, :] ** np.arange(length - 1, -1, -1)[:, None]
+    return np.ascontiguousarray(weights.real), np.ascontiguousarray(weights.imag)
+
+
+def _windowed_sums_at(onsets: np.ndarray, hops: np.ndarray, config: RhythmConfig) -> np.ndarray:
+    """[*hops.shape, n_tempi + 1] complex: :func:`_windowed_sums` at ``hops`` only, each window's
+    onsets times the poles' powers (two real matrix products), for the few instants of a live frame
+    (O(L) per hop and tempo, where the recursion costs O(H) per tempo for any number of hops). The
+    same rows are 0 (those whose onset sum is not clearly above the recursion's residue), so the
+    two agree to float rounding. ``hops`` >= L - 1: every window lies in ``onsets``."""
+    from scipy.signal import lfilter
+
+    poles, length = _poles(config)
+    real, imag = _window_weights(config)
+    windows = np.lib.stride_tricks.sliding_window_view(onsets, length)[hops.ravel() - length + 1]
+    out = (windows @ real + 1j * (windows @ imag)).reshape(*hops.shape, poles.size)
+    onset_sum = lfilter([1.0], [1.0, -poles[-1].real], onsets)[hops]  # the recursion's scale, for its residue
+    out[out[..., -1].real <= 1e-9 * onset_sum] = 0.0
+    return out
+
+
 def onset_envelope(
     samples: np.ndarray,
     config: RhythmConfig,
@@ -328,7 +358,7 @@ def onset_envelope(
     hops = x.size // config.hop_samples + 1
     padded = np.concatenate([np.zeros(config.frame_samples, np.float32), x])
     ends = np.arange(hops) * config.hop_samples + config.frame_samples  # window [end - frame, end) of padded
-    frames = np.lib.stride_tricks.sliding_window_view(padded, config.frame_samples)[ends - config.frame_samples]
+    windows = np.lib.stride_tricks.sliding_window_view(padded, config.frame_samples)
     window = np.hanning(config.frame_samples + 1)[:-1]
 
     def log_mel(windows: np.ndarray) -> np.ndarray:
@@ -336,12 +366,13 @@ def onset_envelope(
         return 10 * np.log10(np.maximum(power @ _mel_bank(config).T, 1e-10))
 
     if spectra is None:
-        db = log_mel(frames)
+        db = log_mel(windows[ends - config.frame_samples])
     else:
         lo, hi = real if real is not None else (at, at + x.size)
         end = at + ends - config.frame_samples  # where each window ends in the stream
         reusable = ((end - config.frame_samples >= lo) & (end <= hi)) | (end <= 0)
-        db = spectra.spectra(frames, end, reusable, config.hop_samples, log_mel)
+        windows_of = lambda rows: windows[ends[rows] - config.frame_samples]  # noqa: E731
+        db = spectra.spectra(windows_of, end, reusable, config.hop_samples, log_mel)
     flux = np.zeros(hops)
     flux[1:] = np.maximum(np.diff(db, axis=0), 0.0).sum(axis=1)
     k = config._detrend_hops
@@ -373,9 +404,12 @@ def _pulse_values(
     # the stream's own audio in the piece: the buffer's samples, and its silence before its first sample
     real = (origin + lo if origin + lo > 0 else -(1 << 62), origin + hi)
     envelope = onset_envelope(piece, config, spectra, origin + first, real)
-    sums = _windowed_sums(envelope, config)  # hop j at sample first + j * hop
     at = (starts[:, None] + config.instants[None, :] - first) // hop  # [F, c]: the hop at or before each instant
-    pulse, total = sums[at, :-1], sums[at, -1].real  # [F, c, tempi], [F, c]
+    if at.size <= DIRECT_SUMS_UPTO:
+        sums = _windowed_sums_at(envelope, at, config)
+    else:
+        sums = _windowed_sums(envelope, config)[at]  # hop j at sample first + j * hop
+    pulse, total = sums[..., :-1], sums[..., -1].real  # [F, c, tempi], [F, c]
     salience = np.where(total[..., None] > 0, np.abs(pulse) / np.maximum(total[..., None], 1e-30), 0.0)
     angle = np.angle(pulse)
     if config.tempo_phases:
@@ -469,12 +503,13 @@ class OnsetSpectra:
         self.keep, self.phases = keep, phases
         self.grids: dict[int, tuple[int, np.ndarray, np.ndarray]] = {}  # phase: (first hop, rows, known)
 
-    def spectra(self, frames: np.ndarray, ends: np.ndarray, reusable: np.ndarray, hop: int, compute) -> np.ndarray:
-        """[H, n_mels] the spectra of ``frames`` [H, frame], whose windows end at stream samples
-        ``ends`` [H] (``hop`` apart); ``reusable`` [H]: the windows wholly in the stream's audio;
-        ``compute`` ([M, frame] -> [M, n_mels]) called once for the others and those not kept yet."""
+    def spectra(self, frames, ends: np.ndarray, reusable: np.ndarray, hop: int, compute) -> np.ndarray:
+        """[H, n_mels] the spectra of H windows ending at stream samples ``ends`` [H] (``hop``
+        apart): ``frames(rows)`` gives the windows [M, frame] of ``rows`` [M] (only those computed
+        are read); ``reusable`` [H]: the windows wholly in the stream's audio; ``compute``
+        ([M, frame] -> [M, n_mels]) called once for the others and those not kept yet."""
         if ends.size == 0 or ends.size > self.keep:
-            return compute(frames)
+            return compute(frames(np.arange(ends.size)))
         phase, number = int(ends[0] % hop), ends // hop
         grid = self.grids.pop(phase, None)  # put back last: the phases are kept in the order used
         first, rows, known = grid if grid is not None else (int(number[0]), None, None)
@@ -482,7 +517,7 @@ class OnsetSpectra:
         old = np.zeros(ends.size, bool) if known is None or at[0] < 0 else known[np.minimum(at, known.size - 1)]
         old &= reusable & (at < (0 if known is None else known.size))
         fresh = np.flatnonzero(~old)
-        computed = compute(frames[fresh]) if fresh.size else None
+        computed = compute(frames(fresh)) if fresh.size else None
         width = computed.shape[1] if computed is not None else rows.shape[1]
         first, rows, known = self._moved_on(first, rows, known, int(number[0]), int(number[-1]), width)
         at = number - first

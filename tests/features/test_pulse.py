@@ -109,6 +109,10 @@ def test_frames_match_the_windowed_sum_evaluated_term_by_term(clicks, config):
     assert np.abs(expected).max() > 0.3  # a pulse to compare
     np.testing.assert_allclose(feats[chosen], expected, atol=2e-6)
     assert padded[-1] and not padded[chosen[:-3]].any()
+    # a frame at a time, as live: each window summed directly instead of the recursion over the audio
+    for k, start in enumerate(starts[chosen[:3]]):
+        one, _ = rhythm_features(clicks, np.array([start]), config)
+        np.testing.assert_allclose(one[0], expected[k], atol=2e-6)
 
 
 def test_values_are_salience_then_its_cosine_and_sine_tempo_by_tempo(clicks):
