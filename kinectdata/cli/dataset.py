@@ -8,7 +8,7 @@ from kinectdata.cli.options import FloatList, default_of
 from kinectdata.cli.progress import progress_bar
 from kinectdata.core.errors import ConfigError
 from kinectdata.dataset.build import build_dataset
-from kinectdata.dataset.config import DEFAULT_PIPELINE, BuildConfig
+from kinectdata.dataset.config import DEFAULT_PIPELINE, TEMPO_PITCHES, BuildConfig
 from kinectdata.dataset.executors import EXECUTORS, make_executor
 from kinectdata.dataset.inspect import inspect as inspect_report
 from kinectdata.dataset.pipelines import PIPELINES
@@ -102,7 +102,15 @@ from kinectdata.targets.specs import shipped_target_specs
     type=FloatList(),
     metavar="R,R",
     help="Add a copy of each training recording played R times as fast, song and dance (tempo and pitch, "
-    "as a turntable), e.g. 0.9,1.1.",
+    "as a turntable; --tempo-pitch kept: the same notes faster), e.g. 0.9,1.1.",
+)
+@click.option(
+    "--tempo-pitch",
+    type=click.Choice(TEMPO_PITCHES),
+    default=default_of(BuildConfig, "tempo_pitch"),
+    show_default=True,
+    help="How --augment-tempo plays a song faster: as a turntable (the pitch moves with the tempo) or with "
+    "its pitch kept (SoX's tempo effect, else librosa's phase vocoder).",
 )
 @click.option(
     "--clean",
@@ -200,6 +208,7 @@ def build_dataset_command(
     seed,
     augment_snr,
     augment_tempo,
+    tempo_pitch,
     clean,
     shard_size,
     compression,
@@ -243,6 +252,7 @@ def build_dataset_command(
         seed=seed,
         augment_snr=augment_snr,
         augment_tempo=augment_tempo,
+        tempo_pitch=tempo_pitch,
         clean={} if clean else None,
         shard_size_mb=shard_size,
         compression=None if compression == "none" else compression,

@@ -14,6 +14,8 @@ from kinectdata.targets.normalization import METHODS
 from kinectdata.targets.specs import GENERIC_TARGETS, GenericTarget, TargetSpec, load_target_spec
 
 DEFAULT_PIPELINE = "yalta2016"
+TEMPO_PITCHES = ("turntable", "kept")
+"""How a tempo copy's song is played faster (:attr:`BuildConfig.tempo_pitch`)."""
 
 
 @dataclass(frozen=True)
@@ -38,6 +40,10 @@ class BuildConfig:
             copies): each training dance with its song played r times as fast, as a turntable plays
             it (tempo and pitch both by r; the song read at ``sample_rate / r`` Hz and taken as
             ``sample_rate``), the motion's times divided by r, the offset too; 0.5-2, not 1.
+        tempo_pitch: how a tempo copy's song is played faster: ``turntable`` (above: its pitch moves
+            with its tempo) or ``kept`` (:func:`~kinectdata.align.stretch.stretch_audio`, SoX's
+            ``tempo`` or librosa's phase vocoder: the same notes, r times as fast, as the tempo
+            control of ``evaluate`` plays its songs).
         shard_size_mb: a new shard starts before one would exceed this (uncompressed MB).
         compression: None, "gzip" or "lzf" for the shard datasets.
         max_gap, min_coverage: alignment options (see :func:`kinectdata.align.recipe.align`).
@@ -56,6 +62,7 @@ class BuildConfig:
     seed: int = 0
     augment_snr: tuple[float, ...] = ()
     augment_tempo: tuple[float, ...] = ()
+    tempo_pitch: str = "turntable"
     shard_size_mb: float = 256.0
     compression: str | None = None
     max_gap: float = 0.2
@@ -82,6 +89,8 @@ class BuildConfig:
         wrong = [r for r in self.augment_tempo if not 0.5 <= r <= 2 or r == 1]
         if wrong:
             raise ConfigError(f"augment_tempo: {wrong[0]:g} is not a tempo factor from 0.5 to 2 other than 1")
+        if self.tempo_pitch not in TEMPO_PITCHES:
+            raise ConfigError(f"tempo_pitch must be one of {', '.join(TEMPO_PITCHES)}, not {self.tempo_pitch!r}")
         if self.normalisation not in METHODS:
             raise ConfigError(f"normalisation must be one of {', '.join(METHODS)}, not {self.normalisation!r}")
         if self.compression not in (None, "gzip", "lzf"):
@@ -146,6 +155,8 @@ class BuildConfig:
         d["augment_tempo"] = list(self.augment_tempo)
         if not d["augment_tempo"]:  # the configuration of every dataset built before tempo copies existed
             del d["augment_tempo"]
+        if d["tempo_pitch"] == "turntable":  # and before the pitch could be kept
+            del d["tempo_pitch"]
         if d["clean"] is None:  # and before cleaning existed
             del d["clean"]
         return d
@@ -160,6 +171,7 @@ class BuildConfig:
     def __repr__(self) -> str:
         snr = f", augment_snr={list(self.augment_snr)}" if self.augment_snr else ""
         snr += f", augment_tempo={list(self.augment_tempo)}" if self.augment_tempo else ""
+        snr += f", tempo_pitch={self.tempo_pitch}" if self.tempo_pitch != "turntable" else ""
         return (
             f"BuildConfig({self.features.extractor} features {list(self.feature_shape)}, target {self.target.name} "
             f"[{getattr(self.target, 'dim', 'for the recordings joint set')}], {self.normalisation}, {self.fps:g} fps, "

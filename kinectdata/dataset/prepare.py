@@ -86,6 +86,7 @@ def unit_key(
         "config": config.unit_config(snr_db is not None),
         "snr_db": snr_db,
         **({"tempo": tempo} if tempo is not None else {}),
+        **({"tempo_pitch": "kept"} if tempo is not None and config.tempo_pitch == "kept" else {}),
     }
     if needs_metre(config.feature_config):  # the features count the song's bars
         doc["beats_per_bar"] = entry.beats_per_bar
@@ -154,6 +155,35 @@ def _raw_blocks(path: Path, block: int = _BLOCK) -> Iterator[np.ndarray]:
     with open(path, "rb") as f:
         while (chunk := np.fromfile(f, dtype=np.float32, count=block)).size:
             yield chunk
+
+
+@dataclass(frozen=True)
+class _PlayedAudio:
+    """Audio already decoded to a raw float32 file (``n_samples`` at the build's rate), read as an
+    :class:`~kinectdata.align.audio.AudioReader` is."""
+
+    path: Path
+    n_samples: int
+
+    def blocks(self) -> Iterator[np.ndarray]:
+        return _raw_blocks(self.path)
+
+
+def _stretched(reader: AudioReader, tempo: float, sample_rate: int, path: Path) -> _PlayedAudio:
+    """``reader``'s song played ``tempo`` times as fast with its pitch kept
+    (:func:`~kinectdata.align.stretch.stretch_audio`), written to ``path`` as raw float32."""
+    from kinectdata.align.stretch import stretch_audio
+
+    song = np.concatenate([np.zeros(0, np.float32), *reader.blocks()])
+    played = stretch_audio(song, tempo, sample_rate)
+    try:
+        played.astype(np.float32).tofile(path)
+    except OSError as exc:
+        failure = write_failure(path, exc)
+        if failure is None:
+            raise
+        raise failure from exc
+    return _PlayedAudio(path, int(played.size))
 
 
 def _features_metre(
@@ -262,16 +292,26 @@ def _prepare_variants(
         mean_square = _mean_square(blocks()) if snrs else 0.0
     else:
         source = cleaned_for_build(entry.read_motion(), entry, config)
-        reader = AudioReader(entry.audio, sr if tempo is None else round(sr / tempo))
+        kept_pitch = tempo is not None and config.tempo_pitch == "kept"
+        reader = AudioReader(entry.audio, sr if tempo is None or kept_pitch else round(sr / tempo))
         given = entry.offset
-        if tempo is not None:  # the song read at sr / r and taken as sr: r times as fast (the rate rounded)
+        if kept_pitch:  # the same notes r times as fast, kept in a scratch file the passes below read
+            cache = scratch.enter_context(_scratch(work_dir, f"{entry.name}.audio-f32"))
+            played = _stretched(reader, tempo, sr, cache)
+            stretch = reader.n_samples / played.n_samples
+        elif tempo is not None:  # the song read at sr / r and taken as sr: r times as fast (the rate rounded)
             stretch = sr / reader.sample_rate
+        if tempo is not None:
             source = dataclasses.replace(source, times=source.times / stretch)
             given = given if given in (None, "auto") else float(given) / stretch
+        if kept_pitch:
+            reader = played
         env = None
-        if given == "auto" or snrs:
+        if (given == "auto" or snrs) and not kept_pitch:
             cache = scratch.enter_context(_scratch(work_dir, f"{entry.name}.audio-f32"))
             env = audio_envelopes(_tee(reader.blocks(), cache), sr)
+        elif given == "auto" or snrs:
+            env = audio_envelopes(reader.blocks(), sr)
         offset = resolve_offset(source, env, given)
         tl = plan_timeline(
             source,

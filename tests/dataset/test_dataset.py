@@ -12,7 +12,7 @@ import h5py
 import numpy as np
 import pytest
 from conftest import REPO
-from helpers import YALTA_ORIENTATIONS, YALTA_POSITIONS
+from helpers import YALTA_ORIENTATIONS, YALTA_POSITIONS, skip_unless_installed
 from scipy import signal
 from scipy.spatial.transform import Rotation
 
@@ -767,3 +767,48 @@ def test_tempo_copies_are_the_dance_and_its_song_played_faster(tmp_path):
     )
     with pytest.raises(ValueError, match="augment_tempo: 1 is not a tempo factor"):
         config(augment_tempo=(1.0,))
+
+
+def _spectrum_scale(clean: np.ndarray, copy: np.ndarray) -> float:
+    """The factor s (0.7-1.15) by which the frequency axis of ``clean``'s mean STFT spectrum [F, 1,
+    129, 5] best maps onto ``copy``'s: 0.8 for a song played as a turntable plays it at 0.8, 1 for
+    the same notes."""
+    bins = np.arange(129.0)
+    a, b = (x.reshape(len(x), 129, 5).mean(axis=(0, 2)) for x in (clean, copy))
+    scales = np.arange(0.7, 1.151, 0.01)
+    fits = [np.corrcoef(np.interp(bins / s, bins, a)[5:100], b[5:100])[0, 1] for s in scales]
+    return float(scales[int(np.argmax(fits))])
+
+
+def test_tempo_copies_with_the_pitch_kept_are_the_same_notes_faster(tmp_path):
+    """--tempo-pitch kept: the copy at 0.8 has the clean recording's spectrum (a turntable's copy has
+    it 0.8 times as high), and its dance and timing are the slowed dance's as before."""
+    from kinectdata.align.stretch import available_stretcher
+
+    skip_unless_installed(None if available_stretcher() else "neither sox nor librosa installed", "SoX")
+    built = {}
+    for pitch in ("turntable", "kept"):
+        built[pitch] = build_dataset(SAMPLES, tmp_path / pitch, config(augment_tempo=(0.8,), tempo_pitch=pitch))
+    assert "tempo_pitch" not in built["turntable"]["config"] and built["kept"]["config"]["tempo_pitch"] == "kept"
+    for pitch, manifest in built.items():
+        names = {r["name"]: r for r in manifest["recordings"]}
+
+        def rows(record, name, pitch=pitch):
+            with h5py.File(tmp_path / pitch / record["shard"], "r") as f:
+                return f[name][record["start"] : record["start"] + record["frames"]].astype(np.float64)
+
+        for rec in manifest["splits"]["train"]["recordings"]:
+            clean, copy = names[rec], names[f"{rec}~tempo0.8"]
+            assert copy["frames"] == pytest.approx(clean["frames"] / 0.8, abs=3)
+            assert copy["offset"]["seconds"] == pytest.approx(clean["offset"]["seconds"] / 0.8, abs=1.5 / 30)
+            scale = _spectrum_scale(rows(clean, "input"), rows(copy, "input"))
+            assert scale == pytest.approx(0.8 if pitch == "turntable" else 1.0, abs=0.025)
+            if pitch == "kept":  # the dance slowed as the turntable's copy has it: the same targets
+                turntable = {r["name"]: r for r in built["turntable"]["recordings"]}[copy["name"]]
+                with h5py.File(tmp_path / "turntable" / turntable["shard"], "r") as f:
+                    slowed = f["current"][turntable["start"] : turntable["start"] + turntable["frames"]]
+                n = min(len(slowed), copy["frames"])
+                drift = np.abs(rows(copy, "current")[:n] - slowed[:n]).mean()
+                assert drift < 0.5 * np.abs(np.diff(slowed, axis=0)).mean()
+    with pytest.raises(ValueError, match="tempo_pitch must be one of turntable, kept"):
+        config(tempo_pitch="vinyl")
