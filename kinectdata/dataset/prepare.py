@@ -136,19 +136,25 @@ def _scratch(work_dir: Path, name: str) -> Iterator[Path]:
         Path(path).unlink(missing_ok=True)
 
 
-def _tee(blocks: Iterable[np.ndarray], path: Path) -> Iterator[np.ndarray]:
-    """Pass blocks through while appending them to ``path`` as raw float32; a full disk raises a
-    KinectDataError naming ``path``."""
+@contextmanager
+def _writing(path: Path) -> Iterator[None]:
+    """Writes to ``path`` inside: a full disk raises a KinectDataError naming ``path``."""
     try:
-        with open(path, "wb") as f:
-            for block in blocks:
-                f.write(np.asarray(block, np.float32).tobytes())
-                yield block
+        yield
     except OSError as exc:
         failure = write_failure(path, exc)
         if failure is None:
             raise
         raise failure from exc
+
+
+def _tee(blocks: Iterable[np.ndarray], path: Path) -> Iterator[np.ndarray]:
+    """Pass blocks through while appending them to ``path`` as raw float32; a full disk raises a
+    KinectDataError naming ``path``."""
+    with _writing(path), open(path, "wb") as f:
+        for block in blocks:
+            f.write(np.asarray(block, np.float32).tobytes())
+            yield block
 
 
 def _raw_blocks(path: Path, block: int = _BLOCK) -> Iterator[np.ndarray]:
@@ -176,13 +182,8 @@ def _stretched(reader: AudioReader, tempo: float, sample_rate: int, path: Path) 
 
     song = np.concatenate([np.zeros(0, np.float32), *reader.blocks()])
     played = stretch_audio(song, tempo, sample_rate)
-    try:
+    with _writing(path):
         played.astype(np.float32).tofile(path)
-    except OSError as exc:
-        failure = write_failure(path, exc)
-        if failure is None:
-            raise
-        raise failure from exc
     return _PlayedAudio(path, int(played.size))
 
 
@@ -298,20 +299,19 @@ def _prepare_variants(
         if kept_pitch:  # the same notes r times as fast, kept in a scratch file the passes below read
             cache = scratch.enter_context(_scratch(work_dir, f"{entry.name}.audio-f32"))
             played = _stretched(reader, tempo, sr, cache)
-            stretch = reader.n_samples / played.n_samples
+            stretch, reader = reader.n_samples / played.n_samples, played
         elif tempo is not None:  # the song read at sr / r and taken as sr: r times as fast (the rate rounded)
             stretch = sr / reader.sample_rate
         if tempo is not None:
             source = dataclasses.replace(source, times=source.times / stretch)
             given = given if given in (None, "auto") else float(given) / stretch
-        if kept_pitch:
-            reader = played
         env = None
-        if (given == "auto" or snrs) and not kept_pitch:
-            cache = scratch.enter_context(_scratch(work_dir, f"{entry.name}.audio-f32"))
-            env = audio_envelopes(_tee(reader.blocks(), cache), sr)
-        elif given == "auto" or snrs:
-            env = audio_envelopes(reader.blocks(), sr)
+        if given == "auto" or snrs:
+            played_blocks = reader.blocks()
+            if cache is None:  # this pass decodes the song: kept for the second
+                cache = scratch.enter_context(_scratch(work_dir, f"{entry.name}.audio-f32"))
+                played_blocks = _tee(played_blocks, cache)
+            env = audio_envelopes(played_blocks, sr)
         offset = resolve_offset(source, env, given)
         tl = plan_timeline(
             source,

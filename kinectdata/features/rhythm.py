@@ -90,6 +90,10 @@ __all__ = ["DEFAULT_BEATS_PER_BAR", "PulseCount", "RhythmConfig", "predominant_b
 DEFAULT_BEATS_PER_BAR = 4
 """The metre a song's bar levels take when nothing says otherwise: most dance music is in 4."""
 
+_RESIDUE = 1e-9
+"""A window's onset sum at most this share of the recursion's whole sum is the recursion's rounding
+residue, not onsets: its pulse is 0 (:func:`_windowed_sums`)."""
+
 DIRECT_SUMS_UPTO = 16
 """A call that needs the pulse at this many instants or fewer (a live frame's one to five) sums each
 window directly; more share one recursion over the audio (:func:`_windowed_sums`)."""
@@ -302,7 +306,7 @@ def _windowed_sums(onsets: np.ndarray, config: RhythmConfig) -> np.ndarray:
     recursion per pole, ``y[n] = pole y[n - 1] + o[n]``, then ``y[n] - pole ** L y[n - L]`` keeps
     exactly the window: O(H) per tempo. That difference leaves rounding residue (about 1e-16 of y)
     where the window holds no onset, and a salience of residue over residue: rows whose weighted
-    onset sum is not clearly above it (1e-9 of y) are exactly 0."""
+    onset sum is not clearly above it (:data:`_RESIDUE` of y) are exactly 0."""
     from scipy.signal import lfilter
 
     poles, length = _poles(config)
@@ -311,7 +315,7 @@ def _windowed_sums(onsets: np.ndarray, config: RhythmConfig) -> np.ndarray:
         y = lfilter([1.0], [1.0, -pole], onsets.astype(np.complex128))
         out[:, k] = y
         out[length:, k] -= pole**length * y[:-length]
-    out[out[:, -1].real <= 1e-9 * y.real] = 0.0  # y: the recursion of the last, real pole (the onset sum)
+    out[out[:, -1].real <= _RESIDUE * y.real] = 0.0  # y: the recursion of the last, real pole (the onset sum)
     return out
 
 
@@ -337,7 +341,7 @@ def _windowed_sums_at(onsets: np.ndarray, hops: np.ndarray, config: RhythmConfig
     windows = np.lib.stride_tricks.sliding_window_view(onsets, length)[hops.ravel() - length + 1]
     out = (windows @ real + 1j * (windows @ imag)).reshape(*hops.shape, poles.size)
     onset_sum = lfilter([1.0], [1.0, -poles[-1].real], onsets)[hops]  # the recursion's scale, for its residue
-    out[out[..., -1].real <= 1e-9 * onset_sum] = 0.0
+    out[out[..., -1].real <= _RESIDUE * onset_sum] = 0.0
     return out
 
 
@@ -503,13 +507,13 @@ class OnsetSpectra:
         self.keep, self.phases = keep, phases
         self.grids: dict[int, tuple[int, np.ndarray, np.ndarray]] = {}  # phase: (first hop, rows, known)
 
-    def spectra(self, frames, ends: np.ndarray, reusable: np.ndarray, hop: int, compute) -> np.ndarray:
+    def spectra(self, windows_of, ends: np.ndarray, reusable: np.ndarray, hop: int, compute) -> np.ndarray:
         """[H, n_mels] the spectra of H windows ending at stream samples ``ends`` [H] (``hop``
-        apart): ``frames(rows)`` gives the windows [M, frame] of ``rows`` [M] (only those computed
+        apart): ``windows_of(rows)`` gives the windows [M, frame] of ``rows`` [M] (only those computed
         are read); ``reusable`` [H]: the windows wholly in the stream's audio; ``compute``
         ([M, frame] -> [M, n_mels]) called once for the others and those not kept yet."""
         if ends.size == 0 or ends.size > self.keep:
-            return compute(frames(np.arange(ends.size)))
+            return compute(windows_of(np.arange(ends.size)))
         phase, number = int(ends[0] % hop), ends // hop
         grid = self.grids.pop(phase, None)  # put back last: the phases are kept in the order used
         first, rows, known = grid if grid is not None else (int(number[0]), None, None)
@@ -517,7 +521,7 @@ class OnsetSpectra:
         old = np.zeros(ends.size, bool) if known is None or at[0] < 0 else known[np.minimum(at, known.size - 1)]
         old &= reusable & (at < (0 if known is None else known.size))
         fresh = np.flatnonzero(~old)
-        computed = compute(frames(fresh)) if fresh.size else None
+        computed = compute(windows_of(fresh)) if fresh.size else None
         width = computed.shape[1] if computed is not None else rows.shape[1]
         first, rows, known = self._moved_on(first, rows, known, int(number[0]), int(number[-1]), width)
         at = number - first
