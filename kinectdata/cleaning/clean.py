@@ -6,9 +6,10 @@
    behind (her left joints labelled right) found and swapped back;
 1. **gaps** (:mod:`.gaps`): inferred samples that jump away from their tracked neighbours taken out,
    and gaps up to ``max_gap_s`` filled as ``align`` fills them; longer ones left masked and listed;
-2. **jitter** (:mod:`.jitter`): a zero-phase Butterworth low-pass at 6 Hz (the default: offline,
-   no delay), a Savitzky-Golay smoother, or the 1-euro filter (causal: what a live system can do,
-   at the price of a lag on fast joints), per joint, each sample weighted by its confidence;
+2. **jitter** (:mod:`.jitter`): the short-time Wiener smoother (the default, :mod:`.wiener`: offline,
+   no delay, its cutoff following the motion window by window), a zero-phase Butterworth low-pass,
+   a Savitzky-Golay smoother, or the 1-euro filter (causal: what a live system can do, at the price
+   of a lag on fast joints), per joint, each sample weighted by its confidence;
 3. **bone lengths** (:mod:`.bones`): each bone held to the recording's median length (or one given):
    each bone's error shared by both its ends, then exact from the root out along its direction.
 
@@ -34,11 +35,12 @@ from kinectdata.cleaning.bones import hold_bone_lengths, lengths_by_name
 from kinectdata.cleaning.gaps import GapReport, fill_gaps
 from kinectdata.cleaning.jitter import ONE_EURO_DEFAULTS, one_euro, zero_phase
 from kinectdata.cleaning.sides import SideSwaps, find_side_swaps
+from kinectdata.cleaning.wiener import NOISE_BAND, WIENER_DEFAULTS
 from kinectdata.core.body_quality import bone_length_variation, mean_jerk
 from kinectdata.core.errors import ConfigError
 from kinectdata.core.motion import Motion, frame_clock, sides_exchanged
 
-JITTER_FILTERS = ("one_euro", "butterworth", "savgol", "none")
+JITTER_FILTERS = ("one_euro", "butterworth", "savgol", "wiener", "none")
 MOVED_M = 1e-4
 """A joint's sample counts as moved by a stage when it moved more than this (a tenth of a millimetre)."""
 
@@ -58,6 +60,8 @@ class CleanConfig:
         min_cutoff_hz, beta, d_cutoff_hz: the 1-euro filter's settings (Hz, Hz per m/s, Hz).
         cutoff_hz, order: the Butterworth low-pass (Hz, order before the backward pass).
         window_s: the Savitzky-Golay window, seconds.
+        wiener_window_s, over_subtraction: the short-time Wiener smoother (:mod:`.wiener`; seconds,
+            and how many times the noise's power is taken away).
         bones: hold each bone to one length.
         spread: share each bone's error in length between its two ends before the exact pass from the
             root out (False: only that pass, every bone keeping its measured direction exactly).
@@ -70,13 +74,15 @@ class CleanConfig:
     gaps: bool = True
     max_gap_s: float = 0.2
     jump_m: float = 0.1
-    jitter: str = "butterworth"
+    jitter: str = "wiener"
     min_cutoff_hz: float = ONE_EURO_DEFAULTS["min_cutoff_hz"]
     beta: float = ONE_EURO_DEFAULTS["beta"]
     d_cutoff_hz: float = ONE_EURO_DEFAULTS["d_cutoff_hz"]
     cutoff_hz: float = 6.0
     order: int = 2
     window_s: float = 0.3
+    wiener_window_s: float = WIENER_DEFAULTS["window_s"]
+    over_subtraction: float = WIENER_DEFAULTS["over_subtraction"]
     bones: bool = True
     spread: bool = True
     bone_lengths: dict[str, float] = field(default_factory=dict)
@@ -108,6 +114,13 @@ class CleanConfig:
         }
         if "up" in out:
             out["up"] = list(out["up"])
+        return out
+
+    def resolved(self) -> dict[str, Any]:
+        """Every field as JSON values: what runs, whatever today's defaults are (a dataset's work
+        files are keyed on it, so that a changed default is not taken for the cleaning they had)."""
+        out = dataclasses.asdict(self)
+        out["up"] = list(out["up"])
         return out
 
     def __post_init__(self) -> None:
@@ -244,11 +257,16 @@ def clean_motion(motion: Motion, config: CleanConfig | None = None) -> Cleaned:
             moved = one_euro(positions, motion.times, mask, motion.confidence, min_cutoff_hz=config.min_cutoff_hz,
                              beta=config.beta, d_cutoff_hz=config.d_cutoff_hz)  # fmt: skip
         else:
-            detail = (f"butterworth: {config.cutoff_hz:g} Hz, order {config.order}, forwards and backwards"
-                      if config.jitter == "butterworth" else f"savgol: cubic over {config.window_s:g} s")  # fmt: skip
+            detail = {
+                "butterworth": f"butterworth: {config.cutoff_hz:g} Hz, order {config.order}, forwards and backwards",
+                "savgol": f"savgol: cubic over {config.window_s:g} s",
+                "wiener": f"wiener: windows of {config.wiener_window_s:g} s, {config.over_subtraction:g} x the noise "
+                f"measured above {NOISE_BAND * fps / 2:.3g} Hz taken away",
+            }[config.jitter]
             moved = zero_phase(positions, fps, mask, motion.confidence, method=config.jitter,
                                cutoff_hz=config.cutoff_hz, order=config.order, window_s=config.window_s,
-                               times=motion.times)  # fmt: skip
+                               times=motion.times, wiener_window_s=config.wiener_window_s,
+                               over_subtraction=config.over_subtraction)  # fmt: skip
         stages.append(_stage("jitter", detail, positions, moved, mask, js.names))
         positions = moved
     if config.bones:

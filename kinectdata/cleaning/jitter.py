@@ -11,7 +11,7 @@
   (``scipy.signal.sosfiltfilt``: no delay) or a Savitzky-Golay smoother (``scipy.signal.savgol_filter``),
   applied as a normalised convolution (Knutsson and Westin 1993): the filter of ``confidence *
   position`` over the filter of ``confidence``, so that low-confidence samples count less and
-  missing ones not at all.
+  missing ones not at all; or the ``wiener`` method (:mod:`.wiener`), whose cutoff follows the motion.
 
 Masked samples stay masked; gaps are not filled here.
 """
@@ -21,6 +21,7 @@ from __future__ import annotations
 import numpy as np
 
 from kinectdata.cleaning.recurrence import smooth
+from kinectdata.cleaning.wiener import NOISE_BAND, WIENER_DEFAULTS, band_filter, noise_sigma, short_time_wiener
 from kinectdata.core.errors import ConfigError
 from kinectdata.core.motion import frame_clock, held_from_nearest
 
@@ -109,6 +110,8 @@ def zero_phase(
     order: int = 2,
     window_s: float = 0.3,
     times: np.ndarray | None = None,
+    wiener_window_s: float = WIENER_DEFAULTS["window_s"],
+    over_subtraction: float = WIENER_DEFAULTS["over_subtraction"],
 ) -> np.ndarray:
     """A zero-phase low-pass of each joint, as a normalised convolution (see the module docstring).
 
@@ -123,6 +126,9 @@ def zero_phase(
         cutoff_hz: the Butterworth cutoff, Hz (below fps / 2).
         order: the Butterworth order.
         window_s: the Savitzky-Golay window, seconds (at least 5 frames).
+        wiener_window_s, over_subtraction: the ``wiener`` method (:mod:`.wiener`: the Butterworth
+            of ``order`` at the noise band's edge, then the short-time Wiener gain over windows of
+            ``wiener_window_s`` seconds taking away ``over_subtraction`` times the noise's power).
         times: [T] the samples' times, seconds (default: ``positions`` taken as on an even grid).
             Given, each sample is put on the recording's frame grid
             (:func:`~kinectdata.core.motion.frame_clock`: a dropped frame is a missing sample, not
@@ -138,6 +144,18 @@ def zero_phase(
 
     p = np.asarray(positions, dtype=np.float64)
     valid, weight = _valid_and_weight(p, mask, confidence)
+    denoise = None
+    if method == "wiener":
+        if wiener_window_s * fps < 4 or over_subtraction <= 0:
+            raise ConfigError(f"a Wiener window must hold at least 4 frames and the over-subtraction be positive, "
+                              f"not {wiener_window_s:g} s and {over_subtraction:g}")  # fmt: skip
+        sos = band_filter(fps, order)
+
+        def denoise(grid: np.ndarray, residual: np.ndarray) -> np.ndarray:
+            return short_time_wiener(grid, noise_sigma(residual, sos, fps), fps, sos, window_s=wiener_window_s,
+                                     over_subtraction=over_subtraction)  # fmt: skip
+
+        method, cutoff_hz = "butterworth", NOISE_BAND * fps / 2.0
     if method == "butterworth":
         if not 0 < cutoff_hz < fps / 2:
             raise ConfigError(f"a Butterworth cutoff must lie between 0 and half the frame rate ({fps / 2:g} Hz), "
@@ -155,7 +173,7 @@ def zero_phase(
         def run(v: np.ndarray) -> np.ndarray:
             return signal.savgol_filter(v, frames, 3, axis=-1, mode="interp")
     else:
-        raise ConfigError(f"zero-phase method {method!r} is not butterworth or savgol")
+        raise ConfigError(f"zero-phase method {method!r} is not butterworth, savgol or wiener")
     # time-last [J, D, T] and [J, T]: scipy filters the last axis without copying it first
     values = np.ascontiguousarray((np.where(valid[..., None], p, 0.0) * weight[..., None]).transpose(1, 2, 0))
     weight = np.ascontiguousarray(weight.T)
@@ -163,12 +181,19 @@ def zero_phase(
         J, D, T = values.shape
         both = run(np.concatenate([values.reshape(J * D, T), weight]))
         filtered = both[: J * D].reshape(J, D, T) / _nonzero(both[J * D :])[:, None, :]
+        if denoise is not None:
+            raw = np.where(valid.T[:, None, :], values / np.where(weight > 0, weight, 1.0)[:, None, :], np.nan)
+            flat = filtered.reshape(J * D, T).T
+            filtered = denoise(flat, raw.reshape(J * D, T).T - flat).T.reshape(J, D, T)
     else:
         t = np.asarray(times, np.float64)
         # a few joints at a time: the same blocks of memory serve every group (fresh ones cost more
         # than the filter on a machine whose pages come slowly)
         filtered = np.concatenate(
-            [_on_the_frame_grid(run, values[j : j + 4], weight[j : j + 4], t) for j in range(0, values.shape[0], 4)]
+            [
+                _on_the_frame_grid(run, values[j : j + 4], weight[j : j + 4], t, denoise)
+                for j in range(0, values.shape[0], 4)
+            ]
         )
     filtered = filtered.transpose(2, 0, 1).copy()
     filtered[~valid] = np.nan
@@ -180,14 +205,16 @@ def _nonzero(total: np.ndarray) -> np.ndarray:
     return np.where(np.abs(total) > 1e-9, total, np.nan)
 
 
-def _on_the_frame_grid(run, values: np.ndarray, weight: np.ndarray, times: np.ndarray) -> np.ndarray:
+def _on_the_frame_grid(run, values: np.ndarray, weight: np.ndarray, times: np.ndarray, denoise=None) -> np.ndarray:
     """``run`` (a zero-phase filter along the last axis) as a normalised convolution on the
     recording's frame grid, read back at ``times`` [T] (see :func:`zero_phase`'s ``times``):
     ``values`` [J, D, T] weighted samples, ``weight`` [J, T]; [J, D, T] out. A dropped frame is
     filled by the cubic through the two samples on either side of it (a normalised convolution left
     to bridge it is off by about the filter's weight at one frame times the distance moved in a
     frame: 4 cm at 3.8 m/s). Twice: a sample taken off the grid is first moved onto it along the
-    first pass's velocity, so that the jitter does not enter the filter as noise."""
+    first pass's velocity, so that the jitter does not enter the filter as noise. ``denoise``, when
+    given, takes the filtered grid [K, J * D] and the samples' residuals from it [T, J * D] (NaN
+    where there is no sample) and returns the grid denoised further (the ``wiener`` method)."""
     interval, numbers = frame_clock(times)
     frame = np.round(numbers).astype(np.int64)
     start = (times - frame * interval).mean()
@@ -203,9 +230,13 @@ def _on_the_frame_grid(run, values: np.ndarray, weight: np.ndarray, times: np.nd
     grid_values[dropped] = fill.reshape(J * D, -1).T
     total = np.repeat(_nonzero(run(grid_weight.T)), D, axis=0).T  # [K, J * D]
     velocity = np.zeros((T, J * D))
-    for _ in range(2):
+    for last in (False, True):
         grid_values[frame] = samples - sample_weight * velocity * offset
         grid = run(grid_values.T).T / total
+        if denoise is not None and last:  # the first pass only moves the samples onto the grid
+            sampled = sample_weight > 0
+            raw = np.where(sampled, grid_values[frame] / np.where(sampled, sample_weight, 1.0), np.nan)
+            grid = denoise(grid, raw - grid[frame])
         if K > 1:
             velocity = np.nan_to_num(np.gradient(grid, interval, axis=0)[frame])
     out = grid[frame] + velocity * offset  # [T, J * D]

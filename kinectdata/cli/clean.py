@@ -23,10 +23,11 @@ from kinectdata.cli.options import reader_options
               help="how far an inferred joint may lie from its tracked neighbours' line, m (0.1)")  # fmt: skip
 @click.option(
     "--jitter",
-    type=click.Choice(["butterworth", "savgol", "one-euro", "none"]),
-    default="butterworth",
+    type=click.Choice(["wiener", "butterworth", "savgol", "one-euro", "none"]),
+    default="wiener",
     show_default=True,
-    help="the jitter filter: a zero-phase Butterworth or Savitzky-Golay (offline), the 1-euro filter (causal)",
+    help="the jitter filter: the short-time Wiener smoother, a zero-phase Butterworth or Savitzky-Golay (offline), "
+    "the 1-euro filter (causal)",
 )
 @click.option("--min-cutoff", type=click.FloatRange(min=0, min_open=True), default=None, help="1-euro: Hz (1)")
 @click.option("--beta", type=click.FloatRange(min=0), default=None, help="1-euro: Hz per m/s of speed (50)")
@@ -34,6 +35,10 @@ from kinectdata.cli.options import reader_options
 @click.option("--cutoff", type=click.FloatRange(min=0, min_open=True), default=None, help="Butterworth: Hz (6)")
 @click.option("--order", type=click.IntRange(min=1), default=None, help="Butterworth: its order (2)")
 @click.option("--window", type=click.FloatRange(min=0, min_open=True), default=None, help="Savitzky-Golay: s (0.3)")
+@click.option("--wiener-window", type=click.FloatRange(min=0, min_open=True), default=None,
+              help="Wiener: its windows, s (1.2)")  # fmt: skip
+@click.option("--over-subtraction", type=click.FloatRange(min=0, min_open=True), default=None,
+              help="Wiener: how many times the noise's power is taken away (2)")  # fmt: skip
 @click.option("--bones/--no-bones", default=True, show_default=True, help="hold each bone to one length")
 @click.option("--spread/--no-spread", default=True, show_default=True,
               help="share each bone's error by its ends first (--no-spread: each keeps its direction)")  # fmt: skip
@@ -42,7 +47,7 @@ from kinectdata.cli.options import reader_options
 @click.option("--report", "report_path", type=click.Path(dir_okay=False), default=None, help="write the report as JSON")
 @reader_options(format_flag="--from")
 def clean(recording, out, sides, up, gaps, max_gap, jump, jitter, min_cutoff, beta, d_cutoff, cutoff, order, window,
-          bones, spread, bone_lengths, report_path, reading) -> None:  # fmt: skip
+          wiener_window, over_subtraction, bones, spread, bone_lengths, report_path, reading) -> None:  # fmt: skip
     """Clean RECORDING (any 3-D recording kinectdata reads) and write it to OUT in the format its
     extension names: left and right swapped back where a frontal tracker mirrored a dancer seen from
     behind, inferred joints that jump away taken out and short gaps filled, the jitter
@@ -58,6 +63,7 @@ def clean(recording, out, sides, up, gaps, max_gap, jump, jitter, min_cutoff, be
 
     chosen = {"min_cutoff_hz": min_cutoff, "beta": beta, "d_cutoff_hz": d_cutoff}
     chosen |= {"cutoff_hz": cutoff, "order": order, "window_s": window, "max_gap_s": max_gap, "jump_m": jump}
+    chosen |= {"wiener_window_s": wiener_window, "over_subtraction": over_subtraction}
     given = {}
     if bone_lengths is not None:
         try:

@@ -88,6 +88,11 @@ def unit_key(
         **({"tempo": tempo} if tempo is not None else {}),
         **({"tempo_pitch": "kept"} if tempo is not None and config.tempo_pitch == "kept" else {}),
     }
+    cleaning = cleaning_for(entry, config)
+    if cleaning is not None:  # every setting, so that a default changed since is not taken for the old one
+        from kinectdata.cleaning import CleanConfig
+
+        doc["cleaning"] = CleanConfig.from_settings(cleaning, f"{entry.recording}: clean").resolved()
     if needs_metre(config.feature_config):  # the features count the song's bars
         doc["beats_per_bar"] = entry.beats_per_bar
     return hashlib.sha256(json.dumps(doc, sort_keys=True, default=str).encode()).hexdigest()[:32]

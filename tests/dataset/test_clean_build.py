@@ -71,6 +71,21 @@ def test_a_manifest_entry_says_for_itself(tmp_path):
     np.testing.assert_allclose(_targets(tmp_path / "own", own), _targets(tmp_path / "first", first), atol=2e-5)
 
 
+def test_a_work_file_is_keyed_on_the_cleaning_that_ran_not_on_todays_defaults(tmp_path):
+    """``clean: {}`` asks for the defaults: its work files are keyed on every setting, so that the
+    same settings spelt out give the same key, and a default changed since (the jitter filter was
+    Butterworth before the Wiener smoother) is not taken for the cleaning an old work file had."""
+    from kinectdata.dataset.prepare import unit_key
+
+    entry = read_recordings(_manifest(tmp_path / "m.json", SESSION.with_suffix(".csv")), allow_outside_paths=True)[0]
+
+    def key(clean):
+        return unit_key(entry, {"motion": "h"}, _config(clean=clean), None)
+
+    assert key({}) == key({"jitter": "wiener", "cutoff_hz": 6.0}) == key(kd.CleanConfig().resolved())
+    assert key({}) != key({"jitter": "butterworth"}) and key({}) != key(None)
+
+
 def test_bad_cleaning_settings_are_one_line(tmp_path):
     raw = SESSION.with_suffix(".csv")
     with pytest.raises(SchemaError, match="clean"):
