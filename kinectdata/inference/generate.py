@@ -47,9 +47,10 @@ from kinectdata.formats.csv_writer import write_csv
 from kinectdata.formats.openpose_writer import write_openpose_jsonl
 from kinectdata.inference.engines import make_engine
 from kinectdata.inference.start import StartPose, recording_start, target_poses
-from kinectdata.inference.turning import run_travel, run_turning, travel_generator, turn_song
+from kinectdata.inference.turning import faced_first_pose, run_travel, run_turning, travel_generator, turn_song
 from kinectdata.models.registry import model_kind
 from kinectdata.models.run import load_model, model_name
+from kinectdata.targets.facing import turn_about_root
 from kinectdata.targets.normalization import Normalizer
 from kinectdata.targets.specs import TargetSpec
 
@@ -153,6 +154,9 @@ def generate(
     pose = np.asarray(start.pose if true_first else data["start_pose"], dtype=np.float32)
     poses = np.empty((n, spec.dim), np.float32)
     poses[0] = pose
+    heading = 0.0  # a run that learnt facing one way starts from its first pose faced, and turns back after
+    if true_first:
+        pose, heading = faced_first_pose(config, pose)
     step_times: list[float] = []
     drawing = (turning and config.get("turning") is not None) or (travel and config.get("travel") is not None)
     heard: list[np.ndarray] = []  # every frame's features, when the turning needs to know the silent ones
@@ -203,8 +207,10 @@ def generate(
             poses[:] = kind.free_run(net, np.concatenate([features[:1], features]), pose)
         step_times = [(time.perf_counter() - ran) / n] * n
     values = norm.invert(poses, spec)
-    if process is not None or moving is not None:  # the frames the model made: 1..n-1 after a true first pose
-        made = slice(1 if true_first else 0, n)
+    made = slice(1 if true_first else 0, n)  # the frames the model made: 1..n-1 after a true first pose
+    if heading:
+        values[made] = turn_about_root(values[made], spec, heading)
+    if process is not None or moving is not None:
         rng = np.random.default_rng(int(seed))
         silence = silence_features(data["features"], fps)
         values[made] = turn_song(

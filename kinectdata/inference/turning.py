@@ -20,6 +20,11 @@ music, as its bar features are) is drawn its metre's where the run has them, els
 
 Runs that reset their state every L frames (``evaluate``'s "with reset" figures, the yalta paper's
 table) are not turned: those figures measure the network's prediction from true poses.
+
+A run that learnt its poses facing one way (``train --facing``, :mod:`kinectdata.targets.facing`)
+starts every free run from its first pose turned to face that way (:func:`faced_first_pose`), and its
+frames are turned back by as much (:func:`~kinectdata.targets.facing.turn_about_root`), so that the
+dance goes on from the way the first pose stood.
 """
 
 from __future__ import annotations
@@ -29,7 +34,9 @@ from typing import Any
 
 import numpy as np
 
+from kinectdata.core.errors import ConfigError
 from kinectdata.features.silence import silence_features, silent_frames
+from kinectdata.targets.facing import faced, trunk_pairs, turn_about_root
 from kinectdata.targets.normalization import Normalizer
 from kinectdata.targets.specs import TargetSpec
 from kinectdata.targets.travel import TravelProcess, TravelStream, draw_travel, travel_targets
@@ -39,7 +46,9 @@ __all__ = [
     "DrawnStream",
     "TurnedKind",
     "drawn_line",
+    "faced_first_pose",
     "live_turning",
+    "run_faces",
     "run_travel",
     "run_turning",
     "travel_generator",
@@ -85,6 +94,32 @@ def drawn_line(config: dict[str, Any], beats_per_bar: int | None = None) -> str:
     elif metres:
         lines.append(f"songs of {' or '.join(map(str, metres))} beats a bar are drawn their metre's")
     return "; ".join(lines)
+
+
+def run_faces(config: dict[str, Any]) -> bool:
+    """Whether a run learnt its poses facing one way: trained with ``facing`` and its turning drawn,
+    on targets that can be turned (as the training loop decides)."""
+    train = config.get("train", {})
+    if not (train.get("facing") and train.get("turning", True)) or not config["dataset"].get("root_centre"):
+        return False
+    try:
+        trunk_pairs(TargetSpec.from_dict(config["dataset"]["target"]))
+    except ConfigError:
+        return False
+    return True
+
+
+def faced_first_pose(config: dict[str, Any], pose: np.ndarray) -> tuple[np.ndarray, float]:
+    """A free run's first pose [D] (normalised, filled) turned to face the way the run's training
+    poses faced, and the heading (rad) it was turned from; the pose as it is and 0 for a run that
+    did not learn facing one way (:func:`run_faces`)."""
+    pose = np.asarray(pose)
+    if not run_faces(config):
+        return pose, 0.0
+    spec = TargetSpec.from_dict(config["dataset"]["target"])
+    norm = Normalizer.from_dict(config["dataset"]["normalisation"])
+    turned, heading = faced(norm.invert(pose[None].astype(np.float64), spec)[0], spec)
+    return norm.apply(turned[None])[0].astype(pose.dtype), float(heading)
 
 
 def turn_song(
@@ -159,7 +194,7 @@ class TurnedKind:
         else:
             self.metres[key] = int(beats_per_bar)
 
-    def _turned(self, audio: np.ndarray, run: np.ndarray) -> np.ndarray:
+    def _turned(self, audio: np.ndarray, run: np.ndarray, heading: float = 0.0) -> np.ndarray:
         made = audio[len(audio) - len(run) :]  # a free run makes frames 1..T-1 of features [T]
         metre = self.metres.get(zlib.crc32(np.ascontiguousarray(audio).tobytes()))
         process, travel = self.process, self.travel
@@ -167,6 +202,8 @@ class TurnedKind:
             process = run_turning(self.config, metre) if process is not None else None
             travel = run_travel(self.config, metre) if travel is not None else None
         values = self.norm.invert(run, self.spec)
+        if heading:  # the run faced one way: back to where its first pose stood
+            values = turn_about_root(values, self.spec, heading)
         turned = turn_song(
             values,
             made,
@@ -180,24 +217,35 @@ class TurnedKind:
         )
         return self.norm.apply(turned)
 
+    def _back(self, run: Any, heading: float) -> Any:
+        """A reset run (not turned) back to where its first pose stood, when that pose was faced."""
+        if not heading:
+            return run
+        values = turn_about_root(self.norm.invert(np.asarray(run), self.spec), self.spec, heading)
+        return self.norm.apply(values).astype(np.asarray(run).dtype)
+
     def free_run(self, net: Any, audio: np.ndarray, first_pose: np.ndarray, reset_every: int | None = None) -> Any:
-        run = self.kind.free_run(net, audio, first_pose, reset_every)
-        return run if reset_every is not None else self._turned(np.asarray(audio), np.asarray(run))
+        first, heading = faced_first_pose(self.config, first_pose)
+        run = self.kind.free_run(net, audio, first, reset_every)
+        if reset_every is not None:
+            return self._back(run, heading)
+        return self._turned(np.asarray(audio), np.asarray(run), heading)
 
     def free_runs(
         self, net: Any, audios: list[np.ndarray], first_poses: list[np.ndarray], reset_every: int | None = None
     ) -> list[np.ndarray]:
-        runs = self.kind.free_runs(net, audios, first_poses, reset_every)
+        started = [faced_first_pose(self.config, p) for p in first_poses]
+        runs = self.kind.free_runs(net, audios, [p for p, _ in started], reset_every)
         if reset_every is not None:
-            return runs
-        return [self._turned(np.asarray(a), np.asarray(r)) for a, r in zip(audios, runs)]
+            return [self._back(r, h) for r, (_, h) in zip(runs, started)]
+        return [self._turned(np.asarray(a), np.asarray(r), h) for a, r, (_, h) in zip(audios, runs, started)]
 
 
 def with_turning(kind: Any, config: dict[str, Any], seed: int = 0) -> Any:
     """``kind`` turned and moved by its run's processes (:class:`TurnedKind`), or ``kind`` itself when
-    the run keeps neither."""
+    the run keeps neither and did not learn its poses facing one way."""
     process, travel = run_turning(config), run_travel(config)
-    if process is None and travel is None:
+    if process is None and travel is None and not run_faces(config):
         return kind
     return TurnedKind(kind, config, process, seed, travel)
 

@@ -30,7 +30,6 @@ way a dancer faces learns a body averaged over the ways, a fraction as wide as t
 from __future__ import annotations
 
 import math
-import re
 from dataclasses import dataclass
 from typing import Any
 
@@ -39,6 +38,7 @@ import torch
 
 from kinectdata.core.errors import ConfigError
 from kinectdata.features.silence import silence_features
+from kinectdata.targets.facing import trunk_pairs, turned_joints
 from kinectdata.targets.normalization import Normalizer
 from kinectdata.targets.specs import TargetSpec
 
@@ -249,12 +249,6 @@ def without_slow_travel(batch: dict[str, torch.Tensor], travel: SlowTravel) -> d
     return out
 
 
-LEFT = re.compile(r"(?i)left|^L(?=[A-Z])")
-"""A joint named for the body's left side (``left_hip``, ``HipLeft``, ``LShoulder``)."""
-TRUNK = re.compile(r"(?i)hip|shoulder")
-"""The pairs whose left-right vector gives the facing: the hips' and shoulders' (the arms wander)."""
-
-
 FACING_SMOOTHING_S = 0.5
 """The heading a frame is turned by is the trunk's, averaged over this many seconds (centred): the
 turning the run draws is slow (its speed correlated over about 0.4 s on tang2018), and a heading
@@ -282,27 +276,17 @@ class Facing:
         """Raises ConfigError: the targets are not 3-D positions centred on their root, or name no
         left and right joint."""
         spec = TargetSpec.from_dict(manifest["config"]["target"])
-        if spec.dimensions != 3 or not manifest["config"].get("root_centre") or spec.root not in spec.positions:
+        if not manifest["config"].get("root_centre"):
             raise ConfigError("facing: the targets must be 3-D joint positions centred on their root (--root-centre)")
-        joints = [j for j in spec.positions if j != spec.root]
-        js = spec.joints
-        image = js.mirror_image()
-        pairs = []
-        for j in joints:
-            other = js.names[image[js.index(j)]]
-            if other != j and other in joints and LEFT.search(j):
-                pairs.append((joints.index(j), joints.index(other), bool(TRUNK.search(j))))
-        trunk = [p for p in pairs if p[2]] or pairs
-        if not trunk:
-            raise ConfigError(f"facing: the target's joints name no left and right side ({', '.join(joints)})")
-        x = [spec.columns(j, "position").start for j in joints]
+        left, right = trunk_pairs(spec)
+        x = [spec.columns(j, "position").start for j in turned_joints(spec)]
         norm = Normalizer.from_dict(manifest["normalisation"])
         columns = np.array([[c, c + 2] for c in x])  # [J, 2]
         return cls(
             torch.tensor(columns[:, 0]),
             torch.tensor(columns[:, 1]),
-            torch.tensor([a for a, _, _ in trunk]),
-            torch.tensor([b for _, b, _ in trunk]),
+            torch.tensor(left),
+            torch.tensor(right),
             torch.tensor(norm.scale[columns], dtype=torch.float32),
             torch.tensor(norm.offset[columns], dtype=torch.float32),
             max(1, int(round(FACING_SMOOTHING_S * float(manifest["config"]["fps"]))) | 1),

@@ -60,7 +60,9 @@ from kinectdata.models.run import (
     save_checkpoint,
     write_json,
 )
+from kinectdata.targets.facing import faced
 from kinectdata.targets.normalization import Normalizer
+from kinectdata.targets.specs import TargetSpec
 from kinectdata.training.augment import (
     Facing,
     Mirror,
@@ -321,19 +323,27 @@ def _after_context(predict: Callable) -> Callable:
     return cut
 
 
-def _start_pose(dataset: Path, manifest: dict[str, Any]) -> list[float]:
+def _start_pose(dataset: Path, manifest: dict[str, Any], facing: bool = False) -> list[float]:
     """Mean normalised pose of the training split's recordings (valid values; 0 where a component
-    never is): the output layer's initial bias and the first "previous pose" when generating."""
+    never is): the output layer's initial bias and the first "previous pose" when generating. With
+    ``facing`` (a run that learns its poses facing one way) each pose is faced first
+    (:func:`kinectdata.targets.facing.faced`): averaged over the ways the dancers faced, the arms of
+    the mean pose would meet at the body's axis."""
     total = np.zeros(manifest["target_dim"])
     count = np.zeros(manifest["target_dim"])
+    spec = TargetSpec.from_dict(manifest["config"]["target"])
+    norm = Normalizer.from_dict(manifest["normalisation"])
     for r in manifest["recordings"]:
         if r["split"] != "train" or is_copy(r):
             continue
         with h5py.File(dataset / r["shard"], "r") as f:
             rows = slice(r["start"], r["start"] + r["frames"])
             mask = f["mask"][rows]
-            total += np.where(mask, f["current"][rows].astype(np.float64), 0.0).sum(axis=0)
-            count += mask.sum(axis=0)
+            current = f["current"][rows].astype(np.float64)
+        if facing:
+            current = norm.apply(faced(norm.invert(current, spec), spec)[0])
+        total += np.where(mask, current, 0.0).sum(axis=0)
+        count += mask.sum(axis=0)
     return (total / np.maximum(count, 1)).tolist()
 
 
@@ -737,7 +747,6 @@ def train(
         else:
             if (run / CHECKPOINT).exists() or (run / MODEL).exists():
                 raise KinectDataError(f"{run}: already holds a run; use --resume to continue it or another folder")
-            run_config["dataset"]["start_pose"] = _start_pose(dataset, manifest)
             run_config |= fit_dataset_drawn(
                 dataset,
                 manifest,
@@ -746,6 +755,9 @@ def train(
                 travel=config.travel,
                 by_metre=config.by_metre,
             )
+            # facing one way is for a run whose turning is drawn: targets that cannot be turned keep none
+            faces = config.facing and "turning" in run_config
+            run_config["dataset"]["start_pose"] = _start_pose(dataset, manifest, faces)
             kind.init_output(net, run_config["dataset"]["start_pose"])
             if world.main:
                 run.mkdir(parents=True, exist_ok=True)
