@@ -147,9 +147,10 @@ def goals(results: dict[str, Any]) -> list[Goal]:
         if turning and turning.get("asked"):
             share = turning["generated_share"]
             alive.append(Figure("turning share", share, low=TURNING_SHARE, shown=f"{share:.0%}"))
-            note = (
-                f"the real dancers turn {turning['real_rate_rad_s']:.2f} rad/s, {turning['real_share']:.0%} of theirs"
-            )
+            rate, real_share = turning["real_rate_rad_s"], turning["real_share"]
+            note = f"the real dancers turn {rate:.2f} rad/s, {real_share:.0%} of theirs"
+            if "spread_ratio" in turning:  # results scored before the spread was measured have none
+                note += f"; the body {turning['spread_ratio']:.2f} x as wide about the vertical"
         out.append(Goal("a", "alive and human", tuple(alive), note))
         gen, real = listening["generated"], listening["real"]
         spread = listening["period_spread"]

@@ -68,6 +68,9 @@ class TurningFigures:
             songs; NaN when the real motion never turns).
         energy_ratio_without_turning: the energy left when the turning's is taken out, generated over
             real (mean over the songs).
+        spread_ratio: how wide the generated body is about the vertical over the real one
+            (:attr:`~kinectdata.evaluation.metrics.turning.Turning.spread`; mean over the songs): a
+            turning's energy short of the real one's at the same speed is a narrow body.
     """
 
     real_rate: float
@@ -76,6 +79,7 @@ class TurningFigures:
     generated_share: float
     turning_ratio: float
     energy_ratio_without_turning: float
+    spread_ratio: float = float("nan")
 
     @classmethod
     def of(cls, real: list[Turning], generated: list[Turning]) -> TurningFigures:
@@ -93,6 +97,7 @@ class TurningFigures:
                     [ratio(g.energy - g.turning_energy, r.energy - r.turning_energy) for r, g in zip(real, generated)]
                 )
             ),
+            spread_ratio=float(np.mean([ratio(g.spread, r.spread) for r, g in zip(real, generated)])),
         )
 
     @property
@@ -117,7 +122,8 @@ class TurningFigures:
         return (
             f"generated motion turns as the real motion does: {'yes' if self.turns else 'no'} ({figures}; the "
             f"turning's energy {self.turning_ratio:.2g} x the real's, wanted {ALIVE_RANGE[0]:g}-{ALIVE_RANGE[1]:g}; "
-            f"the energy without the turning {self.energy_ratio_without_turning:.2f} x the real's)"
+            f"the energy without the turning {self.energy_ratio_without_turning:.2f} x the real's; the body "
+            f"{self.spread_ratio:.2f} x as wide about the vertical)"
         )
 
     def to_dict(self) -> dict[str, Any]:
@@ -128,6 +134,7 @@ class TurningFigures:
             "generated_share": self.generated_share,
             "turning_ratio": self.turning_ratio,
             "energy_ratio_without_turning": self.energy_ratio_without_turning,
+            "spread_ratio": self.spread_ratio,
             "asked": self.asked,
             "turns": self.turns,
         }

@@ -48,6 +48,22 @@ def test_a_turn_alone_is_all_of_the_energy_and_a_still_heading_none():
     assert still.energy > 0.01
 
 
+def test_a_turns_energy_is_its_speed_squared_times_how_wide_the_body_is():
+    """At a steady 2 rad/s, the turning's energy is the speed squared times the body's spread about
+    the vertical (the chord of a frame pair's turn 0.2 % short of its arc), and the spread is the mean
+    squared horizontal distance of the joints from the centre, however the body turned."""
+    t = np.arange(60) / FPS
+    positions = turning_body(2.0 * t)
+    spun = turning(positions, FPS)
+    centred = positions[:, :, [0, 2]] - positions[:, :, [0, 2]].mean(axis=1, keepdims=True)
+    assert spun.spread == pytest.approx(float((centred**2).sum(axis=2).mean()), rel=1e-12)
+    assert spun.turning_energy == pytest.approx(4.0 * spun.spread, rel=0.003)
+    narrow = turning(positions * [0.5, 1.0, 0.5], FPS)  # arms in: half as wide, a quarter of the spread
+    assert narrow.spread == pytest.approx(spun.spread / 4) and narrow.rate == pytest.approx(spun.rate)
+    assert TurningFigures.of([spun], [narrow]).spread_ratio == pytest.approx(0.25)
+    assert "the body 0.25 x as wide about the vertical" in TurningFigures.of([spun], [narrow]).verdict()
+
+
 def test_a_joint_masked_or_missing_counts_as_if_it_were_not_there():
     t = np.arange(40) / FPS
     positions = turning_body(1.0 * t + 0.3 * np.sin(3 * t), joints=12)

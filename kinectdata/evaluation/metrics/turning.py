@@ -33,11 +33,15 @@ class Turning:
         energy: mean squared joint speed, (units / s)^2 (:func:`motion_energy_per_s`).
         turning_energy: the part of ``energy`` a rigid turn at each frame's rate explains: the mean
             squared speed of each joint carried round the frame's centre by the turn alone.
+        spread: how wide the body is about the vertical: the mean squared horizontal distance of
+            its joints from each frame's centre, (units)^2. A turn's energy is its speed squared
+            times this: a body with its arms in turns with little of it.
     """
 
     rate: float
     energy: float
     turning_energy: float
+    spread: float = float("nan")
 
     @property
     def share(self) -> float:
@@ -123,4 +127,5 @@ def turning(positions: np.ndarray, fps: float, mask: np.ndarray | None = None, u
         rate=float(np.nanmean(np.abs(rates))) if np.isfinite(rates).any() else float("nan"),
         energy=motion_energy_per_s(pos, mask, fps),
         turning_energy=float(carried[both].mean()),
+        spread=float((p**2).sum(axis=2)[both].mean()),
     )
