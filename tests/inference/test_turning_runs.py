@@ -118,3 +118,33 @@ def test_evaluate_says_what_it_drew_and_no_turning_leaves_the_network_alone(cent
     assert "travel drawn" in results[0]["turning"]
     # heights are the network's either way; the horizontal places are not
     assert results[0]["smape"]["without_reset"] != results[2]["smape"]["without_reset"]
+
+
+def test_a_facing_run_dances_on_from_its_first_pose_whichever_way_that_pose_faces(centred_run, tmp_path):
+    """A run that learnt its poses facing one way, started from a first pose turned by an angle about
+    the vertical, makes the dance it makes from the unturned pose, turned by that angle: it sees the
+    same faced pose either way. And its mean pose, the start, faces the way it learnt (its hips along
+    +x)."""
+    from kinectdata.inference.start import StartPose
+    from kinectdata.targets.facing import heading, turn_about_root
+    from kinectdata.targets.normalization import Normalizer
+    from kinectdata.targets.specs import TargetSpec
+
+    _, dataset = centred_run
+    run = tmp_path / "facing"
+    train(dataset, run, TrainConfig(**{**TINY_TRAINING, "epochs": 1, "facing": True}))
+    config = json.loads((run / "config.json").read_text())
+    spec = TargetSpec.from_dict(config["dataset"]["target"])
+    norm = Normalizer.from_dict(config["dataset"]["normalisation"])
+    mean = norm.invert(np.asarray(config["dataset"]["start_pose"])[None], spec)[0]
+    assert heading(mean, spec) == pytest.approx(0.0, abs=1e-6)
+    made = {}
+    for angle in (0.0, 1.1):
+        pose = norm.apply(turn_about_root(mean, spec, angle)[None])[0].astype(np.float32)
+        motion, _ = generate(run, SONG, start=StartPose(pose), turning=False, travel=False)
+        made[angle] = motion.positions - motion.positions[:, [motion.joint_set.index("SpineBase")]]
+    cos, sin = math.cos(1.1), math.sin(1.1)
+    x, z = made[0.0][..., 0], made[0.0][..., 2]
+    np.testing.assert_allclose(made[1.1][..., 0], cos * x - sin * z, atol=1e-4)
+    np.testing.assert_allclose(made[1.1][..., 2], sin * x + cos * z, atol=1e-4)
+    np.testing.assert_allclose(made[1.1][..., 1], made[0.0][..., 1], atol=1e-4)
