@@ -116,13 +116,25 @@ class StyleReport:
     def right(self) -> int:
         return sum(self.songs[n][0] == self.songs[n][1] for n in self.counted)
 
+    @property
+    def by_style(self) -> dict[str, tuple[int, int]]:
+        """Per style of the counted songs: (dances named right, dances). One dance for every song,
+        named the majority's style, scores the majority's share overall and 0 in every other style."""
+        out: dict[str, tuple[int, int]] = {}
+        for n in self.counted:
+            style, said, _ = self.songs[n]
+            right, total = out.get(style, (0, 0))
+            out[style] = (right + (style == said), total + 1)
+        return dict(sorted(out.items()))
+
     def verdict(self) -> str:
         named = ", ".join(f"{n} {style} -> {said}" for n, (style, said, _) in self.songs.items())
+        per_style = ", ".join(f"{style} {r} of {t}" for style, (r, t) in self.by_style.items())
         right, n = self.leave_one_out
         return (
-            f"dances in their song's style: {self.right} of {len(self.counted)} ({named}; the nearest style's mean "
-            f"in the kinetic and geometric features of the {n} training dances, which names {right} of them right "
-            f"when each is left out)"
+            f"dances in their song's style: {self.right} of {len(self.counted)} ({named}; by style {per_style}; "
+            f"the nearest style's mean in the kinetic and geometric features of the {n} training dances, which "
+            f"names {right} of them right when each is left out)"
         )
 
     def to_dict(self) -> dict[str, Any]:
@@ -131,6 +143,7 @@ class StyleReport:
             "held": self.held,
             "counted": self.counted,
             "right": self.right,
+            "by_style": {style: {"right": r, "dances": t} for style, (r, t) in self.by_style.items()},
             "leave_one_out": {"right": self.leave_one_out[0], "dances": self.leave_one_out[1]},
             "verdict": self.verdict(),
         }

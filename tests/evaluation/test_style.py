@@ -64,6 +64,8 @@ def test_a_style_no_training_dance_holds_is_not_counted():
     assert report.songs["T_5"] == ("tango", "waltz", "waltz_0")
     assert report.verdict().startswith("dances in their song's style: 1 of 2 (C_1 cha-cha -> cha-cha, T_5 tango")
     assert report.to_dict()["leave_one_out"]["dances"] == 17
+    assert report.by_style == {"cha-cha": (1, 1), "waltz": (0, 1)}  # the tango is not counted
+    assert "; by style cha-cha 1 of 1, waltz 0 of 1; " in report.verdict()
 
 
 def test_too_few_or_broken_training_dances_are_refused():
