@@ -106,15 +106,8 @@ class CleanConfig:
 
     def settings(self) -> dict[str, Any]:
         """The fields that differ from the defaults (JSON values), as :meth:`from_settings` takes them."""
-        default = CleanConfig()
-        out = {
-            f.name: getattr(self, f.name)
-            for f in dataclasses.fields(self)
-            if getattr(self, f.name) != getattr(default, f.name)
-        }
-        if "up" in out:
-            out["up"] = list(out["up"])
-        return out
+        default = CleanConfig().resolved()
+        return {name: value for name, value in self.resolved().items() if value != default[name]}
 
     def resolved(self) -> dict[str, Any]:
         """Every field as JSON values: what runs, whatever today's defaults are (a dataset's work

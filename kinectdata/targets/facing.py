@@ -57,7 +57,7 @@ def trunk_pairs(spec: TargetSpec) -> tuple[list[int], list[int]]:
     return [a for a, _, _ in trunk], [b for _, b, _ in trunk]
 
 
-def _xz_columns(spec: TargetSpec) -> np.ndarray:
+def xz_columns(spec: TargetSpec) -> np.ndarray:
     """[J, 2] the x and z columns of each of :func:`turned_joints`."""
     starts = [spec.columns(j, "position").start for j in turned_joints(spec)]
     return np.array([[s, s + 2] for s in starts], np.int64).reshape(-1, 2)
@@ -67,7 +67,7 @@ def heading(values: np.ndarray, spec: TargetSpec) -> np.ndarray:
     """The body's heading, rad, of denormalised root-centred targets ``values`` [..., D] (metres):
     [...]; NaN where a trunk joint is not finite."""
     left, right = trunk_pairs(spec)
-    xz = np.asarray(values, np.float64)[..., _xz_columns(spec)]  # [..., J, 2]
+    xz = np.asarray(values, np.float64)[..., xz_columns(spec)]  # [..., J, 2]
     across = (xz[..., left, :] - xz[..., right, :]).sum(axis=-2)
     return np.arctan2(across[..., 1], across[..., 0])
 
@@ -77,7 +77,7 @@ def turn_about_root(values: np.ndarray, spec: TargetSpec, angle: np.ndarray | fl
     vertical through the root by ``angle`` (rad, broadcast on ``...``; positive from x towards z); a
     new array, the root's values (its travel) and heights unchanged."""
     out = np.array(values, np.float64, copy=True)
-    cols = _xz_columns(spec)
+    cols = xz_columns(spec)
     x, z = out[..., cols[:, 0]], out[..., cols[:, 1]]
     a = np.asarray(angle, np.float64)[..., None]
     cos, sin = np.cos(a), np.sin(a)

@@ -38,7 +38,7 @@ import torch
 
 from kinectdata.core.errors import ConfigError
 from kinectdata.features.silence import silence_features
-from kinectdata.targets.facing import trunk_pairs, turned_joints
+from kinectdata.targets.facing import trunk_pairs, xz_columns
 from kinectdata.targets.normalization import Normalizer
 from kinectdata.targets.specs import TargetSpec
 
@@ -279,9 +279,8 @@ class Facing:
         if not manifest["config"].get("root_centre"):
             raise ConfigError("facing: the targets must be 3-D joint positions centred on their root (--root-centre)")
         left, right = trunk_pairs(spec)
-        x = [spec.columns(j, "position").start for j in turned_joints(spec)]
         norm = Normalizer.from_dict(manifest["normalisation"])
-        columns = np.array([[c, c + 2] for c in x])  # [J, 2]
+        columns = xz_columns(spec)  # [J, 2]
         return cls(
             torch.tensor(columns[:, 0]),
             torch.tensor(columns[:, 1]),

@@ -331,8 +331,9 @@ def _start_pose(dataset: Path, manifest: dict[str, Any], facing: bool = False) -
     the mean pose would meet at the body's axis."""
     total = np.zeros(manifest["target_dim"])
     count = np.zeros(manifest["target_dim"])
-    spec = TargetSpec.from_dict(manifest["config"]["target"])
-    norm = Normalizer.from_dict(manifest["normalisation"])
+    if facing:
+        spec = TargetSpec.from_dict(manifest["config"]["target"])
+        norm = Normalizer.from_dict(manifest["normalisation"])
     for r in manifest["recordings"]:
         if r["split"] != "train" or is_copy(r):
             continue
