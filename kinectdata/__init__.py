@@ -8,7 +8,8 @@ module on first use, so the import itself stays cheap (no torch, h5py or pandas)
 - align: :func:`align_motion` (``kinectdata.align.recipe.align``), :func:`align_files`,
   :class:`AlignedRecording` (``.load(path)``);
 - features: :class:`StftConfig`, :class:`MelConfig`, :data:`FEATURE_PRESETS`,
-  :func:`recording_features` (per motion frame, rates checked), :func:`compute_features`;
+  :func:`recording_features` (per motion frame, rates checked), :func:`compute_features`,
+  :func:`song_descriptors` and :class:`MusicStyleClassifier` (a song's dance style from its music);
 - targets: :class:`TargetSpec`, :func:`load_target_spec`, :func:`extract_targets`, :class:`Normalizer`;
 - dataset: :func:`prepare_corpus` (a corpus recipe), :func:`write_folds` (cross-validation
   manifests), :class:`BuildConfig`
@@ -49,6 +50,8 @@ _API = {
     "FEATURE_PRESETS": ("kinectdata.features", "PRESETS"),
     "compute_features": ("kinectdata.features", "compute_features"),
     "recording_features": ("kinectdata.features.recording", "recording_features"),
+    "song_descriptors": ("kinectdata.features.music_style", "song_descriptors"),
+    "MusicStyleClassifier": ("kinectdata.features.music_style", "MusicStyleClassifier"),
     # targets
     "TargetSpec": ("kinectdata.targets.specs", "TargetSpec"),
     "load_target_spec": ("kinectdata.targets.specs", "load_target_spec"),

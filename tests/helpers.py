@@ -191,3 +191,42 @@ def envelope_beat_s(samples: np.ndarray, rate: int, lags_s: tuple[float, float])
     lags = np.arange(len(r)) * hop / rate
     inside = (lags >= lags_s[0]) & (lags <= lags_s[1])
     return float(lags[inside][np.argmax(r[inside])])
+
+
+def _tone(rate: int, seconds: float, freqs: tuple[float, ...], decay_s: float) -> np.ndarray:
+    t = np.arange(int(seconds * rate)) / rate
+    return sum(np.sin(2 * np.pi * f * t) for f in freqs) / len(freqs) * np.exp(-t / decay_s)
+
+
+def _click(rng: np.random.Generator, rate: int, highpass: bool) -> np.ndarray:
+    """A 5 ms burst of noise, differenced (brighter) for the high click."""
+    burst = rng.normal(0, 1, int(0.005 * rate))
+    if highpass:
+        burst = np.diff(burst, prepend=0.0)
+    return burst / np.abs(burst).max()
+
+
+def metre_music(
+    bpm: float, beats_per_bar: int, bars: int, seed: int, rate: int = 22050
+) -> tuple[np.ndarray, np.ndarray]:
+    """(mono samples [S] full scale, beat times [B] s): on every downbeat a low bass tone (55/82 Hz)
+    and a click, on the other beats a high click and a chord (A major, 440-660 Hz, or in alternate bars
+    D major); every hit's loudness jitters, and white noise 40 dB below full scale runs underneath."""
+    rng = np.random.default_rng(seed)
+    beat = 60.0 / bpm
+    first = 0.25 + rng.uniform(0, 0.05)
+    beats = first + beat * np.arange(bars * beats_per_bar)
+    out = np.zeros(int((beats[-1] + 2 * beat) * rate))
+    for k, b in enumerate(beats):
+        at = int(round(b * rate))
+        gain = rng.uniform(0.7, 1.0)
+        if k % beats_per_bar == 0:
+            hit = 0.8 * _tone(rate, 0.9 * beat, (55.0, 82.4), 0.25)
+            hit[: int(0.005 * rate)] += 0.3 * _click(rng, rate, False)
+        else:
+            chord = (440.0, 554.4, 659.3) if (k // beats_per_bar) % 2 == 0 else (587.3, 740.0, 880.0)
+            hit = 0.3 * _tone(rate, 0.9 * beat, chord, 0.15)
+            hit[: int(0.005 * rate)] += 0.4 * _click(rng, rate, True)
+        out[at : at + hit.size] += gain * hit
+    out += rng.normal(0, 0.01, out.size)
+    return (out / max(1.0, np.abs(out).max())).astype(np.float32), beats

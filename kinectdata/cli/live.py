@@ -7,7 +7,7 @@ from pathlib import Path
 
 import click
 
-from kinectdata.cli.train import _torch_or_fail, beats_per_bar_option, turning_options
+from kinectdata.cli.train import _torch_or_fail, beats_per_bar_option, style_option, turning_options
 from kinectdata.core.errors import KinectDataError
 
 
@@ -70,6 +70,10 @@ from kinectdata.core.errors import KinectDataError
 @beats_per_bar_option(
     "The song's metre, for a model whose features count bars; default: estimated from a file, else 4."
 )
+@style_option(
+    "The song's dance style, for a run whose features hear it; default: heard in a file before it plays "
+    "(a device's song must be given)."
+)
 @turning_options
 def live(
     run_dir,
@@ -86,6 +90,7 @@ def live(
     engine,
     precision,
     beats_per_bar,
+    style,
     turning,
     travel,
     seed,
@@ -133,7 +138,14 @@ def live(
     click.echo(f"  {dancer.turning_line}")
     try:
         figures = run_live(
-            dancer, source, sinks, clock, duration=duration, beats_per_bar=beats_per_bar, record=recorder
+            dancer,
+            source,
+            sinks,
+            clock,
+            duration=duration,
+            beats_per_bar=beats_per_bar,
+            record=recorder,
+            style=style,
         )
     finally:
         for sink in sinks:

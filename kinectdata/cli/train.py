@@ -276,6 +276,11 @@ no_checksums_option = click.option(
 )
 
 
+def style_option(help_text: str):
+    """``--style NAME`` (default None: heard in the music), with ``help_text``."""
+    return click.option("--style", default=None, metavar="NAME", help=help_text)
+
+
 def beats_per_bar_option(help_text: str):
     """``--beats-per-bar N`` (2-12, default None: estimated from the music), with ``help_text``."""
     return click.option("--beats-per-bar", default=None, type=click.IntRange(2, 12), help=help_text)
@@ -455,8 +460,14 @@ def evaluate_command(
     "The song's metre (a waltz 3), for a model whose features count bars (listen_to_dance_rhythm_bars); "
     "default: estimated from the song."
 )
+@style_option(
+    "The song's dance style (one the run's training songs hold), for a run whose features hear it "
+    "(*_style presets); default: heard in the song."
+)
 @turning_options
-def generate_command(run_dir, audio, out, data, split, engine, precision, beats_per_bar, turning, travel, seed) -> None:
+def generate_command(
+    run_dir, audio, out, data, split, engine, precision, beats_per_bar, style, turning, travel, seed
+) -> None:
     """Generate dance motion for AUDIO (any file libsndfile reads, or an aligned .h5: its own music,
     on its timeline), streaming frame by frame, and
     write it: 3-D targets (a yalta run's: metres, unit quaternions) as the canonical CSV that align
@@ -467,8 +478,8 @@ def generate_command(run_dir, audio, out, data, split, engine, precision, beats_
     if (audio is None) == (data is None):
         raise click.UsageError("give AUDIO, or --data DATASET (and --split) to generate for a whole split")
     if data is not None:
-        if beats_per_bar is not None:
-            raise click.UsageError("--beats-per-bar is for AUDIO: a split's songs keep their own metres")
+        if beats_per_bar is not None or style is not None:
+            raise click.UsageError("--beats-per-bar and --style are for AUDIO: a split's songs keep their own")
         _generate_split(run_dir, data, split, out, engine, precision, turning, travel, seed)
         return
     from kinectdata.inference.generate import generate
@@ -483,6 +494,7 @@ def generate_command(run_dir, audio, out, data, split, engine, precision, beats_
         turning=turning,
         travel=travel,
         seed=seed,
+        style=style,
     )
     click.echo(
         f"wrote {out}: {timing['frames']} frames ({motion.duration:.2f} s) in {timing['seconds']:.2f} s "
@@ -490,6 +502,8 @@ def generate_command(run_dir, audio, out, data, split, engine, precision, beats_
     )
     if "metre" in timing:
         click.echo(f"  metre: {timing['metre']}")
+    if "style" in timing:
+        click.echo(f"  style: {timing['style']}")
     click.echo(
         f"  starts from {timing['start']}" + (f"; placed by {timing['placement']}" if "placement" in timing else "")
     )

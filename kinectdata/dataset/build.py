@@ -44,6 +44,7 @@ from kinectdata.dataset.layout import LOCK, LOCK_OWNER, MANIFEST, SHARD_FORMAT, 
 from kinectdata.dataset.lock import FolderBusyError, build_lock
 from kinectdata.dataset.prepare import BuildConfig, Unit, prepare_recording, source_hashes
 from kinectdata.dataset.shards import ShardRecording, row_bytes, write_shard
+from kinectdata.dataset.song_styles import fit_style_inputs
 from kinectdata.targets.hemispheres import apply_flips, flipped_columns, reference_orientations, track_flips
 from kinectdata.targets.normalization import Normalizer, NormStats, count_out_of_range
 from kinectdata.targets.skeleton import merge_bone_offsets
@@ -55,9 +56,9 @@ DATASET_FORMAT_VERSION = 2  # 2: one quaternion hemisphere per joint across reco
 
 def _prepare(task: tuple) -> list[dict[str, Any]]:
     """Prepare one recording (perhaps in a worker process or on a Dask worker); errors name the recording."""
-    entry, config, work, snrs, hashes, tempos, source = task
+    entry, config, work, snrs, hashes, tempos, style, source = task
     try:
-        return [u.to_dict() for u in prepare_recording(entry, config, work, snrs, hashes, tempos)]
+        return [u.to_dict() for u in prepare_recording(entry, config, work, snrs, hashes, tempos, style)]
     except KinectDataError as exc:
         raise KinectDataError(f"recording {entry.name!r} of {source}: {exc}") from exc
 
@@ -327,6 +328,8 @@ def _build_locked(
     for partial in work.glob(".*.partial"):
         partial.unlink()
     copies = {e.name: splits[e.name] == "train" for e in entries}  # augmented copies of training dances only
+    # a style input hears every other song as it would hear any song; a training song is told its style
+    config = fit_style_inputs(config, [e for e in entries if copies[e.name]], source)
     tasks = [
         (
             e,
@@ -335,6 +338,7 @@ def _build_locked(
             config.augment_snr if copies[e.name] else (),
             hashes[e.name],
             config.augment_tempo if copies[e.name] else (),
+            e.style if copies[e.name] else None,
             str(source),
         )
         for e in entries
@@ -505,6 +509,7 @@ def _write_shards(
                     "offset": u.info["offset"],
                     "flipped_orientations": [j for j, f in zip(spec.orientations, flips[u.name]) if f],
                     **({"metre": u.info["metre"]} if "metre" in u.info else {}),
+                    **({"style": u.info["style"]} if "style" in u.info else {}),
                 }
             )
             start += u.frames

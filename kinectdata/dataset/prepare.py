@@ -36,9 +36,10 @@ from kinectdata.core.hashing import file_sha256
 from kinectdata.core.motion import Motion
 from kinectdata.dataset.config import BuildConfig
 from kinectdata.dataset.inputs import RecordingEntry
-from kinectdata.features import FeatureConfig, needs_metre
+from kinectdata.features import FeatureConfig, needs_metre, needs_style, song_style
 from kinectdata.features.metre import Metre, recording_metre
 from kinectdata.features.streaming import StreamingFeatures
+from kinectdata.features.style_input import NO_STYLE
 from kinectdata.targets.hemispheres import orientation_stats
 from kinectdata.targets.normalization import NormStats
 from kinectdata.targets.skeleton import bone_offsets
@@ -76,10 +77,16 @@ def variant_name(recording: str, snr_db: float | None, tempo: float | None = Non
 
 
 def unit_key(
-    entry: RecordingEntry, hashes: dict[str, str], config: BuildConfig, snr_db: float | None, tempo: float | None = None
+    entry: RecordingEntry,
+    hashes: dict[str, str],
+    config: BuildConfig,
+    snr_db: float | None,
+    tempo: float | None = None,
+    *,
+    style: str | None = None,
 ) -> str:
     """A work file's key: the recording's name, options and contents (not its paths), the
-    configuration it depends on, the SNR and the tempo factor."""
+    configuration it depends on, the SNR, the tempo factor and the style it was told."""
     doc = {
         "entry": entry.options(),
         "sources": hashes,
@@ -95,6 +102,8 @@ def unit_key(
         doc["cleaning"] = CleanConfig.from_settings(cleaning, f"{entry.recording}: clean").resolved()
     if needs_metre(config.feature_config):  # the features count the song's bars
         doc["beats_per_bar"] = entry.beats_per_bar
+    if needs_style(config.feature_config):  # told (a training song), else heard with the classifier in "config"
+        doc["style"] = style
     return hashlib.sha256(json.dumps(doc, sort_keys=True, default=str).encode()).hexdigest()[:32]
 
 
@@ -229,30 +238,33 @@ def prepare_recording(
     snrs: tuple[float, ...] = (),
     hashes: dict[str, str] | None = None,
     tempos: tuple[float, ...] = (),
+    style: str | None = None,
 ) -> list[Unit]:
     """Prepare a recording's variants (clean, then one per SNR, then one per tempo factor) into
     ``work_dir``; skips finished ones.
 
     ``hashes`` are the recording's :func:`source_hashes`, when the caller has them already.
+    ``style``: the song's dance style for features that hear it (a training recording's; None:
+    heard from its music by the features' classifier).
     Returns the :class:`Unit` of each variant, clean first.
     """
     work_dir = Path(work_dir)
     variants: list[float | None] = [None, *snrs]
     hashes = source_hashes(entry) if hashes is None else hashes
-    keys = {v: unit_key(entry, hashes, config, v) for v in variants}
+    keys = {v: unit_key(entry, hashes, config, v, style=style) for v in variants}
     done = {v: _read_unit(work_dir / f"{variant_name(entry.name, v)}.h5") for v in variants}
     if all(u is not None and u.key == keys[v] for v, u in done.items()):
         units = [done[v] for v in variants]
     else:
         with ExitStack() as scratch:
-            made = _prepare_variants(entry, config, work_dir, keys, hashes, scratch)
+            made = _prepare_variants(entry, config, work_dir, keys, hashes, scratch, style=style)
         units = [made[v] for v in variants]
     for tempo in tempos:
-        key = unit_key(entry, hashes, config, None, tempo)
+        key = unit_key(entry, hashes, config, None, tempo, style=style)
         unit = _read_unit(work_dir / f"{variant_name(entry.name, None, tempo)}.h5")
         if unit is None or unit.key != key:
             with ExitStack() as scratch:
-                unit = _prepare_variants(entry, config, work_dir, {None: key}, hashes, scratch, tempo)[None]
+                unit = _prepare_variants(entry, config, work_dir, {None: key}, hashes, scratch, tempo, style)[None]
         units.append(unit)
     return units
 
@@ -265,6 +277,7 @@ def _prepare_variants(
     hashes: dict[str, str],
     scratch: ExitStack,
     tempo: float | None = None,
+    style: str | None = None,
 ) -> dict[float | None, Unit]:
     """Compute and write the work file of every variant in ``keys`` (SNR in dB, None for the clean
     audio, to its unit key); temporary files are entered in ``scratch``, which removes them.
@@ -346,6 +359,12 @@ def _prepare_variants(
     info = {"sources": hashes, "paths": sources, "offset": offset.to_dict(), "alignment": summary}
     if metre is not None:
         info["metre"] = {"beats_per_bar": metre.beats_per_bar, "source": metre.source}
+    if needs_style(feats):
+        told = style is not None
+        if not told:  # heard in the whole song, as generation hears any song
+            style, _ = song_style(feats, np.concatenate([np.zeros(0, np.float32), *blocks()]))
+            style = style or NO_STYLE
+        info["style"] = {"style": style, "source": "manifest" if told else "heard"}
     anchor = root_anchor(motion, spec) if config.root_centre else None
     if (
         anchor is not None and np.isfinite(anchor).all()
@@ -398,7 +417,9 @@ def _prepare_variants(
             return sink
 
         bar = None if metre is None else metre.beats_per_bar
-        featurizers = {v: StreamingFeatures(starts, feats, sink_for(v), beats_per_bar=bar) for v in variants}
+        featurizers = {
+            v: StreamingFeatures(starts, feats, sink_for(v), beats_per_bar=bar, style=style) for v in variants
+        }
         rngs = {
             v: np.random.default_rng([config.seed, zlib.crc32(entry.name.encode()), int(round(v * 1000)) & 0xFFFFFFFF])
             for v in variants

@@ -488,7 +488,12 @@ def style_scores(
         ]
         if not generated:
             return {"unavailable": "the recordings manifest gives no style for the songs scored"}
-        return style_report(training, generated).to_dict()
+        heard = {
+            r["name"]: r["style"]["style"]
+            for r in manifest["recordings"]
+            if isinstance(r.get("style"), dict) and r["style"].get("source") == "heard" and r["name"] in free
+        }
+        return style_report(training, generated, heard).to_dict()
     except KinectDataError as exc:  # 2-D targets, a joint set without an SMPL-24 mapping
         return {"unavailable": str(exc)}
 

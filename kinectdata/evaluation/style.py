@@ -18,7 +18,7 @@ from __future__ import annotations
 
 from collections import Counter
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -101,11 +101,14 @@ class StyleReport:
         songs: per generated dance, (its song's style, the style named, the nearest training dance).
         held: the styles the training dances hold, with how many dances each.
         leave_one_out: training dances named right when left out, and how many there are.
+        heard: per generated dance, the style its run heard in the music (a run whose features hear
+            it, :mod:`kinectdata.features.style_input`); empty otherwise.
     """
 
     songs: dict[str, tuple[str, str, str]]
     held: dict[str, int]
     leave_one_out: tuple[int, int]
+    heard: dict[str, str] = field(default_factory=dict)
 
     @property
     def counted(self) -> list[str]:
@@ -131,10 +134,14 @@ class StyleReport:
         named = ", ".join(f"{n} {style} -> {said}" for n, (style, said, _) in self.songs.items())
         per_style = ", ".join(f"{style} {r} of {t}" for style, (r, t) in self.by_style.items())
         right, n = self.leave_one_out
+        heard = ""
+        if self.heard:
+            told = sum(self.heard.get(name) == self.songs[name][0] for name in self.counted)
+            heard = f"; the music heard as its style in {told} of {len(self.counted)}"
         return (
             f"dances in their song's style: {self.right} of {len(self.counted)} ({named}; by style {per_style}; "
             f"the nearest style's mean in the kinetic and geometric features of the {n} training dances, which "
-            f"names {right} of them right when each is left out)"
+            f"names {right} of them right when each is left out{heard})"
         )
 
     def to_dict(self) -> dict[str, Any]:
@@ -145,6 +152,7 @@ class StyleReport:
             "right": self.right,
             "by_style": {style: {"right": r, "dances": t} for style, (r, t) in self.by_style.items()},
             "leave_one_out": {"right": self.leave_one_out[0], "dances": self.leave_one_out[1]},
+            "heard": self.heard,
             "verdict": self.verdict(),
         }
 
@@ -152,12 +160,14 @@ class StyleReport:
 def style_report(
     training: Sequence[tuple[str, str, np.ndarray]],
     generated: Sequence[tuple[str, str, np.ndarray]],
+    heard: dict[str, str] | None = None,
 ) -> StyleReport:
     """Name the style of each generated dance by the real training dances.
 
     Args:
         training: (name, style, :func:`style_features`) of each real training dance.
         generated: (name, its song's style, :func:`style_features`) of each generated dance.
+        heard: the style the run heard in each generated dance's music, where it hears one.
     """
     classifier = StyleClassifier(
         tuple(n for n, _, _ in training), tuple(s for _, s, _ in training), np.stack([f for _, _, f in training])
@@ -165,4 +175,4 @@ def style_report(
     named = classifier.predict(np.stack([f for _, _, f in generated])) if generated else []
     songs = {n: (style, said, near) for (n, style, _), (said, near) in zip(generated, named)}
     held = dict(sorted(Counter(classifier.styles).items()))
-    return StyleReport(songs, held, (classifier.leave_one_out(), len(classifier.names)))
+    return StyleReport(songs, held, (classifier.leave_one_out(), len(classifier.names)), dict(heard or {}))

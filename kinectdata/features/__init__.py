@@ -32,13 +32,14 @@ from typing import Any
 
 import numpy as np
 
-from kinectdata.core.errors import ConfigError
+from kinectdata.core.errors import ConfigError, KinectDataError
 from kinectdata.features.mel import MelConfig, mel_features
 from kinectdata.features.metre_input import MetreInputConfig, metre_input_features
 from kinectdata.features.rhythm import RhythmConfig, rhythm_features
 from kinectdata.features.stack import StackConfig, stack_features
 from kinectdata.features.stft import PRESETS as STFT_PRESETS
 from kinectdata.features.stft import StftConfig, stft_features
+from kinectdata.features.style_input import StyleInputConfig, style_input_features
 
 __all__ = [
     "PRESETS",
@@ -55,11 +56,14 @@ __all__ = [
     "get_extractor",
     "mel_features",
     "needs_metre",
+    "needs_style",
+    "song_style",
+    "style_input_of",
     "register_extractor",
     "stft_features",
 ]
 
-FeatureConfig = StftConfig | MelConfig | RhythmConfig | MetreInputConfig | StackConfig
+FeatureConfig = StftConfig | MelConfig | RhythmConfig | MetreInputConfig | StyleInputConfig | StackConfig
 LISTEN_TO_DANCE_PULSE = RhythmConfig(
     tempo_range_bpm=(15.0, 240.0),
     n_tempi=65,
@@ -103,16 +107,23 @@ PRESETS: dict[str, FeatureConfig] = {
         (STFT_PRESETS["yalta2016"], RhythmConfig(columns=5), MetreInputConfig(planes=(129, 5)))
     ),
     "listen_to_dance_rhythm_bars_metre": StackConfig((MelConfig(), LISTEN_TO_DANCE_BAR_PULSE, MetreInputConfig())),
+    "yalta2016_rhythm_style": StackConfig(
+        (STFT_PRESETS["yalta2016"], RhythmConfig(columns=5), StyleInputConfig(planes=(129, 5)))
+    ),
+    "listen_to_dance_rhythm_bars_style": StackConfig((MelConfig(), LISTEN_TO_DANCE_BAR_PULSE, StyleInputConfig())),
 }
 """Feature configurations by name: ``yalta2016``, ``motion_dance`` (STFT), ``listen_to_dance``
 (mel), and each with the music's pulse stacked on (``_rhythm``; ``listen_to_dance_rhythm_bars``:
 its bar levels in the song's metre), and each of those with the song's metre as input
-(``_metre``: :mod:`.metre_input`, one value per bar length of 3 and 4 beats)."""
+(``_metre``: :mod:`.metre_input`, one value per bar length of 3 and 4 beats) or its dance style
+(``_style``: :mod:`.style_input`, one value per style of the training songs, at most 4; a dataset
+build fits the classifier that hears it)."""
 _CONFIG_TYPES = {
     "stft": StftConfig,
     "mel": MelConfig,
     "rhythm": RhythmConfig,
     "metre": MetreInputConfig,
+    "style": StyleInputConfig,
     "stack": StackConfig,
 }
 
@@ -169,15 +180,20 @@ def compute_features(
     config: FeatureConfig,
     *,
     beats_per_bar: int | None = None,
+    style: str | None = None,
     state: Any = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """``(features [N, *config.output_shape] float32, padded [N] bool)`` with the config's extractor.
 
     ``beats_per_bar``: the song's metre, passed on to an extractor whose configuration
-    :func:`needs_metre` (None there: the extractor's default, 4). ``state``: for a configuration
+    :func:`needs_metre` (None there: the extractor's default, 4). ``style``: the song's dance style,
+    passed on to one that :func:`needs_style` (None there: heard in ``samples``, which must then be
+    the whole song). ``state``: for a configuration
     whose frames depend on the frames before them (:func:`feature_state`), what a stream of calls
     carries from one to the next (None: this call's frames are the first)."""
     extra: dict[str, Any] = {"beats_per_bar": beats_per_bar} if needs_metre(config) else {}
+    if needs_style(config):
+        extra["style"] = style
     if state is not None:
         extra["state"] = state
     return get_extractor(config.extractor)(samples, starts, config, **extra)
@@ -199,8 +215,40 @@ def needs_metre(config: FeatureConfig) -> bool:
     return bool(getattr(config, "needs_metre", False))
 
 
+def needs_style(config: FeatureConfig) -> bool:
+    """True when features of ``config`` depend on the song's dance style (:mod:`.style_input`)."""
+    return bool(getattr(config, "needs_style", False))
+
+
+def style_input_of(config: FeatureConfig) -> StyleInputConfig | None:
+    """The style input among ``config``'s parts (``config`` itself, or a part of a stack), or None."""
+    parts = config.parts if isinstance(config, StackConfig) else (config,)
+    return next((p for p in parts if isinstance(p, StyleInputConfig)), None)
+
+
+def song_style(config: FeatureConfig, samples: np.ndarray | None, given: str | None = None) -> tuple[str | None, str]:
+    """``(style, how it was found)`` of a song for features that hear its style: ``given`` (the
+    caller's; it must be one the classifier names), else heard in the whole song's mono ``samples``
+    [S] at the features' rate, else None (no audio, or too few beats to tell: the style input is
+    then all zeros). ``(None, "")`` for features without a style input."""
+    part = style_input_of(config)
+    if part is None:
+        return None, ""
+    if given is not None:
+        if given not in part.styles:
+            raise ConfigError(f"style {given!r}: the run knows {', '.join(part.styles) or 'no style'}")
+        return given, f"{given} (given)"
+    if samples is None:
+        return None, "none (no whole song to hear it from)"
+    try:
+        return (style := part.style_of(samples)), f"{style} (heard in the music)"
+    except KinectDataError as exc:
+        return None, f"none ({exc})"
+
+
 register_extractor("stft", stft_features)
 register_extractor("mel", mel_features)
 register_extractor("rhythm", rhythm_features)
 register_extractor("metre", metre_input_features)
+register_extractor("style", style_input_features)
 register_extractor("stack", stack_features)

@@ -27,7 +27,7 @@ import numpy as np
 from kinectdata.core.errors import ConfigError
 from kinectdata.features.config_dict import config_from_dict, config_to_dict
 
-__all__ = ["MetreInputConfig", "metre_input_features"]
+__all__ = ["MetreInputConfig", "metre_input_features", "sounding_slices"]
 
 SILENT_BELOW = 1e-6
 """A frame's slice is digital silence when no sample is further than this from 0 (full scale 1)."""
@@ -92,13 +92,21 @@ def metre_input_features(
     x = np.asarray(samples)
     starts = np.asarray(starts, np.int64)
     ends = starts + config.slice_samples
-    # how many samples of each frame's slice are not digital silence, from a running count
-    loud = np.abs(x.astype(np.float32, copy=False)) > SILENT_BELOW
-    counts = np.concatenate([[0], np.cumsum(loud)])
-    first, last = np.clip(starts, 0, x.size), np.clip(ends, 0, x.size)
-    sounding = counts[last] - counts[first] > 0
+    sounding = sounding_slices(x, starts, config.slice_samples)
     one_hot = np.array([1.0 if v == metre else 0.0 for v in config.values], np.float32)
     out = np.where(sounding[:, None], one_hot[None], 0.0).astype(np.float32)
     if config.planes:
         out = np.broadcast_to(out[:, :, None, None], (len(starts), len(config.values), *config.planes)).copy()
     return out, ends > x.size
+
+
+def sounding_slices(samples: np.ndarray, starts: np.ndarray, slice_samples: int) -> np.ndarray:
+    """[N] bool: the frames whose slice of ``samples`` [S] (``slice_samples`` from each of ``starts``
+    [N]) is not digital silence (some sample further than :data:`SILENT_BELOW` from 0)."""
+    x = np.asarray(samples)
+    starts = np.asarray(starts, np.int64)
+    # how many samples of each frame's slice are not digital silence, from a running count
+    loud = np.abs(x.astype(np.float32, copy=False)) > SILENT_BELOW
+    counts = np.concatenate([[0], np.cumsum(loud)])
+    first, last = np.clip(starts, 0, x.size), np.clip(starts + slice_samples, 0, x.size)
+    return counts[last] - counts[first] > 0

@@ -53,6 +53,11 @@ class StackConfig:
         return any(getattr(p, "needs_metre", False) for p in self.parts)
 
     @property
+    def needs_style(self) -> bool:
+        """True when a part's output depends on the song's dance style."""
+        return any(getattr(p, "needs_style", False) for p in self.parts)
+
+    @property
     def output_shape(self) -> tuple[int, ...]:
         first = tuple(self.parts[0].output_shape)
         return (sum(p.output_shape[0] for p in self.parts), *first[1:])
@@ -88,16 +93,17 @@ def stack_features(
     config: StackConfig,
     *,
     beats_per_bar: int | None = None,
+    style: str | None = None,
     state: tuple[Any, ...] | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """``(features float32 [N, *config.output_shape], padded bool [N])``: each part's features
-    (:func:`kinectdata.features.compute_features`, given the song's ``beats_per_bar`` and its own
+    (:func:`kinectdata.features.compute_features`, given the song's ``beats_per_bar``, its ``style`` and its own
     part of a stream's ``state``, :meth:`StackConfig.new_state`) concatenated on the first feature axis."""
     from kinectdata.features import compute_features
 
     states = state or (None,) * len(config.parts)
     made = [
-        compute_features(samples, starts, part, beats_per_bar=beats_per_bar, state=part_state)
+        compute_features(samples, starts, part, beats_per_bar=beats_per_bar, style=style, state=part_state)
         for part, part_state in zip(config.parts, states)
     ]
     features = np.concatenate([f for f, _ in made], axis=1)

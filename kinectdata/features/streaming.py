@@ -12,7 +12,9 @@ from collections.abc import Callable
 
 import numpy as np
 
-from . import FeatureConfig, compute_features, feature_state
+from kinectdata.core.errors import ConfigError
+
+from . import FeatureConfig, compute_features, feature_state, needs_style
 
 
 class StreamingFeatures:
@@ -21,7 +23,9 @@ class StreamingFeatures:
     ``starts`` [N] are absolute sample indices of the frames' slices; a frame is computed as soon
     as the samples it reads (``config.span`` around its start) have arrived, the rest at
     :meth:`finish` (zero-padded and flagged past the end). ``beats_per_bar``: the song's metre, for
-    features that count its bars (:func:`~kinectdata.features.needs_metre`). ``live``: blocks of a
+    features that count its bars (:func:`~kinectdata.features.needs_metre`). ``style``: the song's
+    dance style, for features with a style input (:func:`~kinectdata.features.needs_style`: required
+    there, since a block is not the whole song). ``live``: blocks of a
     frame or so, which keep what one call computed for the next (:func:`~kinectdata.features.feature_state`).
     """
 
@@ -32,9 +36,14 @@ class StreamingFeatures:
         sink: Callable[[int, np.ndarray, np.ndarray], None],
         beats_per_bar: int | None = None,
         live: bool = False,
+        style: str | None = None,
     ):
+        if style is None and needs_style(config):
+            raise ConfigError(
+                "streamed features with a style input need the song's style, heard from the whole song first"
+            )
         self.starts, self.config, self.sink = starts, config, sink
-        self.beats_per_bar = beats_per_bar
+        self.beats_per_bar, self.style = beats_per_bar, style
         self.lo, hi = config.span
         self.ends = starts + hi
         self.k = 0
@@ -63,6 +72,7 @@ class StreamingFeatures:
             self.starts[self.k : upto] - self.buffer_start,
             self.config,
             beats_per_bar=self.beats_per_bar,
+            style=self.style,
             state=self.state,
         )
         self.sink(self.k, feats, padded)

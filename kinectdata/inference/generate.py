@@ -38,10 +38,11 @@ from kinectdata.align.aligned import AlignedRecording, audio_blocks, audio_lengt
 from kinectdata.align.audio import AudioReader
 from kinectdata.core.errors import ConfigError, KinectDataError
 from kinectdata.core.motion import Motion
-from kinectdata.features import feature_config, needs_metre
+from kinectdata.features import feature_config, needs_metre, song_style, style_input_of
 from kinectdata.features.metre import recording_metre
 from kinectdata.features.silence import silence_features
 from kinectdata.features.streaming import StreamingFeatures
+from kinectdata.features.style_input import NO_STYLE
 from kinectdata.formats.bvh_writer import write_bvh
 from kinectdata.formats.csv_writer import write_csv
 from kinectdata.formats.openpose_writer import write_openpose_jsonl
@@ -109,6 +110,7 @@ def generate(
     turning: bool = True,
     travel: bool = True,
     seed: int = 0,
+    style: str | None = None,
 ) -> tuple[Motion, dict[str, Any]]:
     """Generate motion for ``audio`` with a trained run; write it to ``out`` if given (canonical
     CSV, or OpenPose JSON Lines for 2-D targets: see the module docstring). ``audio``: an audio
@@ -124,6 +126,10 @@ def generate(
     ``beats_per_bar``: the song's metre, for features that count its bars (``listen_to_dance_rhythm_bars``);
     None: estimated from the whole audio file before the stream starts (a live performer would say
     it), else 4. ``timing["metre"]`` says which it was.
+
+    ``style``: the song's dance style, for a run whose features hear it (``*_style`` presets); None:
+    heard in the whole audio file by the classifier its dataset fitted on the training songs.
+    ``timing["style"]`` says which.
 
     ``start``: the pose frame 0 is and where a root-centred motion stands
     (:class:`~kinectdata.inference.start.StartPose`); None: an aligned recording's own first pose
@@ -191,9 +197,13 @@ def generate(
         samples = None if beats_per_bar is not None else np.concatenate([np.zeros(0, np.float32), *blocks()])
         metre = recording_metre(None, samples, sr, given=beats_per_bar)
     bar = None if metre is None else metre.beats_per_bar
+    hears = style is None and style_input_of(features_config) is not None  # the style heard in the whole song
+    whole = np.concatenate([np.zeros(0, np.float32), *blocks()]) if hears else None
+    heard_style, style_said = song_style(features_config, whole, style)
     process = run_turning(config, bar) if turning else None
     moving = run_travel(config, bar) if travel else None
-    featurizer = StreamingFeatures(starts, features_config, step, beats_per_bar=bar if counts_bars else None)
+    bars = bar if counts_bars else None
+    featurizer = StreamingFeatures(starts, features_config, step, beats_per_bar=bars, style=heard_style or NO_STYLE)
     started = time.perf_counter()
     for block in blocks():
         featurizer.push(block)
@@ -250,6 +260,8 @@ def generate(
     }
     if metre is not None:
         timing["metre"] = metre.describe()
+    if style_said:
+        timing["style"] = style_said
     timing["start"] = start.source
     drawn = [p.describe() for p in (process, moving) if p is not None]
     if drawn and bar is not None and str(bar) in (config.get("drawn_by_metre") or {}):

@@ -22,12 +22,13 @@ from typing import Any
 
 import numpy as np
 
-from kinectdata.core.errors import KinectDataError
-from kinectdata.features import feature_config, needs_metre
+from kinectdata.core.errors import ConfigError, KinectDataError
+from kinectdata.features import feature_config, needs_metre, song_style, style_input_of
 from kinectdata.features.beats import music_beats
 from kinectdata.features.metre import recording_metre
 from kinectdata.features.silence import silent_frames
 from kinectdata.features.streaming import StreamingFeatures
+from kinectdata.features.style_input import NO_STYLE
 from kinectdata.inference.engines import make_engine, onnxruntime_available
 from kinectdata.inference.start import target_poses
 from kinectdata.inference.turning import drawn_line, live_turning
@@ -219,13 +220,15 @@ def run_live(
     duration: float | None = None,
     beats_per_bar: int | None = None,
     record=None,
+    style: str | None = None,
 ) -> LiveStats:
     """Dance to ``source`` (:mod:`.sources`) until it ends, ``duration`` seconds of audio have been
     heard, or Ctrl-C; send each pose to ``sinks`` (``send(pose)``); ``record`` (a
     :class:`~kinectdata.live.sinks.RecordSink`) also hears the audio. Returns the figures.
 
     ``beats_per_bar``: the song's metre, for features that count bars; None: estimated from a
-    file before it plays, 4 for a device.
+    file before it plays, 4 for a device. ``style``: the song's dance style, for a run whose features
+    hear it; None: heard in a file before it plays (a device's song is not known in advance: give it).
     """
     sr, fps = dancer.sample_rate, dancer.fps
     stats = LiveStats(fps=fps, source=source.name)
@@ -241,7 +244,13 @@ def run_live(
     by_metre = counts_bars or dancer.draws_by_metre  # the features' bars, or the draws' metre
     showing = [sink for sink in sinks if getattr(sink, "wants_beats", False)]  # the live view's beat
     samples = beats = None
-    if whole is not None and (showing or (by_metre and beats_per_bar is None)):
+    hears_style = style_input_of(dancer.features) is not None
+    if hears_style and style is None and whole is None:
+        raise ConfigError(
+            f"the run hears the song's style ({', '.join(style_input_of(dancer.features).styles)}), which cannot be "
+            "heard from a device before the song has played: give --style"
+        )
+    if whole is not None and (showing or (by_metre and beats_per_bar is None) or (hears_style and style is None)):
         samples = np.concatenate([np.zeros(0, np.float32), *whole.blocks()])  # the file read once
         try:
             beats = music_beats(samples, sr)[0]
@@ -272,7 +281,15 @@ def run_live(
             stats.processing_ms.append(1000.0 * (sent - got[0]))
             stats.sent_s.append(sent)
 
-    featurizer = StreamingFeatures(starts, dancer.features, step, beats_per_bar=bar if counts_bars else None, live=True)
+    heard_style, _ = song_style(dancer.features, samples, style)
+    featurizer = StreamingFeatures(
+        starts,
+        dancer.features,
+        step,
+        beats_per_bar=bar if counts_bars else None,
+        live=True,
+        style=NO_STYLE if heard_style is None else heard_style,
+    )
     limit = int(round(planned * sr))  # samples to hear
     exhausted = False
     try:

@@ -66,6 +66,11 @@ def test_a_style_no_training_dance_holds_is_not_counted():
     assert report.to_dict()["leave_one_out"]["dances"] == 17
     assert report.by_style == {"cha-cha": (1, 1), "waltz": (0, 1)}  # the tango is not counted
     assert "; by style cha-cha 1 of 1, waltz 0 of 1; " in report.verdict()
+    assert "heard" not in report.verdict()
+    # a run that hears the style: how often the music was heard as its own style, of the counted songs
+    heard = style_report(list(zip(names, styles, rows)), generated, {"C_1": "cha-cha", "W_1": "rumba", "T_5": "x"})
+    assert heard.verdict().endswith("left out; the music heard as its style in 1 of 2)")
+    assert heard.to_dict()["heard"] == {"C_1": "cha-cha", "W_1": "rumba", "T_5": "x"}
 
 
 def test_too_few_or_broken_training_dances_are_refused():

@@ -1,0 +1,69 @@
+"""The music style classifier of a dataset whose features hear the song's style
+(:mod:`kinectdata.features.style_input`), fitted on its training songs before any recording is prepared.
+
+A training recording is given its manifest's ``style``; every other recording (validation, test)
+the style its music sounds like to this classifier, as any song has at generation. The fit is
+deterministic (the same training songs give the same classifier), so a resumed build keys its
+recordings as the first one did.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Sequence
+from pathlib import Path
+
+import numpy as np
+
+from kinectdata.align.aligned import audio_blocks
+from kinectdata.align.audio import AudioReader
+from kinectdata.core.errors import ConfigError, KinectDataError
+from kinectdata.dataset.config import BuildConfig
+from kinectdata.dataset.inputs import RecordingEntry
+from kinectdata.features import StackConfig, style_input_of
+from kinectdata.features.music_style import MusicStyleClassifier, song_descriptors
+from kinectdata.features.style_input import StyleInputConfig
+
+__all__ = ["fit_style_inputs", "song_samples"]
+
+
+def song_samples(entry: RecordingEntry, sample_rate: int) -> np.ndarray:
+    """[S] float32: the whole song of a recording entry, mono at ``sample_rate`` Hz (its audio file,
+    or an aligned file's audio)."""
+    blocks = audio_blocks(entry.recording) if entry.aligned else AudioReader(entry.audio, sample_rate).blocks()
+    return np.concatenate([np.zeros(0, np.float32), *blocks])
+
+
+def fit_style_inputs(config: BuildConfig, training: Sequence[RecordingEntry], source: str | Path) -> BuildConfig:
+    """``config`` with its style input's classifier fitted on the ``training`` recordings' songs and
+    their manifest ``style`` (``config`` as it is when its features hear no style or their
+    classifier is fitted already: a dataset built with another dataset's features hears as it does).
+
+    Raises:
+        ConfigError: a training recording has no ``style`` in the manifest.
+        KinectDataError: a training song cannot be read or is too short to describe (names it).
+    """
+    part = style_input_of(config.feature_config)
+    if part is None or part.classifier is not None:
+        return config
+    unlabelled = [e.name for e in training if not e.style]
+    if unlabelled:
+        raise ConfigError(
+            f"{source}: the features hear the song's style, fitted on the training recordings' styles, but "
+            f"{', '.join(unlabelled[:3])}{' ...' if len(unlabelled) > 3 else ''} give no 'style'"
+        )
+    described = []
+    for entry in training:
+        try:
+            described.append(song_descriptors(song_samples(entry, config.sample_rate), config.sample_rate))
+        except KinectDataError as exc:
+            raise KinectDataError(f"recording {entry.name!r} of {source}: its song's style: {exc}") from exc
+    classifier = MusicStyleClassifier.fit(np.stack(described), [e.style for e in training])
+    fitted = dataclasses.replace(part, classifier=classifier)
+    return dataclasses.replace(config, features=_with_part(config.feature_config, part, fitted))
+
+
+def _with_part(features, old: StyleInputConfig, new: StyleInputConfig):
+    if isinstance(features, StackConfig):
+        return StackConfig(tuple(new if p is old else p for p in features.parts))
+    return new

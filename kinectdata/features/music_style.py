@@ -1,0 +1,166 @@
+"""A song's dance style from its music: song-level descriptors and a nearest-centroid classifier
+fitted on songs whose style is known (a dataset's training songs), for the style input
+(:mod:`.style_input`).
+
+Why: a network trained on a corpus where most songs are waltzes, given only the spectra and the
+pulse, dances one average dance for every song (docs/notebook/2026-12-real-dance-variety.md); told
+the style, it can learn one dance per style. The style of a training song is its manifest's; of
+any other song, it is what this classifier hears.
+
+The descriptors (:data:`DESCRIPTORS`, :func:`song_descriptors`) are those that tell ballroom styles
+apart and that a stretch of the tempo (pitch kept) moves little:
+
+- ``metre``: the bar-to-bar similarity of beat spectra at 3 beats minus that at 4
+  (:func:`~kinectdata.features.metre.bar_similarity`): a waltz is in 3;
+- ``tempo``: log2 of the median beat rate (beats per minute) of librosa's tracker: a cha-cha
+  (~120-128 BPM) is faster than a rumba (~100-108);
+- ``onset_cv``: the onset strength's coefficient of variation (how percussive the music is);
+- ``centroid``, ``flatness``: the logarithm of the mean spectral centroid (Hz) and flatness (timbre).
+
+The classifier (:class:`MusicStyleClassifier`) scales each descriptor by its spread within the
+styles (pooled), takes each style's mean, and names the style whose mean is nearest: every style
+counts alike however many songs it has (a corpus with 27 waltzes and 2 cha-chas does not make every
+song a waltz).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from kinectdata.core.errors import ConfigError, KinectDataError
+from kinectdata.core.librosa_import import import_librosa
+from kinectdata.features.beats import music_beats
+from kinectdata.features.metre import MIN_BEATS, bar_similarity, beat_descriptors
+
+__all__ = ["DESCRIPTORS", "MusicStyleClassifier", "song_descriptors"]
+
+DESCRIPTORS = ("metre", "tempo", "onset_cv", "centroid", "flatness")
+"""The song-level descriptors, in the order :func:`song_descriptors` returns them (module docstring)."""
+
+_HOP_S = 0.01
+_N_FFT = 1024
+_FLOOR = 1e-10
+
+
+def song_descriptors(samples: np.ndarray, sample_rate: float) -> np.ndarray:
+    """[len(DESCRIPTORS)] float64: the song-level descriptors of mono music ``samples`` [S]
+    (full scale -1..1) at ``sample_rate`` Hz (module docstring).
+
+    Raises:
+        KinectDataError: fewer than :data:`~kinectdata.features.metre.MIN_BEATS` beats (too short or
+            silent to tell), or librosa missing.
+    """
+    librosa = import_librosa("telling a song's style")
+    y = np.asarray(samples, np.float32)
+    beats, _ = music_beats(y, sample_rate)
+    if beats.size < MIN_BEATS:
+        raise KinectDataError(f"telling a song's style needs at least {MIN_BEATS} beats of music, got {beats.size}")
+    described = beat_descriptors(y, sample_rate, beats)
+    metre = bar_similarity(described, 3) - bar_similarity(described, 4)
+    tempo = np.log2(60.0 / np.median(np.diff(beats)))
+    hop = max(1, round(sample_rate * _HOP_S))
+    onsets = librosa.onset.onset_strength(y=y, sr=sample_rate, hop_length=hop)
+    onset_cv = onsets.std() / max(onsets.mean(), _FLOOR)
+    spectrum = np.abs(librosa.stft(y, n_fft=_N_FFT, hop_length=_N_FFT // 2))
+    centroid = librosa.feature.spectral_centroid(S=spectrum, sr=sample_rate)[0]
+    flatness = librosa.feature.spectral_flatness(S=spectrum)[0]
+    return np.array(
+        [metre, tempo, onset_cv, np.log(centroid.mean() + _FLOOR), np.log(flatness.mean() + _FLOOR)], np.float64
+    )
+
+
+@dataclass(frozen=True)
+class MusicStyleClassifier:
+    """The style whose songs' mean descriptors are nearest (module docstring).
+
+    Attributes:
+        styles: the styles it names, sorted, [K].
+        centres: [K][D] each style's mean descriptors, in scaled units.
+        mean: [D] the descriptors' mean over the fitted songs.
+        scale: [D] their pooled spread within the styles.
+        songs: how many songs it was fitted on.
+        leave_one_out: how many of them it names right when each is left out of the fit in turn.
+    """
+
+    styles: tuple[str, ...]
+    centres: tuple[tuple[float, ...], ...]
+    mean: tuple[float, ...]
+    scale: tuple[float, ...]
+    songs: int = 0
+    leave_one_out: int = 0
+
+    def __post_init__(self) -> None:
+        d = len(DESCRIPTORS)
+        if len(self.styles) < 1 or len(self.centres) != len(self.styles):
+            raise ConfigError("a music style classifier needs one centre per style")
+        if any(len(c) != d for c in self.centres) or len(self.mean) != d or len(self.scale) != d:
+            raise ConfigError(f"a music style classifier's centres, mean and scale hold {d} descriptors each")
+        if not all(s > 0 for s in self.scale):
+            raise ConfigError("a music style classifier's scale must be positive")
+
+    @classmethod
+    def fit(cls, descriptors: np.ndarray, styles: Sequence[str]) -> MusicStyleClassifier:
+        """Fit on songs' ``descriptors`` [N, D] (:func:`song_descriptors`) and their ``styles`` [N]."""
+        x = np.asarray(descriptors, np.float64)
+        labels = np.asarray(list(styles))
+        if x.ndim != 2 or x.shape[1] != len(DESCRIPTORS) or x.shape[0] != labels.size or labels.size < 2:
+            raise KinectDataError(
+                f"fitting a music style classifier needs at least 2 songs with {len(DESCRIPTORS)} descriptors "
+                f"and a style each; got descriptors {x.shape} and {labels.size} styles"
+            )
+        if not np.isfinite(x).all():
+            raise KinectDataError("a music style classifier's songs' descriptors must be finite")
+        fitted = _fit(x, labels)
+        right = sum(_fit(np.delete(x, i, 0), np.delete(labels, i)).predict(x[i]) == labels[i] for i in range(len(x)))
+        return cls(fitted.styles, fitted.centres, fitted.mean, fitted.scale, songs=len(x), leave_one_out=int(right))
+
+    def predict(self, descriptors: np.ndarray) -> str:
+        """The style of a song with ``descriptors`` [D]."""
+        scaled = (np.asarray(descriptors, np.float64) - np.array(self.mean)) / np.array(self.scale)
+        distance = ((np.array(self.centres) - scaled[None]) ** 2).sum(axis=1)
+        return self.styles[int(distance.argmin())]
+
+    def style_of(self, samples: np.ndarray, sample_rate: float) -> str:
+        """The style of mono music ``samples`` [S] at ``sample_rate`` Hz."""
+        return self.predict(song_descriptors(samples, sample_rate))
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "styles": list(self.styles),
+            "centres": [list(c) for c in self.centres],
+            "mean": list(self.mean),
+            "scale": list(self.scale),
+            "songs": self.songs,
+            "leave_one_out": self.leave_one_out,
+        }
+
+    @classmethod
+    def from_dict(cls, d: dict[str, Any]) -> MusicStyleClassifier:
+        try:
+            return cls(
+                tuple(str(s) for s in d["styles"]),
+                tuple(tuple(float(v) for v in c) for c in d["centres"]),
+                tuple(float(v) for v in d["mean"]),
+                tuple(float(v) for v in d["scale"]),
+                int(d.get("songs", 0)),
+                int(d.get("leave_one_out", 0)),
+            )
+        except (KeyError, TypeError, ValueError) as exc:
+            raise ConfigError(f"not a music style classifier ({exc})") from exc
+
+
+def _fit(x: np.ndarray, labels: np.ndarray) -> MusicStyleClassifier:
+    styles = tuple(sorted(set(labels.tolist())))
+    mean = x.mean(axis=0)
+    within = np.concatenate([x[labels == s] - x[labels == s].mean(axis=0) for s in styles])
+    dof = max(len(x) - len(styles), 1)
+    scale = np.sqrt((within**2).sum(axis=0) / dof)
+    overall = x.std(axis=0)
+    # a descriptor no style varies in (one song per style) falls back to its spread over all songs, then to 1
+    scale = np.where(scale > 0, scale, np.where(overall > 0, overall, 1.0))
+    centres = tuple(tuple(((x[labels == s].mean(axis=0) - mean) / scale).tolist()) for s in styles)
+    return MusicStyleClassifier(styles, centres, tuple(mean.tolist()), tuple(scale.tolist()))

@@ -1,0 +1,78 @@
+"""A dataset whose features hear the song's style (``*_style`` presets): the build fits the music
+style classifier on its training songs, tells each training recording its manifest's style and lets
+every other recording's music be heard, as a song is at generation."""
+
+from __future__ import annotations
+
+import json
+
+import h5py
+import numpy as np
+import pytest
+from conftest import REPO
+
+pytest.importorskip("librosa")
+
+from kinectdata.align.audio import load_audio  # noqa: E402
+from kinectdata.core.errors import ConfigError  # noqa: E402
+from kinectdata.dataset.build import build_dataset  # noqa: E402
+from kinectdata.dataset.config import BuildConfig  # noqa: E402
+from kinectdata.features import feature_config, style_input_of  # noqa: E402
+from kinectdata.features.music_style import MusicStyleClassifier, song_descriptors  # noqa: E402
+
+pytestmark = pytest.mark.filterwarnings("ignore::kinectdata.dataset.build.EmptySplitWarning")
+
+SAMPLES = REPO / "sample_data"
+STYLES = {"synth_001": ("train", "waltz"), "synth_002": ("train", "rumba"), "synth_003": ("val", "rumba")}
+
+
+def _manifest(path, **changes):
+    doc = []
+    for name, (split, style) in STYLES.items():
+        truth = json.loads((SAMPLES / f"{name}.truth.json").read_text())
+        entry = {"name": name, "recording": str(SAMPLES / f"{name}.csv"), "audio": str(SAMPLES / f"{name}.flac"),
+                 "split": split, "offset": truth["offset_s"], "style": style}  # fmt: skip
+        doc.append({k: v for k, v in (entry | changes.get(name, {})).items() if v is not None})  # None: left out
+    path.write_text(json.dumps(doc))
+    return path
+
+
+def _config() -> BuildConfig:
+    return BuildConfig.from_pipeline("yalta2016", features="yalta2016_rhythm_style", target="positions")
+
+
+def _style_planes(folder, manifest, name):
+    record = next(r for r in manifest["recordings"] if r["name"] == name)
+    with h5py.File(folder / record["shard"], "r") as f:
+        return f["input"][record["start"] : record["start"] + record["frames"], 2:]  # after the STFT and pulse
+
+
+def test_training_songs_are_told_their_style_and_the_others_heard(tmp_path):
+    built = build_dataset(_manifest(tmp_path / "m.json"), tmp_path / "ds", _config(), allow_outside_paths=True)
+    part = style_input_of(feature_config(built["config"]["features"]))
+    # the classifier: fitted on the two training songs, their descriptors computed here from the files
+    songs = {n: load_audio(SAMPLES / f"{n}.flac", 16000).samples for n in STYLES}
+    described = {n: song_descriptors(s, 16000) for n, s in songs.items()}
+    expected = MusicStyleClassifier.fit(np.stack([described["synth_001"], described["synth_002"]]), ["waltz", "rumba"])
+    assert part.classifier == expected and part.styles == ("rumba", "waltz")
+    said = {r["name"]: r["style"] for r in built["recordings"]}
+    assert said["synth_001"] == {"style": "waltz", "source": "manifest"}
+    assert said["synth_002"] == {"style": "rumba", "source": "manifest"}
+    heard = expected.predict(described["synth_003"])
+    assert said["synth_003"] == {"style": heard, "source": "heard"}
+    for name, style in (("synth_001", "waltz"), ("synth_002", "rumba"), ("synth_003", heard)):
+        planes = _style_planes(tmp_path / "ds", built, name)
+        slot = part.styles.index(style)
+        sounding = planes.reshape(len(planes), 4, -1).max(axis=2)
+        assert (sounding[:, slot] == 1).mean() > 0.9  # every frame with music (the song starts after the dance)
+        assert not np.delete(sounding, slot, axis=1).any()
+    # resumed: the same fit, the same keys, every work file reused
+    again = build_dataset(_manifest(tmp_path / "m.json"), tmp_path / "ds", _config(), allow_outside_paths=True)
+    assert again == built
+
+
+def test_a_training_song_without_a_style_is_refused_in_one_line(tmp_path):
+    listed = _manifest(tmp_path / "m.json", synth_002={"style": None})
+    with pytest.raises(ConfigError, match=r"m\.json: the features hear the song's style.*synth_002 give no 'style'"):
+        build_dataset(listed, tmp_path / "ds", _config(), allow_outside_paths=True)
+    assert not (tmp_path / "ds").exists()  # nothing half-made left behind

@@ -1,0 +1,159 @@
+"""A song's dance style from its music (kinectdata.features.music_style) and as a network input
+(kinectdata.features.style_input): descriptors of synthesized songs of known metre and tempo, the
+nearest-centroid classifier against a computation done another way, the one-hot on sounding frames."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+pytest.importorskip("librosa")
+
+from helpers import metre_music  # noqa: E402
+from scipy.spatial.distance import cdist  # noqa: E402
+
+from kinectdata.core.errors import ConfigError  # noqa: E402
+from kinectdata.features import (  # noqa: E402
+    PRESETS,
+    compute_features,
+    feature_config,
+    needs_style,
+    song_style,
+    style_input_of,
+)
+from kinectdata.features.music_style import DESCRIPTORS, MusicStyleClassifier, song_descriptors  # noqa: E402
+from kinectdata.features.silence import silence_features, silent_frames  # noqa: E402
+from kinectdata.features.streaming import StreamingFeatures  # noqa: E402
+from kinectdata.features.style_input import NO_STYLE, StyleInputConfig, style_input_features  # noqa: E402
+
+RATE = 16000
+FPS = 30.0
+
+
+def frames(seconds: float) -> np.ndarray:
+    return np.round(np.arange(int(seconds * FPS)) * RATE / FPS).astype(np.int64)
+
+
+@pytest.mark.parametrize(("bpm", "bars_of"), [(90.0, 3), (126.0, 4)])
+def test_descriptors_hear_the_metre_and_the_tempo(bpm, bars_of):
+    samples, beats = metre_music(bpm, bars_of, bars=12, seed=0, rate=RATE)
+    described = dict(zip(DESCRIPTORS, song_descriptors(samples, RATE)))
+    assert (described["metre"] > 0) == (bars_of == 3)  # bar-to-bar similarity at 3 beats above that at 4
+    assert described["tempo"] == pytest.approx(np.log2(bpm), abs=np.log2(1.03))  # within 3 % of the true tempo
+    assert np.isfinite(list(described.values())).all()
+
+
+def test_the_classifier_names_the_nearest_style_mean_in_pooled_within_style_units():
+    rng = np.random.default_rng(0)
+    centres = {"cha-cha": [-1, 7.0, 1, 7, -3], "rumba": [-1, 6.7, 1, 7, -3], "waltz": [1, 6.5, 1, 7, -3]}
+    counts = {"cha-cha": 3, "rumba": 4, "waltz": 20}  # a majority that must not win by its size
+    styles = [s for s, n in counts.items() for _ in range(n)]
+    x = np.array([centres[s] for s in styles]) + rng.normal(0, 0.08, (len(styles), 5))
+    fitted = MusicStyleClassifier.fit(x, styles)
+    assert fitted.styles == ("cha-cha", "rumba", "waltz") and fitted.songs == len(styles)
+    # the same rule computed another way: scipy's standardised Euclidean distance to each style's mean
+    within = np.concatenate([x[np.array(styles) == s] - x[np.array(styles) == s].mean(0) for s in counts])
+    variance = (within**2).sum(0) / (len(styles) - len(counts))
+    means = np.stack([x[np.array(styles) == s].mean(0) for s in fitted.styles])
+    asked = rng.normal(x.mean(0), 0.3, (50, 5))
+    expected = np.array(fitted.styles)[cdist(asked, means, "seuclidean", V=variance).argmin(axis=1)]
+    assert [fitted.predict(a) for a in asked] == expected.tolist()
+    assert fitted.leave_one_out == len(styles)  # well apart: every song named right when left out
+    assert MusicStyleClassifier.from_dict(fitted.to_dict()) == fitted
+
+
+def test_a_classifier_fitted_on_songs_names_a_new_song():
+    songs = [metre_music(bpm, bars_of, bars=10, seed=s, rate=RATE)[0] for bpm, bars_of, s in
+             ((88, 3, 1), (92, 3, 2), (125, 4, 3), (129, 4, 4))]  # fmt: skip
+    fitted = MusicStyleClassifier.fit(
+        np.stack([song_descriptors(s, RATE) for s in songs]), ["waltz", "waltz", "cha-cha", "cha-cha"]
+    )
+    config = StyleInputConfig(classifier=fitted)
+    waltz, _ = metre_music(90.0, 3, bars=10, seed=9, rate=RATE)
+    cha_cha, _ = metre_music(127.0, 4, bars=10, seed=8, rate=RATE)
+    assert config.style_of(waltz) == "waltz" and config.style_of(cha_cha) == "cha-cha"
+    heard, _ = style_input_features(waltz, frames(2.0), config)  # no style given: heard in the song
+    assert heard[5].tolist() == [0.0, 1.0, 0.0, 0.0]  # slots in the classifier's order: cha-cha, waltz
+    assert song_style(PRESETS["listen_to_dance"], waltz) == (None, "")  # features that hear no style
+    stacked = feature_config(
+        {**PRESETS["listen_to_dance_rhythm_bars_style"].to_dict(), "parts": [
+            *PRESETS["listen_to_dance_rhythm_bars_style"].to_dict()["parts"][:2], config.to_dict()]}
+    )  # fmt: skip
+    assert song_style(stacked, cha_cha) == ("cha-cha", "cha-cha (heard in the music)")
+    assert song_style(stacked, cha_cha, "waltz") == ("waltz", "waltz (given)")
+    assert song_style(stacked, None)[0] is None
+    assert song_style(stacked, cha_cha[: RATE * 2])[0] is None  # 2 s: too few beats to tell
+    with pytest.raises(ConfigError, match="style 'tango': the run knows cha-cha, waltz"):
+        song_style(stacked, cha_cha, "tango")
+
+
+def test_each_sounding_frame_says_the_style_and_silence_stays_silence():
+    fitted = MusicStyleClassifier(("rumba", "waltz"), ((0.0,) * 5, (1.0,) * 5), (0.0,) * 5, (1.0,) * 5)
+    config = StyleInputConfig(slots=3, classifier=fitted)
+    music = np.random.default_rng(0).normal(0, 0.1, 4 * RATE).astype(np.float32)
+    music[RATE : 2 * RATE] = 0.0
+    starts = frames(4.0)
+    made, padded = style_input_features(music, starts, config, style="waltz")
+    own_slice = np.array([np.any(np.abs(music[s : s + 534]) > 0) for s in starts])
+    assert made.shape == (len(starts), 3) and np.array_equal(made[:, 1], own_slice.astype(np.float32))
+    assert not made[:, [0, 2]].any() and padded.tolist() == [s + 534 > music.size for s in starts]
+    assert not style_input_features(music, starts, config, style=NO_STYLE)[0].any()
+    # the noise has too few beats to tell: heard as no style, not an error
+    assert not style_input_features(music, starts, config)[0].any()
+    planes, _ = style_input_features(
+        music, starts[:4], StyleInputConfig(classifier=fitted, planes=(129, 5)), style="rumba"
+    )
+    assert planes.shape == (4, 4, 129, 5) and (planes[:, 0] == 1).all() and not planes[:, 1:].any()
+
+
+def test_the_presets_stack_it_and_the_stream_needs_the_style():
+    music = np.random.default_rng(1).normal(0, 0.1, 3 * RATE).astype(np.float32)
+    fitted = MusicStyleClassifier(("cha-cha", "waltz"), ((0.0,) * 5, (1.0,) * 5), (0.0,) * 5, (1.0,) * 5)
+    for name, shape in (("yalta2016_rhythm_style", (6, 129, 5)), ("listen_to_dance_rhythm_bars_style", (157,))):
+        unfitted = PRESETS[name]
+        assert unfitted.output_shape == shape and needs_style(unfitted)
+        assert style_input_of(unfitted).classifier is None
+        part = style_input_of(unfitted)
+        config = feature_config(
+            {"extractor": "stack", "parts": [p.to_dict() if p is not part else
+                                             StyleInputConfig(classifier=fitted, planes=part.planes).to_dict()
+                                             for p in unfitted.parts]}
+        )  # fmt: skip
+        assert feature_config(config.to_dict()) == config
+        made, _ = compute_features(music, frames(2.0), config, beats_per_bar=3, style="waltz")
+        without, _ = compute_features(music, frames(2.0), PRESETS[name.removesuffix("_style")], beats_per_bar=3)
+        assert np.array_equal(made[:, : without.shape[1]], without)  # the parts before it unchanged
+        assert made[10, without.shape[1] + 1].min() == 1.0
+        quiet = silence_features(config, FPS)
+        assert silent_frames(compute_features(np.zeros(RATE, np.float32), frames(0.5), config)[0], quiet).all()
+        # streamed in blocks: the same as the whole song with the same style; refused without one
+        got = np.zeros_like(made)
+
+        def sink(k0, f, _p, got=got):
+            got[k0 : k0 + len(f)] = f
+
+        stream = StreamingFeatures(frames(2.0), config, sink, beats_per_bar=3, style="waltz")
+        for block in np.array_split(music, 7):
+            stream.push(block)
+        stream.finish()
+        assert np.allclose(got, made, atol=1e-5)
+        with pytest.raises(ConfigError, match="need the song's style"):
+            StreamingFeatures(frames(2.0), config, sink, beats_per_bar=3)
+
+
+@pytest.mark.parametrize(
+    ("settings", "message"),
+    [
+        ({"slots": 0}, "slots must be at least 1"),
+        ({"planes": (129,)}, "planes must be"),
+        (
+            {"slots": 1, "classifier": MusicStyleClassifier(("a", "b"), ((0.0,) * 5,) * 2, (0.0,) * 5, (1.0,) * 5)},
+            "hold 2 styles \\(a, b\\), more than its 1 slots",
+        ),
+    ],
+)
+def test_bad_settings_are_refused(settings, message):
+    with pytest.raises(ConfigError, match=message):
+        StyleInputConfig(**settings)
+    with pytest.raises(ConfigError, match="no music style classifier yet"):
+        StyleInputConfig().style_of(np.zeros(10, np.float32))

@@ -1,0 +1,111 @@
+"""A run whose features hear the song's style: generate hears it in the song or takes --style, live
+hears it in a file before it plays and asks for it from a device, and the style changes the dance."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+from conftest import REPO, TINY_TRAINING
+
+pytest.importorskip("torch")
+pytest.importorskip("librosa")
+
+from kinectdata.align.audio import load_audio  # noqa: E402
+from kinectdata.cli import main  # noqa: E402
+from kinectdata.core.errors import ConfigError  # noqa: E402
+from kinectdata.features import feature_config, style_input_of  # noqa: E402
+from kinectdata.inference.generate import generate  # noqa: E402
+from kinectdata.live import sources  # noqa: E402
+from kinectdata.live.clock import VirtualClock  # noqa: E402
+from kinectdata.live.session import LiveDancer, run_live  # noqa: E402
+
+SAMPLES = REPO / "sample_data"
+
+
+@pytest.fixture(scope="module")
+def style_run(tmp_path_factory):
+    """(run, song): a tiny yalta run on the sample sessions with the style input (two training
+    songs told waltz and rumba), and the third session's song."""
+    from kinectdata.dataset.build import build_dataset
+    from kinectdata.dataset.config import BuildConfig
+    from kinectdata.training.config import TrainConfig
+    from kinectdata.training.train import train
+
+    out = tmp_path_factory.mktemp("style")
+    listed = []
+    for name, split, style in (("synth_001", "train", "waltz"), ("synth_003", "train", "rumba"),
+                               ("synth_002", "val", "rumba")):  # fmt: skip
+        truth = json.loads((SAMPLES / f"{name}.truth.json").read_text())
+        listed.append({"name": name, "recording": str(SAMPLES / f"{name}.csv"), "split": split, "style": style,
+                       "audio": str(SAMPLES / f"{name}.flac"), "offset": truth["offset_s"]})  # fmt: skip
+    (out / "recordings.json").write_text(json.dumps(listed))
+    config = BuildConfig.from_pipeline("yalta2016", features="yalta2016_rhythm_style", target="positions")
+    with pytest.warns(Warning):  # no test split
+        build_dataset(out / "recordings.json", out / "dataset", config, allow_outside_paths=True)
+    train(out / "dataset", out / "run", TrainConfig(**{**TINY_TRAINING, "epochs": 1}))
+    return out / "run", SAMPLES / "synth_002.flac"
+
+
+def _classifier(run):
+    config = json.loads((run / "config.json").read_text())
+    return style_input_of(feature_config(config["dataset"]["features"])).classifier
+
+
+def test_generate_hears_the_style_or_takes_it_and_the_style_changes_the_dance(style_run):
+    run, song = style_run
+    heard = _classifier(run).style_of(load_audio(song, 16000).samples, 16000)
+    motion, timing = generate(run, song)
+    assert timing["style"] == f"{heard} (heard in the music)"
+    told, told_timing = generate(run, song, style=heard)
+    assert told_timing["style"] == f"{heard} (given)"
+    np.testing.assert_array_equal(told.positions, motion.positions)  # hearing it is being told it
+    other = next(s for s in ("rumba", "waltz") if s != heard)
+    changed, _ = generate(run, song, style=other)
+    assert np.abs(changed.positions - motion.positions).max() > 1e-4
+    with pytest.raises(ConfigError, match="style 'tango': the run knows rumba, waltz"):
+        generate(run, song, style="tango")
+
+
+def test_the_cli_says_which_style_it_danced(style_run, tmp_path):
+    run, song = style_run
+    result = CliRunner().invoke(main, ["generate", "--run", str(run), str(song), "-o", str(tmp_path / "d.csv"),
+                                       "--style", "waltz"])  # fmt: skip
+    assert result.exit_code == 0, result.output
+    assert "  style: waltz (given)" in result.output
+    bad = CliRunner().invoke(main, ["generate", "--run", str(run), str(song), "-o", str(tmp_path / "e.csv"),
+                                    "--style", "x"])  # fmt: skip
+    assert bad.exit_code == 1 and "style 'x': the run knows rumba, waltz" in bad.output
+    assert not (tmp_path / "e.csv").exists()
+
+
+class _Device:
+    """A source that, like an input device, has no whole song to hear before it plays."""
+
+    name = "a test device"
+
+    def __init__(self, samples, block):
+        self.samples, self.block = samples, block
+
+    def blocks(self):
+        for first in range(0, self.samples.size, self.block):
+            yield sources.AudioBlock(self.samples[first : first + self.block], first / 16000)
+
+    def close(self):
+        pass
+
+
+def test_live_hears_a_file_and_asks_a_device_for_the_style(style_run):
+    run, song = style_run
+    dancer = LiveDancer(run, "torch")
+    samples = load_audio(song, 16000).samples[: 3 * 16000]
+    with pytest.raises(ConfigError, match="cannot be heard from a device before the song has played: give --style"):
+        run_live(dancer, _Device(samples, 160), [], VirtualClock(0.0), duration=1.0)
+    stats = run_live(LiveDancer(run, "torch"), _Device(samples, 160), [], VirtualClock(0.0), duration=1.0,
+                     style="waltz")  # fmt: skip
+    assert stats.summary()["frames_sent"] > 0
+    clock = VirtualClock(0.0)
+    stats = run_live(LiveDancer(run, "torch"), sources.FileSource(song, 16000, 160, clock), [], clock, duration=1.0)
+    assert stats.summary()["frames_sent"] > 0
