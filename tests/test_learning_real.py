@@ -45,7 +45,7 @@ def test_the_real_corpus_benchmark_prints_every_goal(tmp_path, monkeypatch, caps
             assert (tmp_path / "out" / f"learning-real-{model}-seed{seed}.png").is_file()
         assert f"[{model}] the goals over seeds 0, 1:" in printed
     assert "goals met in every seed:" in printed
-    for model, shape in (("yalta", [2, 129, 5]), ("cdhc", [153])):  # spectra (or mel) with the pulse
+    for model, shape in (("yalta", [2, 129, 5]), ("cdhc", [157])):  # spectra (or mel), the pulse; cdhc: the style
         built = json.loads((tmp_path / "out" / f"{model}_dataset" / "manifest.json").read_text())
         assert built["feature_shape"] == shape, (model, built["feature_shape"])
     saved = json.loads((tmp_path / "out" / "learning_real.json").read_text())

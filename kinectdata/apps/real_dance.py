@@ -31,7 +31,7 @@ from kinectdata.dataset.recipes.manifest import CorpusManifest
 
 REAL_DANCE_BUILDS: dict[str, dict[str, Any]] = {
     "yalta2016": {"features": "yalta2016_rhythm", "normalisation": None},
-    "listen-to-dance": {"features": "listen_to_dance_rhythm_bars", "normalisation": "maxabs"},
+    "listen-to-dance": {"features": "listen_to_dance_rhythm_bars_style", "normalisation": "maxabs"},
 }
 """How a real corpus's dataset is built for each pipeline's model: the pipeline's features with the
 music's pulse, the corpus's generic target normalised into -0.9..0.9 (the listen-to-dance
@@ -40,7 +40,12 @@ The cdhc model's pulse counts the levels in each song's own metre (beat, two bea
 with its jitter term, over three cross-validation folds its periods then ranked with the songs'
 tempi at 0.91 against 0.43 with bars of 3 and 4 beats. The pulse alone (``listen_to_dance_pulse``)
 jittered less and scored a lower FID_k on the folds but listened (goal c's verdict) in none of four
-fold runs where these features did in two (docs/notebook/2026-11-real-dance.md)."""
+fold runs where these features did in two (docs/notebook/2026-11-real-dance.md). It also hears the
+song's dance style (``_style``: the training songs told their recipe's style, every other song heard
+by the classifier the build fits on them): without it the model danced one dance for every style
+(2 and 5 of 12 held-out dances in their song's style on folds 1 and 2), with it 10 and 7 of 12, as
+varied as the real dancers (docs/notebook/2026-12-real-dance-variety.md); a corpus whose recipe gives
+no styles is built without it."""
 
 REAL_QUICK_MINUTES = 25.0
 """The real-corpus quickstart's training budget, minutes: what docs/notebook/2026-11-real-dance.md's validation runs
@@ -99,14 +104,17 @@ def build_model_dataset(
     build options); the dataset's manifest (a finished build is reused)."""
     pipeline = pipeline_of(model)
     how = REAL_DANCE_BUILDS[pipeline]
+    features = how["features"]
+    if features.endswith("_style") and not all(r.style for r in manifest.recordings if r.split in (None, "train")):
+        features = features.removesuffix("_style")  # the style is told to training songs: none to tell
     config = BuildConfig.from_pipeline(
         pipeline,
-        features=how["features"],
+        features=features,
         target=manifest.target,
         normalisation=how["normalisation"],
         root_centre="--root-centre" in manifest.build_options,
     )
-    echo(f"[build-dataset] {listed} -> {folder} (--pipeline {pipeline} --features {how['features']}"
+    echo(f"[build-dataset] {listed} -> {folder} (--pipeline {pipeline} --features {features}"
          f" --target {manifest.target}{' --root-centre' if config.root_centre else ''})")  # fmt: skip
     started = time.perf_counter()
     built = build_dataset(listed, folder, config, jobs=2, allow_outside_paths=True)

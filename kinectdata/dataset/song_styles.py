@@ -41,7 +41,9 @@ def fit_style_inputs(config: BuildConfig, training: Sequence[RecordingEntry], so
 
     Raises:
         ConfigError: a training recording has no ``style`` in the manifest.
-        KinectDataError: a training song cannot be read or is too short to describe (names it).
+        KinectDataError: a training song cannot be read, or a style has no training song long enough to
+            describe (fewer than 10 beats; names them). Shorter songs of a style that has others are
+            left out of the fit only.
     """
     part = style_input_of(config.feature_config)
     if part is None or part.classifier is not None:
@@ -52,13 +54,20 @@ def fit_style_inputs(config: BuildConfig, training: Sequence[RecordingEntry], so
             f"{source}: the features hear the song's style, fitted on the training recordings' styles, but "
             f"{', '.join(unlabelled[:3])}{' ...' if len(unlabelled) > 3 else ''} give no 'style'"
         )
-    described = []
+    described, styles, untold = [], [], []
     for entry in training:
         try:
             described.append(song_descriptors(song_samples(entry, config.sample_rate), config.sample_rate))
-        except KinectDataError as exc:
-            raise KinectDataError(f"recording {entry.name!r} of {source}: its song's style: {exc}") from exc
-    classifier = MusicStyleClassifier.fit(np.stack(described), [e.style for e in training])
+            styles.append(entry.style)
+        except KinectDataError as exc:  # a song too short to describe is still told its style in training
+            untold.append(f"{entry.name} ({exc})")
+    missing = sorted({e.style for e in training} - set(styles))
+    if len(described) < 2 or missing:
+        raise KinectDataError(
+            f"{source}: the features hear the song's style, but too few training songs can be described to "
+            f"learn {', '.join(missing) or 'the styles'} from: {'; '.join(untold[:3])}"
+        )
+    classifier = MusicStyleClassifier.fit(np.stack(described), styles)
     fitted = dataclasses.replace(part, classifier=classifier)
     return dataclasses.replace(config, features=_with_part(config.feature_config, part, fitted))
 

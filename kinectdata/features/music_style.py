@@ -34,12 +34,15 @@ import numpy as np
 from kinectdata.core.errors import ConfigError, KinectDataError
 from kinectdata.core.librosa_import import import_librosa
 from kinectdata.features.beats import music_beats
-from kinectdata.features.metre import MIN_BEATS, bar_similarity, beat_descriptors
+from kinectdata.features.metre import bar_similarity, beat_descriptors
 
 __all__ = ["DESCRIPTORS", "MusicStyleClassifier", "song_descriptors"]
 
 DESCRIPTORS = ("metre", "tempo", "onset_cv", "centroid", "flatness")
 """The song-level descriptors, in the order :func:`song_descriptors` returns them (module docstring)."""
+
+MIN_BEATS = 10
+"""Beats a song needs to be described: the metre compares beats two bars of 4 apart."""
 
 _HOP_S = 0.01
 _N_FFT = 1024
@@ -51,8 +54,8 @@ def song_descriptors(samples: np.ndarray, sample_rate: float) -> np.ndarray:
     (full scale -1..1) at ``sample_rate`` Hz (module docstring).
 
     Raises:
-        KinectDataError: fewer than :data:`~kinectdata.features.metre.MIN_BEATS` beats (too short or
-            silent to tell), or librosa missing.
+        KinectDataError: fewer than :data:`MIN_BEATS` beats (too short or silent to tell), or
+            librosa missing.
     """
     librosa = import_librosa("telling a song's style")
     y = np.asarray(samples, np.float32)

@@ -7,6 +7,7 @@ import json
 
 import numpy as np
 import pytest
+import soundfile
 from click.testing import CliRunner
 from conftest import REPO, TINY_TRAINING
 
@@ -28,7 +29,7 @@ SAMPLES = REPO / "sample_data"
 @pytest.fixture(scope="module")
 def style_run(tmp_path_factory):
     """(run, song): a tiny yalta run on the sample sessions with the style input (two training
-    songs told waltz and rumba), and the third session's song."""
+    songs told waltz and rumba), and the first 12 s of the third session's song."""
     from kinectdata.dataset.build import build_dataset
     from kinectdata.dataset.config import BuildConfig
     from kinectdata.training.config import TrainConfig
@@ -46,7 +47,9 @@ def style_run(tmp_path_factory):
     with pytest.warns(Warning):  # no test split
         build_dataset(out / "recordings.json", out / "dataset", config, allow_outside_paths=True)
     train(out / "dataset", out / "run", TrainConfig(**{**TINY_TRAINING, "epochs": 1}))
-    return out / "run", SAMPLES / "synth_002.flac"
+    samples, rate = soundfile.read(SAMPLES / "synth_002.flac", dtype="float32")
+    soundfile.write(out / "song.wav", samples[: 12 * rate], rate)  # 12 s: beats enough to hear a style
+    return out / "run", out / "song.wav"
 
 
 def _classifier(run):
