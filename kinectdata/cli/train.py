@@ -478,8 +478,9 @@ def generate_command(
     if (audio is None) == (data is None):
         raise click.UsageError("give AUDIO, or --data DATASET (and --split) to generate for a whole split")
     if data is not None:
-        if beats_per_bar is not None or style is not None:
-            raise click.UsageError("--beats-per-bar and --style are for AUDIO: a split's songs keep their own")
+        for given, option in ((beats_per_bar, "--beats-per-bar"), (style, "--style")):
+            if given is not None:
+                raise click.UsageError(f"{option} is for AUDIO: a split's songs keep their own")
         _generate_split(run_dir, data, split, out, engine, precision, turning, travel, seed)
         return
     from kinectdata.inference.generate import generate

@@ -71,5 +71,7 @@ def test_the_command_takes_audio_or_a_split_not_both(trained_run, sample_dataset
         assert result.exit_code == 2 and "give AUDIO, or --data DATASET" in result.output
     result = CliRunner().invoke(main, [*base, "--data", str(sample_dataset), "--split", "val", "--beats-per-bar", "3"])
     assert result.exit_code == 2 and "--beats-per-bar is for AUDIO" in result.output
+    result = CliRunner().invoke(main, [*base, "--data", str(sample_dataset), "--split", "val", "--style", "waltz"])
+    assert result.exit_code == 2 and "--style is for AUDIO" in result.output
     result = CliRunner().invoke(main, [*base, "--data", str(sample_dataset), "--split", "nosuch"])
     assert result.exit_code == 1 and "the nosuch split has no recordings to generate for" in result.output
