@@ -12,6 +12,7 @@ on, so an interrupted build resumes by skipping the work files already there.
 from __future__ import annotations
 
 import dataclasses
+import functools
 import hashlib
 import json
 import os
@@ -202,15 +203,15 @@ def _stretched(reader: AudioReader, tempo: float, sample_rate: int, path: Path) 
 
 
 def _features_metre(
-    entry: RecordingEntry, features: FeatureConfig, blocks: Callable[[], Iterator[np.ndarray]], sample_rate: int
+    entry: RecordingEntry, features: FeatureConfig, song: Callable[[], np.ndarray], sample_rate: int
 ) -> Metre | None:
     """The song's metre when the features count its bars (None otherwise): the entry's
-    ``beats_per_bar``, else estimated from the whole of its audio (``blocks()``), else 4."""
+    ``beats_per_bar``, else estimated from the whole of its audio (``song()``), else 4."""
     if not needs_metre(features):
         return None
     if entry.beats_per_bar is not None:
         return recording_metre(entry.beats_per_bar, None, sample_rate)
-    return recording_metre(None, np.concatenate([np.zeros(0, np.float32), *blocks()]), sample_rate)
+    return recording_metre(None, song(), sample_rate)
 
 
 def _mean_square(blocks: Iterable[np.ndarray]) -> float:
@@ -355,14 +356,15 @@ def _prepare_variants(
     stats = NormStats.from_arrays(values, mask, spec.component_names()).to_dict()
     orientations = orientation_stats(values, mask, spec)
     skeleton = bone_offsets(motion, spec)
-    metre = _features_metre(entry, feats, blocks, sr)
+    song = functools.cache(lambda: np.concatenate([np.zeros(0, np.float32), *blocks()]))  # decoded once, if asked
+    metre = _features_metre(entry, feats, song, sr)
     info = {"sources": hashes, "paths": sources, "offset": offset.to_dict(), "alignment": summary}
     if metre is not None:
         info["metre"] = {"beats_per_bar": metre.beats_per_bar, "source": metre.source}
     if needs_style(feats):
         told = style is not None
         if not told:  # heard in the whole song, as generation hears any song
-            style, _ = song_style(feats, np.concatenate([np.zeros(0, np.float32), *blocks()]))
+            style, _ = song_style(feats, song())
             style = style or NO_STYLE
         info["style"] = {"style": style, "source": "manifest" if told else "heard"}
     anchor = root_anchor(motion, spec) if config.root_centre else None

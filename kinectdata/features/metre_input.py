@@ -27,7 +27,7 @@ import numpy as np
 from kinectdata.core.errors import ConfigError
 from kinectdata.features.config_dict import config_from_dict, config_to_dict
 
-__all__ = ["MetreInputConfig", "metre_input_features", "sounding_slices"]
+__all__ = ["MetreInputConfig", "metre_input_features", "on_sounding_frames", "sounding_slices"]
 
 SILENT_BELOW = 1e-6
 """A frame's slice is digital silence when no sample is further than this from 0 (full scale 1)."""
@@ -94,10 +94,7 @@ def metre_input_features(
     ends = starts + config.slice_samples
     sounding = sounding_slices(x, starts, config.slice_samples)
     one_hot = np.array([1.0 if v == metre else 0.0 for v in config.values], np.float32)
-    out = np.where(sounding[:, None], one_hot[None], 0.0).astype(np.float32)
-    if config.planes:
-        out = np.broadcast_to(out[:, :, None, None], (len(starts), len(config.values), *config.planes)).copy()
-    return out, ends > x.size
+    return on_sounding_frames(one_hot, sounding, config.planes), ends > x.size
 
 
 def sounding_slices(samples: np.ndarray, starts: np.ndarray, slice_samples: int) -> np.ndarray:
@@ -110,3 +107,12 @@ def sounding_slices(samples: np.ndarray, starts: np.ndarray, slice_samples: int)
     counts = np.concatenate([[0], np.cumsum(loud)])
     first, last = np.clip(starts, 0, x.size), np.clip(starts + slice_samples, 0, x.size)
     return counts[last] - counts[first] > 0
+
+
+def on_sounding_frames(one_hot: np.ndarray, sounding: np.ndarray, planes: tuple[int, int] | None) -> np.ndarray:
+    """float32 [N, K] (``planes`` None) or [N, K, rows, columns]: ``one_hot`` [K] on the frames where
+    ``sounding`` [N] is True, zeros on the others; with ``planes``, each value a constant plane."""
+    out = np.where(np.asarray(sounding)[:, None], np.asarray(one_hot, np.float32)[None], 0.0).astype(np.float32)
+    if planes:
+        out = np.broadcast_to(out[:, :, None, None], (*out.shape, *planes)).copy()
+    return out

@@ -26,7 +26,7 @@ from typing import Any, ClassVar
 import numpy as np
 
 from kinectdata.core.errors import ConfigError, KinectDataError
-from kinectdata.features.metre_input import sounding_slices
+from kinectdata.features.metre_input import on_sounding_frames, sounding_slices
 from kinectdata.features.music_style import MusicStyleClassifier
 
 __all__ = ["NO_STYLE", "StyleInputConfig", "style_input_features"]
@@ -136,7 +136,4 @@ def style_input_features(
     one_hot = np.zeros(config.slots, np.float32)
     if style in config.styles:
         one_hot[config.styles.index(style)] = 1.0
-    out = np.where(sounding[:, None], one_hot[None], 0.0).astype(np.float32)
-    if config.planes:
-        out = np.broadcast_to(out[:, :, None, None], (len(starts), config.slots, *config.planes)).copy()
-    return out, ends > x.size
+    return on_sounding_frames(one_hot, sounding, config.planes), ends > x.size

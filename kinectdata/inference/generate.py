@@ -27,6 +27,7 @@ kinectdata does not ship travels whole in the file: its joints, bones, roles and
 
 from __future__ import annotations
 
+import functools
 import time
 from collections.abc import Callable, Iterator
 from pathlib import Path
@@ -191,15 +192,14 @@ def generate(
 
     starts = np.round(np.arange(n) * sr / fps).astype(np.int64)
     features_config = feature_config(data["features"])
+    whole = functools.cache(lambda: np.concatenate([np.zeros(0, np.float32), *blocks()]))  # decoded once, if asked
     metre = None
     counts_bars = needs_metre(features_config)
     if counts_bars or (drawing and config.get("drawn_by_metre")):  # the features' bars, or the draws' metre
-        samples = None if beats_per_bar is not None else np.concatenate([np.zeros(0, np.float32), *blocks()])
-        metre = recording_metre(None, samples, sr, given=beats_per_bar)
+        metre = recording_metre(None, None if beats_per_bar is not None else whole(), sr, given=beats_per_bar)
     bar = None if metre is None else metre.beats_per_bar
     hears = style is None and style_input_of(features_config) is not None  # the style heard in the whole song
-    whole = np.concatenate([np.zeros(0, np.float32), *blocks()]) if hears else None
-    heard_style, style_said = song_style(features_config, whole, style)
+    heard_style, style_said = song_style(features_config, whole() if hears else None, style)
     process = run_turning(config, bar) if turning else None
     moving = run_travel(config, bar) if travel else None
     bars = bar if counts_bars else None

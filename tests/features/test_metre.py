@@ -21,11 +21,8 @@ from kinectdata.features.metre import (  # noqa: E402
     recording_metre,
 )
 
-RATE = 22050
-
-
-def music(bpm: float, beats_per_bar: int, bars: int, seed: int, rate: int = RATE) -> tuple[np.ndarray, np.ndarray]:
-    return metre_music(bpm, beats_per_bar, bars, seed, rate)
+RATE = 22050  # metre_music's default rate
+music = metre_music
 
 
 @pytest.mark.parametrize("bpm", [100.0, 117.0, 130.0])
