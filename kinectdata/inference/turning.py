@@ -141,7 +141,7 @@ def turn_song(
     if process is not None:
         values = turn_targets(values, spec, draw_turning_speed(process, live, fps, rng), fps, process)
     if travel is not None:
-        values = travel_targets(values, spec, draw_travel(travel, live, fps, travel_rng or rng))
+        values = travel_targets(values, spec, draw_travel(travel, live, fps, travel_rng or rng), fps)
     return values
 
 

@@ -14,7 +14,9 @@ The process: each horizontal axis's velocity (m/s), slowed to below :data:`CUTOF
 dancer's steps add to it faster is the network's to make), is the two-stage process of
 :mod:`kinectdata.targets.slow_process` scaled to the dancers' root mean square, with their time
 constant; the two axes are drawn independently. Its sum over frames, over fps, is added to the
-root's travel: the body moves with it, after the turning. Where the music is silent the velocity
+root's travel: the body moves with it, after the turning, over the standing foot where the target
+has both legs (:mod:`kinectdata.targets.foot_lock`: the standing foot stays planted, the swinging one
+catches up, the knees bend to keep the legs' lengths). Where the music is silent the velocity
 is held at 0 (the dancer stops with the music). Drawn over as many frames as each training dance
 has, it puts the dancer 1.2 to 5.6 m from the start on average (median 2.9 m; the dancers' 0.8 to
 5.5, 2.8).
@@ -35,6 +37,7 @@ import numpy as np
 from scipy.signal import butter, sosfiltfilt
 
 from kinectdata.core.errors import ConfigError
+from kinectdata.targets.foot_lock import FootLock, legs_of
 from kinectdata.targets.slow_process import fit_time_constant, pole_and_gain, two_stage
 from kinectdata.targets.specs import TargetSpec
 from kinectdata.targets.turning import turnable
@@ -75,7 +78,7 @@ class TravelProcess:
         fitted = f", fitted on {self.recordings} training recordings" if self.recordings else ""
         return (
             f"travel drawn at generation: {self.rms_speed:.2f} m/s root mean square along each horizontal axis, "
-            f"correlated over {self.time_constant:.2f} s (two stages){fitted}"
+            f"correlated over {self.time_constant:.2f} s (two stages), over the standing foot{fitted}"
         )
 
     def to_dict(self) -> dict[str, Any]:
@@ -154,12 +157,22 @@ def _root_columns(spec: TargetSpec) -> list[int]:
     return [start, start + 2]
 
 
-def travel_targets(values: np.ndarray, spec: TargetSpec, displacement: np.ndarray) -> np.ndarray:
-    """Denormalised root-centred targets [T, D] (metres, y up) moved by ``displacement`` [T, 2]
-    (metres along x and z; :func:`draw_travel`): a new array."""
+def travel_targets(values: np.ndarray, spec: TargetSpec, displacement: np.ndarray, fps: float) -> np.ndarray:
+    """Denormalised root-centred targets [T, D] (metres, y up) at ``fps`` moved by ``displacement``
+    [T, 2] (metres along x and z from where the song began; :func:`draw_travel`), the standing foot
+    planted where ``spec`` has both legs (:mod:`kinectdata.targets.foot_lock`): a new array."""
     out = np.array(values, np.float64)
     out[:, _root_columns(spec)] += np.asarray(displacement, np.float64)
-    return out
+    lock = _foot_lock(spec, fps)
+    return out if lock is None else lock.plant(out)
+
+
+def _foot_lock(spec: TargetSpec, fps: float) -> FootLock | None:
+    legs = legs_of(spec)
+    if legs is None:
+        return None
+    start = spec.columns(spec.root, "position").start
+    return FootLock(legs, (start, start + 1, start + 2), fps)
 
 
 class TravelStream:
@@ -173,6 +186,7 @@ class TravelStream:
         self.u = np.zeros(2)
         self.v = np.zeros(2)
         self.place = np.zeros(2)
+        self.feet = _foot_lock(spec, self.fps)
 
     def step(self, values: np.ndarray, live: bool) -> np.ndarray:
         e = self.rng.standard_normal(2)
@@ -181,4 +195,4 @@ class TravelStream:
         self.place = self.place + self.process.rms_speed * self.gain * self.v / self.fps
         out = np.array(values, np.float64)
         out[self.columns] += self.place
-        return out
+        return out if self.feet is None else self.feet.step(out)

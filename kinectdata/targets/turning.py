@@ -48,6 +48,7 @@ __all__ = [
     "TurningStream",
     "draw_turning_speed",
     "fit_turning",
+    "left_standing",
     "turnable",
     "turn_targets",
 ]
@@ -203,13 +204,20 @@ def _columns(spec: TargetSpec, process: TurningProcess) -> _Columns:
     return _Columns(np.array([(c[0], c[2]) for c in others], np.int64).reshape(-1, 2), xyz(spec.root), feet)
 
 
+def left_standing(left_height: np.ndarray | float, right_height: np.ndarray | float) -> np.ndarray:
+    """The left foot's share of the standing (0..1, broadcast), from the feet's heights (metres, y
+    up): ``sigmoid((y_right - y_left) / PIVOT_SOFTNESS_M)``, the lower foot stands."""
+    diff = (np.asarray(left_height, np.float64) - np.asarray(right_height, np.float64)) / PIVOT_SOFTNESS_M
+    return 1.0 / (1.0 + np.exp(np.clip(diff, -60, 60)))
+
+
 def _stance(values: np.ndarray, cols: _Columns) -> np.ndarray:
     """[..., 2] the pivot's horizontal place in the unturned world, for targets [..., D]."""
     root = values[..., [cols.root[0], cols.root[2]]]
     if not cols.feet:
         return root
     (lx, ly, lz), (rx, ry, rz) = cols.feet
-    left = 1.0 / (1.0 + np.exp(np.clip((values[..., ly] - values[..., ry]) / PIVOT_SOFTNESS_M, -60, 60)))
+    left = left_standing(values[..., ly], values[..., ry])
     foot = left[..., None] * values[..., [lx, lz]] + (1 - left[..., None]) * values[..., [rx, rz]]
     return root + foot
 

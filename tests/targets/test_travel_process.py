@@ -77,26 +77,32 @@ def test_silence_holds_the_dancer_where_it_is():
     assert np.abs(place[600:] - place[599]).max() > 0.05  # and off again with the music
 
 
-def test_only_the_roots_travel_moves_and_the_stream_is_the_whole_song():
+def test_the_root_travels_and_the_stream_is_the_whole_song():
     process = TravelProcess(0.35, 0.5)
     values = np.random.default_rng(5).normal(0, 0.3, (240, SPEC.dim))
     live = np.ones(240, bool)
     live[100:150] = False
     place = draw_travel(process, live, FPS, np.random.default_rng(6))
-    moved = travel_targets(values, SPEC, place)
+    moved = travel_targets(values, SPEC, place, FPS)
     root = SPEC.columns(SPEC.root, "position").start
     assert np.array_equal(moved[:, [root, root + 2]], values[:, [root, root + 2]] + place)
-    others = np.ones(SPEC.dim, bool)
-    others[[root, root + 2]] = False
-    assert np.array_equal(moved[:, others], values[:, others])
+    feet = {SPEC.columns(j, "position").start for j in ("left_ankle", "left_heel", "left_toe", "left_knee")}
+    arms = [c for j in ("head_right", "left_hand", "right_elbow") for c in range(*_span(j))]
+    assert np.array_equal(moved[:, arms], values[:, arms])  # the feet and knees are the foot lock's
+    assert any(not np.array_equal(moved[:, f], values[:, f]) for f in feet)
     stream = TravelStream(process, SPEC, FPS, np.random.default_rng(6))
     stepped = np.stack([stream.step(v, bool(k)) for v, k in zip(values, live)])
-    assert np.allclose(stepped, moved, atol=1e-12)
+    assert np.allclose(stepped, moved, atol=1e-9)
+
+
+def _span(joint: str) -> tuple[int, int]:
+    start = SPEC.columns(joint, "position").start
+    return start, start + 3
 
 
 def test_targets_without_a_root_to_travel_are_refused():
     not_centred = TargetSpec.from_dict({**SPEC.to_dict(), "root": None})
     with pytest.raises(ConfigError, match="travel: the target is not centred on its root"):
-        travel_targets(np.zeros((3, SPEC.dim)), not_centred, np.zeros((3, 2)))
+        travel_targets(np.zeros((3, SPEC.dim)), not_centred, np.zeros((3, 2)), FPS)
     with pytest.raises(ConfigError, match="rms_speed must be a finite number >= 0 m/s"):
         TravelProcess(-1.0, 0.5)

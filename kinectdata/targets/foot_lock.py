@@ -1,0 +1,193 @@
+"""The standing foot planted while the body travels: what keeps a drawn travel
+(:mod:`kinectdata.targets.travel`) from sliding the feet.
+
+Added to the root alone, the travel shifts every joint, and both feet slide with it: on tang2018's
+fold 1 the generated dances' foot contact score (PFC) was 1.81 x the real dancers' without the
+drawn travel and 2.54 x with it (docs/notebook/2026-12-real-dance-variety.md). A dancer travels by
+standing on one foot while the body moves over it and swinging the other to catch up. So each foot
+keeps a **lag** (metres, horizontal): how far the foot is from where the frames put it.
+
+- Each frame, the foot's own horizontal step in the world (the network's, the turning's and the
+  travel's together) is added to its lag by the foot's share of the standing ``w`` (the sigmoid of
+  the feet's heights that pivots the turning, :func:`kinectdata.targets.turning.left_standing`): the
+  foot that stands stays where it is.
+- The lag then shrinks by ``(1 - w) * r``, ``r = 1 - exp(-1 / (fps * CATCH_UP_S))``: the swinging
+  foot catches up within about :data:`CATCH_UP_S`.
+- The lag is never more than the leg can reach: the ankle stays within the thigh's and the shin's
+  lengths of the hip (beyond them the foot slides).
+
+The foot (its ankle and the joints below it) is moved back by its lag, and the knee is placed again by
+two-bone inverse kinematics, so that the thigh and the shin keep their lengths in every frame and the
+knee bends the way it did (in the plane of the hip, the new ankle and the old knee). Feet at one
+height each stand half and catch up at half the rate.
+
+Chosen on fold 1 of tang2018 (the adopted recipe's run, its travel drawn again per song):
+PFC 2.67 x the real dancers' with the travel added to the root alone, 1.16 x with the standing foot
+planted (1.04 x with a catch-up of 0.4 s, 0.90 x with the feet's heights 0.3 cm apart for 88 % of
+the standing, where the jerk rose from 1.90 to 2.04 x); jerk 1.91 x and bone CV as without it.
+Carrying the travel's step alone (not the foot's whole step) left PFC at 2.6-2.9 x: the network's
+feet slide on their own, by less than the travel but as often.
+
+A target without both feet, their knees and their hips among its positions is not changed
+(:func:`legs_of` is None). :class:`FootLock` works one frame at a time, so that a whole song and a
+live dance plant the same frames.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from kinectdata.targets.specs import TargetSpec
+from kinectdata.targets.turning import left_standing
+
+__all__ = ["CATCH_UP_S", "FootLock", "Leg", "legs_of", "move_feet"]
+
+CATCH_UP_S = 0.2
+"""The swinging foot's lag behind the body shrinks with this time constant (seconds)."""
+UP = 1  # y up
+
+
+@dataclass(frozen=True)
+class Leg:
+    """The columns of one leg in a target vector: each joint's x, y, z.
+
+    Attributes:
+        hip, knee, ankle: the chain the knee is placed again on.
+        foot: the ankle and every joint below it (they move together with the lag).
+    """
+
+    hip: tuple[int, int, int]
+    knee: tuple[int, int, int]
+    ankle: tuple[int, int, int]
+    foot: tuple[tuple[int, int, int], ...]
+
+
+def _below(joints, index: int) -> list[int]:
+    out, todo = [], [index]
+    while todo:
+        j = todo.pop()
+        out.append(j)
+        todo += [c for c, p in enumerate(joints.parents) if p == j]
+    return out
+
+
+def legs_of(spec: TargetSpec) -> tuple[Leg, Leg] | None:
+    """The left and right legs of root-centred 3-D position targets ``spec``, or None when a foot,
+    its knee or its hip is not among the positions. The ``left_foot`` / ``right_foot`` role is the
+    ankle, or a leaf below it (Kinect's ``FootLeft``: its parent is then the ankle)."""
+    joints = spec.joints
+    if spec.dimensions != 3 or spec.root is None:
+        return None
+    legs = []
+    for side in ("left_foot", "right_foot"):
+        foot = joints.role(side)
+        if foot is None:
+            return None
+        has_children = any(p == foot for p in joints.parents)
+        ankle = foot if has_children else joints.parents[foot]
+        knee = joints.parents[ankle] if ankle >= 0 else -1
+        hip = joints.parents[knee] if knee >= 0 else -1
+        chain = [ankle, knee, hip]
+        if min(chain) < 0 or any(joints.names[j] not in spec.positions or joints.names[j] == spec.root for j in chain):
+            return None
+
+        def xyz(j: int) -> tuple[int, int, int]:
+            s = spec.columns(joints.names[j], "position").start
+            return s, s + 1, s + 2
+
+        foot_joints = [j for j in _below(joints, ankle) if joints.names[j] in spec.positions]
+        legs.append(Leg(xyz(hip), xyz(knee), xyz(ankle), tuple(xyz(j) for j in foot_joints)))
+    return legs[0], legs[1]
+
+
+def _reach(v: np.ndarray, lag: np.ndarray, reach: float) -> float:
+    """The largest s in [0, 1] with |v - s (lag_x, 0, lag_z)| <= reach, for the ankle's offset ``v`` [3]
+    from the hip."""
+    lx, lz = float(lag[0]), float(lag[1])
+    ll = lx * lx + lz * lz
+    if ll == 0.0:
+        return 1.0
+    vl = float(v[0]) * lx + float(v[2]) * lz
+    c = float(v @ v) - reach * reach
+    if c >= 0:  # a straight leg (or rounding beyond it): the foot cannot stay behind
+        return 0.0
+    return min(1.0, (vl + math.sqrt(vl * vl - ll * c)) / ll)
+
+
+def _place_knee(hip: np.ndarray, knee: np.ndarray, ankle: np.ndarray, moved: np.ndarray) -> np.ndarray:
+    """[..., 3] the knee between ``hip`` and the ankle's new place ``moved`` (all [..., 3]), at the
+    distances the old ``knee`` had from ``hip`` and ``ankle``, on the old knee's side."""
+    thigh = np.linalg.norm(knee - hip, axis=-1, keepdims=True)
+    shin = np.linalg.norm(ankle - knee, axis=-1, keepdims=True)
+    line = moved - hip
+    d = np.maximum(np.linalg.norm(line, axis=-1, keepdims=True), 1e-9)
+    u = line / d
+    along = (thigh**2 - shin**2 + d**2) / (2 * d)
+    across = np.sqrt(np.maximum(thigh**2 - along**2, 0.0))
+    side = knee - hip
+    side = side - np.sum(side * u, axis=-1, keepdims=True) * u
+    size = np.linalg.norm(side, axis=-1, keepdims=True)
+    straight = np.cross(u, np.array([0.0, 1.0, 0.0]))  # a straight leg: bend it sideways of the step
+    side = np.where(size > 1e-9, side, straight)
+    side = side / np.maximum(np.linalg.norm(side, axis=-1, keepdims=True), 1e-12)
+    return hip + along * u + across * side
+
+
+def move_feet(values: np.ndarray, legs: tuple[Leg, Leg], lags: np.ndarray) -> np.ndarray:
+    """Targets [..., D] with each leg's foot moved back by its lag (``lags`` [..., 2, 2]: left, right;
+    metres along x and z) and its knee placed again: a new array."""
+    out = np.array(values, np.float64)
+    for k, leg in enumerate(legs):
+        lag = np.asarray(lags, np.float64)[..., k, :]
+        hip, knee, ankle = (out[..., list(c)] for c in (leg.hip, leg.knee, leg.ankle))
+        for x, _, z in leg.foot:
+            out[..., x] -= lag[..., 0]
+            out[..., z] -= lag[..., 1]
+        out[..., list(leg.knee)] = _place_knee(hip, knee, ankle, out[..., list(leg.ankle)])
+    return out
+
+
+class FootLock:
+    """The feet's lags, one frame at a time (module docstring), for root-centred targets of
+    ``root`` (its x, y, z columns) whose legs are ``legs`` at ``fps``.
+
+    ``lags(values)`` takes one frame's denormalised targets [D] (metres, y up; the root's values are
+    its place in the world) and returns each foot's lag [2, 2] (left, right; x, z) in that frame, for
+    :func:`move_feet`; ``step`` does both, ``plant`` a whole song.
+    """
+
+    def __init__(self, legs: tuple[Leg, Leg], root: tuple[int, int, int], fps: float):
+        self.legs = legs
+        self.rate = 1.0 - math.exp(-1.0 / (float(fps) * CATCH_UP_S))
+        self.state = np.zeros((2, 2))
+        self.before: np.ndarray | None = None  # the feet's places in the world in the frame before [2, 2]
+        self._chains = [np.array([leg.hip, leg.knee, leg.ankle]) for leg in legs]
+        self._places = np.array([[leg.ankle[0], leg.ankle[2]] for leg in legs])
+        self._root = np.array([root[0], root[2]])
+
+    def lags(self, values: np.ndarray) -> np.ndarray:
+        places = values[self._places] + values[self._root]
+        steps = np.zeros((2, 2)) if self.before is None else places - self.before
+        self.before = places
+        left, right = self.legs
+        share = float(left_standing(values[left.ankle[UP]], values[right.ankle[UP]]))
+        for k, stands in enumerate((share, 1.0 - share)):
+            lag = (self.state[k] + stands * steps[k]) * (1.0 - (1.0 - stands) * self.rate)
+            hip, knee, ankle = values[self._chains[k]]
+            reach = math.dist(knee, hip) + math.dist(ankle, knee)
+            self.state[k] = lag * _reach(ankle - hip, lag, reach)
+        return self.state.copy()
+
+    def step(self, values: np.ndarray) -> np.ndarray:
+        """One frame [D] with its standing foot planted: a new array."""
+        values = np.asarray(values, np.float64)
+        return move_feet(values, self.legs, self.lags(values))
+
+    def plant(self, values: np.ndarray) -> np.ndarray:
+        """Frames [T, D], each planted in turn: a new array."""
+        values = np.asarray(values, np.float64)
+        lags = np.array([self.lags(v) for v in values]).reshape(len(values), 2, 2)
+        return move_feet(values, self.legs, lags)

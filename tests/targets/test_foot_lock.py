@@ -1,0 +1,120 @@
+"""The standing foot planted while the body travels (kinectdata.targets.foot_lock): a foot that
+stands stays where it is, the swinging one follows the body, the legs keep their lengths (measured
+here with numpy's norms and a determinant), the leg's reach bounds the lag, a stepping dancer's
+standing foot stops sliding, and targets without legs are left as they are."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from kinectdata.core.jointsets import load_joint_set
+from kinectdata.targets.foot_lock import legs_of
+from kinectdata.targets.specs import TargetSpec, generic_target
+from kinectdata.targets.travel import travel_targets
+
+FPS = 30.0
+SPEC = generic_target("positions", load_joint_set("tang2018"))
+NAMES = list(SPEC.positions)
+
+
+def _col(joint: str) -> slice:
+    start = SPEC.columns(joint, "position").start
+    return slice(start, start + 3)
+
+
+def _pose(left_lift: float = 0.0, right_lift: float = 0.0) -> np.ndarray:
+    """A standing dancer's root-centred target vector [D] (metres, y up), knees a little bent; each
+    foot raised by its lift."""
+    pose = np.zeros(SPEC.dim)
+    for side, x, lift in (("left", 0.1, left_lift), ("right", -0.1, right_lift)):
+        pose[_col(f"{side}_hip")] = (x, -0.05, 0.0)
+        pose[_col(f"{side}_knee")] = (x, -0.48 + lift / 2, 0.15)
+        pose[_col(f"{side}_ankle")] = (x, -0.9 + lift, 0.0)
+        pose[_col(f"{side}_heel")] = (x, -0.95 + lift, -0.05)
+        pose[_col(f"{side}_toe")] = (x, -0.95 + lift, 0.12)
+    pose[_col("neck")] = (0.0, 0.5, 0.0)
+    return pose
+
+
+def _world(frames: np.ndarray, joint: str) -> np.ndarray:
+    return frames[:, _col(joint)] + frames[:, _col("pelvis")]
+
+
+def _forward(frames: int, metres: float) -> np.ndarray:
+    return np.stack([np.zeros(frames), np.linspace(0.0, metres, frames)], axis=1)
+
+
+def test_the_standing_foot_stays_and_the_swinging_one_follows_the_body():
+    values = np.tile(_pose(right_lift=0.1), (60, 1))
+    moved = travel_targets(values, SPEC, _forward(60, 0.2), FPS)
+    standing = _world(moved, "left_ankle")
+    assert np.abs(standing - standing[0]).max() < 1e-3  # within a millimetre while the body goes 20 cm
+    assert np.abs(_world(moved, "left_toe") - _world(moved, "left_toe")[0]).max() < 1e-3
+    swinging = _world(moved, "right_ankle") - moved[:, _col("pelvis")]
+    assert np.abs(swinging - values[:, _col("right_ankle")]).max() < 1e-3  # it goes with the body
+    assert np.allclose(moved[:, _col("pelvis")][:, [0, 2]], _forward(60, 0.2))
+
+
+def test_the_legs_keep_their_lengths_and_the_knee_its_plane():
+    values = np.tile(_pose(right_lift=0.1), (60, 1))
+    moved = travel_targets(values, SPEC, _forward(60, 0.2), FPS)
+    for a, b in (("left_hip", "left_knee"), ("left_knee", "left_ankle"), ("left_ankle", "left_toe")):
+        before = np.linalg.norm(values[:, _col(a)] - values[:, _col(b)], axis=1)
+        after = np.linalg.norm(moved[:, _col(a)] - moved[:, _col(b)], axis=1)
+        assert after == pytest.approx(before, abs=1e-9)
+    hip, knee, ankle = (moved[:, _col(j)] for j in ("left_hip", "left_knee", "left_ankle"))
+    old_knee = values[:, _col("left_knee")]
+    plane = np.linalg.det(np.stack([knee - hip, ankle - hip, old_knee - hip], axis=1))
+    assert np.abs(plane).max() < 1e-12
+    assert np.abs(ankle[-1] - values[-1, _col("left_ankle")]).max() > 0.1  # the foot did stay behind
+
+
+def test_the_leg_reaches_no_further_than_its_bones_then_the_foot_slides():
+    values = np.tile(_pose(right_lift=0.1), (90, 1))
+    moved = travel_targets(values, SPEC, _forward(90, 1.5), FPS)
+    hip, knee, ankle = (moved[:, _col(j)] for j in ("left_hip", "left_knee", "left_ankle"))
+    leg = np.linalg.norm(knee - hip, axis=1) + np.linalg.norm(ankle - knee, axis=1)
+    assert (np.linalg.norm(ankle - hip, axis=1) <= leg + 1e-9).all()
+    assert np.linalg.norm(_world(moved, "left_ankle")[-1] - _world(moved, "left_ankle")[0]) > 1.0
+
+
+def test_a_stepping_dancers_standing_foot_stops_sliding():
+    """Feet lifted in turn at 1 Hz, the body travelling 0.4 m/s: added to the root alone the travel
+    slides the standing foot at 0.4 m/s; planted, it does not slide."""
+    t = np.arange(300) / FPS
+    lift = 0.06 * np.maximum(np.sin(2 * np.pi * t), 0.0)
+    values = np.stack([_pose(left_lift=a, right_lift=b) for a, b in zip(lift, np.roll(lift, 15))])
+    path = _forward(300, 0.4 * t[-1])
+    rigid = values.copy()
+    rigid[:, [_col("pelvis").start, _col("pelvis").start + 2]] += path
+    moved = travel_targets(values, SPEC, path, FPS)
+    for frames, slides in ((rigid, True), (moved, False)):
+        left, right = (_world(frames, f"{s}_ankle") for s in ("left", "right"))
+        speed = [np.linalg.norm(np.gradient(f[:, [0, 2]], axis=0), axis=1) * FPS for f in (left, right)]
+        lower_right = np.where(right[:, 1] < left[:, 1] - 0.03, speed[1], np.nan)
+        standing = np.where(left[:, 1] < right[:, 1] - 0.03, speed[0], lower_right)
+        median = np.nanmedian(standing)
+        assert (median > 0.35) if slides else (median < 0.02)
+    ends = [_world(moved, f"{s}_ankle")[-1, 2] - moved[-1, _col("pelvis").start + 2] for s in ("left", "right")]
+    assert max(abs(e) for e in ends) < 0.35  # the feet kept up with the body over 4 m
+
+
+def test_targets_without_legs_travel_as_a_whole():
+    no_knee = TargetSpec.from_dict({**SPEC.to_dict(), "positions": [n for n in NAMES if n != "left_knee"]})
+    assert legs_of(no_knee) is None
+    values = np.random.default_rng(3).normal(0, 0.3, (40, no_knee.dim))
+    moved = travel_targets(values, no_knee, _forward(40, 0.3), FPS)
+    root = no_knee.columns("pelvis", "position").start
+    expected = values.copy()
+    expected[:, [root, root + 2]] += _forward(40, 0.3)
+    assert np.array_equal(moved, expected)
+
+
+def test_kinect_feet_are_leaves_below_the_ankle():
+    kinect = generic_target("positions", load_joint_set("kinect_v2"))
+    left, right = legs_of(kinect)
+    start = {j: kinect.columns(j, "position").start for j in ("HipLeft", "KneeLeft", "AnkleLeft", "FootLeft")}
+    assert (left.hip[0], left.knee[0], left.ankle[0]) == (start["HipLeft"], start["KneeLeft"], start["AnkleLeft"])
+    assert sorted(c[0] for c in left.foot) == sorted([start["AnkleLeft"], start["FootLeft"]])
+    assert right.ankle[0] == kinect.columns("AnkleRight", "position").start
