@@ -20,8 +20,11 @@ h2, c2   [3, units]      LSTM4-6 state (zeros at the start)
 
 The metadata (JSON) says everything needed around the network: frame and sample rate, the
 feature settings, the target components and their normalisation, the start pose, the inputs'
-shapes, the turning about the vertical to draw around the network (``turning``: the process of
-:mod:`kinectdata.targets.turning`, which the network does not make; null: none), and what the model
+shapes, the turning about the vertical and the travel across the floor to draw around the network
+(``turning``, ``travel``: the processes of :mod:`kinectdata.targets.turning` and
+:mod:`kinectdata.targets.travel`, which the network does not make; null: none), how the travel plants
+the standing foot (``foot_lock``: the catch-up time and the feet's height softness of
+:mod:`kinectdata.targets.foot_lock`; null: the whole body moves), and what the model
 adds (:meth:`~kinectdata.models.kind.ModelKind.export_metadata`).
 TorchScript keeps it as the extra file ``kinectdata.json``
 (``torch.jit.load(path, _extra_files={"kinectdata.json": ""})``); ONNX as the model property
@@ -48,6 +51,9 @@ from kinectdata.core.errors import ConfigError, KinectDataError
 from kinectdata.models.kind import ModelKind
 from kinectdata.models.registry import MODELS, kind_of, model_kind
 from kinectdata.models.run import load_model, model_name, read_config
+from kinectdata.targets.foot_lock import CATCH_UP_S, legs_of
+from kinectdata.targets.specs import TargetSpec
+from kinectdata.targets.turning import PIVOT_SOFTNESS_M
 
 FORMATS = ("torchscript", "onnx")
 METADATA_KEY = "kinectdata"
@@ -91,9 +97,19 @@ def stream_metadata(
         "start_pose": data["start_pose"],
         "turning": run_config.get("turning"),
         "travel": run_config.get("travel"),
+        "foot_lock": _foot_lock(run_config),
         "drawn_by_metre": run_config.get("drawn_by_metre"),
         **extra,
     }
+
+
+def _foot_lock(run_config: dict[str, Any]) -> dict[str, float] | None:
+    """How the run's travel plants the standing foot, or None (no travel, or a target without legs)."""
+    if run_config.get("travel") is None or not run_config["dataset"].get("root_centre"):
+        return None
+    if legs_of(TargetSpec.from_dict(run_config["dataset"]["target"])) is None:
+        return None
+    return {"catch_up_s": CATCH_UP_S, "standing_softness_m": PIVOT_SOFTNESS_M}
 
 
 def check_export(kind: ModelKind, fmt: str, precision: str = "float32") -> None:

@@ -322,6 +322,7 @@ def test_exported_files_describe_themselves(trained_run, tmp_path):
     meta = json.loads(extra["kinectdata.json"])
     assert meta["start_pose"] == config["dataset"]["start_pose"] and meta["fps"] == 30
     assert meta["inputs"]["h1"] == [3, 32] and meta["normalisation"] == config["dataset"]["normalisation"]
+    assert meta["foot_lock"] is None  # the run draws no travel
     export_run(run, tmp_path / "half.ts", precision="float16")
     assert torch.jit.load(str(tmp_path / "half.ts")).state_dict()["lstm1.cells.0.weight"].dtype == torch.float16
     with pytest.raises(KinectDataError, match="float32 only"):

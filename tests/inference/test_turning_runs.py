@@ -18,6 +18,7 @@ from conftest import REPO, TINY_TRAINING
 pytest.importorskip("torch")
 
 from kinectdata.cli import main  # noqa: E402
+from kinectdata.inference.export import stream_metadata  # noqa: E402
 from kinectdata.inference.generate import generate  # noqa: E402
 from kinectdata.live import sources  # noqa: E402
 from kinectdata.live.clock import VirtualClock  # noqa: E402
@@ -72,6 +73,9 @@ def test_the_travel_moves_the_body_over_the_standing_foot_and_the_turning_is_dra
     still, _ = generate(run, SONG, turning=False, travel=False)
     moved, timing = generate(run, SONG, turning=False)
     assert "travel drawn at generation" in timing["turning"] and "over the standing foot" in timing["turning"]
+    config = json.loads((run / "config.json").read_text())
+    assert stream_metadata(config)["foot_lock"] == {"catch_up_s": 0.2, "standing_softness_m": 0.01}
+    assert stream_metadata({**config, "travel": None})["foot_lock"] is None
     names = list(still.joint_set.names)
     legs = [names.index(f"{j}{s}") for j in ("Knee", "Ankle", "Foot") for s in ("Left", "Right")]
     body = [j for j in range(len(names)) if j not in legs]
