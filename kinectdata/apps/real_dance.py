@@ -30,8 +30,12 @@ from kinectdata.dataset.recipes import prepare_corpus
 from kinectdata.dataset.recipes.manifest import CorpusManifest
 
 REAL_DANCE_BUILDS: dict[str, dict[str, Any]] = {
-    "yalta2016": {"features": "yalta2016_rhythm", "normalisation": None},
-    "listen-to-dance": {"features": "listen_to_dance_rhythm_bars_style", "normalisation": "maxabs"},
+    "yalta2016": {"features": "yalta2016_rhythm", "without_styles": "yalta2016_rhythm", "normalisation": None},
+    "listen-to-dance": {
+        "features": "listen_to_dance_rhythm_bars_style",
+        "without_styles": "listen_to_dance_rhythm_bars",
+        "normalisation": "maxabs",
+    },
 }
 """How a real corpus's dataset is built for each pipeline's model: the pipeline's features with the
 music's pulse, the corpus's generic target normalised into -0.9..0.9 (the listen-to-dance
@@ -44,8 +48,8 @@ fold runs where these features did in two (docs/notebook/2026-11-real-dance.md).
 song's dance style (``_style``: the training songs told their recipe's style, every other song heard
 by the classifier the build fits on them): without it the model danced one dance for every style
 (2 and 5 of 12 held-out dances in their song's style on folds 1 and 2), with it 10 and 7 of 12, as
-varied as the real dancers (docs/notebook/2026-12-real-dance-variety.md); a corpus whose recipe gives
-no styles is built without it."""
+varied as the real dancers (docs/notebook/2026-12-real-dance-variety.md); a corpus whose recipe does
+not give every training recording a style is built with the ``without_styles`` features."""
 
 REAL_QUICK_MINUTES = 25.0
 """The real-corpus quickstart's training budget, minutes: what docs/notebook/2026-11-real-dance.md's validation runs
@@ -104,9 +108,8 @@ def build_model_dataset(
     build options); the dataset's manifest (a finished build is reused)."""
     pipeline = pipeline_of(model)
     how = REAL_DANCE_BUILDS[pipeline]
-    features = how["features"]
-    if features.endswith("_style") and not all(r.style for r in manifest.recordings if r.split in (None, "train")):
-        features = features.removesuffix("_style")  # the style is told to training songs: none to tell
+    told = all(r.style for r in manifest.recordings if r.split in (None, "train"))  # a training song is told its style
+    features = how["features"] if told else how["without_styles"]
     config = BuildConfig.from_pipeline(
         pipeline,
         features=features,

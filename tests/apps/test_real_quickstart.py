@@ -67,3 +67,26 @@ def test_the_real_quickstart_keeps_the_defaults_epochs_with_its_time_budget(tmp_
         "tang2018", tmp_path, tmp_path / "qs", lambda line: None, pipeline=pipeline, minutes=7
     )
     assert seen == {"max_minutes": 7}
+
+
+@pytest.mark.parametrize("styles", [("waltz", "tango"), ("waltz", None)])
+def test_a_corpus_whose_training_songs_are_not_all_told_a_style_is_built_without_the_style_code(
+    tmp_path, monkeypatch, styles
+):
+    import kinectdata.apps.real_dance as real_dance
+    from kinectdata.dataset.inputs import RecordingEntry
+    from kinectdata.dataset.recipes.manifest import CorpusManifest
+    from kinectdata.features import needs_style
+
+    seen = {}
+    monkeypatch.setattr(
+        real_dance,
+        "build_dataset",
+        lambda listed, folder, config, **k: seen.update(features=config.features) or {"splits": {}},
+    )
+    recordings = tuple(
+        RecordingEntry(f"d{k}", f"d{k}.csv", split="train", style=style) for k, style in enumerate(styles)
+    )
+    manifest = CorpusManifest("tang2018", tmp_path, recordings, target="positions")
+    real_dance.build_model_dataset(tmp_path / "r.yaml", tmp_path / "ds", "cdhc", manifest, echo=lambda line: None)
+    assert needs_style(seen["features"]) == all(styles)
