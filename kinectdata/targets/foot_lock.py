@@ -36,6 +36,7 @@ live dance plant the same frames.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -81,6 +82,11 @@ def legs_of(spec: TargetSpec) -> tuple[Leg, Leg] | None:
     joints = spec.joints
     if spec.dimensions != 3 or spec.root is None:
         return None
+
+    def xyz(j: int) -> tuple[int, int, int]:
+        s = spec.columns(joints.names[j], "position").start
+        return s, s + 1, s + 2
+
     legs = []
     for side in ("left_foot", "right_foot"):
         foot = joints.role(side)
@@ -93,11 +99,6 @@ def legs_of(spec: TargetSpec) -> tuple[Leg, Leg] | None:
         chain = [ankle, knee, hip]
         if min(chain) < 0 or any(joints.names[j] not in spec.positions or joints.names[j] == spec.root for j in chain):
             return None
-
-        def xyz(j: int) -> tuple[int, int, int]:
-            s = spec.columns(joints.names[j], "position").start
-            return s, s + 1, s + 2
-
         foot_joints = [j for j in _below(joints, ankle) if joints.names[j] in spec.positions]
         legs.append(Leg(xyz(hip), xyz(knee), xyz(ankle), tuple(xyz(j) for j in foot_joints)))
     return legs[0], legs[1]
@@ -140,8 +141,9 @@ def move_feet(values: np.ndarray, legs: tuple[Leg, Leg], lags: np.ndarray) -> np
     """Targets [..., D] with each leg's foot moved back by its lag (``lags`` [..., 2, 2]: left, right;
     metres along x and z) and its knee placed again: a new array."""
     out = np.array(values, np.float64)
+    lags = np.asarray(lags, np.float64)
     for k, leg in enumerate(legs):
-        lag = np.asarray(lags, np.float64)[..., k, :]
+        lag = lags[..., k, :]
         hip, knee, ankle = (out[..., list(c)] for c in (leg.hip, leg.knee, leg.ankle))
         for x, _, z in leg.foot:
             out[..., x] -= lag[..., 0]
@@ -151,22 +153,22 @@ def move_feet(values: np.ndarray, legs: tuple[Leg, Leg], lags: np.ndarray) -> np
 
 
 class FootLock:
-    """The feet's lags, one frame at a time (module docstring), for root-centred targets of
-    ``root`` (its x, y, z columns) whose legs are ``legs`` at ``fps``.
+    """The feet's lags, one frame at a time (module docstring), for root-centred targets whose root's
+    x and z are the columns ``root`` and whose legs are ``legs``, at ``fps``.
 
     ``lags(values)`` takes one frame's denormalised targets [D] (metres, y up; the root's values are
     its place in the world) and returns each foot's lag [2, 2] (left, right; x, z) in that frame, for
     :func:`move_feet`; ``step`` does both, ``plant`` a whole song.
     """
 
-    def __init__(self, legs: tuple[Leg, Leg], root: tuple[int, int, int], fps: float):
+    def __init__(self, legs: tuple[Leg, Leg], root: Sequence[int], fps: float):
         self.legs = legs
         self.rate = 1.0 - math.exp(-1.0 / (float(fps) * CATCH_UP_S))
         self.state = np.zeros((2, 2))
         self.before: np.ndarray | None = None  # the feet's places in the world in the frame before [2, 2]
         self._chains = [np.array([leg.hip, leg.knee, leg.ankle]) for leg in legs]
         self._places = np.array([[leg.ankle[0], leg.ankle[2]] for leg in legs])
-        self._root = np.array([root[0], root[2]])
+        self._root = np.asarray(root)
 
     def lags(self, values: np.ndarray) -> np.ndarray:
         places = values[self._places] + values[self._root]

@@ -169,10 +169,7 @@ def travel_targets(values: np.ndarray, spec: TargetSpec, displacement: np.ndarra
 
 def _foot_lock(spec: TargetSpec, fps: float) -> FootLock | None:
     legs = legs_of(spec)
-    if legs is None:
-        return None
-    start = spec.columns(spec.root, "position").start
-    return FootLock(legs, (start, start + 1, start + 2), fps)
+    return None if legs is None else FootLock(legs, _root_columns(spec), fps)
 
 
 class TravelStream:
