@@ -82,6 +82,12 @@ _LOOP_OPTIONS = (
         "frame against the real motion's, more costing in proportion; 0: none.",
     ),
     (
+        "span_weight",
+        click.FloatRange(min=0),
+        "Weight of the joints' bends in the free-running loss: the mean and spread of each two-bone chain's span "
+        "(hip to ankle, shoulder to wrist) against the real motion's, in proportion; 0: none.",
+    ),
+    (
         "song_starts",
         click.BOOL,
         "Also train on each song's first frames: windows whose context runs before the recording's start, silence "

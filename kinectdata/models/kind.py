@@ -67,6 +67,7 @@ PAPER_LOOP: dict[str, Any] = {
     "periodogram_weight": 0.0,
     "bone_jitter_weight": 0.0,
     "low_energy_weight": 0.0,
+    "span_weight": 0.0,
     "keep_energy_weight": 0.0,
     "song_starts": False,
     "turning": False,

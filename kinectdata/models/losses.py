@@ -323,6 +323,42 @@ def masked_bone_loss(prediction, target, mask, bones, scale, offset, dims: int =
     return (stretch * counted).sum() / counted.sum().clamp(min=1.0)
 
 
+def spans_of(bones) -> list[tuple[int, int]]:
+    """Each joint with its grandparent, (joint, grandparent) index pairs, from (joint, parent)
+    ``bones``: the ends of every two-bone chain (ankle and hip across the knee, wrist and shoulder
+    across the elbow), whose distance says how far the joint between them is bent."""
+    parent = dict(bones)
+    return [(child, parent[mid]) for child, mid in bones if mid in parent]
+
+
+def masked_span_loss(prediction, target, mask, bones, scale, offset, dims: int = 3):
+    """How differently a motion bends its joints: per two-bone chain (:func:`spans_of`: hip to
+    ankle, shoulder to wrist...), the absolute differences between the prediction's and the
+    target's mean and standard deviation of the chain's span over the window, as a fraction of the
+    target's mean span (metres after undoing the normalisation ``y = (x - offset) * scale``;
+    dimensionless), over the chains valid in the target throughout (torch tensors; differentiable).
+
+    The posture term (:func:`masked_posture_loss`) compares each coordinate apart and the bone term
+    (:func:`masked_bone_loss`) each bone's length: neither measures the angle between two bones. A
+    fold run on tang2018 danced with its right knee bent under 110 degrees in half of its frames,
+    where the dancers' knees bend that far in 3 % (docs/notebook/2026-12-real-dance-variety.md).
+
+    Args:
+        prediction, target, mask: [B, L, D]; positions first, ``dims`` components per joint.
+        bones: (joint, parent) index pairs into the positioned joints.
+        scale, offset: [D] the normalisation.
+    """
+    spans = spans_of(bones)
+    if not spans:
+        return prediction.new_zeros(())
+    made, real, valid = _bone_lengths(prediction, target, mask, spans, scale, offset, dims)
+    both = valid.all(dim=1)  # [B, spans]: valid throughout the window
+    typical = real.mean(dim=1)
+    gap = (made.mean(dim=1) - typical).abs() + (made.std(dim=1, correction=0) - real.std(dim=1, correction=0)).abs()
+    counted = both.to(prediction.dtype)
+    return (gap / typical.clamp(min=1e-3) * counted).sum() / counted.sum().clamp(min=1.0)
+
+
 def masked_world_speed_loss(prediction, target, mask, body, chunk: int | None = None):
     """How far each joint's speed in the world is from the target's, in ratio: the
     :func:`masked_energy_loss` of the joints' positions in metres along each world axis, with the
@@ -496,6 +532,7 @@ def masked_rhythm_loss(
     periodogram_weight: float = 0.0,
     bone_jitter_weight: float = 0.0,
     low_energy_weight: float = 0.0,
+    span_weight: float = 0.0,
 ):
     """The free-running loss of training (``TrainConfig.free_weight``): the spectra of the motion's
     changes (:func:`masked_rhythm_spectrum_loss`: how often and how much at each tempo, whatever the
@@ -510,7 +547,8 @@ def masked_rhythm_loss(
     :data:`BONE_WEIGHT`), its joints' speeds in the world (:func:`masked_world_speed_loss`, per
     :data:`ENERGY_CHUNK_S`, times :data:`WORLD_SPEED_WEIGHT`), how much faster its bones change
     their lengths (:func:`masked_bone_jitter_loss` per :data:`ENERGY_CHUNK_S`, times
-    ``bone_jitter_weight``: ``TrainConfig.bone_jitter_weight``) and, when the body has feet, how
+    ``bone_jitter_weight``: ``TrainConfig.bone_jitter_weight``), how differently it bends its joints
+    (:func:`masked_span_loss`, times ``span_weight``: ``TrainConfig.span_weight``) and, when the body has feet, how
     much more they slide (times :data:`FOOT_WEIGHT`). [B, L, D] tensors; a scalar."""
     chunk = max(1, round(ENERGY_CHUNK_S * fps))
     loss = masked_rhythm_spectrum_loss(prediction, target, mask, fps) + masked_energy_loss(
@@ -529,6 +567,10 @@ def masked_rhythm_loss(
             prediction, target, mask, body.bones, body.scale, body.offset, body.dims
         )
         loss = loss + WORLD_SPEED_WEIGHT * masked_world_speed_loss(prediction, target, mask, body, chunk)
+        if span_weight > 0:
+            loss = loss + span_weight * masked_span_loss(
+                prediction, target, mask, body.bones, body.scale, body.offset, body.dims
+            )
         if bone_jitter_weight > 0:
             loss = loss + bone_jitter_weight * masked_bone_jitter_loss(
                 prediction, target, mask, body.bones, body.scale, body.offset, body.dims, chunk

@@ -47,6 +47,7 @@ ADDED_OFF = {
     "periodogram_weight": 0.0,
     "bone_jitter_weight": 0.0,
     "low_energy_weight": 0.0,
+    "span_weight": 0.0,
     "keep_energy_weight": 0.0,
     "song_starts": False,
     "context": 0,
@@ -119,6 +120,10 @@ class TrainConfig:
         low_energy_weight: weight of the slow motion's speed in the free-running loss
             (:func:`~kinectdata.models.losses.masked_low_band_energy_loss`: the motion below about
             1.5 Hz against the real one's, per 2 s). Runs written before it had none.
+        span_weight: weight of the joints' bends in the free-running loss
+            (:func:`~kinectdata.models.losses.masked_span_loss`: the mean and spread of each two-bone
+            chain's span, hip to ankle, shoulder to wrist, against the real one's, in proportion).
+            Runs written before it had none.
         song_starts: also train on each song's first frames: windows whose ``context`` runs before
             the recording's first frame, silence there (audio zeros; no pose, masked:
             :class:`~kinectdata.dataset.windows.WindowDataset`'s ``lead``). Without them a model
@@ -201,6 +206,7 @@ class TrainConfig:
     periodogram_weight: float
     bone_jitter_weight: float
     low_energy_weight: float
+    span_weight: float
     song_starts: bool
     silence_share: float
     keep: str
@@ -254,6 +260,8 @@ class TrainConfig:
             raise ConfigError(f"keep_energy_weight must be at least 0, not {self.keep_energy_weight!r}")
         if not self.low_energy_weight >= 0:
             raise ConfigError(f"low_energy_weight must be at least 0, not {self.low_energy_weight!r}")
+        if not self.span_weight >= 0:
+            raise ConfigError(f"span_weight must be at least 0, not {self.span_weight!r}")
         if not self.bone_jitter_weight >= 0:
             raise ConfigError(f"bone_jitter_weight must be at least 0, not {self.bone_jitter_weight!r}")
         if not isinstance(self.song_starts, bool):

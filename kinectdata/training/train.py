@@ -464,6 +464,7 @@ def validate(
             config.periodogram_weight,
             config.bone_jitter_weight,
             config.low_energy_weight,
+            config.span_weight,
         )
     )
     return loss, smape(generated, real, masks), rhythm
@@ -821,6 +822,7 @@ def train(
                         config.periodogram_weight,
                         config.bone_jitter_weight,
                         config.low_energy_weight,
+                        config.span_weight,
                     )
                 else:
                     with forward_precision:

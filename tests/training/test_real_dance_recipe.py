@@ -510,6 +510,7 @@ def test_a_model_that_cannot_run_free_in_training_is_refused():
         ("keep", "first"),
         ("context", -3),
         ("bone_jitter_weight", -0.5),
+        ("span_weight", -0.5),
         ("song_starts", "yes"),
     ],
 )
