@@ -26,6 +26,7 @@ from kinectdata.models.kind import INPUTS, PAPER_LOOP, ModelKind, Sweep, check_i
 from kinectdata.models.losses import masked_mse, masked_velocity_l1, masked_velocity_mse
 
 YALTA_ACTIVATIONS = ("tanh", "relu", "elu")
+STYLE_PATHS = ("lstm", "convs")
 FEEDBACKS = ("predicted", "teacher")
 PREDICTS = ("pose", "change")
 
@@ -66,6 +67,20 @@ def _inputs_field(default: str):
     )
 
 
+def _style_planes(manifest: dict[str, Any]) -> int:
+    """How many of a dataset's last feature channels are the style input's constant planes (0: none,
+    or not last in its stack)."""
+    from kinectdata.features import StackConfig, feature_config
+    from kinectdata.features.style_input import StyleInputConfig
+
+    described = manifest.get("config", {}).get("features")
+    if described is None:  # a manifest that does not say its features (a test's): nothing bypasses
+        return 0
+    features = feature_config(described)
+    last = features.parts[-1] if isinstance(features, StackConfig) else features
+    return last.slots if isinstance(last, StyleInputConfig) and last.planes is not None else 0
+
+
 @dataclass(frozen=True)
 class YaltaSettings:
     """The yalta model's settings (defaults: the recipe for real dance; the paper's best,
@@ -90,9 +105,19 @@ class YaltaSettings:
         },
     )
     inputs: str = _inputs_field("music-and-poses")
+    style_path: str = field(
+        default="lstm",
+        metadata={
+            "help": "where features that hear the song's style (planes after the spectra) enter: beside the audio "
+            "code before LSTM4-6, or through the convolutions as the spectra do.",
+            "choices": STYLE_PATHS,
+        },
+    )
 
     def __post_init__(self) -> None:
         check_inputs(self.inputs)
+        if self.style_path not in STYLE_PATHS:
+            raise ConfigError(f"style_path must be one of {', '.join(STYLE_PATHS)}, not {self.style_path!r}")
         if self.feedback not in FEEDBACKS:
             raise ConfigError(f"feedback must be predicted or teacher, not {self.feedback!r}")
         if self.activation not in YALTA_ACTIVATIONS:
@@ -178,6 +203,7 @@ class YaltaKind(ModelKind):
             activation=settings.activation,
             input_shape=tuple(manifest["feature_shape"]),
             inputs=settings.inputs,
+            side_channels=_style_planes(manifest) if settings.style_path == "lstm" else 0,
         ).to_dict()
 
     def build(self, config: dict[str, Any]):

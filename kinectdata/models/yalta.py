@@ -10,6 +10,13 @@ Per motion frame (their Table 1):
 - that, concatenated with the previous frame's pose (D values), goes through LSTM4-6 and fc2 to
   the pose (D values, no activation: the targets are normalised into -0.9..0.9).
 
+Side channels (not the paper's): with ``side_channels`` = S, the last S input channels are
+constant planes that say something about the whole song (the style input,
+:mod:`kinectdata.features.style_input`, as planes). They bypass the convolutions and LSTM1-3: each
+plane's mean joins the fc1 code before LSTM4-6 (65 + S values): the decoder is told which dance,
+and the convolutions, whose 33x2 kernels would otherwise mix a constant one-hot plane into every
+spectral feature, hear the music alone, as in the paper.
+
 The previous pose is the model's own previous output (``feedback="predicted"``, their Figure 4)
 or the true one (``"teacher"``); with ``inputs="music"`` LSTM4-6 are given zeros in its place,
 so each pose is a function of the music so far. The convolutions and LSTM1-3 do not depend on it, so they run over
@@ -45,6 +52,8 @@ class YaltaConfig:
         input_shape: (channels, frequency bins, STFT frames) of a frame's features.
         inputs: ``music-and-poses`` (the paper's: LSTM4-6 are given the previous pose) or
             ``music`` (they are given zeros in its place: no feedback).
+        side_channels: S, the last input channels that bypass the convolutions (module docstring;
+            0: every channel is convolved, as runs before them were).
     """
 
     output_dim: int
@@ -52,9 +61,15 @@ class YaltaConfig:
     activation: str = "elu"
     input_shape: tuple[int, int, int] = (1, 129, 5)
     inputs: str = "music-and-poses"
+    side_channels: int = 0
 
     def __post_init__(self) -> None:
         check_inputs(self.inputs)
+        if not 0 <= self.side_channels < self.input_shape[0]:
+            raise ConfigError(
+                f"side_channels must leave at least one of the {self.input_shape[0]} input channels to convolve, "
+                f"not {self.side_channels}"
+            )
         if self.activation not in ACTIVATIONS:
             raise ConfigError(f"activation must be one of {', '.join(ACTIVATIONS)}, not {self.activation!r}")
         if self.units < 1 or self.output_dim < 1:
@@ -102,32 +117,38 @@ class YaltaNet(nn.Module):
         self.config = config
         act = ACTIVATIONS[config.activation]
         layers: list[nn.Module] = []
-        channels = (config.input_shape[0], *CONV_CHANNELS)
+        self.convolved = config.input_shape[0] - config.side_channels
+        channels = (self.convolved, *CONV_CHANNELS)
         for cin, cout in zip(channels[:-1], channels[1:]):
             layers += [nn.Conv2d(cin, cout, KERNEL), nn.BatchNorm2d(cout), act()]
         self.convs = nn.Sequential(*layers)
         self.lstm1 = nn.LSTM(CODE, config.units, num_layers=3, batch_first=True)
         self.fc1 = nn.Sequential(nn.Linear(config.units, CODE), act())
-        self.lstm2 = nn.LSTM(CODE + config.output_dim, config.units, num_layers=3, batch_first=True)
+        self.lstm2 = nn.LSTM(
+            CODE + config.side_channels + config.output_dim, config.units, num_layers=3, batch_first=True
+        )
         self.fc2 = nn.Linear(config.units, config.output_dim)
 
     def encode(self, audio: torch.Tensor, state=None):
-        """[B, T, 1, 129, 5] features -> ([B, T, 65] fc1 codes, LSTM1-3 state).
+        """[B, T, C, 129, 5] features -> ([B, T, 65 + S] fc1 codes and the side channels' means,
+        LSTM1-3 state).
 
         Outside training (evaluation mode, no gradient) the convolutions see each distinct frame
         once: a batch's padding, a silent song's frames and repeated inputs cost one frame each."""
         b, t = audio.shape[:2]
-        frames = audio.reshape(b * t, *audio.shape[2:])
+        side = audio[:, :, self.convolved :].mean(dim=(-2, -1))
+        frames = audio[:, :, : self.convolved].reshape(b * t, self.convolved, *audio.shape[3:])
         if self.training or torch.is_grad_enabled():
             codes = self.convs(frames).reshape(b, t, CODE)
         else:
             codes = _each_distinct_frame_once(self.convs, frames).reshape(b, t, CODE)
         with _in_float32(codes):
             hidden, state = self.lstm1(codes.to(self.lstm1.weight_ih_l0.dtype), state)
-            return self.fc1(hidden), state
+            code = self.fc1(hidden)
+            return (torch.cat([code, side.to(code.dtype)], dim=-1) if self.config.side_channels else code), state
 
     def decode(self, codes: torch.Tensor, previous: torch.Tensor, feedback: str, state=None):
-        """Poses from fc1 codes [B, T, 65].
+        """Poses from fc1 codes [B, T, 65 + S] (:meth:`encode`).
 
         Args:
             previous: ``teacher``: [B, T, D], the true pose before each frame; ``predicted``:
@@ -235,7 +256,7 @@ class _PackedLSTM(nn.Module):
 class StreamingYalta(nn.Module):
     """:class:`YaltaNet` one frame at a time, with its state carried by the caller (TorchScript-able).
 
-    ``forward(features [1, 129, 5], previous [D], h1, c1, h2, c2 [3, units])`` returns the pose
+    ``forward(features [C, 129, 5], previous [D], h1, c1, h2, c2 [3, units])`` returns the pose
     [D] and the new states; start with :meth:`initial_state`. Batch normalisation is folded into
     the convolutions and each LSTM layer is one matrix-vector product. With ``precision="float16"``
     the LSTM and fc weights are stored in half precision: half the memory traffic per frame,
@@ -251,6 +272,8 @@ class StreamingYalta(nn.Module):
         dtype = torch.float16 if precision == "float16" else torch.float32
         self.units = net.config.units
         self.activation = net.config.activation
+        self.convolved = net.convolved
+        self.side_channels = net.config.side_channels
         modules = list(net.convs)
         self.convs = nn.ModuleList(_folded_conv(c, bn) for c, bn in zip(modules[0::3], modules[1::3]))
         self.lstm1 = _PackedLSTM(net.lstm1, dtype)
@@ -259,7 +282,8 @@ class StreamingYalta(nn.Module):
         if net.config.inputs == "music":  # the pose's weights, zeroed, give what zeros in its place give
             with torch.no_grad():
                 first = self.lstm2.cells[0].weight
-                poses = slice(CODE, CODE + net.config.output_dim)
+                codes = CODE + net.config.side_channels
+                poses = slice(codes, codes + net.config.output_dim)
                 if self.lstm2.cells[0].vector_matrix:
                     first[poses] = 0
                 else:
@@ -288,11 +312,13 @@ class StreamingYalta(nn.Module):
         h2: torch.Tensor,
         c2: torch.Tensor,
     ):
-        x = features[None]
+        x = features[None, : self.convolved]
         for conv in self.convs:
             x = self._act(conv(x))
         hidden, h1, c1 = self.lstm1(x.reshape(-1), h1, c1)
         code = self._act(self.fc1(hidden))
+        if self.side_channels:
+            code = torch.cat([code, features[self.convolved :].mean(dim=(1, 2))])
         hidden, h2, c2 = self.lstm2(torch.cat([code, previous]), h2, c2)
         return self.fc2(hidden), h1, c1, h2, c2
 

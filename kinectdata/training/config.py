@@ -41,6 +41,7 @@ ADDED_OFF = {
     "silence_share": 0.0,
     "keep": "last",
     "predicts": "pose",
+    "style_path": "convs",
     "inputs": "music-and-poses",
     "posture_weight": 10.0,
     "jitter_weight": 0.0,
