@@ -47,6 +47,7 @@ def test_the_run_folder_holds_everything(trained_run, sample_dataset):
         "activation": "elu",
         "input_shape": [1, 129, 5],
         "inputs": "music-and-poses",
+        "side_channels": 0,
     }
     manifest = json.loads((sample_dataset / "manifest.json").read_text())
     assert config["dataset"]["normalisation"] == manifest["normalisation"]
@@ -148,6 +149,7 @@ def test_runs_written_before_still_load_and_resume(trained_run, sample_dataset, 
     then["turning"] = False  # nor a turning drawn at generation
     then["travel"] = False  # nor a travel
     then["precision"] = "float32"  # and trained in float32
+    then["style_path"] = "convs"  # and any style planes were convolved with the spectra
     assert TrainConfig.from_dict(OLD_FLAT) == TrainConfig(**then)
     net, _ = load_model(run)
     assert net.config.units == 32
