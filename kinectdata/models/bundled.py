@@ -70,15 +70,15 @@ def _inputs_field(default: str):
 def _style_planes(manifest: dict[str, Any]) -> int:
     """How many of a dataset's last feature channels are the style input's constant planes (0: none,
     or not last in its stack)."""
-    from kinectdata.features import StackConfig, feature_config
-    from kinectdata.features.style_input import StyleInputConfig
+    from kinectdata.features import StackConfig, feature_config, style_input_of
 
     described = manifest.get("config", {}).get("features")
     if described is None:  # a manifest that does not say its features (a test's): nothing bypasses
         return 0
     features = feature_config(described)
+    part = style_input_of(features)
     last = features.parts[-1] if isinstance(features, StackConfig) else features
-    return last.slots if isinstance(last, StyleInputConfig) and last.planes is not None else 0
+    return part.slots if part is not None and part is last and part.planes is not None else 0
 
 
 @dataclass(frozen=True)

@@ -136,7 +136,6 @@ class YaltaNet(nn.Module):
         Outside training (evaluation mode, no gradient) the convolutions see each distinct frame
         once: a batch's padding, a silent song's frames and repeated inputs cost one frame each."""
         b, t = audio.shape[:2]
-        side = audio[:, :, self.convolved :].mean(dim=(-2, -1))
         frames = audio[:, :, : self.convolved].reshape(b * t, self.convolved, *audio.shape[3:])
         if self.training or torch.is_grad_enabled():
             codes = self.convs(frames).reshape(b, t, CODE)
@@ -145,7 +144,10 @@ class YaltaNet(nn.Module):
         with _in_float32(codes):
             hidden, state = self.lstm1(codes.to(self.lstm1.weight_ih_l0.dtype), state)
             code = self.fc1(hidden)
-            return (torch.cat([code, side.to(code.dtype)], dim=-1) if self.config.side_channels else code), state
+            if self.config.side_channels:
+                side = audio[:, :, self.convolved :].mean(dim=(-2, -1))
+                code = torch.cat([code, side.to(code.dtype)], dim=-1)
+            return code, state
 
     def decode(self, codes: torch.Tensor, previous: torch.Tensor, feedback: str, state=None):
         """Poses from fc1 codes [B, T, 65 + S] (:meth:`encode`).
