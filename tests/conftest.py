@@ -164,6 +164,18 @@ def centred_run(tmp_path_factory):
     return out / "run", out / "dataset"
 
 
+@pytest.fixture(scope="module")
+def sample_song(tmp_path_factory):
+    """The first 6 s of a sample session's song (a WAV file): long enough for every drawn process,
+    short to dance to."""
+    import soundfile as sf
+
+    samples, sr = sf.read(REPO / "sample_data" / "synth_001.flac", dtype="float32")
+    path = tmp_path_factory.mktemp("song") / "song.wav"
+    sf.write(path, samples[: 6 * sr], sr)
+    return path
+
+
 def _slow_tests_run(config) -> bool:
     """The long end-to-end tests (marked ``slow``) run under CI, with ``--slow``, when ``-m``
     chooses by marker, or when tests are named (``file.py::test``); a plain ``pytest`` leaves them

@@ -132,6 +132,13 @@ _LOOP_OPTIONS = (
         "from the recordings manifest or the build): each song is drawn its metre's, where the run has them.",
     ),
     (
+        "smooth_hz",
+        click.FloatRange(min=0, min_open=True),
+        "Low-pass the motion the run makes at this cutoff, Hz (a causal Butterworth of order 2, after the drawn "
+        "turning and travel), wherever it makes positions: evaluate, generate, live; the network trains as without "
+        "it. Default: none.",
+    ),
+    (
         "context",
         click.IntRange(min=0),
         "Frames of real input before each window that no loss counts (the outputs near a window's start then see "
@@ -307,7 +314,7 @@ def turning_options(f, seeded: bool = True):
         default=True,
         show_default=True,
         help="Draw the run's turning about the vertical, fitted on its training dancers (none for a run trained "
-        "without it); --no-turning: the network's motion alone.",
+        "without it); --no-turning: the network's motion alone (smoothed, if the run smooths).",
     )(f)
     if seeded:
         f = click.option(
@@ -515,6 +522,8 @@ def generate_command(
         f"  starts from {timing['start']}" + (f"; placed by {timing['placement']}" if "placement" in timing else "")
     )
     click.echo(f"  {timing['turning']}")
+    if timing["smoothing"] != "not smoothed":
+        click.echo(f"  the motion {timing['smoothing']}")
     if motion.joint_set.dimensions == 2:
         fps = 1 / float(motion.times[1] - motion.times[0]) if motion.n_frames > 1 else 30.0
         click.echo(f"  (OpenPose JSON Lines hold no frame rate: read or render it with --video-fps {fps:g})")

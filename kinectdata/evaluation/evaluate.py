@@ -68,6 +68,7 @@ from kinectdata.evaluation.style import style_features, style_report
 from kinectdata.features import compute_features, feature_config
 from kinectdata.features.metre import Metre, recording_metre
 from kinectdata.inference.engines import engine_pairs, make_engine, onnxruntime_available
+from kinectdata.inference.smoothing import smoothing_line
 from kinectdata.inference.turning import TurnedKind, with_turning
 from kinectdata.models.kind import ModelKind
 from kinectdata.models.registry import kind_of, model_kind
@@ -236,7 +237,9 @@ def evaluate(
     retrieval baseline (:mod:`~kinectdata.evaluation.baselines`, :func:`baseline_runs`) by the same
     protocols, beside the model. ``turning``, ``travel``: draw the run's turning about the vertical and
     its travel across the floor in every free run (:mod:`kinectdata.inference.turning`; a run trained
-    without them draws none); False: the network's motion alone. ``results["turning"]`` says which.
+    without them draws none); False: the network's motion alone. ``results["turning"]`` says which. A
+    run trained with ``smooth_hz`` smooths every free run after them (:mod:`kinectdata.inference.smoothing`;
+    not the runs reset every L frames); ``results["smoothing"]`` says how.
     ``tempo_rates``: the tempo control's factors (None: its own; empty: no tempo control)."""
     protocol = get_protocol(protocol) if isinstance(protocol, str) else protocol
     run, dataset = Path(run), Path(dataset)
@@ -272,6 +275,7 @@ def evaluate(
         "recordings": [r["name"] for r in recordings],
         "smape_zero_over_zero": 0.0,
         "turning": kind.describe() if isinstance(kind, TurnedKind) else None,
+        "smoothing": smoothing_line(config),
     }
     scores = {}
     first = None
@@ -740,6 +744,8 @@ def format_results(results: dict[str, Any]) -> str:
     ]
     if results.get("turning"):
         lines.append(f"  {results['turning']}")
+    if results.get("smoothing", "not smoothed") != "not smoothed":
+        lines.append(f"  the motion {results['smoothing']}")
     for mode, v in s.items():
         lines.append(
             f"  SMAPE {mode.replace('_', ' '):<14} {v['smape_normalised']:6.2f} % normalised, "

@@ -24,7 +24,9 @@ shapes, the turning about the vertical and the travel across the floor to draw a
 (``turning``, ``travel``: the processes of :mod:`kinectdata.targets.turning` and
 :mod:`kinectdata.targets.travel`, which the network does not make; null: none), how the travel plants
 the standing foot (``foot_lock``: the catch-up time and the feet's height softness of
-:mod:`kinectdata.targets.foot_lock`; null: the whole body moves), and what the model
+:mod:`kinectdata.targets.foot_lock`; null: the whole body moves), the low-pass run on the poses
+after them (``smoothing``: a causal Butterworth's order and cutoff, started at rest on the first
+pose, :mod:`kinectdata.inference.smoothing`; null: none), and what the model
 adds (:meth:`~kinectdata.models.kind.ModelKind.export_metadata`).
 TorchScript keeps it as the extra file ``kinectdata.json``
 (``torch.jit.load(path, _extra_files={"kinectdata.json": ""})``); ONNX as the model property
@@ -48,6 +50,7 @@ import torch
 
 from kinectdata.core.atomic import atomic_output
 from kinectdata.core.errors import ConfigError, KinectDataError
+from kinectdata.inference.smoothing import ORDER, run_smoothing
 from kinectdata.models.kind import ModelKind
 from kinectdata.models.registry import MODELS, kind_of, model_kind
 from kinectdata.models.run import load_model, model_name, read_config
@@ -99,8 +102,15 @@ def stream_metadata(
         "travel": run_config.get("travel"),
         "foot_lock": _foot_lock(run_config),
         "drawn_by_metre": run_config.get("drawn_by_metre"),
+        "smoothing": _smoothing(run_config),
         **extra,
     }
+
+
+def _smoothing(run_config: dict[str, Any]) -> dict[str, Any] | None:
+    """The low-pass to run on the poses after the drawn processes, or None (the run does not smooth)."""
+    cutoff = run_smoothing(run_config)
+    return None if cutoff is None else {"filter": "butterworth", "order": ORDER, "cutoff_hz": cutoff, "causal": True}
 
 
 def _foot_lock(run_config: dict[str, Any]) -> dict[str, float] | None:

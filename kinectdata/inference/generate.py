@@ -48,6 +48,7 @@ from kinectdata.formats.bvh_writer import write_bvh
 from kinectdata.formats.csv_writer import write_csv
 from kinectdata.formats.openpose_writer import write_openpose_jsonl
 from kinectdata.inference.engines import make_engine
+from kinectdata.inference.smoothing import run_smoothing, smooth_motion, smoothing_line
 from kinectdata.inference.start import StartPose, recording_start, target_poses
 from kinectdata.inference.turning import faced_first_pose, run_travel, run_turning, travel_generator, turn_song
 from kinectdata.models.registry import model_kind
@@ -140,7 +141,9 @@ def generate(
     ``turning``, ``travel``: draw the run's turning about the vertical and its travel across the floor
     over the frames the model makes (:mod:`kinectdata.inference.turning`, from generators seeded by
     ``seed``: ``live`` on the same audio and seed turns and travels the same way); a run trained
-    without them draws none. ``timing["turning"]`` says what was drawn.
+    without them draws none. ``timing["turning"]`` says what was drawn. A run trained with ``smooth_hz``
+    then low-passes the frames the model made (:mod:`kinectdata.inference.smoothing`);
+    ``timing["smoothing"]`` says how.
     """
     net, config = load_model(run)
     kind = model_kind(model_name(config))
@@ -226,6 +229,9 @@ def generate(
         values[made] = turn_song(
             values[made], np.concatenate(heard)[made], silence, spec, fps, process, rng, moving, travel_generator(seed)
         )
+    smooth_hz = run_smoothing(config)
+    if smooth_hz is not None:
+        values[made] = smooth_motion(values[made], spec, fps, smooth_hz)
     seconds = time.perf_counter() - started
     metadata = {"format": "generated", "source": str(audio), "run": str(run)}
     motion = _motion(values, spec, fps, metadata, data.get("skeleton"), data["root_centre"], start.anchor)
@@ -267,6 +273,7 @@ def generate(
     if drawn and bar is not None and str(bar) in (config.get("drawn_by_metre") or {}):
         drawn.append(f"those of the training dances of {bar} beats a bar")
     timing["turning"] = "; ".join(drawn) if drawn else "none drawn"
+    timing["smoothing"] = smoothing_line(config)
     if "placement" in motion.metadata:
         timing["placement"] = motion.metadata["placement"]
     if spec.limbs:

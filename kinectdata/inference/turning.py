@@ -36,6 +36,7 @@ import numpy as np
 
 from kinectdata.core.errors import ConfigError
 from kinectdata.features.silence import silence_features, silent_frames
+from kinectdata.inference.smoothing import run_smoothing, smooth_motion
 from kinectdata.targets.facing import faced, trunk_pairs, turn_about_root
 from kinectdata.targets.normalization import Normalizer
 from kinectdata.targets.specs import TargetSpec
@@ -159,8 +160,9 @@ def travel_generator(seed: int, features: np.ndarray | None = None) -> np.random
 
 
 class TurnedKind:
-    """A model kind whose free runs are turned and moved by its run's processes (every other attribute
-    is the kind's own): what ``evaluate`` runs, so that every figure and control sees them."""
+    """A model kind whose free runs are turned and moved by its run's processes, then smoothed as the
+    run says (:mod:`kinectdata.inference.smoothing`; every other attribute is the kind's own): what
+    ``evaluate`` runs, so that every figure and control sees them."""
 
     def __init__(
         self,
@@ -177,6 +179,7 @@ class TurnedKind:
         self.fps = float(config["dataset"]["fps"])
         self.silence = silence_features(config["dataset"]["features"], self.fps)
         self.metres: dict[int, int] = {}  # a song's features' CRC-32 -> its beats per bar
+        self.smooth_hz = run_smoothing(config)
 
     def __getattr__(self, name: str) -> Any:
         return getattr(self.kind, name)
@@ -215,6 +218,8 @@ class TurnedKind:
             travel,
             travel_generator(self.seed, audio),
         )
+        if self.smooth_hz is not None:
+            turned = smooth_motion(turned, self.spec, self.fps, self.smooth_hz)
         return self.norm.apply(turned)
 
     def _back(self, run: Any, heading: float) -> Any:
@@ -242,10 +247,11 @@ class TurnedKind:
 
 
 def with_turning(kind: Any, config: dict[str, Any], seed: int = 0) -> Any:
-    """``kind`` turned and moved by its run's processes (:class:`TurnedKind`), or ``kind`` itself when
-    the run keeps neither and did not learn its poses facing one way."""
+    """``kind`` turned and moved by its run's processes and smoothed as the run says (:class:`TurnedKind`),
+    or ``kind`` itself when the run keeps neither process, did not learn its poses facing one way and is
+    not smoothed (:mod:`kinectdata.inference.smoothing`)."""
     process, travel = run_turning(config), run_travel(config)
-    if process is None and travel is None and not run_faces(config):
+    if process is None and travel is None and not run_faces(config) and run_smoothing(config) is None:
         return kind
     return TurnedKind(kind, config, process, seed, travel)
 

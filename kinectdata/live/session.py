@@ -30,6 +30,7 @@ from kinectdata.features.silence import silent_frames
 from kinectdata.features.streaming import StreamingFeatures
 from kinectdata.features.style_input import NO_STYLE
 from kinectdata.inference.engines import make_engine, onnxruntime_available
+from kinectdata.inference.smoothing import MotionSmoother, run_smoothing
 from kinectdata.inference.start import target_poses
 from kinectdata.inference.turning import drawn_line, live_turning
 from kinectdata.live.sinks import LivePose
@@ -58,7 +59,8 @@ class LiveDancer:
             floor one frame at a time, from generators seeded by ``seed``
             (:func:`~kinectdata.inference.turning.live_turning`; held still while the features are
             silence), as ``generate`` draws them on the same audio and seed; a run trained without
-            them draws none.
+            them draws none. A run trained with ``smooth_hz`` low-passes each frame after them
+            (:class:`~kinectdata.inference.smoothing.MotionSmoother`), as ``generate`` does.
     """
 
     def __init__(
@@ -98,6 +100,12 @@ class LiveDancer:
         self.beats_per_bar: int | None = None  # the song's metre, once known (set_metre)
         self.turning = live_turning(config, self.seed)
         self.turning_line = drawn_line(config)
+        self.smoother = self._smoother()
+
+    def _smoother(self) -> MotionSmoother | None:
+        """The run's smoothing one frame at a time, from rest (:mod:`kinectdata.inference.smoothing`)."""
+        cutoff = run_smoothing(self.config)
+        return None if cutoff is None else MotionSmoother(self.spec, self.fps, cutoff)
 
     @property
     def draws_by_metre(self) -> bool:
@@ -111,6 +119,7 @@ class LiveDancer:
         self.beats_per_bar = beats_per_bar
         self.turning = live_turning(self.config, self.seed, beats_per_bar)
         self.turning_line = drawn_line(self.config, beats_per_bar)
+        self.smoother = self._smoother()
 
     def warm_up(self, frames: int = 10) -> None:
         """Step a few silent frames and start again from the mean pose: the first steps of a network
@@ -124,6 +133,7 @@ class LiveDancer:
         self.pose = np.asarray(self.data["start_pose"], np.float32)
         self.anchor = None
         self.turning = live_turning(self.config, self.seed, self.beats_per_bar)  # the draws start again
+        self.smoother = self._smoother()  # and the smoothing from rest
 
     def step(self, features: np.ndarray, index: int) -> LivePose:
         """The pose of frame ``index`` from its features (frames are stepped in order)."""
@@ -132,6 +142,8 @@ class LiveDancer:
         if self.turning is not None:
             stream, silence = self.turning
             values[0] = stream.step(values[0], not silent_frames(np.asarray(features)[None], silence)[0])
+        if self.smoother is not None:
+            values[0] = self.smoother.step(values[0])
         skeleton = self.data.get("skeleton") or {}
         # placed as generate places it: the floor rule's anchor from the first frame, then held
         positions, orientations, self.anchor = target_poses(

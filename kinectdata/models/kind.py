@@ -74,6 +74,7 @@ PAPER_LOOP: dict[str, Any] = {
     "travel": False,
     "facing": False,
     "by_metre": False,
+    "smooth_hz": None,
     "silence_share": 0.0,
     "keep": "last",
     "context": 0,

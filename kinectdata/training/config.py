@@ -59,6 +59,7 @@ ADDED_OFF = {
     "travel": False,
     "facing": False,
     "by_metre": False,
+    "smooth_hz": None,
     "precision": "float32",
 }
 """Loop (and model) settings added after runs were written: a run's config.json without them trained without
@@ -180,6 +181,11 @@ class TrainConfig:
             (:func:`~kinectdata.training.turning.fit_dataset_by_metre`), kept in the run as
             ``drawn_by_metre``: a song is drawn its metre's processes where the run has them, else the
             pooled ones. Runs written before it had none.
+        smooth_hz: low-pass the motion the run makes (after its drawn turning and travel) at this
+            cutoff, Hz, wherever it makes positions: ``evaluate``'s free runs (so the kept epoch's
+            whole songs too), ``generate`` and ``live`` (:mod:`kinectdata.inference.smoothing`: a causal
+            Butterworth of order 2, so live's frames are ``generate``'s); the network trains as
+            without it. None: not smoothed, as runs written before it.
         precision: the training step's arithmetic (:data:`PRECISIONS`): ``float32``, or
             ``bfloat16``, the network's forward pass under ``torch.autocast`` (its losses, weights,
             optimiser, validation and every run made from it in float32; a model keeps what it
@@ -220,6 +226,7 @@ class TrainConfig:
     travel: bool
     facing: bool
     by_metre: bool
+    smooth_hz: float | None
     precision: str
     settings: Any
 
@@ -277,6 +284,8 @@ class TrainConfig:
             raise ConfigError(f"by_metre must be true or false, not {self.by_metre!r}")
         if self.by_metre and not (self.turning or self.travel):
             raise ConfigError("by_metre: a run that fits its drawn processes by metre must draw its turning or travel")
+        if self.smooth_hz is not None and not (isinstance(self.smooth_hz, (int, float)) and self.smooth_hz > 0):
+            raise ConfigError(f"smooth_hz must be a positive cutoff in Hz or None, not {self.smooth_hz!r}")
         if self.facing and not self.turning:
             raise ConfigError("facing: a run that learns its poses facing one way must draw its turning (turning true)")
         if not 0 <= self.mirror_share <= 1:

@@ -706,6 +706,12 @@ def train(
     if len(train_windows) == 0:
         with_context = f" ({config.sequence} + {context} of context)" if context else ""
         raise KinectDataError(f"{dataset}: no training window of {length} frames{with_context} (recordings too short?)")
+    fps_of_data = float(manifest["config"]["fps"])
+    if config.smooth_hz is not None and not config.smooth_hz < fps_of_data / 2:
+        raise ConfigError(
+            f"{dataset}: smooth_hz {config.smooth_hz:g} Hz: the cutoff must be below half its frame rate "
+            f"({fps_of_data / 2:g} Hz)"
+        )
     if config.max_minutes is None:
         _warn_if_too_few_steps(len(train_windows), config, world)
     run_config = {

@@ -10,7 +10,7 @@ import shutil
 
 import numpy as np
 import pytest
-from conftest import REPO, TINY_TRAINING
+from conftest import TINY_TRAINING
 
 pytest.importorskip("torch")
 
@@ -25,18 +25,6 @@ from kinectdata.models.run import read_manifest  # noqa: E402
 from kinectdata.training import turning as fitting  # noqa: E402
 from kinectdata.training.config import TrainConfig  # noqa: E402
 from kinectdata.training.train import train  # noqa: E402
-
-
-@pytest.fixture(scope="module")
-def song(tmp_path_factory):
-    """The first 6 s of a sample session's song: long enough for every draw, short to dance to."""
-    import soundfile as sf
-
-    samples, sr = sf.read(REPO / "sample_data" / "synth_001.flac", dtype="float32")
-    path = tmp_path_factory.mktemp("song") / "song.wav"
-    sf.write(path, samples[: 6 * sr], sr)
-    return path
-
 
 QUICK = {"tempo_rates": (), "engines": [("torch", "float32")], "checksums": False}
 
@@ -86,24 +74,24 @@ def _run_copy(run, folder, **changes):
     return folder
 
 
-def test_a_song_of_a_fitted_metre_is_drawn_its_metres_processes(centred_run, song, tmp_path):
+def test_a_song_of_a_fitted_metre_is_drawn_its_metres_processes(centred_run, sample_song, tmp_path):
     run, _ = centred_run
     config = json.loads((run / "config.json").read_text())
     faster = {**config["turning"], "rms_speed": 2 * config["turning"]["rms_speed"]}
     slower = {**config["travel"], "rms_speed": config["travel"]["rms_speed"] / 2, "time_constant": 1.0}
     by_metre = _run_copy(run, tmp_path / "by_metre", drawn_by_metre={"3": {"turning": faster, "travel": slower}})
     pooled_as_3 = _run_copy(run, tmp_path / "pooled", turning=faster, travel=slower)
-    three, timing = generate(by_metre, song, beats_per_bar=3)
-    expected, _ = generate(pooled_as_3, song, beats_per_bar=3)
+    three, timing = generate(by_metre, sample_song, beats_per_bar=3)
+    expected, _ = generate(pooled_as_3, sample_song, beats_per_bar=3)
     np.testing.assert_allclose(three.positions, expected.positions, atol=1e-9, equal_nan=True)
-    four, _ = generate(by_metre, song, beats_per_bar=4)  # no metre of its own: the pooled processes
-    pooled, _ = generate(run, song, beats_per_bar=4)
+    four, _ = generate(by_metre, sample_song, beats_per_bar=4)  # no metre of its own: the pooled processes
+    pooled, _ = generate(run, sample_song, beats_per_bar=4)
     np.testing.assert_allclose(four.positions, pooled.positions, atol=1e-9, equal_nan=True)
     assert not np.allclose(three.positions, four.positions, equal_nan=True)
     assert "those of the training dances of 3 beats a bar" in timing["turning"]
     # --no-turning and --no-travel leave the metre's processes out as they leave out the pooled ones
-    still, _ = generate(by_metre, song, beats_per_bar=3, turning=False, travel=False)
-    network, _ = generate(run, song, turning=False, travel=False)
+    still, _ = generate(by_metre, sample_song, beats_per_bar=3, turning=False, travel=False)
+    network, _ = generate(run, sample_song, turning=False, travel=False)
     np.testing.assert_allclose(still.positions, network.positions, atol=1e-9, equal_nan=True)
     doc = json.loads((by_metre / "config.json").read_text())
     assert run_turning(doc, 3).rms_speed == faster["rms_speed"]
@@ -112,7 +100,7 @@ def test_a_song_of_a_fitted_metre_is_drawn_its_metres_processes(centred_run, son
     assert "songs of 3 beats a bar are drawn their metre's" in drawn_line(doc)
 
 
-def test_live_and_evaluate_draw_by_the_songs_metre_as_generate_does(centred_run, song, tmp_path):
+def test_live_and_evaluate_draw_by_the_songs_metre_as_generate_does(centred_run, sample_song, tmp_path):
     run, dataset = centred_run
     config = json.loads((run / "config.json").read_text())
     faster = {**config["turning"], "rms_speed": 2 * config["turning"]["rms_speed"]}
@@ -125,8 +113,8 @@ def test_live_and_evaluate_draw_by_the_songs_metre_as_generate_does(centred_run,
         def send(self, pose):
             kept.append(pose.positions)
 
-    run_live(dancer, sources.FileSource(song, dancer.sample_rate, 80, clock), [Kept()], clock, beats_per_bar=3)
-    expected, _ = generate(by_metre, song, seed=2, beats_per_bar=3)
+    run_live(dancer, sources.FileSource(sample_song, dancer.sample_rate, 80, clock), [Kept()], clock, beats_per_bar=3)
+    expected, _ = generate(by_metre, sample_song, seed=2, beats_per_bar=3)
     np.testing.assert_allclose(np.stack(kept), expected.positions, atol=1e-6, equal_nan=True)
     assert "3 beats a bar" in dancer.turning_line
     given = evaluate(by_metre, dataset, "test", bootstrap=0, baselines=False, beats_per_bar=3, **QUICK)
