@@ -497,6 +497,7 @@ def generate_command(
         _generate_split(run_dir, data, split, out, engine, precision, turning, travel, seed)
         return
     from kinectdata.inference.generate import generate
+    from kinectdata.inference.smoothing import NOT_SMOOTHED
 
     motion, timing = generate(
         run_dir,
@@ -522,7 +523,7 @@ def generate_command(
         f"  starts from {timing['start']}" + (f"; placed by {timing['placement']}" if "placement" in timing else "")
     )
     click.echo(f"  {timing['turning']}")
-    if timing["smoothing"] != "not smoothed":
+    if timing["smoothing"] != NOT_SMOOTHED:
         click.echo(f"  the motion {timing['smoothing']}")
     if motion.joint_set.dimensions == 2:
         fps = 1 / float(motion.times[1] - motion.times[0]) if motion.n_frames > 1 else 30.0

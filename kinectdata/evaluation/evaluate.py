@@ -68,7 +68,7 @@ from kinectdata.evaluation.style import style_features, style_report
 from kinectdata.features import compute_features, feature_config
 from kinectdata.features.metre import Metre, recording_metre
 from kinectdata.inference.engines import engine_pairs, make_engine, onnxruntime_available
-from kinectdata.inference.smoothing import smoothing_line
+from kinectdata.inference.smoothing import NOT_SMOOTHED, smoothing_line
 from kinectdata.inference.turning import TurnedKind, with_turning
 from kinectdata.models.kind import ModelKind
 from kinectdata.models.registry import kind_of, model_kind
@@ -744,7 +744,7 @@ def format_results(results: dict[str, Any]) -> str:
     ]
     if results.get("turning"):
         lines.append(f"  {results['turning']}")
-    if results.get("smoothing", "not smoothed") != "not smoothed":
+    if results.get("smoothing", NOT_SMOOTHED) != NOT_SMOOTHED:
         lines.append(f"  the motion {results['smoothing']}")
     for mode, v in s.items():
         lines.append(

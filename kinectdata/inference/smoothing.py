@@ -30,12 +30,23 @@ import numpy as np
 from scipy.signal import butter, sosfilt, sosfilt_zi
 
 from kinectdata.core.errors import ConfigError
+from kinectdata.core.quaternions import make_continuous
 from kinectdata.targets.specs import TargetSpec
 
-__all__ = ["ORDER", "MotionSmoother", "run_smoothing", "smooth_motion", "smoothing_line"]
+__all__ = [
+    "NOT_SMOOTHED",
+    "ORDER",
+    "MotionSmoother",
+    "check_cutoff",
+    "run_smoothing",
+    "smooth_motion",
+    "smoothing_line",
+]
 
 ORDER = 2
 """The Butterworth filter's order: 12 dB per octave above the cutoff, little overshoot."""
+NOT_SMOOTHED = "not smoothed"
+""":func:`smoothing_line` of a run that does not smooth."""
 
 
 def run_smoothing(config: dict[str, Any]) -> float | None:
@@ -45,33 +56,33 @@ def run_smoothing(config: dict[str, Any]) -> float | None:
 
 
 def smoothing_line(config: dict[str, Any]) -> str:
-    """What a run does to its generated motion, for a printout."""
+    """What a run does to its generated motion, for a printout (:data:`NOT_SMOOTHED` when nothing)."""
     cutoff = run_smoothing(config)
     if cutoff is None:
-        return "not smoothed"
+        return NOT_SMOOTHED
     return f"low-passed at {cutoff:g} Hz (causal Butterworth, order {ORDER})"
 
 
-def _sections(cutoff_hz: float, fps: float) -> np.ndarray:
+def check_cutoff(cutoff_hz: float, fps: float) -> None:
+    """ConfigError unless ``cutoff_hz`` lies above 0 and below half the frame rate ``fps``."""
     if not 0 < cutoff_hz < fps / 2:
         raise ConfigError(
             f"smooth_hz must be above 0 and below half the frame rate ({fps / 2:g} Hz), not {cutoff_hz:g}"
         )
+
+
+def _sections(cutoff_hz: float, fps: float) -> np.ndarray:
+    check_cutoff(cutoff_hz, fps)
     return butter(ORDER, cutoff_hz, fs=fps, output="sos")
 
 
-def _hemisphere(values: np.ndarray, spec: TargetSpec, before: np.ndarray | None) -> np.ndarray:
-    """``values`` [T, D] with each quaternion turned to the hemisphere of the one before it (the first
-    to that of ``before`` [D], when given)."""
+def _continuous(values: np.ndarray, spec: TargetSpec, before: np.ndarray | None) -> np.ndarray:
+    """``values`` [T >= 1, D] as float64 with each quaternion track sign-continuous
+    (:func:`~kinectdata.core.quaternions.make_continuous`), from the sign of ``before`` [D] when given."""
     out = np.array(values, dtype=np.float64)
     for cols in spec.quaternion_slices:
-        q = out[:, cols]
-        previous = q[0] if before is None else before[cols]
-        for t in range(len(q)):
-            if np.dot(q[t], previous) < 0:
-                q[t] = -q[t]
-            previous = q[t]
-        out[:, cols] = q
+        track = out[:, cols] if before is None else np.concatenate([before[None, cols], out[:, cols]])
+        out[:, cols] = make_continuous(track)[-len(out) :]
     return out
 
 
@@ -85,9 +96,9 @@ def _normalised(values: np.ndarray, spec: TargetSpec) -> np.ndarray:
 def smooth_motion(values: np.ndarray, spec: TargetSpec, fps: float, cutoff_hz: float) -> np.ndarray:
     """Denormalised targets [T, D] of ``spec`` at ``fps`` low-passed at ``cutoff_hz`` (Hz), causally,
     starting at rest on frame 0 (see the module docstring). Returns float64 [T, D]."""
-    x = _hemisphere(values, spec, None)
-    if len(x) == 0:
-        return x
+    if len(values) == 0:
+        return np.zeros(np.shape(values), np.float64)
+    x = _continuous(values, spec, None)
     sos = _sections(cutoff_hz, fps)
     zi = sosfilt_zi(sos)[:, :, None] * x[0][None, None, :]
     return _normalised(sosfilt(sos, x, axis=0, zi=zi)[0], spec)
@@ -105,7 +116,7 @@ class MotionSmoother:
 
     def step(self, value: np.ndarray) -> np.ndarray:
         """[D] denormalised targets of the next frame in, smoothed [D] (float64) out."""
-        x = _hemisphere(np.asarray(value)[None], self.spec, self.last)
+        x = _continuous(np.asarray(value)[None], self.spec, self.last)
         self.last = x[0]
         if self.state is None:
             self.state = sosfilt_zi(self.sos)[:, :, None] * x[0][None, None, :]

@@ -46,6 +46,7 @@ from kinectdata.dataset.windows import WindowDataset
 from kinectdata.evaluation.listening import ALIVE_RANGE
 from kinectdata.evaluation.metrics import smape
 from kinectdata.inference.export import export_network, stream_metadata
+from kinectdata.inference.smoothing import check_cutoff
 from kinectdata.inference.turning import with_turning
 from kinectdata.models.losses import Body, masked_rhythm_loss
 from kinectdata.models.registry import check_fits, model_for_dataset, model_kind
@@ -706,12 +707,11 @@ def train(
     if len(train_windows) == 0:
         with_context = f" ({config.sequence} + {context} of context)" if context else ""
         raise KinectDataError(f"{dataset}: no training window of {length} frames{with_context} (recordings too short?)")
-    fps_of_data = float(manifest["config"]["fps"])
-    if config.smooth_hz is not None and not config.smooth_hz < fps_of_data / 2:
-        raise ConfigError(
-            f"{dataset}: smooth_hz {config.smooth_hz:g} Hz: the cutoff must be below half its frame rate "
-            f"({fps_of_data / 2:g} Hz)"
-        )
+    if config.smooth_hz is not None:
+        try:
+            check_cutoff(config.smooth_hz, float(manifest["config"]["fps"]))
+        except ConfigError as exc:
+            raise ConfigError(f"{dataset}: {exc}") from None
     if config.max_minutes is None:
         _warn_if_too_few_steps(len(train_windows), config, world)
     run_config = {
