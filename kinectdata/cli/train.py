@@ -133,10 +133,10 @@ _LOOP_OPTIONS = (
     ),
     (
         "smooth_hz",
-        click.FloatRange(min=0, min_open=True),
+        click.FloatRange(min=0),
         "Low-pass the motion the run makes at this cutoff, Hz (a causal Butterworth of order 2, after the drawn "
         "turning and travel), wherever it makes positions: evaluate, generate, live; the network trains as without "
-        "it. Default: none.",
+        "it. 0: not smoothed.",
     ),
     (
         "context",

@@ -363,6 +363,9 @@ class CdhcKind(ModelKind):
     # The spans term: a seed bent its right knee under 110 degrees in half its frames, and every
     # held-out dance was named a cha-cha; with it that seed met goals b, c and e on fold 1
     # (docs/notebook/2026-12-real-dance-variety.md).
+    # The 6 Hz low-pass: its free-running motion shook at 2.02-2.31 x the dancers' jerk on two fold runs
+    # that met every other goal but the listening; low-passed, 1.32-1.56 x, with no other goal moved
+    # (docs/notebook/2026-12-real-dance-variety.md).
     training_defaults = {
         **REAL_DANCE_LOOP,
         "epochs": 40,
@@ -375,6 +378,7 @@ class CdhcKind(ModelKind):
         "periodogram_weight": 1.0,
         "facing": True,
         "by_metre": True,
+        "smooth_hz": 6.0,
     }
     paper = {
         "channels": 256,
@@ -400,6 +404,11 @@ class CdhcKind(ModelKind):
         "keep_energy_weight": 0.0,
         "song_starts": False,
         "silence_share": 0.0,
+        "turning": False,
+        "travel": False,
+        "facing": False,
+        "by_metre": False,
+        "smooth_hz": None,
         "keep": "last",
     }
     """The paper gives no schedule; these follow DC-TTS, whose blocks it uses (Adam 2e-4, gradient

@@ -185,7 +185,8 @@ class TrainConfig:
             cutoff, Hz, wherever it makes positions: ``evaluate``'s free runs (so the kept epoch's
             whole songs too), ``generate`` and ``live`` (:mod:`kinectdata.inference.smoothing`: a causal
             Butterworth of order 2, so live's frames are ``generate``'s); the network trains as
-            without it. None: not smoothed, as runs written before it.
+            without it. None (or 0, which turns a model's default off): not smoothed, as runs
+            written before it.
         precision: the training step's arithmetic (:data:`PRECISIONS`): ``float32``, or
             ``bfloat16``, the network's forward pass under ``torch.autocast`` (its losses, weights,
             optimiser, validation and every run made from it in float32; a model keeps what it
@@ -241,6 +242,8 @@ class TrainConfig:
             given = {**{k: v for k, v in kind.paper.items() if k not in loop}, **given}
         own = {k: v for k, v in given.items() if k not in loop}
         loop.update({k: v for k, v in given.items() if k in loop})
+        if loop["smooth_hz"] == 0:  # 0 turns a model's default low-pass off (None would take the default)
+            loop["smooth_hz"] = None
         object.__setattr__(self, "model", kind.name)
         for name, value in loop.items():
             object.__setattr__(self, name, value)

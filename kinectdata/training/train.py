@@ -711,7 +711,7 @@ def train(
         try:
             check_cutoff(config.smooth_hz, float(manifest["config"]["fps"]))
         except ConfigError as exc:
-            raise ConfigError(f"{dataset}: {exc}") from None
+            raise ConfigError(f"{dataset}: {exc} (--smooth-hz: a lower cutoff, or 0 for none)") from None
     if config.max_minutes is None:
         _warn_if_too_few_steps(len(train_windows), config, world)
     run_config = {

@@ -82,9 +82,26 @@ def test_a_cutoff_at_or_above_half_the_frame_rate_or_not_positive_is_refused():
     from kinectdata.training.config import TrainConfig
 
     with pytest.raises(ConfigError, match="smooth_hz"):
-        TrainConfig(**{**TINY_TRAINING, "smooth_hz": 0.0})
+        TrainConfig(**{**TINY_TRAINING, "smooth_hz": -1.0})
     assert TrainConfig("yalta").smooth_hz is None and TrainConfig("yalta", paper=True).smooth_hz is None
+    assert TrainConfig(**{**TINY_TRAINING, "smooth_hz": 0.0}).smooth_hz is None  # 0: not smoothed
     assert smoothing_line({"train": {}}) == "not smoothed"
+
+
+def test_the_command_line_turns_a_models_default_low_pass_off_with_0(tmp_path):
+    pytest.importorskip("torch")
+    from click.testing import CliRunner
+
+    from kinectdata.cli import main
+    from kinectdata.cli.train import make_train_config
+
+    assert make_train_config("cdhc").smooth_hz == 6.0  # the cdhc model's real-dance default
+    assert make_train_config("cdhc", smooth_hz=0.0).smooth_hz is None
+    result = CliRunner().invoke(main, ["train-baseline", "--help"])
+    assert "0: not smoothed. [default: none / 6]" in " ".join(result.output.split())  # help lines wrap
+    negative = ["--data", str(tmp_path), "--out", str(tmp_path / "r"), "--smooth-hz", "-1"]
+    result = CliRunner().invoke(main, ["train-baseline", *negative])
+    assert result.exit_code == 2 and "--smooth-hz" in result.output
 
 
 def _smoothed_copy(run, folder, cutoff):
@@ -138,3 +155,14 @@ def test_generate_live_and_evaluate_smooth_the_motion_alike(centred_run, sample_
         "cutoff_hz": 5.0,
         "causal": True,
     }
+
+
+def test_train_refuses_a_cutoff_the_datasets_frame_rate_cannot_carry_naming_it(sample_dataset, tmp_path):
+    pytest.importorskip("torch")
+    from kinectdata.training.config import TrainConfig
+    from kinectdata.training.train import train
+
+    fps = json.loads((sample_dataset / "manifest.json").read_text())["config"]["fps"]
+    with pytest.raises(ConfigError, match=rf"{sample_dataset.name}: .*below half the frame rate.*or 0 for none"):
+        train(sample_dataset, tmp_path / "r", TrainConfig(**{**TINY_TRAINING, "smooth_hz": fps / 2}))
+    assert not (tmp_path / "r").exists()  # nothing half-written

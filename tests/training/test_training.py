@@ -199,6 +199,8 @@ def test_the_paper_settings_are_the_papers_and_its_authors_code():
     assert TrainConfig(paper=True, lr=3e-4).lr == 3e-4  # what is typed beside it still applies
     cdhc = TrainConfig("cdhc", paper=True)
     assert (cdhc.channels, cdhc.decoder_channels, cdhc.lr, cdhc.batch_size, cdhc.epochs) == (256, 128, 2e-4, 16, 20)
+    # the paper draws no turning or travel and does not smooth: those are this project's additions
+    assert (cdhc.turning, cdhc.travel, cdhc.facing, cdhc.by_metre, cdhc.smooth_hz) == (False, False, False, False, None)
 
 
 def test_the_defaults_are_the_recipe_that_learns_real_dance():
@@ -208,6 +210,14 @@ def test_the_defaults_are_the_recipe_that_learns_real_dance():
         assert (c.free_weight, c.posture_weight, c.silence_share, c.keep) == (1.0, 3.0, 0.2, "best")
     assert (TrainConfig().units, TrainConfig().feedback) == (128, "teacher")
     assert (TrainConfig("yalta").epochs, TrainConfig("cdhc").epochs) == (12, 40)  # the cdhc model's epochs are short
+    assert (TrainConfig("yalta").smooth_hz, TrainConfig("cdhc").smooth_hz) == (None, 6.0)
+
+
+def test_a_smoothing_of_0_turns_the_models_default_off():
+    assert TrainConfig("cdhc", smooth_hz=0).smooth_hz is None
+    assert TrainConfig.for_model("cdhc", smooth_hz=0.0).smooth_hz is None
+    assert TrainConfig.for_model("cdhc", smooth_hz=None).smooth_hz == 6.0  # None: the default
+    assert TrainConfig.for_model("cdhc", smooth_hz=4).smooth_hz == 4
 
 
 def test_a_run_written_before_the_rhythm_loss_resumes_without_it():
