@@ -12,7 +12,8 @@ It says:
   ``max_open``) describe the setting for the command line. ``training_defaults`` are the training
   loop's settings (``sequence``, ``batch_size``, ``epochs``, ``lr``, ...) where this model's
   differ from :class:`kinectdata.training.config.TrainConfig`'s base defaults; ``paper``, the
-  published settings, the loop's and the model's (``train-baseline --paper``);
+  published settings, the loop's and the model's (``train-baseline --paper``), over the loop's
+  base defaults, not over ``training_defaults`` (what it does not name is the base's);
 - **what it needs of a dataset**: :meth:`ModelKind.check_dataset` raises ConfigError with the
   reason (feature shape, target layout, normalisation); the registry adds the dataset's name and
   which ``--model`` or ``--pipeline`` to use;

@@ -77,7 +77,8 @@ class TrainConfig:
     ``TrainConfig(model, **settings)`` takes the loop's settings and the model's by name (flat, as
     ``config.json`` holds them); what is not given takes the model's default: the recipe that learns
     real dance on a CPU (docs/training.md, "Learning real dance"). ``paper=True`` starts from the
-    model's published settings instead (its kind's ``paper``). ``settings=`` may give
+    model's published settings instead (its kind's ``paper`` over the base defaults, none of the
+    recipe's additions). ``settings=`` may give
     the model's settings as a whole (an instance of its ``settings_type`` or a mapping).
     Attribute access reaches the model's settings too (``config.units`` for the yalta model).
 
@@ -236,7 +237,9 @@ class TrainConfig:
         clash = sorted({f.name for f in dataclasses.fields(kind.settings_type)} & {*LOOP_DEFAULTS, "model"})
         if clash:
             raise ConfigError(f"the {kind.name} model's settings {', '.join(clash)} clash with the training loop's")
-        loop = {**LOOP_DEFAULTS, **kind.training_defaults}
+        # the published settings start from the loop's base, not the model's real-dance recipe: what the
+        # paper dict does not name is then the base's, never a recipe addition
+        loop = dict(LOOP_DEFAULTS) if paper else {**LOOP_DEFAULTS, **kind.training_defaults}
         if paper:  # the published settings, under what is given
             loop.update({k: v for k, v in kind.paper.items() if k in loop})
             given = {**{k: v for k, v in kind.paper.items() if k not in loop}, **given}

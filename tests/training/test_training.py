@@ -15,8 +15,9 @@ from conftest import TINY_TRAINING
 torch = pytest.importorskip("torch")
 
 from kinectdata.core.errors import ConfigError, KinectDataError  # noqa: E402
+from kinectdata.models.registry import model_kind  # noqa: E402
 from kinectdata.models.run import load_checkpoint, load_model  # noqa: E402
-from kinectdata.training.config import TrainConfig  # noqa: E402
+from kinectdata.training.config import LOOP_DEFAULTS, TrainConfig  # noqa: E402
 from kinectdata.training.train import LOG_FIELDS, _add_gradient_noise, train  # noqa: E402
 
 
@@ -201,6 +202,21 @@ def test_the_paper_settings_are_the_papers_and_its_authors_code():
     assert (cdhc.channels, cdhc.decoder_channels, cdhc.lr, cdhc.batch_size, cdhc.epochs) == (256, 128, 2e-4, 16, 20)
     # the paper draws no turning or travel and does not smooth: those are this project's additions
     assert (cdhc.turning, cdhc.travel, cdhc.facing, cdhc.by_metre, cdhc.smooth_hz) == (False, False, False, False, None)
+    # nor averages weights or reads context before each window (DC-TTS's loop does neither)
+    assert (cdhc.weight_average, cdhc.context) == (0.0, 0)
+
+
+@pytest.mark.parametrize("model", ["yalta", "cdhc"])
+def test_no_real_dance_default_leaks_into_the_paper_settings(model):
+    """``--paper`` is the published settings over the loop's base: a recipe default the paper does
+    not name is the base's, whatever the model's ``training_defaults`` say."""
+    kind = model_kind(model)
+    paper = TrainConfig(model, paper=True).to_dict()
+    unnamed = [k for k in kind.training_defaults if k not in kind.paper]
+    assert {k: paper[k] for k in unnamed} == {k: LOOP_DEFAULTS[k] for k in unnamed}
+    assert {k: paper[k] for k in kind.paper if k in LOOP_DEFAULTS} == {
+        k: v for k, v in kind.paper.items() if k in LOOP_DEFAULTS
+    }
 
 
 def test_the_defaults_are_the_recipe_that_learns_real_dance():
