@@ -142,6 +142,20 @@ def test_short_cdhc_training_lowers_the_loss(cdhc_run):
     assert (run / "model.pt").is_file() and not (run / "stream.ts").exists()
 
 
+def test_the_papers_settings_train_on_the_papers_dataset(ltd_dataset, tmp_path):
+    """``train-baseline --paper`` on a listen-to-dance dataset: the paper's network and loop, none of
+    the real-dance recipe's additions (no context window, weights averaged, turning or low-pass)."""
+    small = ("--channels", 8, "--decoder-channels", 8, "--sequence", 60, "--batch-size", 8, "--epochs", 1)
+    result = run_cli("train-baseline", "--data", ltd_dataset, "--out", tmp_path / "paper", "--paper", *small)
+    assert result.exit_code == 0, result.output
+    config = json.loads((tmp_path / "paper" / "config.json").read_text())
+    train, model = config["train"], config["model"]
+    assert (train["lr"], train["clip_norm"], train["noise_eta"], train["keep"]) == (2e-4, 1.0, 0.0, "last")
+    assert (train["context"], train["weight_average"], train["free_weight"]) == (0, 0.0, 0.0)
+    assert (train["turning"], train["travel"], train["smooth_hz"]) == (False, False, None)
+    assert (model["output"], model["inputs"], model["dropout"]) == ("sigmoid", "music-and-poses", 0.05)
+
+
 def test_generate_writes_openpose_json_lines_the_reader_reads(cdhc_run, sessions, tmp_path):
     run, _ = cdhc_run
     out = tmp_path / "dance.jsonl"
