@@ -221,9 +221,26 @@ def goals(results: dict[str, Any]) -> list[Goal]:
             shown=f"{style['right']} of {counted}" if "right" in style else f"not measured: {style.get('unavailable')}",
         ),
     ]
-    named = ", ".join(f"{n} {s['style']} -> {s['named']}" for n, s in style.get("songs", {}).items())
-    out.append(Goal("e", "as varied as the music", tuple(e), named))
+    out.append(Goal("e", "as varied as the music", tuple(e), _styles_named(style)))
     return out
+
+
+def _styles_named(style: dict[str, Any]) -> str:
+    """Each dance's song style and the style named, with the style heard where the run heard another
+    (:class:`~kinectdata.evaluation.style.StyleReport`): a run that dances what it hears names no
+    more songs right than it hears."""
+    songs, heard = style.get("songs", {}), style.get("heard", {})
+    named = ", ".join(
+        f"{n} {s['style']} -> {s['named']}" + (f" (heard {heard[n]})" if heard.get(n, s["style"]) != s["style"] else "")
+        for n, s in songs.items()
+    )
+    if style.get("heard_right") is not None:
+        counted = len(style.get("counted", []))
+        named += (
+            f"; the music heard as its song's style in {style['heard_right']} of {counted}, "
+            f"danced as heard in {style['danced_as_heard']} of {counted}"
+        )
+    return named
 
 
 def _listening_note(listening: dict[str, Any]) -> str:

@@ -96,6 +96,27 @@ def test_over_the_seeds_the_worst_figure_and_the_spread(real_goals):
     assert "bone CV 0.09 (<= 0.103) at worst (seed 0), the same in every seed" in two[0]
 
 
+def test_goal_e_tells_the_style_heard_from_the_style_danced(real_goals):
+    r = results(right=1)
+    r["style"]["counted"] = ["C_2", "R_2", "W_1"]
+    r["style"]["songs"] = {
+        "C_2": {"style": "cha-cha", "named": "rumba"},  # heard wrong, danced as heard
+        "R_2": {"style": "rumba", "named": "cha-cha"},  # heard right, danced wrong
+        "W_1": {"style": "waltz", "named": "waltz"},
+        "T_5": {"style": "tango", "named": "waltz"},  # no training dance holds tango: not counted
+    }
+    r["style"]["heard"] = {"C_2": "rumba", "R_2": "rumba", "W_1": "waltz", "T_5": "cha-cha"}
+    r["style"].update(heard_right=2, danced_as_heard=2)
+    e = next(g for g in real_goals.goals(r) if g.key == "e")
+    assert e.note == (
+        "C_2 cha-cha -> rumba (heard rumba), R_2 rumba -> cha-cha, W_1 waltz -> waltz, T_5 tango -> waltz "
+        "(heard cha-cha); the music heard as its song's style in 2 of 3, danced as heard in 2 of 3"
+    )
+    r["style"].update(heard={}, heard_right=None, danced_as_heard=None)  # a run that hears no style
+    e = next(g for g in real_goals.goals(r) if g.key == "e")
+    assert e.note.endswith("T_5 tango -> waltz")
+
+
 def test_a_figure_not_measured_fails_and_is_the_worst(real_goals):
     missing = real_goals.Figure("tempo pairs followed", None, low=12)
     assert not missing.ok and missing.margin == float("-inf")

@@ -130,14 +130,27 @@ class StyleReport:
             out[style] = (right + (style == said), total + 1)
         return dict(sorted(out.items()))
 
+    @property
+    def heard_right(self) -> int | None:
+        """Counted dances whose music the run heard as their song's style (None: it heard none)."""
+        return sum(self.heard.get(n) == self.songs[n][0] for n in self.counted) if self.heard else None
+
+    @property
+    def danced_as_heard(self) -> int | None:
+        """Counted dances named the style their run heard (None: it heard none). A run that dances
+        what it hears names at most :attr:`heard_right` right: the rest is the hearing's."""
+        return sum(self.heard.get(n) == self.songs[n][1] for n in self.counted) if self.heard else None
+
     def verdict(self) -> str:
         named = ", ".join(f"{n} {style} -> {said}" for n, (style, said, _) in self.songs.items())
         per_style = ", ".join(f"{style} {r} of {t}" for style, (r, t) in self.by_style.items())
         right, n = self.leave_one_out
         heard = ""
         if self.heard:
-            told = sum(self.heard.get(name) == self.songs[name][0] for name in self.counted)
-            heard = f"; the music heard as its style in {told} of {len(self.counted)}"
+            heard = (
+                f"; the music heard as its style in {self.heard_right} of {len(self.counted)}, "
+                f"danced as heard in {self.danced_as_heard} of {len(self.counted)}"
+            )
         return (
             f"dances in their song's style: {self.right} of {len(self.counted)} ({named}; by style {per_style}; "
             f"the nearest style's mean in the kinetic and geometric features of the {n} training dances, which "
@@ -153,6 +166,8 @@ class StyleReport:
             "by_style": {style: {"right": r, "dances": t} for style, (r, t) in self.by_style.items()},
             "leave_one_out": {"right": self.leave_one_out[0], "dances": self.leave_one_out[1]},
             "heard": self.heard,
+            "heard_right": self.heard_right,
+            "danced_as_heard": self.danced_as_heard,
             "verdict": self.verdict(),
         }
 

@@ -69,7 +69,12 @@ def test_a_style_no_training_dance_holds_is_not_counted():
     assert "heard" not in report.verdict()
     # a run that hears the style: how often the music was heard as its own style, of the counted songs
     heard = style_report(list(zip(names, styles, rows)), generated, {"C_1": "cha-cha", "W_1": "rumba", "T_5": "x"})
-    assert heard.verdict().endswith("left out; the music heard as its style in 1 of 2)")
+    said = heard.songs["W_1"][1]  # the waltz, heard as a rumba, is not named a waltz
+    assert said != "waltz" and heard.heard_right == 1 and heard.danced_as_heard == 1 + (said == "rumba")
+    assert heard.verdict().endswith(
+        f"left out; the music heard as its style in 1 of 2, danced as heard in {heard.danced_as_heard} of 2)"
+    )
+    assert report.heard_right is None and report.danced_as_heard is None
     assert heard.to_dict()["heard"] == {"C_1": "cha-cha", "W_1": "rumba", "T_5": "x"}
 
 
