@@ -234,12 +234,8 @@ def _styles_named(style: dict[str, Any]) -> str:
         f"{n} {s['style']} -> {s['named']}" + (f" (heard {heard[n]})" if heard.get(n, s["style"]) != s["style"] else "")
         for n, s in songs.items()
     )
-    if style.get("heard_right") is not None:
-        counted = len(style.get("counted", []))
-        named += (
-            f"; the music heard as its song's style in {style['heard_right']} of {counted}, "
-            f"danced as heard in {style['danced_as_heard']} of {counted}"
-        )
+    if style.get("hearing"):
+        named += f"; {style['hearing']}"
     return named
 
 

@@ -106,13 +106,13 @@ def test_goal_e_tells_the_style_heard_from_the_style_danced(real_goals):
         "T_5": {"style": "tango", "named": "waltz"},  # no training dance holds tango: not counted
     }
     r["style"]["heard"] = {"C_2": "rumba", "R_2": "rumba", "W_1": "waltz", "T_5": "cha-cha"}
-    r["style"].update(heard_right=2, danced_as_heard=2)
+    r["style"]["hearing"] = "the music heard as its style in 2 of 3, danced as heard in 2 of 3"  # StyleReport's
     e = next(g for g in real_goals.goals(r) if g.key == "e")
     assert e.note == (
         "C_2 cha-cha -> rumba (heard rumba), R_2 rumba -> cha-cha, W_1 waltz -> waltz, T_5 tango -> waltz "
-        "(heard cha-cha); the music heard as its song's style in 2 of 3, danced as heard in 2 of 3"
+        "(heard cha-cha); the music heard as its style in 2 of 3, danced as heard in 2 of 3"
     )
-    r["style"].update(heard={}, heard_right=None, danced_as_heard=None)  # a run that hears no style
+    r["style"].update(heard={}, hearing="")  # a run that hears no style
     e = next(g for g in real_goals.goals(r) if g.key == "e")
     assert e.note.endswith("T_5 tango -> waltz")
 

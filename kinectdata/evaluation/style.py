@@ -141,16 +141,22 @@ class StyleReport:
         what it hears names at most :attr:`heard_right` right: the rest is the hearing's."""
         return sum(self.heard.get(n) == self.songs[n][1] for n in self.counted) if self.heard else None
 
+    def hearing(self) -> str:
+        """How often the music was heard as its song's style and the dances follow what was heard
+        ("" for a run that hears no style)."""
+        if not self.heard:
+            return ""
+        n = len(self.counted)
+        return (
+            f"the music heard as its style in {self.heard_right} of {n}, "
+            f"danced as heard in {self.danced_as_heard} of {n}"
+        )
+
     def verdict(self) -> str:
         named = ", ".join(f"{n} {style} -> {said}" for n, (style, said, _) in self.songs.items())
         per_style = ", ".join(f"{style} {r} of {t}" for style, (r, t) in self.by_style.items())
         right, n = self.leave_one_out
-        heard = ""
-        if self.heard:
-            heard = (
-                f"; the music heard as its style in {self.heard_right} of {len(self.counted)}, "
-                f"danced as heard in {self.danced_as_heard} of {len(self.counted)}"
-            )
+        heard = f"; {self.hearing()}" if self.heard else ""
         return (
             f"dances in their song's style: {self.right} of {len(self.counted)} ({named}; by style {per_style}; "
             f"the nearest style's mean in the kinetic and geometric features of the {n} training dances, which "
@@ -168,6 +174,7 @@ class StyleReport:
             "heard": self.heard,
             "heard_right": self.heard_right,
             "danced_as_heard": self.danced_as_heard,
+            "hearing": self.hearing(),
             "verdict": self.verdict(),
         }
 

@@ -74,7 +74,8 @@ def test_a_style_no_training_dance_holds_is_not_counted():
     assert heard.verdict().endswith(
         f"left out; the music heard as its style in 1 of 2, danced as heard in {heard.danced_as_heard} of 2)"
     )
-    assert report.heard_right is None and report.danced_as_heard is None
+    assert report.heard_right is None and report.danced_as_heard is None and report.hearing() == ""
+    assert heard.verdict().endswith(f"; {heard.to_dict()['hearing']})")
     assert heard.to_dict()["heard"] == {"C_1": "cha-cha", "W_1": "rumba", "T_5": "x"}
 
 
