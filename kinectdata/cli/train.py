@@ -139,6 +139,13 @@ _LOOP_OPTIONS = (
         "it. 0: not smoothed.",
     ),
     (
+        "style_tempo",
+        click.FloatRange(0, 1, max_open=True),
+        "Dance a song further than this share of the tempo from its heard style's usual tempo (0.08: 8 %) at "
+        "that style's tempo, pitch kept, and play the dance back at the song's own: evaluate and generate (not "
+        "live). Needs features that hear the style (*_style). 0: every song at its own tempo.",
+    ),
+    (
         "context",
         click.IntRange(min=0),
         "Frames of real input before each window that no loss counts (the outputs near a window's start then see "
@@ -498,6 +505,7 @@ def generate_command(
         return
     from kinectdata.inference.generate import generate
     from kinectdata.inference.smoothing import NOT_SMOOTHED
+    from kinectdata.inference.style_tempo import AS_IT_IS
 
     motion, timing = generate(
         run_dir,
@@ -525,6 +533,8 @@ def generate_command(
     click.echo(f"  {timing['turning']}")
     if timing["smoothing"] != NOT_SMOOTHED:
         click.echo(f"  the motion {timing['smoothing']}")
+    if timing.get("style_tempo", AS_IT_IS) != AS_IT_IS:
+        click.echo(f"  {timing['style_tempo']}")
     if motion.joint_set.dimensions == 2:
         fps = 1 / float(motion.times[1] - motion.times[0]) if motion.n_frames > 1 else 30.0
         click.echo(f"  (OpenPose JSON Lines hold no frame rate: read or render it with --video-fps {fps:g})")

@@ -69,6 +69,14 @@ from kinectdata.features import compute_features, feature_config
 from kinectdata.features.metre import Metre, recording_metre
 from kinectdata.inference.engines import engine_pairs, make_engine, onnxruntime_available
 from kinectdata.inference.smoothing import NOT_SMOOTHED, smoothing_line
+from kinectdata.inference.style_tempo import (
+    AS_IT_IS,
+    check_band,
+    play_at,
+    run_style_tempo,
+    style_tempo_factor,
+    style_tempo_line,
+)
 from kinectdata.inference.turning import TurnedKind, with_turning
 from kinectdata.models.kind import ModelKind
 from kinectdata.models.registry import kind_of, model_kind
@@ -222,6 +230,7 @@ def evaluate(
     turning: bool = True,
     travel: bool = True,
     tempo_rates: tuple[float, ...] | None = None,
+    style_tempo: float | None | str = "run",
 ) -> dict[str, Any]:
     """Score a run on a dataset split; write ``results.json``, ``metrics.json`` (the field's table)
     and figures into ``out`` (default ``RUN/evaluation``); return the results. ``engines``: the
@@ -240,10 +249,18 @@ def evaluate(
     without them draws none); False: the network's motion alone. ``results["turning"]`` says which. A
     run trained with ``smooth_hz`` smooths every free run after them (:mod:`kinectdata.inference.smoothing`;
     not the runs reset every L frames); ``results["smoothing"]`` says how.
-    ``tempo_rates``: the tempo control's factors (None: its own; empty: no tempo control)."""
+    ``tempo_rates``: the tempo control's factors (None: its own; empty: no tempo control).
+    ``style_tempo``: the band within which a song is danced at its own tempo, and beyond which at its
+    style's (:mod:`kinectdata.inference.style_tempo`): ``"run"``, the run's; None, every song as it
+    is; a share (0.08), that band. It plays the split's songs and the tempo control's; ``results["style_tempo"]``
+    says how and which songs were played faster or slower."""
     protocol = get_protocol(protocol) if isinstance(protocol, str) else protocol
     run, dataset = Path(run), Path(dataset)
     net, config = load_model(run)
+    if style_tempo != "run":
+        if style_tempo is not None:
+            check_band(style_tempo, feature_config(config["dataset"]["features"]))
+        config.setdefault("train", {})["style_tempo"] = style_tempo
     for drawn, asked in (("turning", turning), ("travel", travel)):
         if not asked:  # every free run below then makes without it
             config.pop(drawn, None)
@@ -259,7 +276,7 @@ def evaluate(
         raise KinectDataError(f"{dataset}: the {split} split holds no recording")
     kind = with_turning(model_kind(model_name(config)), config)
     beats = split_beats(recordings, manifest, config["dataset"]["fps"])
-    _tell_metres(kind, recordings, beats, manifest, config, beats_per_bar)
+    played = _tell_kind(kind, recordings, beats, manifest, config, beats_per_bar)
     for rec in recordings:  # the true first pose, masked values as the model's fill_previous says
         rec["first_pose"] = kind.fill_previous(rec["current"][0], rec["mask"][0], config["dataset"]["start_pose"])
     out = Path(out) if out is not None else run / "evaluation"
@@ -276,6 +293,11 @@ def evaluate(
         "smape_zero_over_zero": 0.0,
         "turning": kind.describe() if isinstance(kind, TurnedKind) else None,
         "smoothing": smoothing_line(config),
+        "style_tempo": {
+            "band": run_style_tempo(config),
+            "line": style_tempo_line(run_style_tempo(config)),
+            "played": played,
+        },
     }
     scores = {}
     first = None
@@ -513,7 +535,9 @@ class SongSet:
             denormalised into the target's units; :meth:`generate` for one song.
         features_of: ``features_of(samples [S], beats_per_bar=None) -> features [T, ...]`` of mono
             audio at ``features_of.sample_rate``, on the motion clock, bars counted in
-            ``beats_per_bar`` where the features count them (None: the extractor's default, 4).
+            ``beats_per_bar`` where the features count them (None: the extractor's default, 4); a
+            run with ``style_tempo`` then dances those features from the audio played at its
+            style's tempo (:mod:`kinectdata.inference.style_tempo`).
         unavailable: why no recording has beats ("" when some have).
         metres: per song, its metre and where it came from (manifest, given, estimated).
     """
@@ -582,24 +606,79 @@ def _recording_metre(
     return r["metre"]
 
 
-def _tell_metres(
+def _tell_kind(
     kind: Any,
     recordings: list[dict[str, Any]],
     beats: dict[str, tuple],
     manifest: dict[str, Any],
     config: dict[str, Any],
     beats_per_bar: int | None,
-) -> None:
-    """Tell a kind that draws its turning and travel by the song's metre (``drawn_by_metre``) each
-    recording's metre (:func:`_recording_metre`); nothing for any other kind."""
-    if not (isinstance(kind, TurnedKind) and config.get("drawn_by_metre")):
-        return
-    rate = feature_config(config["dataset"]["features"]).sample_rate
+) -> dict[str, float]:
+    """Tell a :class:`~kinectdata.inference.turning.TurnedKind` what it must know of each recording
+    before it dances it: its metre (:func:`_recording_metre`), where the run draws its turning and
+    travel by the song's metre (``drawn_by_metre``), and the features of its music played at its
+    style's tempo, where the run has ``style_tempo`` and the song is far from that tempo
+    (:mod:`kinectdata.inference.style_tempo`; recordings whose music cannot be read are danced as
+    they are). Returns each played recording's factor; nothing for any other kind."""
+    by_metre, band = bool(config.get("drawn_by_metre")), run_style_tempo(config)
+    if not isinstance(kind, TurnedKind) or not (by_metre or band is not None):
+        return {}
+    cfg = feature_config(config["dataset"]["features"])
+    fps = config["dataset"]["fps"]
     inputs = {e["name"]: e for e in manifest["inputs"]}
+    features_of = _features_maker(cfg, fps, kind, config)
+    played = {}
     for r in recordings:
+        entry, samples = inputs[r["recording"]], None
+        if band is not None:
+            try:
+                samples = recording_audio(entry, r["info"], len(r["current"]), fps, cfg.sample_rate)
+            except (KinectDataError, OSError):
+                samples = None
         music = beats.get(r["name"], (None,))[0]
-        metre = _recording_metre(r, inputs[r["recording"]], music, beats_per_bar, rate, config["dataset"]["fps"])
-        kind.know_metre(r["input"], metre.beats_per_bar)
+        metre = _recording_metre(r, entry, music, beats_per_bar, cfg.sample_rate, fps, samples)
+        if by_metre:
+            kind.know_metre(r["input"], metre.beats_per_bar)
+        if samples is not None:
+            factor = features_of.play(samples, r["input"], metre.beats_per_bar)
+            if factor != 1.0:
+                played[r["name"]] = factor
+    return played
+
+
+def _features_maker(cfg: Any, fps: float, kind: Any, config: dict[str, Any]) -> Callable[..., np.ndarray]:
+    """``features_of(samples [S], beats_per_bar=None) -> features [T, ...]`` on the motion clock at
+    ``fps``, as the run hears a whole song: a song of a known metre is drawn its metre's turning and
+    travel (``drawn_by_metre``), and a run with ``style_tempo`` dances a song far from its style's
+    tempo played at it (the kind is told, :meth:`~kinectdata.inference.turning.TurnedKind.know_played`).
+    ``features_of.play(samples, features, beats_per_bar)`` tells the kind for features made already
+    and returns the factor (1.0: as it is)."""
+    by_metre = isinstance(kind, TurnedKind) and bool(config.get("drawn_by_metre"))
+    band = run_style_tempo(config) if isinstance(kind, TurnedKind) else None
+
+    def compute(samples: np.ndarray, beats_per_bar: int | None) -> np.ndarray:
+        frames = int(len(samples) / cfg.sample_rate * fps)
+        starts = np.round(np.arange(frames) * cfg.sample_rate / fps).astype(np.int64)
+        return compute_features(np.asarray(samples, np.float32), starts, cfg, beats_per_bar=beats_per_bar)[0]
+
+    def play(samples: np.ndarray, features: np.ndarray, beats_per_bar: int | None) -> float:
+        if band is None:
+            return 1.0
+        factor, _ = style_tempo_factor(samples, cfg, band)
+        if factor != 1.0:
+            kind.know_played(features, compute(play_at(samples, factor, cfg.sample_rate), beats_per_bar), factor)
+        return factor
+
+    def features_of(samples: np.ndarray, beats_per_bar: int | None = None) -> np.ndarray:
+        features = compute(samples, beats_per_bar)
+        if by_metre and beats_per_bar is not None:  # a song of that metre (stretched): drawn its metre's
+            kind.know_metre(features, beats_per_bar)
+        play(samples, features, beats_per_bar)
+        return features
+
+    features_of.sample_rate = cfg.sample_rate  # type: ignore[attr-defined]
+    features_of.play = play  # type: ignore[attr-defined]
+    return features_of
 
 
 def _song_set(
@@ -618,16 +697,7 @@ def _song_set(
     fps = config["dataset"]["fps"]
     cfg = feature_config(config["dataset"]["features"])
     inputs = {e["name"]: e for e in manifest["inputs"]}
-
-    def features_of(samples: np.ndarray, beats_per_bar: int | None = None) -> np.ndarray:
-        frames = int(len(samples) / cfg.sample_rate * fps)
-        starts = np.round(np.arange(frames) * cfg.sample_rate / fps).astype(np.int64)
-        features = compute_features(np.asarray(samples, np.float32), starts, cfg, beats_per_bar=beats_per_bar)[0]
-        if by_metre and beats_per_bar is not None:  # a song of that metre (stretched): drawn its metre's
-            kind.know_metre(features, beats_per_bar)
-        return features
-
-    features_of.sample_rate = cfg.sample_rate  # type: ignore[attr-defined]
+    features_of = _features_maker(cfg, fps, kind, config)
 
     def body(values: np.ndarray, mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         return body_positions(values, mask, spec, config["dataset"])
@@ -746,6 +816,10 @@ def format_results(results: dict[str, Any]) -> str:
         lines.append(f"  {results['turning']}")
     if results.get("smoothing", NOT_SMOOTHED) != NOT_SMOOTHED:
         lines.append(f"  the motion {results['smoothing']}")
+    tempo = results.get("style_tempo") or {"line": AS_IT_IS, "played": {}}
+    if tempo["line"] != AS_IT_IS:
+        moved = ", ".join(f"{name} x{factor:.2f}" for name, factor in tempo["played"].items())
+        lines.append(f"  {tempo['line']}: {moved or 'no song of the split needed it'}")
     for mode, v in s.items():
         lines.append(
             f"  SMAPE {mode.replace('_', ' '):<14} {v['smape_normalised']:6.2f} % normalised, "

@@ -27,6 +27,7 @@ import numpy as np
 from kinectdata.align.stretch import stretch_audio
 from kinectdata.core.errors import KinectDataError
 from kinectdata.evaluation.beat_following import vertical_autocorrelation
+from kinectdata.inference.style_tempo import warp_back
 
 TEMPO_RATES = (0.85, 1.18)
 """The tempo factors each song is played at besides x1.00."""
@@ -110,22 +111,6 @@ class TempoControl:
             "keeps_time": self.keeps_time,
             "verdict": self.verdict(),
         }
-
-
-def warp_back(positions: np.ndarray, rate: float, frames: int | None = None) -> np.ndarray:
-    """A dance [T', J, C] made for a song played at ``rate``, on the original song's clock: frame k
-    of the result is the dance at frame k / ``rate`` (linear interpolation between frames), for the
-    ``frames`` first frames (default: as many as the dance covers, ``floor((T' - 1) * rate) + 1``).
-    A dance that keeps time with the music comes back as it would be at x1.00."""
-    p = np.asarray(positions, np.float64)
-    if p.ndim != 3 or p.shape[0] < 2:
-        raise KinectDataError(f"a dance to warp must be [T, J, C] with T >= 2, got shape {p.shape}")
-    covered = int(np.floor((p.shape[0] - 1) * rate + 1e-9)) + 1
-    n = covered if frames is None else min(int(frames), covered)
-    at = np.arange(n) / rate  # fractional source frames
-    low = np.minimum(np.floor(at).astype(np.int64), p.shape[0] - 2)
-    share = (at - low)[:, None, None]
-    return (1 - share) * p[low] + share * p[low + 1]
 
 
 def repetition_curve(positions: np.ndarray, fps: float, lags_s: tuple[float, float] = LAG_RANGE_S) -> np.ndarray:

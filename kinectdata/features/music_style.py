@@ -21,6 +21,11 @@ The classifier (:class:`MusicStyleClassifier`) scales each descriptor by its spr
 styles (pooled), takes each style's mean, and names the style whose mean is nearest: every style
 counts alike however many songs it has (a corpus with 27 waltzes and 2 cha-chas does not make every
 song a waltz).
+
+It also keeps each style's usual tempo (:attr:`MusicStyleClassifier.tempi`): the beat rate its songs
+share once octaves are set aside (librosa's tracker reports some waltzes at twice their beat), so that
+a song far from its style's tempo can be played to a network at its style's (:meth:`~MusicStyleClassifier.tempo_factor`,
+:mod:`kinectdata.inference.style_tempo`).
 """
 
 from __future__ import annotations
@@ -36,7 +41,7 @@ from kinectdata.core.librosa_import import import_librosa
 from kinectdata.features.beats import music_beats
 from kinectdata.features.metre import bar_similarity, beat_descriptors
 
-__all__ = ["DESCRIPTORS", "MusicStyleClassifier", "song_descriptors"]
+__all__ = ["DESCRIPTORS", "MusicStyleClassifier", "song_descriptors", "usual_tempo"]
 
 DESCRIPTORS = ("metre", "tempo", "onset_cv", "centroid", "flatness")
 """The song-level descriptors, in the order :func:`song_descriptors` returns them (module docstring)."""
@@ -87,6 +92,8 @@ class MusicStyleClassifier:
         scale: [D] their pooled spread within the styles.
         songs: how many songs it was fitted on.
         leave_one_out: how many of them it names right when each is left out of the fit in turn.
+        tempi: [K] each style's usual tempo, beats per minute (:func:`usual_tempo` of its songs'
+            tempo descriptors); empty for a classifier saved before it was kept.
     """
 
     styles: tuple[str, ...]
@@ -95,9 +102,12 @@ class MusicStyleClassifier:
     scale: tuple[float, ...]
     songs: int = 0
     leave_one_out: int = 0
+    tempi: tuple[float, ...] = ()
 
     def __post_init__(self) -> None:
         d = len(DESCRIPTORS)
+        if self.tempi and (len(self.tempi) != len(self.styles) or not all(t > 0 for t in self.tempi)):
+            raise ConfigError("a music style classifier's tempi hold one positive tempo per style")
         if len(self.styles) < 1 or len(self.centres) != len(self.styles):
             raise ConfigError("a music style classifier needs one centre per style")
         if any(len(c) != d for c in self.centres) or len(self.mean) != d or len(self.scale) != d:
@@ -119,7 +129,17 @@ class MusicStyleClassifier:
             raise KinectDataError("a music style classifier's songs' descriptors must be finite")
         fitted = _fit(x, labels)
         right = sum(_fit(np.delete(x, i, 0), np.delete(labels, i)).predict(x[i]) == labels[i] for i in range(len(x)))
-        return cls(fitted.styles, fitted.centres, fitted.mean, fitted.scale, songs=len(x), leave_one_out=int(right))
+        tempo = DESCRIPTORS.index("tempo")
+        tempi = tuple(usual_tempo(2.0 ** x[labels == s, tempo]) for s in fitted.styles)
+        return cls(
+            fitted.styles,
+            fitted.centres,
+            fitted.mean,
+            fitted.scale,
+            songs=len(x),
+            leave_one_out=int(right),
+            tempi=tempi,
+        )
 
     def predict(self, descriptors: np.ndarray) -> str:
         """The style of a song with ``descriptors`` [D]."""
@@ -131,6 +151,30 @@ class MusicStyleClassifier:
         """The style of mono music ``samples`` [S] at ``sample_rate`` Hz."""
         return self.predict(song_descriptors(samples, sample_rate))
 
+    def tempo_factor(self, descriptors: np.ndarray, band: float) -> tuple[float, str]:
+        """How much faster to play a song with ``descriptors`` [D] so that its tempo lies within
+        ``band`` (a share: 0.08 is 8 %) of its heard style's usual tempo, octaves set aside (a song
+        heard at twice its beat is not slowed by half), and the style heard: ``(factor, style)``,
+        factor 1.0 for a song already within the band, else the stretch to the band's nearer edge.
+
+        Raises:
+            KinectDataError: the classifier keeps no tempi (saved before they were kept: build the
+                dataset again).
+        """
+        if not self.tempi:
+            raise KinectDataError(
+                "this music style classifier keeps no tempo per style (fitted by an older build): build the dataset "
+                "again to play songs at their style's tempo"
+            )
+        style = self.predict(descriptors)
+        usual = self.tempi[self.styles.index(style)]
+        off = np.log2(usual) - float(np.asarray(descriptors, np.float64)[DESCRIPTORS.index("tempo")])
+        off -= np.round(off)  # to the nearest octave of the usual tempo: within half an octave
+        edge = np.log2(1.0 + band)
+        if abs(off) <= edge:
+            return 1.0, style
+        return float(2.0 ** (off - np.sign(off) * edge)), style
+
     def to_dict(self) -> dict[str, Any]:
         return {
             "styles": list(self.styles),
@@ -139,6 +183,7 @@ class MusicStyleClassifier:
             "scale": list(self.scale),
             "songs": self.songs,
             "leave_one_out": self.leave_one_out,
+            "tempi": list(self.tempi),
         }
 
     @classmethod
@@ -151,9 +196,22 @@ class MusicStyleClassifier:
                 tuple(float(v) for v in d["scale"]),
                 int(d.get("songs", 0)),
                 int(d.get("leave_one_out", 0)),
+                tuple(float(t) for t in d.get("tempi", ())),
             )
         except (KeyError, TypeError, ValueError) as exc:
             raise ConfigError(f"not a music style classifier ({exc})") from exc
+
+
+def usual_tempo(tempi_bpm: np.ndarray) -> float:
+    """The tempo [N] songs share once octaves are set aside, beats per minute: the circular mean of
+    their log2 tempi modulo one octave (a song reported at twice its beat counts as at its beat),
+    placed in the octave most of them are in (the lower of two as common). One song: its own tempo."""
+    t = np.log2(np.asarray(tempi_bpm, np.float64))
+    if t.size == 0 or not np.isfinite(t).all():
+        raise KinectDataError("a style's usual tempo needs at least one finite, positive tempo")
+    phase = np.angle(np.exp(2j * np.pi * t).mean()) / (2 * np.pi)
+    octaves, counts = np.unique(np.round(t - phase), return_counts=True)
+    return float(2.0 ** (phase + octaves[np.argmax(counts)]))
 
 
 def _fit(x: np.ndarray, labels: np.ndarray) -> MusicStyleClassifier:

@@ -50,6 +50,7 @@ from kinectdata.formats.openpose_writer import write_openpose_jsonl
 from kinectdata.inference.engines import make_engine
 from kinectdata.inference.smoothing import run_smoothing, smooth_motion, smoothing_line
 from kinectdata.inference.start import StartPose, recording_start, target_poses
+from kinectdata.inference.style_tempo import play_at, run_style_tempo, style_tempo_factor, style_tempo_line, warp_back
 from kinectdata.inference.turning import faced_first_pose, run_travel, run_turning, travel_generator, turn_song
 from kinectdata.models.registry import model_kind
 from kinectdata.models.run import load_model, model_name
@@ -100,6 +101,12 @@ def _music(
     return reader.n_samples, reader.blocks, None
 
 
+def _in_blocks(samples: np.ndarray, sample_rate: int) -> Iterator[np.ndarray]:
+    """``samples`` [S] in blocks of a second, as an audio reader gives them."""
+    for k in range(0, samples.size, sample_rate):
+        yield samples[k : k + sample_rate]
+
+
 def generate(
     run: str | Path,
     audio: str | Path,
@@ -143,7 +150,9 @@ def generate(
     ``seed``: ``live`` on the same audio and seed turns and travels the same way); a run trained
     without them draws none. ``timing["turning"]`` says what was drawn. A run trained with ``smooth_hz``
     then low-passes the frames the model made (:mod:`kinectdata.inference.smoothing`);
-    ``timing["smoothing"]`` says how.
+    ``timing["smoothing"]`` says how. A run trained with ``style_tempo`` dances a song far from its
+    heard style's tempo at that tempo and plays the dance back at the song's
+    (:mod:`kinectdata.inference.style_tempo`: the whole song is decoded first); ``timing["style_tempo"]`` says how.
     """
     net, config = load_model(run)
     kind = model_kind(model_name(config))
@@ -160,6 +169,15 @@ def generate(
     n = int(np.floor(n_samples / sr * fps + 1e-9))
     if n < 1:
         raise KinectDataError(f"{audio}: shorter than one frame ({1 / fps:.3f} s)")
+    features_config = feature_config(data["features"])
+    song_blocks = blocks
+    whole = functools.cache(lambda: np.concatenate([np.zeros(0, np.float32), *song_blocks()]))  # decoded once, if asked
+    song_frames, band = n, run_style_tempo(config)
+    played = style_tempo_factor(whole(), features_config, band)[0] if band is not None and n > 1 else 1.0
+    if played != 1.0:  # the network dances the song played at its style's tempo; warped back below
+        faster = play_at(whole(), played, sr)
+        blocks = functools.partial(_in_blocks, faster, sr)
+        n = max(2, int(np.floor(faster.size / sr * fps + 1e-9)))
     true_first = start.pose is not None  # frame 0 is the true pose; the model makes frames 1..n-1
     pose = np.asarray(start.pose if true_first else data["start_pose"], dtype=np.float32)
     poses = np.empty((n, spec.dim), np.float32)
@@ -194,8 +212,6 @@ def generate(
             song.append(np.array(features))  # a copy: the featurizer may reuse its buffers
 
     starts = np.round(np.arange(n) * sr / fps).astype(np.int64)
-    features_config = feature_config(data["features"])
-    whole = functools.cache(lambda: np.concatenate([np.zeros(0, np.float32), *blocks()]))  # decoded once, if asked
     metre = None
     counts_bars = needs_metre(features_config)
     if counts_bars or (drawing and config.get("drawn_by_metre")):  # the features' bars, or the draws' metre
@@ -220,6 +236,12 @@ def generate(
             poses[:] = kind.free_run(net, np.concatenate([features[:1], features]), pose)
         step_times = [(time.perf_counter() - ran) / n] * n
     values = norm.invert(poses, spec)
+    if played != 1.0:  # back onto the song's clock: its frame k is the played dance's frame k / factor
+        values = warp_back(values, played, song_frames).astype(np.float32)
+        if heard:
+            at = np.minimum(np.round(np.arange(song_frames) / played).astype(np.int64), n - 1)
+            heard = [np.concatenate(heard)[at]]
+        n = song_frames
     made = slice(1 if true_first else 0, n)  # the frames the model made: 1..n-1 after a true first pose
     if heading:
         values[made] = turn_about_root(values[made], spec, heading)
@@ -274,6 +296,7 @@ def generate(
         drawn.append(f"those of the training dances of {bar} beats a bar")
     timing["turning"] = "; ".join(drawn) if drawn else "none drawn"
     timing["smoothing"] = smoothing_line(config)
+    timing["style_tempo"] = style_tempo_line(band) + ("" if band is None else f": this song x{played:.2f}")
     if "placement" in motion.metadata:
         timing["placement"] = motion.metadata["placement"]
     if spec.limbs:

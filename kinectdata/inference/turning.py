@@ -37,6 +37,7 @@ import numpy as np
 from kinectdata.core.errors import ConfigError
 from kinectdata.features.silence import silence_features, silent_frames
 from kinectdata.inference.smoothing import run_smoothing, smooth_motion
+from kinectdata.inference.style_tempo import on_song_clock, run_style_tempo
 from kinectdata.targets.facing import faced, trunk_pairs, turn_about_root
 from kinectdata.targets.normalization import Normalizer
 from kinectdata.targets.specs import TargetSpec
@@ -162,7 +163,10 @@ def travel_generator(seed: int, features: np.ndarray | None = None) -> np.random
 class TurnedKind:
     """A model kind whose free runs are turned and moved by its run's processes, then smoothed as the
     run says (:mod:`kinectdata.inference.smoothing`; every other attribute is the kind's own): what
-    ``evaluate`` runs, so that every figure and control sees them."""
+    ``evaluate`` runs, so that every figure and control sees them. A song it is told is played at
+    another tempo (:meth:`know_played`, :mod:`kinectdata.inference.style_tempo`) is danced by the
+    network on the played features and warped back onto the song's clock before all that, as
+    ``generate`` does."""
 
     def __init__(
         self,
@@ -179,6 +183,7 @@ class TurnedKind:
         self.fps = float(config["dataset"]["fps"])
         self.silence = silence_features(config["dataset"]["features"], self.fps)
         self.metres: dict[int, int] = {}  # a song's features' CRC-32 -> its beats per bar
+        self.played: dict[int, tuple[np.ndarray, float]] = {}  # a song's features' CRC-32 -> (played, factor)
         self.smooth_hz = run_smoothing(config)
 
     def __getattr__(self, name: str) -> Any:
@@ -196,6 +201,28 @@ class TurnedKind:
             self.metres.pop(key, None)
         else:
             self.metres[key] = int(beats_per_bar)
+
+    def know_played(self, features: np.ndarray, played: np.ndarray, factor: float) -> None:
+        """Dance the song whose features are ``features`` [T, *F] from ``played`` [T', *F], the
+        features of its music played ``factor`` times as fast (:mod:`kinectdata.inference.style_tempo`),
+        the network's frames warped back onto the song's T frames."""
+        self.played[zlib.crc32(np.ascontiguousarray(features).tobytes())] = (played, float(factor))
+
+    def _played(self, audio: np.ndarray) -> tuple[np.ndarray, float] | None:
+        return self.played.get(zlib.crc32(np.ascontiguousarray(audio).tobytes())) if self.played else None
+
+    def _network_runs(
+        self, net: Any, audios: list[np.ndarray], firsts: list[np.ndarray], reset_every: int | None
+    ) -> list[np.ndarray]:
+        """The network's free runs [T-1, D] of songs [T, *F] from their first poses, each song told
+        played at another tempo danced on its played features and warped back onto its clock."""
+        played = [self._played(np.asarray(a)) for a in audios]
+        inputs = [a if p is None else p[0] for a, p in zip(audios, played)]
+        runs = self.kind.free_runs(net, inputs, firsts, reset_every)
+        return [
+            r if p is None else on_song_clock(np.asarray(r), f, p[1], len(a))
+            for r, p, f, a in zip(runs, played, firsts, audios)
+        ]
 
     def _turned(self, audio: np.ndarray, run: np.ndarray, heading: float = 0.0) -> np.ndarray:
         made = audio[len(audio) - len(run) :]  # a free run makes frames 1..T-1 of features [T]
@@ -231,7 +258,7 @@ class TurnedKind:
 
     def free_run(self, net: Any, audio: np.ndarray, first_pose: np.ndarray, reset_every: int | None = None) -> Any:
         first, heading = faced_first_pose(self.config, first_pose)
-        run = self.kind.free_run(net, audio, first, reset_every)
+        run = self._network_runs(net, [audio], [first], reset_every)[0]
         if reset_every is not None:
             return self._back(run, heading)
         return self._turned(np.asarray(audio), np.asarray(run), heading)
@@ -240,7 +267,7 @@ class TurnedKind:
         self, net: Any, audios: list[np.ndarray], first_poses: list[np.ndarray], reset_every: int | None = None
     ) -> list[np.ndarray]:
         started = [faced_first_pose(self.config, p) for p in first_poses]
-        runs = self.kind.free_runs(net, audios, [p for p, _ in started], reset_every)
+        runs = self._network_runs(net, audios, [p for p, _ in started], reset_every)
         if reset_every is not None:
             return [self._back(r, h) for r, (_, h) in zip(runs, started)]
         return [self._turned(np.asarray(a), np.asarray(r), h) for a, r, (_, h) in zip(audios, runs, started)]
@@ -248,10 +275,12 @@ class TurnedKind:
 
 def with_turning(kind: Any, config: dict[str, Any], seed: int = 0) -> Any:
     """``kind`` turned and moved by its run's processes and smoothed as the run says (:class:`TurnedKind`),
-    or ``kind`` itself when the run keeps neither process, did not learn its poses facing one way and is
-    not smoothed (:mod:`kinectdata.inference.smoothing`)."""
+    or ``kind`` itself when the run keeps neither process, did not learn its poses facing one way, is
+    not smoothed (:mod:`kinectdata.inference.smoothing`) and plays no song at its style's tempo
+    (:mod:`kinectdata.inference.style_tempo`)."""
     process, travel = run_turning(config), run_travel(config)
-    if process is None and travel is None and not run_faces(config) and run_smoothing(config) is None:
+    plain = run_smoothing(config) is None and run_style_tempo(config) is None
+    if process is None and travel is None and not run_faces(config) and plain:
         return kind
     return TurnedKind(kind, config, process, seed, travel)
 

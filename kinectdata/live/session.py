@@ -60,7 +60,9 @@ class LiveDancer:
             (:func:`~kinectdata.inference.turning.live_turning`; held still while the features are
             silence), as ``generate`` draws them on the same audio and seed; a run trained without
             them draws none. A run trained with ``smooth_hz`` low-passes each frame after them
-            (:class:`~kinectdata.inference.smoothing.MotionSmoother`), as ``generate`` does.
+            (:class:`~kinectdata.inference.smoothing.MotionSmoother`), as ``generate`` does. A run
+            trained with ``style_tempo`` dances live music at its own tempo: a network cannot hear
+            music faster than it arrives (:mod:`kinectdata.inference.style_tempo`).
     """
 
     def __init__(

@@ -379,6 +379,7 @@ class CdhcKind(ModelKind):
         "facing": True,
         "by_metre": True,
         "smooth_hz": 6.0,
+        "style_tempo": 0.08,
     }
     paper = {
         **PAPER_LOOP,

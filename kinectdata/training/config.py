@@ -30,6 +30,7 @@ LOOP_DEFAULTS: dict[str, Any] = {
     "travel": True,
     "facing": False,
     "by_metre": False,
+    "style_tempo": None,
 }
 """The training loop's settings and their base defaults (Yalta et al.'s; a model's
 ``training_defaults`` change them)."""
@@ -60,6 +61,7 @@ ADDED_OFF = {
     "facing": False,
     "by_metre": False,
     "smooth_hz": None,
+    "style_tempo": None,
     "precision": "float32",
 }
 """Loop (and model) settings added after runs were written: a run's config.json without them trained without
@@ -188,6 +190,14 @@ class TrainConfig:
             Butterworth of order 2, so live's frames are ``generate``'s); the network trains as
             without it. None (or 0, which turns a model's default off): not smoothed, as runs
             written before it.
+        style_tempo: a share of the tempo (0.08: 8 %): a song further than that from its heard
+            style's usual tempo is played to the network at the band's nearer edge, pitch kept, and
+            its dance warped back onto the song's clock, wherever a whole song is danced: ``evaluate``
+            and ``generate`` (:mod:`kinectdata.inference.style_tempo`; not ``live``, whose music arrives
+            as it plays, nor the kept epoch's validation songs, danced as they are). Needs features
+            that hear the style (``*_style``), from a build that kept each style's tempo; for others
+            the run keeps None and ``train`` warns. None (or 0): every song at its own tempo, as runs
+            written before it.
         precision: the training step's arithmetic (:data:`PRECISIONS`): ``float32``, or
             ``bfloat16``, the network's forward pass under ``torch.autocast`` (its losses, weights,
             optimiser, validation and every run made from it in float32; a model keeps what it
@@ -229,6 +239,7 @@ class TrainConfig:
     facing: bool
     by_metre: bool
     smooth_hz: float | None
+    style_tempo: float | None
     precision: str
     settings: Any
 
@@ -245,8 +256,9 @@ class TrainConfig:
             given = {**{k: v for k, v in kind.paper.items() if k not in loop}, **given}
         own = {k: v for k, v in given.items() if k not in loop}
         loop.update({k: v for k, v in given.items() if k in loop})
-        if loop["smooth_hz"] == 0:  # 0 turns a model's default low-pass off (None would take the default)
-            loop["smooth_hz"] = None
+        for off in ("smooth_hz", "style_tempo"):  # 0 turns a model's default off (None would take the default)
+            if loop[off] == 0:
+                loop[off] = None
         object.__setattr__(self, "model", kind.name)
         for name, value in loop.items():
             object.__setattr__(self, name, value)
@@ -292,6 +304,12 @@ class TrainConfig:
             raise ConfigError("by_metre: a run that fits its drawn processes by metre must draw its turning or travel")
         if self.smooth_hz is not None and not (isinstance(self.smooth_hz, (int, float)) and self.smooth_hz > 0):
             raise ConfigError(f"smooth_hz must be a positive cutoff in Hz or None, not {self.smooth_hz!r}")
+        if self.style_tempo is not None and not (
+            isinstance(self.style_tempo, (int, float)) and 0 < self.style_tempo < 1
+        ):
+            raise ConfigError(
+                f"style_tempo must be a share of the tempo in 0..1 (0.08: 8 %) or None, not {self.style_tempo!r}"
+            )
         if self.facing and not self.turning:
             raise ConfigError("facing: a run that learns its poses facing one way must draw its turning (turning true)")
         if not 0 <= self.mirror_share <= 1:

@@ -45,6 +45,7 @@ from kinectdata.dataset.layout import is_copy
 from kinectdata.dataset.windows import WindowDataset
 from kinectdata.evaluation.listening import ALIVE_RANGE
 from kinectdata.evaluation.metrics import smape
+from kinectdata.features import feature_config, style_input_of
 from kinectdata.inference.export import export_network, stream_metadata
 from kinectdata.inference.smoothing import check_cutoff
 from kinectdata.inference.turning import with_turning
@@ -117,6 +118,25 @@ benchmark's models need about a thousand to follow the beat (docs/training.md)."
 
 class TrainingWarning(KinectDataWarning):
     """A run that will finish but is unlikely to learn (e.g. far too few optimiser steps)."""
+
+
+def _style_tempo_kept(config: TrainConfig, manifest: dict[str, Any], dataset: Path, world: World) -> TrainConfig:
+    """``config`` as the run keeps it: its ``style_tempo`` where the dataset's features hear the style
+    and tell each style's tempo; else None, with a :class:`TrainingWarning` saying why (a model's
+    default band on a corpus without styles, or a dataset built before the tempi were kept)."""
+    part = style_input_of(feature_config(manifest["config"]["features"]))
+    why = None
+    if part is None or part.classifier is None:
+        why = "its features hear no dance style (a *_style preset, from a corpus that gives its recordings' styles)"
+    elif not part.classifier.tempi:
+        why = "its build kept no tempo per style (built before they were kept: build it again)"
+    if why is None:
+        return config
+    if world.main:
+        warnings.warn(
+            f"{dataset}: every song will be danced at its own tempo (no --style-tempo): {why}", TrainingWarning, 2
+        )
+    return config.replace(style_tempo=None)
 
 
 def _warn_if_too_few_steps(windows: int, config: TrainConfig, world: World) -> None:
@@ -712,6 +732,8 @@ def train(
             check_cutoff(config.smooth_hz, float(manifest["config"]["fps"]))
         except ConfigError as exc:
             raise ConfigError(f"{dataset}: {exc} (--smooth-hz: a lower cutoff, or 0 for none)") from None
+    if config.style_tempo is not None:
+        config = _style_tempo_kept(config, manifest, dataset, world)
     if config.max_minutes is None:
         _warn_if_too_few_steps(len(train_windows), config, world)
     run_config = {

@@ -20,7 +20,6 @@ from kinectdata.evaluation.tempo_control import (
     repetition_curve,
     tempo_control,
     tempo_pair,
-    warp_back,
 )
 
 FPS = 30.0
@@ -36,21 +35,6 @@ def dance(period_s: float, seconds: float, joints: int = 4) -> np.ndarray:
         out[:, j, 1] = (1 + j) * 0.05 * np.sin(phase) + 0.02 * np.sin(2 * phase + j)
         out[:, j, 0] = 0.1 * j
     return out
-
-
-def test_warp_back_puts_a_dance_on_the_original_clock():
-    # a dance made at x1.18 moves 1.18 times as fast; warped back it is the x1.00 dance (linear
-    # interpolation of a smooth curve: errors of a millimetre or two on swings of 20 cm)
-    at_one = dance(1.2, 20.0)
-    fast = dance(1.2 / 1.18, 20.0 / 1.18)
-    back = warp_back(fast, 1.18)
-    assert back.shape[1:] == at_one.shape[1:] and abs(len(back) - len(at_one)) <= 2
-    n = min(len(back), len(at_one))
-    assert np.max(np.abs(back[:n] - at_one[:n])) < 2e-3
-    frame = warp_back(np.arange(10.0).reshape(10, 1, 1), 0.5)[:, 0, 0]  # frame k comes from frame 2 k
-    assert np.allclose(frame, [0, 2, 4, 6, 8])
-    with pytest.raises(KinectDataError, match=r"\[T, J, C\] with T >= 2"):
-        warp_back(np.zeros((1, 2, 3)), 1.1)
 
 
 def test_the_curve_is_the_joint_heights_autocorrelation_over_its_lags():

@@ -12,7 +12,7 @@ pytest.importorskip("librosa")
 from helpers import metre_music  # noqa: E402
 from scipy.spatial.distance import cdist  # noqa: E402
 
-from kinectdata.core.errors import ConfigError  # noqa: E402
+from kinectdata.core.errors import ConfigError, KinectDataError  # noqa: E402
 from kinectdata.features import (  # noqa: E402
     PRESETS,
     compute_features,
@@ -21,7 +21,12 @@ from kinectdata.features import (  # noqa: E402
     song_style,
     style_input_of,
 )
-from kinectdata.features.music_style import DESCRIPTORS, MusicStyleClassifier, song_descriptors  # noqa: E402
+from kinectdata.features.music_style import (  # noqa: E402
+    DESCRIPTORS,
+    MusicStyleClassifier,
+    song_descriptors,
+    usual_tempo,
+)
 from kinectdata.features.silence import silence_features, silent_frames  # noqa: E402
 from kinectdata.features.streaming import StreamingFeatures  # noqa: E402
 from kinectdata.features.style_input import NO_STYLE, StyleInputConfig, style_input_features  # noqa: E402
@@ -157,3 +162,33 @@ def test_bad_settings_are_refused(settings, message):
         StyleInputConfig(**settings)
     with pytest.raises(ConfigError, match="no music style classifier yet"):
         StyleInputConfig().style_of(np.zeros(10, np.float32))
+
+
+def test_each_style_keeps_its_usual_tempo_with_octaves_set_aside():
+    # waltzes at 86-88 beats a minute, two of them heard at twice their beat (librosa's tracker does)
+    waltzes = [86.0, 2 * 87.0, 88.0, 2 * 86.5]
+    x = np.arange(30.0).reshape(6, 5) * 1e-3  # every descriptor varies a little within a style
+    x[:, 1] = np.log2(waltzes + [120.0, 126.0])
+    fitted = MusicStyleClassifier.fit(x, ["waltz"] * 4 + ["cha-cha"] * 2)
+    # computed another way: the geometric mean of the tempi brought into one octave by hand
+    by_hand = np.exp(np.mean(np.log([86.0, 87.0, 88.0, 86.5])))
+    assert fitted.tempi[fitted.styles.index("waltz")] == pytest.approx(by_hand, rel=1e-4)
+    assert fitted.tempi[fitted.styles.index("cha-cha")] == pytest.approx(np.sqrt(120.0 * 126.0), rel=1e-4)
+    assert usual_tempo([90.0]) == pytest.approx(90.0)
+    assert MusicStyleClassifier.from_dict(fitted.to_dict()) == fitted
+    older = {k: v for k, v in fitted.to_dict().items() if k != "tempi"}  # saved before the tempi were kept
+    assert MusicStyleClassifier.from_dict(older).tempi == ()
+    with pytest.raises(KinectDataError, match="keeps no tempo per style"):
+        MusicStyleClassifier.from_dict(older).tempo_factor(x[0], 0.08)
+
+
+@pytest.mark.parametrize("heard_at", [1.0, 2.0])  # the song's beat, or twice it as a tracker may report
+def test_the_tempo_factor_brings_a_song_to_the_edge_of_its_styles_band(heard_at):
+    fitted = MusicStyleClassifier(("waltz",), ((0.0,) * 5,), (0.0,) * 5, (1.0,) * 5, tempi=(87.0,))
+    song = np.zeros(5)
+    for bpm, played in ((87.0 * 0.85, 87.0 / 1.08), (87.0 * 1.18, 87.0 * 1.08), (87.0 * 1.05, 87.0 * 1.05)):
+        song[1] = np.log2(bpm * heard_at)
+        factor, style = fitted.tempo_factor(song, 0.08)
+        assert style == "waltz" and bpm * factor == pytest.approx(played)  # within 8 %: as it is
+    with pytest.raises(ConfigError, match="one positive tempo per style"):
+        MusicStyleClassifier(("waltz",), ((0.0,) * 5,), (0.0,) * 5, (1.0,) * 5, tempi=(87.0, 90.0))

@@ -4,6 +4,7 @@ hears it in a file before it plays and asks for it from a device, and the style 
 from __future__ import annotations
 
 import json
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -112,3 +113,57 @@ def test_live_hears_a_file_and_asks_a_device_for_the_style(style_run):
     clock = VirtualClock(0.0)
     stats = run_live(LiveDancer(run, "torch"), sources.FileSource(song, 16000, 160, clock), [], clock, duration=1.0)
     assert stats.summary()["frames_sent"] > 0
+
+
+def test_generate_dances_a_song_at_its_styles_tempo_and_plays_the_dance_back_at_the_songs(style_run, tmp_path):
+    import shutil
+
+    from kinectdata.inference.style_tempo import play_at, style_tempo_factor, warp_back
+
+    run, song = style_run
+    samples = load_audio(song, 16000).samples
+    config = json.loads((run / "config.json").read_text())
+    features = feature_config(config["dataset"]["features"])
+    factor, heard = style_tempo_factor(samples, features, 0.01)
+    assert heard is not None and abs(factor - 1) > 0.01  # the song is off its style's tempo
+    played = tmp_path / "played"
+    shutil.copytree(run, played)
+    config["train"]["style_tempo"] = 0.01
+    (played / "config.json").write_text(json.dumps(config))
+    asked = {"style": heard, "beats_per_bar": 4, "turning": False, "travel": False}
+    motion, timing = generate(played, song, **asked)
+    assert timing["style_tempo"].endswith(f"this song x{factor:.2f}")
+    # the same network on the song played at that tempo by hand, its dance warped back by hand
+    soundfile.write(tmp_path / "faster.wav", play_at(samples, factor, 16000), 16000, subtype="FLOAT")
+    faster, faster_timing = generate(run, tmp_path / "faster.wav", **asked)
+    assert faster_timing["style_tempo"] == "every song at its own tempo"
+    expected = warp_back(faster.positions, factor, motion.n_frames)
+    assert motion.n_frames == int(len(samples) / 16000 * 30)
+    np.testing.assert_allclose(motion.positions, expected, atol=1e-4)
+
+
+def test_evaluate_dances_the_split_as_generate_does_and_says_which_songs_it_played(style_run, tmp_path):
+    from kinectdata.evaluation.evaluate import evaluate, format_results, split_recordings
+    from kinectdata.evaluation.rhythm_eval import recording_audio
+    from kinectdata.inference.style_tempo import style_tempo_factor
+    from kinectdata.models.run import read_manifest
+
+    run, _ = style_run
+    config = json.loads((run / "config.json").read_text())
+    dataset = Path(config["dataset"]["path"])
+    # the val recording's music over its motion, as every free run of evaluate hears it
+    manifest = read_manifest(dataset, checksums=False)
+    (rec,) = split_recordings(dataset, manifest, "val")
+    entry = next(e for e in manifest["inputs"] if e["name"] == rec["recording"])
+    samples = recording_audio(entry, rec["info"], len(rec["current"]), 30.0, 16000)
+    factor, _ = style_tempo_factor(samples, feature_config(config["dataset"]["features"]), 0.01)
+    assert abs(factor - 1) > 0.01
+    asked = {"bootstrap": 0, "engines": [], "baselines": False, "tempo_rates": ()}
+    results = evaluate(run, dataset, "val", out=tmp_path / "played", style_tempo=0.01, **asked)
+    assert results["style_tempo"]["band"] == 0.01
+    assert results["style_tempo"]["played"]["synth_002"] == pytest.approx(factor)
+    assert "this song" not in format_results(results) and "synth_002 x" in format_results(results)
+    as_it_is = evaluate(run, dataset, "val", out=tmp_path / "as_it_is", style_tempo=None, **asked)
+    assert as_it_is["style_tempo"] == {"band": None, "line": "every song at its own tempo", "played": {}}
+    played, plain = (r["smape"]["without_reset"]["smape_normalised"] for r in (results, as_it_is))
+    assert played != plain  # another dance: the song played faster or slower, warped back
