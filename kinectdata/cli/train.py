@@ -416,8 +416,16 @@ def train_baseline(data, out, resume, paper, no_checksums, **options) -> None:
 )
 @no_checksums_option
 @functools.partial(turning_options, seeded=False)
+@click.option(
+    "--style-tempo",
+    default=None,
+    type=click.FloatRange(0, 1, max_open=True),
+    help="Dance a song further than this share of the tempo from its style's usual tempo at that tempo, then "
+    "play the dance back at the song's (docs/training.md); 0: every song at its own tempo, the network alone. "
+    "Default: the run's.",
+)
 def evaluate_command(
-    run_dir, data, split, out, silence, protocol, bootstrap, beats_per_bar, no_checksums, turning, travel
+    run_dir, data, split, out, silence, protocol, bootstrap, beats_per_bar, no_checksums, turning, travel, style_tempo
 ) -> None:
     """Score a run as the paper does: SMAPE (%) free-running without and with reset, on normalised
     and denormalised values; per-frame forward time; generated-against-real plots; the silence test;
@@ -438,6 +446,7 @@ def evaluate_command(
         beats_per_bar=beats_per_bar,
         turning=turning,
         travel=travel,
+        style_tempo="run" if style_tempo is None else style_tempo,
     )
     click.echo(format_results(results))
 

@@ -251,9 +251,9 @@ def evaluate(
     not the runs reset every L frames); ``results["smoothing"]`` says how.
     ``tempo_rates``: the tempo control's factors (None: its own; empty: no tempo control).
     ``style_tempo``: the band within which a song is danced at its own tempo, and beyond which at its
-    style's (:mod:`kinectdata.inference.style_tempo`): ``"run"``, the run's; None, every song as it
-    is; a share (0.08), that band. It plays the split's songs and the tempo control's; ``results["style_tempo"]``
-    says how and which songs were played faster or slower."""
+    style's (:mod:`kinectdata.inference.style_tempo`): ``"run"``, the run's; None or 0, every song as
+    it is (the network alone); a share (0.08), that band. It plays the split's songs and the tempo
+    control's; ``results["style_tempo"]`` says how and which songs were played faster or slower."""
     protocol = get_protocol(protocol) if isinstance(protocol, str) else protocol
     run, dataset = Path(run), Path(dataset)
     net, config = load_model(run)
@@ -639,11 +639,17 @@ def _tell_kind(
         metre = _recording_metre(r, entry, music, beats_per_bar, cfg.sample_rate, fps, samples)
         if by_metre:
             kind.know_metre(r["input"], metre.beats_per_bar)
-        if samples is not None:
-            factor = features_of.play(samples, r["input"], metre.beats_per_bar)
-            if factor != 1.0:
-                played[r["name"]] = factor
+        if samples is not None and _played_factor(r, samples, features_of, metre) != 1.0:
+            played[r["name"]] = r["played_factor"]
     return played
+
+
+def _played_factor(r: dict[str, Any], samples: np.ndarray, features_of: Callable[..., Any], metre: Metre) -> float:
+    """The factor a split recording's music is played at (:mod:`kinectdata.inference.style_tempo`; 1.0:
+    as it is), its kind told once (``features_of.play``); kept as ``r["played_factor"]``."""
+    if "played_factor" not in r:
+        r["played_factor"] = features_of.play(samples, r["input"], metre.beats_per_bar)
+    return r["played_factor"]
 
 
 def _features_maker(cfg: Any, fps: float, kind: Any, config: dict[str, Any]) -> Callable[..., np.ndarray]:
@@ -656,17 +662,20 @@ def _features_maker(cfg: Any, fps: float, kind: Any, config: dict[str, Any]) -> 
     by_metre = isinstance(kind, TurnedKind) and bool(config.get("drawn_by_metre"))
     band = run_style_tempo(config) if isinstance(kind, TurnedKind) else None
 
-    def compute(samples: np.ndarray, beats_per_bar: int | None) -> np.ndarray:
+    def compute(samples: np.ndarray, beats_per_bar: int | None, style: str | None = None) -> np.ndarray:
         frames = int(len(samples) / cfg.sample_rate * fps)
         starts = np.round(np.arange(frames) * cfg.sample_rate / fps).astype(np.int64)
-        return compute_features(np.asarray(samples, np.float32), starts, cfg, beats_per_bar=beats_per_bar)[0]
+        return compute_features(np.asarray(samples, np.float32), starts, cfg, beats_per_bar=beats_per_bar, style=style)[
+            0
+        ]
 
     def play(samples: np.ndarray, features: np.ndarray, beats_per_bar: int | None) -> float:
         if band is None:
             return 1.0
-        factor, _ = style_tempo_factor(samples, cfg, band)
-        if factor != 1.0:
-            kind.know_played(features, compute(play_at(samples, factor, cfg.sample_rate), beats_per_bar), factor)
+        factor, style = style_tempo_factor(samples, cfg, band)
+        if factor != 1.0:  # the style input as the song is heard, not as the played music would be
+            played = compute(play_at(samples, factor, cfg.sample_rate), beats_per_bar, style)
+            kind.know_played(features, played, factor)
         return factor
 
     def features_of(samples: np.ndarray, beats_per_bar: int | None = None) -> np.ndarray:
@@ -721,6 +730,8 @@ def _song_set(
         metres[r["name"]] = metre
         if by_metre:
             kind.know_metre(r["input"], metre.beats_per_bar)
+        if samples is not None:  # as evaluate's own free runs (held_out_following calls this alone)
+            _played_factor(r, samples, features_of, metre)
         first = r.get("first_pose")
         if first is None:
             first = kind.fill_previous(r["current"][0], r["mask"][0], config["dataset"]["start_pose"])

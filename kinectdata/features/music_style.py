@@ -151,11 +151,12 @@ class MusicStyleClassifier:
         """The style of mono music ``samples`` [S] at ``sample_rate`` Hz."""
         return self.predict(song_descriptors(samples, sample_rate))
 
-    def tempo_factor(self, descriptors: np.ndarray, band: float) -> tuple[float, str]:
-        """How much faster to play a song with ``descriptors`` [D] so that its tempo lies within
-        ``band`` (a share: 0.08 is 8 %) of its heard style's usual tempo, octaves set aside (a song
-        heard at twice its beat is not slowed by half), and the style heard: ``(factor, style)``,
-        factor 1.0 for a song already within the band, else the stretch to the band's nearer edge.
+    def tempo_factor(self, descriptors: np.ndarray, band: float, style: str | None = None) -> tuple[float, str]:
+        """How much faster to play a song with ``descriptors`` [D] so that its tempo lies within a
+        factor ``1 + band`` (0.08: 8 %) of its style's usual tempo, octaves set aside (a song heard at
+        twice its beat is not slowed by half), and that style: ``(factor, style)``, factor 1.0 for a
+        song already within the band, else the stretch to the band's nearer edge. The style is
+        ``style`` when given (one the classifier names), else the one heard in the descriptors.
 
         Raises:
             KinectDataError: the classifier keeps no tempi (saved before they were kept: build the
@@ -166,7 +167,9 @@ class MusicStyleClassifier:
                 "this music style classifier keeps no tempo per style (fitted by an older build): build the dataset "
                 "again to play songs at their style's tempo"
             )
-        style = self.predict(descriptors)
+        if style is not None and style not in self.styles:
+            raise ConfigError(f"style {style!r}: the classifier knows {', '.join(self.styles)}")
+        style = style if style is not None else self.predict(descriptors)
         usual = self.tempi[self.styles.index(style)]
         off = np.log2(usual) - float(np.asarray(descriptors, np.float64)[DESCRIPTORS.index("tempo")])
         off -= np.round(off)  # to the nearest octave of the usual tempo: within half an octave

@@ -173,7 +173,7 @@ def generate(
     song_blocks = blocks
     whole = functools.cache(lambda: np.concatenate([np.zeros(0, np.float32), *song_blocks()]))  # decoded once, if asked
     song_frames, band = n, run_style_tempo(config)
-    played = style_tempo_factor(whole(), features_config, band)[0] if band is not None and n > 1 else 1.0
+    played = style_tempo_factor(whole(), features_config, band, style)[0] if band is not None and n > 1 else 1.0
     if played != 1.0:  # the network dances the song played at its style's tempo; warped back below
         faster = play_at(whole(), played, sr)
         blocks = functools.partial(_in_blocks, faster, sr)
@@ -235,13 +235,13 @@ def generate(
         else:
             poses[:] = kind.free_run(net, np.concatenate([features[:1], features]), pose)
         step_times = [(time.perf_counter() - ran) / n] * n
-    values = norm.invert(poses, spec)
     if played != 1.0:  # back onto the song's clock: its frame k is the played dance's frame k / factor
-        values = warp_back(values, played, song_frames).astype(np.float32)
+        poses = warp_back(poses, played, song_frames).astype(np.float32)
         if heard:
             at = np.minimum(np.round(np.arange(song_frames) / played).astype(np.int64), n - 1)
             heard = [np.concatenate(heard)[at]]
         n = song_frames
+    values = norm.invert(poses, spec)
     made = slice(1 if true_first else 0, n)  # the frames the model made: 1..n-1 after a true first pose
     if heading:
         values[made] = turn_about_root(values[made], spec, heading)

@@ -10,17 +10,21 @@ A dancer dances the same steps faster or slower; so does a run with ``style_temp
 1. the style of the whole song is heard and its tempo read (the classifier the dataset build fitted
    on the training songs, :meth:`~kinectdata.features.music_style.MusicStyleClassifier.tempo_factor`:
    librosa's beat tracker, octaves set aside);
-2. a song within ``band`` (a share: 0.08 is 8 %) of its style's usual tempo is danced as it is; any
-   other is played faster or slower with its pitch kept (:func:`~kinectdata.align.stretch.stretch_audio`)
-   to the band's nearer edge, the network dances to that;
+2. a song within a factor ``1 + band`` (0.08: 8 %) of its style's usual tempo is danced as it is;
+   any other is played faster or slower with its pitch kept (:func:`~kinectdata.align.stretch.stretch_audio`:
+   SoX, or librosa without it) to the band's nearer edge, with the style input of the song as heard
+   before, and the network dances to that;
 3. the dance is warped back onto the song's clock (:func:`warp_back`): its steps keep the song's time.
 
 The run keeps ``band`` in its ``config.json`` (``train.style_tempo``; absent or None: every song as it
 is, as runs written before it). ``generate`` plays songs so, and ``evaluate`` plays every whole song it
 dances (the split's recordings, each version of the tempo control; its kind is told which,
 :meth:`~kinectdata.inference.turning.TurnedKind.know_played`, and warps the network's frames back
-before the drawn turning, travel and low-pass, as ``generate`` does); the controls that dance part of
-a song (a swapped song cut to its partner's length, noise) dance it as it is. ``live`` cannot (its
+before the drawn turning, travel and low-pass, as ``generate`` does); a control that dances a song cut
+short (a swapped song cut to its partner's length) or audio that is no song (noise) dances it as it
+is. The tempo control then scores the run as a user gets it: its versions played faster and slower
+are each brought back near the style's tempo, so the pairs it keeps are this module's doing as much as
+the network's (``evaluate --style-tempo 0`` scores the network alone). ``live`` cannot (its
 music arrives as it plays, and a network cannot hear it faster than it arrives) and dances every song
 at its own tempo, as do the kept epoch's validation songs in training. A song too short or too quiet to
 tell its style or tempo is danced as it is.
@@ -67,7 +71,7 @@ def check_band(band: float, features: FeatureConfig) -> None:
 def run_style_tempo(config: dict[str, Any]) -> float | None:
     """The band a run's ``config.json`` plays songs at their style's tempo within, or None."""
     band = config.get("train", {}).get("style_tempo")
-    return None if band is None else float(band)
+    return float(band) if band else None  # None or 0: off, as train takes 0
 
 
 def style_tempo_line(band: float | None) -> str:
@@ -77,11 +81,13 @@ def style_tempo_line(band: float | None) -> str:
     return f"a song more than {100 * band:g} % off its style's usual tempo is danced at it, then played back at its own"
 
 
-def style_tempo_factor(samples: np.ndarray, features: FeatureConfig, band: float) -> tuple[float, str | None]:
+def style_tempo_factor(
+    samples: np.ndarray, features: FeatureConfig, band: float, style: str | None = None
+) -> tuple[float, str | None]:
     """``(factor, style)``: how much faster to play mono ``samples`` [S] (a whole song at the
-    features' sample rate) so that its tempo lies within ``band`` of its heard style's usual tempo
-    (1.0: as it is), and the style heard; ``(1.0, None)`` for a song whose style or tempo cannot be
-    told (too few beats).
+    features' sample rate) so that its tempo lies within a factor ``1 + band`` of its style's usual
+    tempo (1.0: as it is), and that style (``style`` when given, else the one heard); ``(1.0, None)``
+    for a song whose style or tempo cannot be told (too few beats).
 
     Raises:
         ConfigError: features that do not hear the style, or whose classifier is not fitted.
@@ -94,7 +100,7 @@ def style_tempo_factor(samples: np.ndarray, features: FeatureConfig, band: float
         described = song_descriptors(samples, part.sample_rate)
     except KinectDataError:
         return 1.0, None
-    return part.classifier.tempo_factor(described, band)
+    return part.classifier.tempo_factor(described, band, style)
 
 
 def play_at(samples: np.ndarray, factor: float, sample_rate: int) -> np.ndarray:

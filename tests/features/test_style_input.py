@@ -192,3 +192,17 @@ def test_the_tempo_factor_brings_a_song_to_the_edge_of_its_styles_band(heard_at)
         assert style == "waltz" and bpm * factor == pytest.approx(played)  # within 8 %: as it is
     with pytest.raises(ConfigError, match="one positive tempo per style"):
         MusicStyleClassifier(("waltz",), ((0.0,) * 5,), (0.0,) * 5, (1.0,) * 5, tempi=(87.0, 90.0))
+
+
+def test_a_style_given_sets_the_tempo_the_song_is_brought_to():
+    centres = ((0.0, 7.0, 0.0, 0.0, 0.0), (1.0, 6.4, 1.0, 1.0, 1.0))  # the song below is nearest the cha-cha's
+    fitted = MusicStyleClassifier(("cha-cha", "waltz"), centres, (0.0,) * 5, (1.0,) * 5, tempi=(124.0, 87.0))
+    song = np.zeros(5)
+    song[1] = np.log2(100.0)
+    assert fitted.predict(song) == "cha-cha"
+    factor, style = fitted.tempo_factor(song, 0.08)
+    assert style == "cha-cha" and 100.0 * factor == pytest.approx(124.0 / 1.08)
+    factor, style = fitted.tempo_factor(song, 0.08, style="waltz")  # told a waltz: brought to the waltz's
+    assert style == "waltz" and 100.0 * factor == pytest.approx(87.0 * 1.08)
+    with pytest.raises(ConfigError, match="style 'tango': the classifier knows cha-cha, waltz"):
+        fitted.tempo_factor(song, 0.08, style="tango")

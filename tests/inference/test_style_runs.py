@@ -163,7 +163,13 @@ def test_evaluate_dances_the_split_as_generate_does_and_says_which_songs_it_play
     assert results["style_tempo"]["band"] == 0.01
     assert results["style_tempo"]["played"]["synth_002"] == pytest.approx(factor)
     assert "this song" not in format_results(results) and "synth_002 x" in format_results(results)
-    as_it_is = evaluate(run, dataset, "val", out=tmp_path / "as_it_is", style_tempo=None, **asked)
+    # the network alone from the command line: --style-tempo 0
+    result = CliRunner().invoke(main, ["evaluate", "--run", str(run), "--data", str(dataset), "--split", "val",
+                                       "--out", str(tmp_path / "as_it_is"), "--bootstrap", "0",
+                                       "--style-tempo", "0"])  # fmt: skip
+    assert result.exit_code == 0, result.output
+    assert "synth_002 x" not in result.output
+    as_it_is = json.loads((tmp_path / "as_it_is" / "results.json").read_text())
     assert as_it_is["style_tempo"] == {"band": None, "line": "every song at its own tempo", "played": {}}
     played, plain = (r["smape"]["without_reset"]["smape_normalised"] for r in (results, as_it_is))
     assert played != plain  # another dance: the song played faster or slower, warped back

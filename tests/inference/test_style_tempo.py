@@ -79,6 +79,7 @@ def test_the_band_is_checked_and_kept_by_the_run():
     with pytest.raises(ConfigError, match="share of the tempo"):
         check_band(1.5, _features(100.0))
     assert run_style_tempo({"train": {"style_tempo": 0.08}}) == 0.08 and run_style_tempo({"train": {}}) is None
+    assert run_style_tempo({"train": {"style_tempo": 0.0}}) is None  # 0: off, as train takes it
     assert style_tempo_line(None) == AS_IT_IS and "8 %" in style_tempo_line(0.08)
     assert TrainConfig("cdhc").style_tempo == 0.08 and TrainConfig("cdhc", style_tempo=0).style_tempo is None
     assert TrainConfig("yalta").style_tempo is None and TrainConfig("cdhc", paper=True).style_tempo is None
