@@ -39,6 +39,7 @@ import h5py
 import numpy as np
 import torch
 
+from kinectdata.align.stretch import stretch_audio
 from kinectdata.core.errors import KinectDataError
 from kinectdata.dataset.layout import is_copy, known_metre
 from kinectdata.dataset.shards import read_index
@@ -72,7 +73,6 @@ from kinectdata.inference.smoothing import NOT_SMOOTHED, smoothing_line
 from kinectdata.inference.style_tempo import (
     AS_IT_IS,
     check_band,
-    play_at,
     run_style_tempo,
     style_tempo_factor,
     style_tempo_line,
@@ -674,7 +674,7 @@ def _features_maker(cfg: Any, fps: float, kind: Any, config: dict[str, Any]) -> 
             return 1.0
         factor, style = style_tempo_factor(samples, cfg, band)
         if factor != 1.0:  # the style input as the song is heard, not as the played music would be
-            played = compute(play_at(samples, factor, cfg.sample_rate), beats_per_bar, style)
+            played = compute(stretch_audio(samples, factor, cfg.sample_rate), beats_per_bar, style)
             kind.know_played(features, played, factor)
         return factor
 

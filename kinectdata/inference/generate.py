@@ -37,6 +37,7 @@ import numpy as np
 
 from kinectdata.align.aligned import AlignedRecording, audio_blocks, audio_length
 from kinectdata.align.audio import AudioReader
+from kinectdata.align.stretch import stretch_audio
 from kinectdata.core.errors import ConfigError, KinectDataError
 from kinectdata.core.motion import Motion
 from kinectdata.features import feature_config, needs_metre, song_style, style_input_of
@@ -50,7 +51,7 @@ from kinectdata.formats.openpose_writer import write_openpose_jsonl
 from kinectdata.inference.engines import make_engine
 from kinectdata.inference.smoothing import run_smoothing, smooth_motion, smoothing_line
 from kinectdata.inference.start import StartPose, recording_start, target_poses
-from kinectdata.inference.style_tempo import play_at, run_style_tempo, style_tempo_factor, style_tempo_line, warp_back
+from kinectdata.inference.style_tempo import run_style_tempo, style_tempo_factor, style_tempo_line, warp_back
 from kinectdata.inference.turning import faced_first_pose, run_travel, run_turning, travel_generator, turn_song
 from kinectdata.models.registry import model_kind
 from kinectdata.models.run import load_model, model_name
@@ -175,7 +176,7 @@ def generate(
     song_frames, band = n, run_style_tempo(config)
     played = style_tempo_factor(whole(), features_config, band, style)[0] if band is not None and n > 1 else 1.0
     if played != 1.0:  # the network dances the song played at its style's tempo; warped back below
-        faster = play_at(whole(), played, sr)
+        faster = stretch_audio(whole(), played, sr)
         blocks = functools.partial(_in_blocks, faster, sr)
         n = max(2, int(np.floor(faster.size / sr * fps + 1e-9)))
     true_first = start.pose is not None  # frame 0 is the true pose; the model makes frames 1..n-1

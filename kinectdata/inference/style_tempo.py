@@ -36,7 +36,6 @@ from typing import Any
 
 import numpy as np
 
-from kinectdata.align.stretch import stretch_audio
 from kinectdata.core.errors import ConfigError, KinectDataError
 from kinectdata.features import FeatureConfig, style_input_of
 from kinectdata.features.music_style import song_descriptors
@@ -45,7 +44,6 @@ __all__ = [
     "AS_IT_IS",
     "check_band",
     "on_song_clock",
-    "play_at",
     "run_style_tempo",
     "style_tempo_factor",
     "style_tempo_line",
@@ -101,14 +99,6 @@ def style_tempo_factor(
     except KinectDataError:
         return 1.0, None
     return part.classifier.tempo_factor(described, band, style)
-
-
-def play_at(samples: np.ndarray, factor: float, sample_rate: int) -> np.ndarray:
-    """Mono ``samples`` [S] played ``factor`` times as fast, pitch kept ([round(S / factor)] float32);
-    the samples themselves at factor 1."""
-    if factor == 1.0:
-        return np.asarray(samples, np.float32)
-    return stretch_audio(samples, factor, sample_rate)
 
 
 def warp_back(values: np.ndarray, rate: float, frames: int | None = None) -> np.ndarray:

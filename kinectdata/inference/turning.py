@@ -147,9 +147,14 @@ def turn_song(
     return values
 
 
+def features_key(features: np.ndarray) -> int:
+    """A song's features [T, *F] as ``evaluate`` knows the song by: their bytes' CRC-32."""
+    return zlib.crc32(np.ascontiguousarray(features).tobytes())
+
+
 def song_generator(seed: int, features: np.ndarray) -> np.random.Generator:
     """The turning's draws of one song in ``evaluate``: seeded by ``seed`` and a CRC-32 of its features."""
-    return np.random.default_rng([int(seed), zlib.crc32(np.ascontiguousarray(features).tobytes())])
+    return np.random.default_rng([int(seed), features_key(features)])
 
 
 def travel_generator(seed: int, features: np.ndarray | None = None) -> np.random.Generator:
@@ -157,7 +162,7 @@ def travel_generator(seed: int, features: np.ndarray | None = None) -> np.random
     ``evaluate``) with a 1 after it."""
     if features is None:
         return np.random.default_rng([int(seed), 1])
-    return np.random.default_rng([int(seed), zlib.crc32(np.ascontiguousarray(features).tobytes()), 1])
+    return np.random.default_rng([int(seed), features_key(features), 1])
 
 
 class TurnedKind:
@@ -196,7 +201,7 @@ class TurnedKind:
     def know_metre(self, features: np.ndarray, beats_per_bar: int | None) -> None:
         """Draw the song whose features are ``features`` [T, *F] (the whole song, as a free run is
         given it) with its metre's processes, where the run has them; None: the pooled ones."""
-        key = zlib.crc32(np.ascontiguousarray(features).tobytes())
+        key = features_key(features)
         if beats_per_bar is None:
             self.metres.pop(key, None)
         else:
@@ -206,10 +211,10 @@ class TurnedKind:
         """Dance the song whose features are ``features`` [T, *F] from ``played`` [T', *F], the
         features of its music played ``factor`` times as fast (:mod:`kinectdata.inference.style_tempo`),
         the network's frames warped back onto the song's T frames."""
-        self.played[zlib.crc32(np.ascontiguousarray(features).tobytes())] = (played, float(factor))
+        self.played[features_key(features)] = (played, float(factor))
 
     def _played(self, audio: np.ndarray) -> tuple[np.ndarray, float] | None:
-        return self.played.get(zlib.crc32(np.ascontiguousarray(audio).tobytes())) if self.played else None
+        return self.played.get(features_key(audio)) if self.played else None
 
     def _network_runs(
         self, net: Any, audios: list[np.ndarray], firsts: list[np.ndarray], reset_every: int | None
@@ -226,7 +231,7 @@ class TurnedKind:
 
     def _turned(self, audio: np.ndarray, run: np.ndarray, heading: float = 0.0) -> np.ndarray:
         made = audio[len(audio) - len(run) :]  # a free run makes frames 1..T-1 of features [T]
-        metre = self.metres.get(zlib.crc32(np.ascontiguousarray(audio).tobytes()))
+        metre = self.metres.get(features_key(audio))
         process, travel = self.process, self.travel
         if metre is not None:
             process = run_turning(self.config, metre) if process is not None else None

@@ -118,7 +118,8 @@ def test_live_hears_a_file_and_asks_a_device_for_the_style(style_run):
 def test_generate_dances_a_song_at_its_styles_tempo_and_plays_the_dance_back_at_the_songs(style_run, tmp_path):
     import shutil
 
-    from kinectdata.inference.style_tempo import play_at, style_tempo_factor, warp_back
+    from kinectdata.align.stretch import stretch_audio
+    from kinectdata.inference.style_tempo import style_tempo_factor, warp_back
 
     run, song = style_run
     samples = load_audio(song, 16000).samples
@@ -134,7 +135,7 @@ def test_generate_dances_a_song_at_its_styles_tempo_and_plays_the_dance_back_at_
     motion, timing = generate(played, song, **asked)
     assert timing["style_tempo"].endswith(f"this song x{factor:.2f}")
     # the same network on the song played at that tempo by hand, its dance warped back by hand
-    soundfile.write(tmp_path / "faster.wav", play_at(samples, factor, 16000), 16000, subtype="FLOAT")
+    soundfile.write(tmp_path / "faster.wav", stretch_audio(samples, factor, 16000), 16000, subtype="FLOAT")
     faster, faster_timing = generate(run, tmp_path / "faster.wav", **asked)
     assert faster_timing["style_tempo"] == "every song at its own tempo"
     expected = warp_back(faster.positions, factor, motion.n_frames)

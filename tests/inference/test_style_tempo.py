@@ -8,6 +8,7 @@ import pytest
 from conftest import TINY_TRAINING
 from helpers import metre_music
 
+from kinectdata.align.stretch import stretch_audio
 from kinectdata.core.errors import ConfigError, KinectDataError
 from kinectdata.features import PRESETS
 from kinectdata.features.music_style import MusicStyleClassifier
@@ -16,7 +17,6 @@ from kinectdata.features.style_input import StyleInputConfig
 from kinectdata.inference.style_tempo import (
     AS_IT_IS,
     check_band,
-    play_at,
     run_style_tempo,
     style_tempo_factor,
     style_tempo_line,
@@ -68,7 +68,7 @@ def test_the_factor_is_heard_in_the_music_and_brings_it_to_the_bands_edge():
     assert style == "rumba" and 126.0 * factor == pytest.approx(108.0, rel=0.03)
     assert style_tempo_factor(song, _features(120.0), 0.08) == (1.0, "rumba")  # within the band: as it is
     assert style_tempo_factor(song[: 2 * RATE], _features(100.0), 0.08) == (1.0, None)  # too few beats to tell
-    faster = play_at(song, factor, RATE)
+    faster = stretch_audio(song, factor, RATE)
     assert faster.dtype == np.float32 and len(faster) == pytest.approx(len(song) / factor, abs=2)
 
 
