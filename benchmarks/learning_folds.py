@@ -5,7 +5,8 @@ The corpus's recordings outside the test split are dealt into K folds (``kinectd
 style spread over them); for each model, each fold's dataset is built as the acceptance run builds
 the corpus's, a model is trained on the other folds' recordings with ``train-baseline``'s defaults
 (and the budget), and scored with ``evaluate`` on the fold's own (the ``val`` split of the fold's
-manifest). Printed: each fold's goals a-c (d needs the test split's baselines: not here), then the
+manifest). Printed: each fold's goals a-c and e (d needs the test split's baselines: not here; c asks
+for the beat followed only where the fold's real dancers follow it), then the
 beat-following figures of every fold's held-out songs read together
 (:func:`kinectdata.evaluation.pooled.held_out_following`), beside the real dancers' on the same
 songs. The test dances are in no fold: nothing here trains, tunes or picks on them.
@@ -72,7 +73,7 @@ def _seed_on_folds(
         results = evaluate(run_dir, dataset, "val", bootstrap=0, engines=[("torch", "float32")], baselines=False)
         print(f"  [{model} seed {seed}] fold {fold.index}: trained {trained:.1f} min, "
               f"{history[-1]['step']} steps; on its {len(fold.validation)} held-out dances:")  # fmt: skip
-        for goal in goals(results):
+        for goal in goals(results, beat_where_real=True):
             if goal.key != "d":  # d needs the test split's baselines
                 print(f"    {goal.line()}")
         pairs.append((run_dir, dataset))

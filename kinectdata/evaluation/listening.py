@@ -233,15 +233,25 @@ class Listening:
         """The motion follows the music it is given (its period at the new song's metre in most swapped
         runs, more often than at the old song's), and noise does not make it follow the beat (False when
         the swapped-song control could not run)."""
+        return self.generated.follows_beat and self.follows_swapped and self.ignores_noise
+
+    @property
+    def follows_swapped(self) -> bool:
+        """The swapped-song control passes: the period is at the new song's metre in most runs, more
+        often than at the old song's (False when it could not run)."""
         # the swapped runs share partner songs, so their own chance level (other songs' tempi) says nothing:
         # the control compares the new song's metre with the old one's
-        swapped = (
+        return (
             self.swapped is not None
             and self.swapped_follows_new > 0.5
             and self.swapped_follows_new > self.swapped_follows_old
         )
-        noise = self.noise is None or not self.noise.follows_beat
-        return self.generated.follows_beat and swapped and noise
+
+    @property
+    def ignores_noise(self) -> bool:
+        """The noise control passes: noise does not make the motion follow the song's beat (True when
+        it did not run)."""
+        return self.noise is None or not self.noise.follows_beat
 
     @property
     def period_spread(self) -> float | None:
@@ -364,6 +374,8 @@ class Listening:
             "turning": None if self.turning is None else self.turning.to_dict(),
             "alive": self.alive,
             "listens": self.listens,
+            "follows_swapped": self.follows_swapped,
+            "ignores_noise": self.ignores_noise,
             "phase_ratio": self.phase_ratio,
             "in_phase": self.in_phase,
             "period_spread": self.period_spread,

@@ -20,14 +20,15 @@ The run keeps ``band`` in its ``config.json`` (``train.style_tempo``; absent or 
 is, as runs written before it). ``generate`` plays songs so, and ``evaluate`` plays every whole song it
 dances (the split's recordings, each version of the tempo control; its kind is told which,
 :meth:`~kinectdata.inference.turning.TurnedKind.know_played`, and warps the network's frames back
-before the drawn turning, travel and low-pass, as ``generate`` does); a control that dances a song cut
-short (a swapped song cut to its partner's length) or audio that is no song (noise) dances it as it
-is. The tempo control then scores the run as a user gets it: its versions played faster and slower
-are each brought back near the style's tempo, so the pairs it keeps are this module's doing as much as
-the network's (``evaluate --style-tempo 0`` scores the network alone). ``live`` cannot (its
-music arrives as it plays, and a network cannot hear it faster than it arrives) and dances every song
-at its own tempo, as do the kept epoch's validation songs in training. A song too short or too quiet to
-tell its style or tempo is danced as it is.
+before the drawn turning, travel and low-pass, as ``generate`` does). A control that dances the opening
+of a song it played (a swapped song cut to its partner's length, the noise cut to its song's) dances
+it from the played frames that cover it, as the whole song is danced. The tempo control then scores
+the run as a user gets it: its versions played faster and slower are each brought back near the
+style's tempo, so the pairs it keeps are this module's doing as much as the network's (``evaluate
+--style-tempo 0`` scores the network alone). ``live`` cannot (its music arrives as it plays, and a
+network cannot hear it faster than it arrives) and dances every song at its own tempo, as do the kept
+epoch's validation songs in training. A song too short or too quiet to tell its style or tempo is
+danced as it is.
 """
 
 from __future__ import annotations

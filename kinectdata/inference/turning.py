@@ -171,7 +171,9 @@ class TurnedKind:
     ``evaluate`` runs, so that every figure and control sees them. A song it is told is played at
     another tempo (:meth:`know_played`, :mod:`kinectdata.inference.style_tempo`) is danced by the
     network on the played features and warped back onto the song's clock before all that, as
-    ``generate`` does."""
+    ``generate`` does. What it is told of a song (its metre, its played features) holds for the
+    song's opening too: a control that cuts a song to another's length dances that song's music as
+    the song is danced."""
 
     def __init__(
         self,
@@ -189,6 +191,7 @@ class TurnedKind:
         self.silence = silence_features(config["dataset"]["features"], self.fps)
         self.metres: dict[int, int] = {}  # a song's features' CRC-32 -> its beats per bar
         self.played: dict[int, tuple[np.ndarray, float]] = {}  # a song's features' CRC-32 -> (played, factor)
+        self.songs: dict[int, np.ndarray] = {}  # a song's features' CRC-32 -> the features, for its openings
         self.smooth_hz = run_smoothing(config)
 
     def __getattr__(self, name: str) -> Any:
@@ -201,7 +204,7 @@ class TurnedKind:
     def know_metre(self, features: np.ndarray, beats_per_bar: int | None) -> None:
         """Draw the song whose features are ``features`` [T, *F] (the whole song, as a free run is
         given it) with its metre's processes, where the run has them; None: the pooled ones."""
-        key = features_key(features)
+        key = self._know(features)
         if beats_per_bar is None:
             self.metres.pop(key, None)
         else:
@@ -211,10 +214,40 @@ class TurnedKind:
         """Dance the song whose features are ``features`` [T, *F] from ``played`` [T', *F], the
         features of its music played ``factor`` times as fast (:mod:`kinectdata.inference.style_tempo`),
         the network's frames warped back onto the song's T frames."""
-        self.played[features_key(features)] = (played, float(factor))
+        self.played[self._know(features)] = (played, float(factor))
+
+    def _know(self, features: np.ndarray) -> int:
+        key = features_key(features)
+        self.songs[key] = np.asarray(features)
+        return key
+
+    def _song_key(self, audio: np.ndarray) -> int:
+        """The key of the song ``audio`` [T, *F] is: its own when told of, else that of a song told of
+        whose opening it is (a control's cut), else its own."""
+        key = features_key(audio)
+        if key in self.songs:
+            return key
+        for known, whole in self.songs.items():
+            if (
+                len(audio) < len(whole)
+                and whole.shape[1:] == audio.shape[1:]
+                and np.array_equal(whole[: len(audio)], audio)
+            ):
+                return known
+        return key
 
     def _played(self, audio: np.ndarray) -> tuple[np.ndarray, float] | None:
-        return self.played.get(features_key(audio)) if self.played else None
+        """(played features, factor) for ``audio`` [T, *F], a song told played or its opening (the
+        played frames that cover it), or None: danced as it is."""
+        if not self.played:
+            return None
+        key = self._song_key(audio)
+        found = self.played.get(key)
+        if found is None or len(self.songs[key]) == len(audio):
+            return found
+        played, factor = found
+        frames = int(np.ceil((len(audio) - 1) / factor)) + 2  # the played frames that cover the opening
+        return played[:frames], factor
 
     def _network_runs(
         self, net: Any, audios: list[np.ndarray], firsts: list[np.ndarray], reset_every: int | None
@@ -231,7 +264,7 @@ class TurnedKind:
 
     def _turned(self, audio: np.ndarray, run: np.ndarray, heading: float = 0.0) -> np.ndarray:
         made = audio[len(audio) - len(run) :]  # a free run makes frames 1..T-1 of features [T]
-        metre = self.metres.get(features_key(audio))
+        metre = self.metres.get(self._song_key(audio)) if self.metres else None
         process, travel = self.process, self.travel
         if metre is not None:
             process = run_turning(self.config, metre) if process is not None else None

@@ -75,7 +75,7 @@ def test_a_model_that_listens_passes_every_control():
     assert result.energy_ratio == pytest.approx(1.0, rel=0.05) and result.alive
     assert result.phase_ratio == pytest.approx(1.0, rel=0.05) and result.in_phase
     assert result.baselines["mean_pose_noise"] < result.generated.beat_align_music.value
-    assert result.listens
+    assert result.listens and result.follows_swapped and result.ignores_noise
     # no fixed oscillator: the periods spread with the tempi, follow them as the real motion's do,
     # and every swapped run takes the new song's period
     assert result.period_spread > 1.2 and result.swapped_period_changes == 1.0 and result.no_fixed_oscillator
@@ -156,7 +156,7 @@ def test_the_swapped_control_measures_the_old_song_in_its_own_metre():
     # paired by their bars, which differ by more than 20 %, the new songs' metres are never met
     assert result.swapped_follows_new == 0.0
     assert [r.beats_per_bar for r in result.swapped.recordings] == [METRES[j] for j in (3, 0, 0)]  # the new songs'
-    assert not result.listens
+    assert not result.follows_swapped and not result.listens
 
 
 def accented_songs(periods: tuple[float, ...], metres: tuple[int, ...]) -> list[HeldOutSong]:

@@ -138,5 +138,11 @@ def test_a_kind_told_a_song_is_played_dances_the_played_features_on_the_songs_cl
     expected = np.interp(np.minimum(np.arange(90) / 1.2, 74), np.arange(75), dance)[1:]
     assert kind.lengths == [75] and run.shape == (89, SPEC.dim)
     np.testing.assert_allclose(run, np.repeat(expected[:, None], SPEC.dim, axis=1), atol=1e-5)
-    (other,) = drawn.free_runs(None, [song[:60]], [first])  # a song it was not told of: as it is
-    assert kind.lengths[-1] == 60 and np.allclose(other, 1.0, atol=1e-5)
+    # the song's opening (a control cuts a song to another's length) is the song's music: danced from
+    # the played frames that cover its 60 frames (frame 59 of the song is played frame 49.2), the
+    # same dance as the whole song's first frames, as a causal network makes it
+    (opening,) = drawn.free_runs(None, [song[:60]], [first])
+    assert kind.lengths[-1] == 52 and opening.shape == (59, SPEC.dim)
+    np.testing.assert_allclose(opening, run[:59], atol=1e-6)
+    (other,) = drawn.free_runs(None, [2 * song[:60]], [first])  # a song it was not told of: as it is
+    assert kind.lengths[-1] == 60 and np.allclose(other, 2.0, atol=1e-5)

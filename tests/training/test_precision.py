@@ -58,7 +58,9 @@ def test_the_setting_is_checked_and_older_runs_trained_in_float32():
         TrainConfig("yalta", precision="float16")
 
 
-@pytest.mark.skipif(not training.native_bfloat16(torch.device("cpu")), reason="this CPU has no native bfloat16")
+@pytest.mark.skipif(
+    not training.native_bfloat16(torch.device("cpu")), reason="hardware: this CPU has no native bfloat16"
+)
 def test_a_bfloat16_run_trains_and_keeps_its_weights_in_float32(sample_dataset, tmp_path):
     config = TrainConfig(**{**TINY_TRAINING, "units": 16, "epochs": 1, "feedback": "teacher", "precision": "bfloat16"})
     rows = training.train(sample_dataset, tmp_path / "bf16", config)
