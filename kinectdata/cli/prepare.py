@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from collections import Counter
+
 import click
 
 from kinectdata.cli.options import OffsetType
@@ -63,6 +65,13 @@ def prepare(corpus, path, out, **options) -> None:
             click.echo(f"  {name}: {why}")
         if len(manifest.skipped) > _SHOWN_SKIPPED:
             click.echo(f"  ... and {len(manifest.skipped) - _SHOWN_SKIPPED} more")
+    if manifest.songs:
+        styles = Counter(s.style for s in manifest.songs)
+        counted = ", ".join(f"{n} {s}" for s, n in sorted(styles.items()))
+        click.echo(
+            f"listed {len(manifest.songs)} songs without a dance as labelled music ({counted}): "
+            "features that hear the style learn from them"
+        )
     flag = " --allow-outside-paths" if manifest.root_outside(out) else ""
     extra = "".join(f" {o}" for o in manifest.build_options)
     click.echo(

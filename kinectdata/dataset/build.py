@@ -39,12 +39,21 @@ from kinectdata.core.errors import KinectDataError, KinectDataWarning
 from kinectdata.core.hashing import file_sha256
 from kinectdata.core.version import __version__
 from kinectdata.dataset.executors import Executor, LocalExecutor
-from kinectdata.dataset.inputs import RecordingEntry, assign_splits, read_recordings, split_counts
+from kinectdata.dataset.inputs import (
+    MUSIC_FACTS,
+    LabelledSong,
+    RecordingEntry,
+    assign_splits,
+    read_recordings,
+    read_songs,
+    split_counts,
+)
 from kinectdata.dataset.layout import LOCK, LOCK_OWNER, MANIFEST, SHARD_FORMAT, SHARD_NAME, SPLITS, WORK, shard_name
 from kinectdata.dataset.lock import FolderBusyError, build_lock
 from kinectdata.dataset.prepare import BuildConfig, Unit, prepare_recording, source_hashes
 from kinectdata.dataset.shards import ShardRecording, row_bytes, write_shard
 from kinectdata.dataset.song_styles import fit_style_inputs
+from kinectdata.features import needs_style
 from kinectdata.targets.hemispheres import apply_flips, flipped_columns, reference_orientations, track_flips
 from kinectdata.targets.normalization import Normalizer, NormStats, count_out_of_range
 from kinectdata.targets.skeleton import merge_bone_offsets
@@ -195,12 +204,19 @@ def build_dataset(
         raise KinectDataError(f"{source}: no recording is in the train split (the normalisation is fitted on it)")
     hashes = {e.name: source_hashes(e) for e in entries}
     _refuse_duplicates(entries, hashes, splits, source)
+    # labelled songs without a recording teach a style input's classifier, and nothing else
+    songs = read_songs(source, allow_outside_paths=allow_outside_paths)  # checked even when nothing hears them
+    if not needs_style(config.feature_config):
+        songs = []
+    song_hashes = {s.name: file_sha256(s.audio) for s in songs}
+    _refuse_songs_of_recordings(songs, song_hashes, entries, hashes, splits, source)
     build_key = _digest(
         {
             "format_version": DATASET_FORMAT_VERSION,
             "config": config.to_dict(),
             "inputs": [_key_entry(e, splits) for e in entries],
             "sources": hashes,
+            **({"songs": [s.to_dict() | {"audio": song_hashes[s.name]} for s in songs]} if songs else {}),
         }
     )
     said = empty_split_message(source, entries, splits, config.split_ratios)
@@ -213,7 +229,7 @@ def build_dataset(
             locked = True
             try:
                 return _build_locked(
-                    out, entries, splits, hashes, build_key, config, executor, jobs, progress, keep_work, source
+                    out, entries, splits, hashes, build_key, config, executor, jobs, progress, keep_work, source, songs
                 )
             except BaseException:
                 _tidy_after_failure(out, created)  # still under the lock: no other build can be starting here
@@ -317,6 +333,7 @@ def _build_locked(
     progress: Callable[[int, int], None] | None,
     keep_work: bool,
     source: str | Path,
+    songs: list[LabelledSong],
 ) -> dict[str, Any]:
     """The build, under the folder's lock."""
     done = _complete(out, build_key)
@@ -329,7 +346,7 @@ def _build_locked(
         partial.unlink()
     copies = {e.name: splits[e.name] == "train" for e in entries}  # augmented copies of training dances only
     # a style input hears every other song as it would hear any song; a training song is told its style
-    config = fit_style_inputs(config, [e for e in entries if copies[e.name]], source)
+    config = fit_style_inputs(config, [e for e in entries if copies[e.name]], source, songs)
     tasks = [
         (
             e,
@@ -407,8 +424,31 @@ def _one_target(units: list[Unit], generic: GenericTarget, source: str | Path) -
 
 
 def _key_entry(entry: RecordingEntry, splits: dict[str, str]) -> dict[str, Any]:
-    """An input as it counts for the build key: its name, options and split, not where it lies."""
-    return entry.options() | {"split": splits[entry.name]}
+    """An input as it counts for the build key: its name, options and split, and what is said about
+    its music (a style or metre the features hear, and the manifest's record that evaluate reads),
+    not where it lies."""
+    facts = {k: getattr(entry, k) for k in MUSIC_FACTS if getattr(entry, k) is not None}
+    return entry.options() | facts | {"split": splits[entry.name]}
+
+
+def _refuse_songs_of_recordings(
+    songs: list[LabelledSong],
+    song_hashes: dict[str, str],
+    entries: list[RecordingEntry],
+    hashes: dict[str, dict[str, str]],
+    splits: dict[str, str],
+    source: str | Path,
+) -> None:
+    """A labelled song that is a recording's song (by content) would teach the classifier a held-out
+    song's music, or a training song's twice."""
+    audio = {hashes[e.name][Path(e.audio).name]: e.name for e in entries if e.audio is not None}
+    for song in songs:
+        other = audio.get(song_hashes[song.name])
+        if other is not None:
+            raise KinectDataError(
+                f"{source}: song {song.name!r} ({song.audio}) is the song of recording {other!r} ({splits[other]}): "
+                "list a song once, as a recording's or as a labelled song"
+            )
 
 
 def _refuse_duplicates(entries: list[RecordingEntry], hashes: dict[str, dict[str, str]], splits, source) -> None:

@@ -126,7 +126,7 @@ def _natural(name: str) -> list:
 
 
 def _document(source: Path) -> dict[str, Any]:
-    """The source manifest's keys other than its recordings (root, corpus, description), kept."""
+    """The source manifest's keys other than its recordings (root, corpus, description, songs), kept."""
     import yaml
 
     if source.suffix.lower() == ".csv":

@@ -103,13 +103,29 @@ CSV_NUMBERS = (
 """The CSV manifest columns read as numbers: (column, conversion, what a value that fails is not)."""
 CSV_BOOLEANS = {"true": True, "yes": True, "1": True, "false": False, "no": False, "0": False}
 """The values a CSV manifest's ``clean`` column may take."""
-MANIFEST_KEYS = ("recordings", "root", "corpus", "description")
-"""What a JSON or YAML manifest written as an object may hold (its recordings under ``recordings``)."""
+MANIFEST_KEYS = ("recordings", "root", "corpus", "description", "songs")
+"""What a JSON or YAML manifest written as an object may hold (its recordings under ``recordings``,
+its labelled songs without a recording under ``songs``)."""
 
 
-def _read_manifest(path: Path) -> tuple[list[dict[str, Any]], list[int] | None, str | None]:
-    """The entries of a manifest file, for CSV the line of each (None for JSON and YAML), and the
-    folder its paths are relative to (``root``, itself relative to the manifest's folder) if it names one."""
+@dataclass(frozen=True)
+class LabelledSong:
+    """A song whose dance style is known but that has no recording (its dance was never captured,
+    or its motion file is lost): its music teaches the build's music style classifier
+    (:mod:`kinectdata.dataset.song_styles`) and nothing else. ``audio``: the song's file."""
+
+    name: str
+    audio: str
+    style: str
+
+    def to_dict(self) -> dict[str, Any]:
+        return asdict(self)
+
+
+def _read_manifest(path: Path) -> tuple[list[dict[str, Any]], list[int] | None, str | None, list | None]:
+    """The entries of a manifest file, for CSV the line of each (None for JSON and YAML), the
+    folder its paths are relative to (``root``, itself relative to the manifest's folder) if it names
+    one, and its ``songs`` (None when it lists none)."""
     suffix = path.suffix.lower()
     try:
         text = path.read_text(encoding="utf-8-sig")
@@ -139,7 +155,7 @@ def _read_manifest(path: Path) -> tuple[list[dict[str, Any]], list[int] | None, 
                 doc["clean"] = CSV_BOOLEANS[doc["clean"].lower()]
             docs.append(doc)
             lines.append(line)
-        return docs, lines, None
+        return docs, lines, None, None
     try:
         if suffix in (".yaml", ".yml"):
             import yaml
@@ -152,7 +168,7 @@ def _read_manifest(path: Path) -> tuple[list[dict[str, Any]], list[int] | None, 
     except Exception as exc:  # yaml.YAMLError and its subclasses
         mark = getattr(exc, "problem_mark", None)
         raise SchemaError(path, f"invalid YAML: {exc}", line=None if mark is None else mark.line + 1) from exc
-    root = None
+    root, songs = None, None
     if isinstance(doc, dict) and "recordings" in doc:
         unknown = sorted(set(map(str, doc)) - set(MANIFEST_KEYS))
         if unknown:
@@ -161,8 +177,9 @@ def _read_manifest(path: Path) -> tuple[list[dict[str, Any]], list[int] | None, 
         root = doc.get("root")
         if root is not None and not (isinstance(root, str) and root):
             raise SchemaError(path, f"root: {root!r} is not a folder path")
+        songs = doc.get("songs")
         doc = doc["recordings"]
-    return doc, None, root
+    return doc, None, root, songs
 
 
 _NAME = re.compile(r"[A-Za-z0-9_.+-]+")
@@ -265,7 +282,7 @@ def _read_recordings(source: Path, allow_outside: bool) -> list[RecordingEntry]:
         ]
     if not source.is_file():
         raise KinectDataError(f"{source}: no such manifest file or folder")
-    docs, lines, root = _read_manifest(source)
+    docs, lines, root, _ = _read_manifest(source)
     if lines is None:
         validate(docs, "recordings.schema.json", source)
     else:
@@ -322,6 +339,42 @@ def _read_recordings(source: Path, allow_outside: bool) -> list[RecordingEntry]:
             )
         )
     return entries
+
+
+def read_songs(source: str | Path, *, allow_outside_paths: bool = False) -> list[LabelledSong]:
+    """The labelled songs a recordings manifest lists under ``songs`` (:class:`LabelledSong`), with
+    resolved paths; none for a folder, a CSV manifest or a manifest without ``songs``.
+
+    Their files must exist and lie where a recording's may; their names (default the audio file's
+    stem) are unique among the songs and the recordings. Errors name the manifest and the song
+    (``songs[2]``).
+    """
+    source = Path(source)
+    if not source.is_file() or source.suffix.lower() == ".csv":
+        return []
+    docs, _, root, songs = _read_manifest(source)
+    if songs is None:
+        return []
+    try:
+        validate(songs, "songs.schema.json", source)
+    except SchemaError as exc:
+        raise SchemaError(source, f"songs: {exc.reason}") from None
+    base = source.parent if root is None else _manifest_root(source, root, allow_outside_paths)
+    taken = {
+        d.get("name", Path(str(d.get("recording", ""))).stem): f"recordings[{i}]"
+        for i, d in enumerate(docs if isinstance(docs, list) else [])
+        if isinstance(d, dict)
+    }
+    found = []
+    for i, d in enumerate(songs):
+        where = f"songs[{i}]"
+        audio = _existing(source, base, d, "audio", where, None, allow_outside_paths)
+        name = _checked_name(d.get("name", Path(d["audio"]).stem), where, source)
+        if name in taken:
+            raise SchemaError(source, f"{where}: name {name!r} is already used by {taken[name]}")
+        taken[name] = where
+        found.append(LabelledSong(name=name, audio=str(audio), style=d["style"]))
+    return found
 
 
 def assign_splits(entries: list[RecordingEntry], ratios: tuple[float, float, float], seed: int) -> dict[str, str]:

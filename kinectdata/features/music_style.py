@@ -20,10 +20,11 @@ apart and that a stretch of the tempo (pitch kept) moves little:
 The classifier (:class:`MusicStyleClassifier`) scales each descriptor by its spread within the
 styles (pooled), takes each style's mean, and names the style whose mean is nearest: every style
 counts alike however many songs it has (a corpus with 27 waltzes and 2 cha-chas does not make every
-song a waltz).
+song a waltz). Labelled songs without a dance (a corpus's songs whose motion is lost, a collection of
+dance music) teach it too: with 3 cha-chas and 5 rumbas, every labelled song counts.
 
-It also keeps each style's usual tempo (:attr:`MusicStyleClassifier.tempi`): the beat rate its songs
-share once octaves are set aside (librosa's tracker reports some waltzes at twice their beat), so that
+It also keeps each style's usual tempo (:attr:`MusicStyleClassifier.tempi`): the beat rate its danced
+songs share once octaves are set aside (librosa's tracker reports some waltzes at twice their beat), so that
 a song far from its style's tempo can be played to a network at its style's (:meth:`~MusicStyleClassifier.tempo_factor`,
 :mod:`kinectdata.inference.style_tempo`).
 """
@@ -41,10 +42,15 @@ from kinectdata.core.librosa_import import import_librosa
 from kinectdata.features.beats import music_beats
 from kinectdata.features.metre import bar_similarity, beat_descriptors
 
-__all__ = ["DESCRIPTORS", "MusicStyleClassifier", "song_descriptors", "usual_tempo"]
+__all__ = ["DESCRIPTORS", "MusicStyleClassifier", "TooLittleMusic", "song_descriptors", "usual_tempo"]
 
 DESCRIPTORS = ("metre", "tempo", "onset_cv", "centroid", "flatness")
 """The song-level descriptors, in the order :func:`song_descriptors` returns them (module docstring)."""
+
+
+class TooLittleMusic(KinectDataError):
+    """A song too short or too quiet to tell its style from (fewer than :data:`MIN_BEATS` beats)."""
+
 
 MIN_BEATS = 10
 """Beats a song needs to be described: the metre compares beats two bars of 4 apart."""
@@ -59,14 +65,14 @@ def song_descriptors(samples: np.ndarray, sample_rate: float) -> np.ndarray:
     (full scale -1..1) at ``sample_rate`` Hz (module docstring).
 
     Raises:
-        KinectDataError: fewer than :data:`MIN_BEATS` beats (too short or silent to tell), or
-            librosa missing.
+        TooLittleMusic: fewer than :data:`MIN_BEATS` beats (too short or silent to tell).
+        KinectDataError: librosa missing.
     """
     librosa = import_librosa("telling a song's style")
     y = np.asarray(samples, np.float32)
     beats, _ = music_beats(y, sample_rate)
     if beats.size < MIN_BEATS:
-        raise KinectDataError(f"telling a song's style needs at least {MIN_BEATS} beats of music, got {beats.size}")
+        raise TooLittleMusic(f"telling a song's style needs at least {MIN_BEATS} beats of music, got {beats.size}")
     described = beat_descriptors(y, sample_rate, beats)
     metre = bar_similarity(described, 3) - bar_similarity(described, 4)
     tempo = np.log2(60.0 / np.median(np.diff(beats)))
@@ -92,8 +98,10 @@ class MusicStyleClassifier:
         scale: [D] their pooled spread within the styles.
         songs: how many songs it was fitted on.
         leave_one_out: how many of them it names right when each is left out of the fit in turn.
-        tempi: [K] each style's usual tempo, beats per minute (:func:`usual_tempo` of its songs'
-            tempo descriptors); empty for a classifier saved before it was kept.
+        tempi: [K] each style's usual tempo, beats per minute (:func:`usual_tempo` of its danced
+            songs' tempo descriptors); empty for a classifier saved before it was kept.
+        undanced: how many of the ``songs`` had no dance (labelled music only): they teach the
+            hearing, not the tempi.
     """
 
     styles: tuple[str, ...]
@@ -103,6 +111,7 @@ class MusicStyleClassifier:
     songs: int = 0
     leave_one_out: int = 0
     tempi: tuple[float, ...] = ()
+    undanced: int = 0
 
     def __post_init__(self) -> None:
         d = len(DESCRIPTORS)
@@ -114,10 +123,19 @@ class MusicStyleClassifier:
             raise ConfigError(f"a music style classifier's centres, mean and scale hold {d} descriptors each")
         if not all(s > 0 for s in self.scale):
             raise ConfigError("a music style classifier's scale must be positive")
+        if not 0 <= self.undanced <= self.songs:
+            raise ConfigError("a music style classifier's undanced songs are some of its songs")
 
     @classmethod
-    def fit(cls, descriptors: np.ndarray, styles: Sequence[str]) -> MusicStyleClassifier:
-        """Fit on songs' ``descriptors`` [N, D] (:func:`song_descriptors`) and their ``styles`` [N]."""
+    def fit(
+        cls, descriptors: np.ndarray, styles: Sequence[str], danced: Sequence[bool] | None = None
+    ) -> MusicStyleClassifier:
+        """Fit on songs' ``descriptors`` [N, D] (:func:`song_descriptors`) and their ``styles`` [N].
+
+        ``danced`` [N]: whether each song has a dance a network learns from (default all). Every song
+        teaches the hearing; a style's usual tempo is its danced songs' (the tempo a network learned
+        it at), all of its songs' when none is danced.
+        """
         x = np.asarray(descriptors, np.float64)
         labels = np.asarray(list(styles))
         if x.ndim != 2 or x.shape[1] != len(DESCRIPTORS) or x.shape[0] != labels.size or labels.size < 2:
@@ -125,12 +143,19 @@ class MusicStyleClassifier:
                 f"fitting a music style classifier needs at least 2 songs with {len(DESCRIPTORS)} descriptors "
                 f"and a style each; got descriptors {x.shape} and {labels.size} styles"
             )
+        shown = np.ones(labels.size, bool) if danced is None else np.asarray(list(danced), bool)
+        if shown.shape != labels.shape:
+            raise KinectDataError(f"danced: one flag per song ({labels.size}), got {shown.size}")
         if not np.isfinite(x).all():
             raise KinectDataError("a music style classifier's songs' descriptors must be finite")
         fitted = _fit(x, labels)
         right = sum(_fit(np.delete(x, i, 0), np.delete(labels, i)).predict(x[i]) == labels[i] for i in range(len(x)))
         tempo = DESCRIPTORS.index("tempo")
-        tempi = tuple(usual_tempo(2.0 ** x[labels == s, tempo]) for s in fitted.styles)
+        tempi = []
+        for style in fitted.styles:
+            mine = labels == style
+            taught = mine & shown if (mine & shown).any() else mine
+            tempi.append(usual_tempo(2.0 ** x[taught, tempo]))
         return cls(
             fitted.styles,
             fitted.centres,
@@ -138,7 +163,8 @@ class MusicStyleClassifier:
             fitted.scale,
             songs=len(x),
             leave_one_out=int(right),
-            tempi=tempi,
+            tempi=tuple(tempi),
+            undanced=int((~shown).sum()),
         )
 
     def predict(self, descriptors: np.ndarray) -> str:
@@ -187,6 +213,7 @@ class MusicStyleClassifier:
             "songs": self.songs,
             "leave_one_out": self.leave_one_out,
             "tempi": list(self.tempi),
+            "undanced": self.undanced,
         }
 
     @classmethod
@@ -200,6 +227,7 @@ class MusicStyleClassifier:
                 int(d.get("songs", 0)),
                 int(d.get("leave_one_out", 0)),
                 tuple(float(t) for t in d.get("tempi", ())),
+                int(d.get("undanced", 0)),
             )
         except (KeyError, TypeError, ValueError) as exc:
             raise ConfigError(f"not a music style classifier ({exc})") from exc

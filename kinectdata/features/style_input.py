@@ -25,9 +25,9 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from kinectdata.core.errors import ConfigError, KinectDataError
+from kinectdata.core.errors import ConfigError
 from kinectdata.features.metre_input import on_sounding_frames, sounding_slices
-from kinectdata.features.music_style import MusicStyleClassifier
+from kinectdata.features.music_style import MusicStyleClassifier, TooLittleMusic
 
 __all__ = ["NO_STYLE", "StyleInputConfig", "style_input_features"]
 
@@ -131,7 +131,7 @@ def style_input_features(
     if style is None and sounding.any():  # digital silence has no style to hear
         try:
             style = config.style_of(x)
-        except KinectDataError:  # too few beats to tell (noise, a short clip): no style
+        except TooLittleMusic:  # too few beats to tell (noise, a short clip): no style
             style = None
     one_hot = np.zeros(config.slots, np.float32)
     if style in config.styles:

@@ -39,7 +39,7 @@ import numpy as np
 
 from kinectdata.core.errors import ConfigError, KinectDataError
 from kinectdata.features import FeatureConfig, style_input_of
-from kinectdata.features.music_style import song_descriptors
+from kinectdata.features.music_style import TooLittleMusic, song_descriptors
 
 __all__ = [
     "AS_IT_IS",
@@ -97,7 +97,7 @@ def style_tempo_factor(
         raise ConfigError("style_tempo: the features hear no style (no fitted music style classifier)")
     try:
         described = song_descriptors(samples, part.sample_rate)
-    except KinectDataError:
+    except TooLittleMusic:
         return 1.0, None
     return part.classifier.tempo_factor(described, band, style)
 

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import pickle
 import re
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -24,7 +25,8 @@ from corpus_copies import (
 
 from kinectdata.cli import main
 from kinectdata.core.errors import ConfigError, CorpusError, SchemaError
-from kinectdata.dataset.inputs import RecordingEntry, read_recordings
+from kinectdata.dataset.folds import write_folds
+from kinectdata.dataset.inputs import RecordingEntry, read_recordings, read_songs
 from kinectdata.dataset.recipes import (
     prepare_aistpp,
     prepare_bvh_folder,
@@ -281,16 +283,33 @@ def test_tang2018_lists_the_complete_dances_in_the_acceptance_split(tang):
 
 def test_tang2018_leaves_out_the_incomplete_dances_naming_the_missing_file(tang):
     skipped = dict(prepare_tang2018(tang).skipped)
+    kept = "; its song is kept to hear the style by"
     assert skipped == {
-        "C_1": "DANCE_C_1/skeletons.json is missing or empty",
+        "C_1": f"DANCE_C_1/skeletons.json is missing or empty{kept}",
         "C_9": "DANCE_C_9/audio.mp3 is missing or empty",
-        "R_6": "DANCE_R_6/skeletons.json is missing or empty",
+        "R_6": f"DANCE_R_6/skeletons.json is missing or empty{kept}",
         "T_1": "DANCE_T_1/skeletons.json is missing or empty",  # it lacks audio.mp3 too
         "W_2": "DANCE_W_2/audio.mp3 is missing or empty",
         "W_9": "DANCE_W_9/audio.mp3 is missing or empty",  # held, but empty
-        "W_13": "DANCE_W_13/skeletons.json is missing or empty",
+        "W_13": f"DANCE_W_13/skeletons.json is missing or empty{kept}",
     }
     assert set(skipped) == set(TANG2018_DANCES) - COMPLETE
+
+
+def test_tang2018_lists_a_song_without_its_dance_as_labelled_music(tang, tmp_path):
+    manifest = prepare_tang2018(tang)
+    assert [(s.name, s.audio, s.style) for s in manifest.songs] == [
+        ("C_1", "DANCE_C_1/audio.mp3", "cha-cha"),
+        ("R_6", "DANCE_R_6/audio.mp3", "rumba"),
+        ("W_13", "DANCE_W_13/audio.mp3", "waltz"),
+    ]
+    written = manifest.write(tmp_path / "tang.yaml")
+    songs = read_songs(written, allow_outside_paths=True)
+    assert [(s.name, s.style) for s in songs] == [("C_1", "cha-cha"), ("R_6", "rumba"), ("W_13", "waltz")]
+    assert Path(songs[0].audio) == (tang / "DANCE_C_1" / "audio.mp3").resolve()
+    # the folds keep them: a fold's build hears with them too
+    folds = write_folds(written, 2)
+    assert [s.name for s in read_songs(folds[0].path, allow_outside_paths=True)] == ["C_1", "R_6", "W_13"]
 
 
 def test_tang2018_entries_carry_the_style_metre_offset_and_format(tang):
@@ -429,9 +448,11 @@ def test_prepare_tang2018_then_build_dataset_root_centred_keeps_splits_and_music
     assert result.exit_code == 0, result.output
     lines = result.output.strip().splitlines()
     assert lines[0] == f"wrote {manifest}: 14 recordings of tang2018 (4 train, 3 val, 7 test) under {tang.resolve()}"
-    assert lines[1:4] == ["left out 7:", "  C_1: DANCE_C_1/skeletons.json is missing or empty",
+    assert lines[1:4] == ["left out 7:",
+                          "  C_1: DANCE_C_1/skeletons.json is missing or empty; its song is kept to hear the style by",
                           "  C_9: DANCE_C_9/audio.mp3 is missing or empty"]  # fmt: skip
-    assert lines[-3] == "  ... and 2 more"
+    assert lines[-4] == "  ... and 2 more"
+    assert lines[-3].startswith("listed 3 songs without a dance as labelled music")
     assert lines[-2] == (
         f"next: kinectdata build-dataset {manifest} -o DATASET --target positions --root-centre "
         "--features yalta2016_rhythm --allow-outside-paths"

@@ -14,7 +14,7 @@ from conftest import REPO
 pytest.importorskip("librosa")
 
 from kinectdata.align.audio import load_audio  # noqa: E402
-from kinectdata.core.errors import ConfigError  # noqa: E402
+from kinectdata.core.errors import ConfigError, KinectDataError, SchemaError  # noqa: E402
 from kinectdata.dataset.build import build_dataset  # noqa: E402
 from kinectdata.dataset.config import BuildConfig  # noqa: E402
 from kinectdata.features import feature_config, style_input_of  # noqa: E402
@@ -76,3 +76,78 @@ def test_a_training_song_without_a_style_is_refused_in_one_line(tmp_path):
     with pytest.raises(ConfigError, match=r"m\.json: the features hear the song's style.*synth_002 give no 'style'"):
         build_dataset(listed, tmp_path / "ds", _config(), allow_outside_paths=True)
     assert not (tmp_path / "ds").exists()  # nothing half-made left behind
+
+
+def _with_songs(path, songs):
+    """The sample manifest written as an object with labelled ``songs`` beside its recordings."""
+    recordings = json.loads(_manifest(path).read_text())
+    path.write_text(json.dumps({"recordings": recordings, "songs": songs}))
+    return path
+
+
+def _song_file(path, source, gain):
+    """A song that is another file than the sample's (its samples at ``gain``): a labelled song of its own."""
+    import soundfile as sf
+
+    samples, sr = sf.read(source, dtype="float32")
+    sf.write(path, samples * gain, sr)
+    return path
+
+
+def test_labelled_songs_without_a_recording_teach_the_hearing(tmp_path):
+    rumba = _song_file(tmp_path / "another_rumba.wav", SAMPLES / "synth_002.flac", 0.7)
+    tango = _song_file(tmp_path / "a_tango.wav", SAMPLES / "synth_001.flac", 0.6)
+    songs = [{"audio": str(rumba), "style": "rumba"}, {"name": "T_1", "audio": str(tango), "style": "tango"}]
+    listed = _with_songs(tmp_path / "m.json", songs)
+    built = build_dataset(listed, tmp_path / "ds", _config(), allow_outside_paths=True)
+    part = style_input_of(feature_config(built["config"]["features"]))
+    # computed here from the files: the two training songs and the rumba; the tango is of a style no
+    # training recording dances, so it is not heard
+    described = [
+        song_descriptors(load_audio(p, 16000).samples, 16000)
+        for p in (SAMPLES / "synth_001.flac", SAMPLES / "synth_002.flac", rumba)
+    ]
+    expected = MusicStyleClassifier.fit(np.stack(described), ["waltz", "rumba", "rumba"], danced=[True, True, False])
+    assert part.classifier == expected and expected.undanced == 1 and part.styles == ("rumba", "waltz")
+    # another labelled song makes another dataset; the same ones reuse it
+    listed = _with_songs(tmp_path / "m.json", songs[1:])
+    fewer = build_dataset(listed, tmp_path / "ds", _config(), allow_outside_paths=True)
+    assert fewer["build_key"] != built["build_key"]
+    assert style_input_of(feature_config(fewer["config"]["features"])).classifier.undanced == 0
+
+
+def test_a_labelled_song_that_is_a_recordings_song_is_refused(tmp_path):
+    song = {"name": "S_1", "audio": str(SAMPLES / "synth_003.flac"), "style": "rumba"}
+    listed = _with_songs(tmp_path / "m.json", [song])
+    said = r"m\.json: song 'S_1' \(.*\) is the song of recording 'synth_003' \(val\)"
+    with pytest.raises(KinectDataError, match=said):
+        build_dataset(listed, tmp_path / "ds", _config(), allow_outside_paths=True)
+    assert not (tmp_path / "ds").exists()
+
+
+@pytest.mark.parametrize(
+    ("songs", "message"),
+    [
+        ([{"audio": "x.wav"}], r"songs: at 0: 'style' is a required property"),
+        ([{"audio": "nowhere.wav", "style": "rumba"}], r"songs\[0\]: audio nowhere\.wav does not exist"),
+        (
+            [{"name": "synth_001", "audio": "song.wav", "style": "rumba"}],
+            r"songs\[0\]: name 'synth_001' is already used by recordings\[0\]",
+        ),
+    ],
+)
+def test_bad_labelled_songs_are_named_in_one_line(tmp_path, songs, message):
+    _song_file(tmp_path / "song.wav", SAMPLES / "synth_002.flac", 0.5)
+    listed = _with_songs(tmp_path / "m.json", songs)
+    with pytest.raises(SchemaError, match=message):
+        build_dataset(listed, tmp_path / "ds", _config(), allow_outside_paths=True)
+    assert not (tmp_path / "ds").exists()
+
+
+def test_a_style_changed_in_the_manifest_builds_again(tmp_path):
+    built = build_dataset(_manifest(tmp_path / "m.json"), tmp_path / "ds", _config(), allow_outside_paths=True)
+    changed = _manifest(tmp_path / "m.json", synth_002={"style": "cha-cha"}, synth_003={"style": "cha-cha"})
+    again = build_dataset(changed, tmp_path / "ds", _config(), allow_outside_paths=True)
+    assert again["build_key"] != built["build_key"]
+    said = {r["name"]: r["style"] for r in again["recordings"]}
+    assert said["synth_002"] == {"style": "cha-cha", "source": "manifest"}

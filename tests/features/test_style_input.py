@@ -182,6 +182,26 @@ def test_each_style_keeps_its_usual_tempo_with_octaves_set_aside():
         MusicStyleClassifier.from_dict(older).tempo_factor(x[0], 0.08)
 
 
+def test_songs_without_a_dance_teach_the_hearing_not_the_tempi():
+    # two cha-chas danced at 120 and 126 beats a minute, two without a dance at 100; a waltz danced at 87
+    x = np.arange(25.0).reshape(5, 5) * 1e-3
+    x[:, 1] = np.log2([120.0, 126.0, 100.0, 100.0, 87.0])
+    styles = ["cha-cha", "cha-cha", "cha-cha", "cha-cha", "waltz"]
+    fitted = MusicStyleClassifier.fit(x, styles, danced=[True, True, False, False, True])
+    assert fitted.tempi[fitted.styles.index("cha-cha")] == pytest.approx(np.sqrt(120.0 * 126.0), rel=1e-4)
+    assert (fitted.songs, fitted.undanced) == (5, 2)
+    # the hearing is the fit on all five songs: the cha-cha centre is the mean of the four
+    every = MusicStyleClassifier.fit(x, styles)
+    assert fitted.centres == every.centres and fitted.scale == every.scale
+    assert every.tempi[every.styles.index("cha-cha")] < 115.0  # with the undanced songs' tempi it would move
+    # a style none of whose songs is danced keeps the tempo of its songs
+    only_heard = MusicStyleClassifier.fit(x, styles, danced=[False, False, False, False, True])
+    assert only_heard.tempi == every.tempi
+    assert MusicStyleClassifier.from_dict(fitted.to_dict()) == fitted
+    with pytest.raises(KinectDataError, match="one flag per song"):
+        MusicStyleClassifier.fit(x, styles, danced=[True])
+
+
 @pytest.mark.parametrize("heard_at", [1.0, 2.0])  # the song's beat, or twice it as a tracker may report
 def test_the_tempo_factor_brings_a_song_to_the_edge_of_its_styles_band(heard_at):
     fitted = MusicStyleClassifier(("waltz",), ((0.0,) * 5,), (0.0,) * 5, (1.0,) * 5, tempi=(87.0,))

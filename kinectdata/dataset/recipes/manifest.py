@@ -11,7 +11,7 @@ from pathlib import Path
 from kinectdata.core.atomic import atomic_output
 from kinectdata.core.errors import CorpusError
 from kinectdata.dataset.collection import AUDIO_EXTENSIONS
-from kinectdata.dataset.inputs import RecordingEntry
+from kinectdata.dataset.inputs import LabelledSong, RecordingEntry
 
 
 @dataclass(frozen=True)
@@ -29,6 +29,8 @@ class CorpusManifest:
             since no shipped target spec is made for a corpus's own joints.
         build_options: other ``build-dataset`` options the corpus needs (e.g. ``--root-centre``
             where the body's place in the room drifts).
+        songs: the corpus's songs whose style is known but whose dance is missing, paths relative to
+            ``root``: they teach a build's music style classifier (written as ``songs``).
     """
 
     corpus: str
@@ -38,6 +40,7 @@ class CorpusManifest:
     description: str = ""
     target: str = "positions"
     build_options: tuple[str, ...] = ()
+    songs: tuple[LabelledSong, ...] = ()
 
     def split_counts(self) -> dict[str, int]:
         """Recordings per split (``unsplit`` for those the build will draw)."""
@@ -53,6 +56,8 @@ class CorpusManifest:
         if self.description:
             doc["description"] = self.description
         doc["recordings"] = [e.to_dict() for e in self.recordings]
+        if self.songs:
+            doc["songs"] = [s.to_dict() for s in self.songs]
         return doc
 
     def write(self, path: str | Path) -> Path:

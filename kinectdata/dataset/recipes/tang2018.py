@@ -9,6 +9,8 @@ Readme.md, utils/draw.py, and the data, measured as docs/corpora.md tells):
   corpus's: C cha-cha, R rumba, T tango, W waltz (Readme.md names the four dances).
 - A dance whose files are not all there (the public mirror lacks some blobs) is left out with
   the file that is missing; one whose ``config.json`` cannot be read, with what is wrong in it.
+  A folder whose song is there but not its dance still gives a labelled song (``songs``): its
+  music, with the folder's style, teaches a build's music style classifier.
 - Motion and song share one clock: audio_time = motion_time + start_position / 25, the offset
   written for each dance.
 - Metre: a waltz is in 3 (three beats to the bar), cha-cha, rumba and tango in 4; written as each
@@ -29,7 +31,7 @@ from dataclasses import replace
 from pathlib import Path
 
 from kinectdata.core.errors import CorpusError, FormatError
-from kinectdata.dataset.inputs import RecordingEntry
+from kinectdata.dataset.inputs import LabelledSong, RecordingEntry
 from kinectdata.dataset.recipes.manifest import CorpusManifest, collected, relative
 from kinectdata.formats.tang2018 import CONFIG, SONG_FPS, read_config
 
@@ -58,7 +60,8 @@ def prepare_tang2018(path: str | Path, *, split: str | None = "kinectdata") -> C
         A :class:`CorpusManifest`: each complete dance as ``format: tang2018`` with its song, offset
         (its start in the song), style and beats per bar, named ``<style letter>_<n>`` (``W_1``);
         the incomplete ones left out with the file that is missing, and those whose ``config.json``
-        cannot be read with what is wrong in it.
+        cannot be read with what is wrong in it; each folder with a song but no dance as a labelled
+        song of its style.
 
     Raises:
         CorpusError: not a folder, no ``DANCE_*`` folder in it, or no dance complete.
@@ -74,13 +77,17 @@ def prepare_tang2018(path: str | Path, *, split: str | None = "kinectdata") -> C
         raise CorpusError(path, "no DANCE_<style>_<n> folders: give the corpus's root folder")
     folders.sort(key=lambda p: (_FOLDER.fullmatch(p.name)[1], int(_FOLDER.fullmatch(p.name)[2])))
     assigned = {name: s for s, names in KINECTDATA_SPLIT.items() for name in names} if split else {}
-    entries, skipped = [], []
+    entries, skipped, songs = [], [], []
     for folder in folders:
         letter, number = _FOLDER.fullmatch(folder.name).groups()
         name = f"{letter}_{number}"
         missing = [f for f in FILES if not (folder / f).is_file() or (folder / f).stat().st_size == 0]
         if missing:
-            skipped.append((name, f"{folder.name}/{missing[0]} is missing or empty"))
+            song_only = "audio.mp3" not in missing and letter in STYLES
+            if song_only:
+                songs.append(LabelledSong(name, relative(folder / "audio.mp3", path), STYLES[letter][0]))
+            kept = "; its song is kept to hear the style by" if song_only else ""
+            skipped.append((name, f"{folder.name}/{missing[0]} is missing or empty{kept}"))
             continue
         if letter not in STYLES:
             skipped.append((name, f"style letter {letter!r} is none of the corpus's ({', '.join(STYLES)})"))
@@ -111,4 +118,4 @@ def prepare_tang2018(path: str | Path, *, split: str | None = "kinectdata") -> C
     found = collected("tang2018", path, path.resolve(), entries, skipped, description)
     # the pelvis's height drifts by tens of centimetres in most dances (a reconstruction artefact):
     # learn the body's shape about its root
-    return replace(found, build_options=("--root-centre",))
+    return replace(found, build_options=("--root-centre",), songs=tuple(songs))
