@@ -209,7 +209,7 @@ def build_dataset(
     if not needs_style(config.feature_config):
         songs = []
     song_hashes = {s.name: file_sha256(s.audio) for s in songs}
-    _refuse_songs_of_recordings(songs, song_hashes, entries, hashes, splits, source)
+    songs = _songs_of_their_own(songs, song_hashes, entries, hashes)
     build_key = _digest(
         {
             "format_version": DATASET_FORMAT_VERSION,
@@ -431,24 +431,23 @@ def _key_entry(entry: RecordingEntry, splits: dict[str, str]) -> dict[str, Any]:
     return entry.options() | facts | {"split": splits[entry.name]}
 
 
-def _refuse_songs_of_recordings(
+def _songs_of_their_own(
     songs: list[LabelledSong],
     song_hashes: dict[str, str],
     entries: list[RecordingEntry],
     hashes: dict[str, dict[str, str]],
-    splits: dict[str, str],
-    source: str | Path,
-) -> None:
-    """A labelled song that is a recording's song (by content) would teach the classifier a held-out
-    song's music, or a training song's twice."""
-    audio = {hashes[e.name][Path(e.audio).name]: e.name for e in entries if e.audio is not None}
+) -> list[LabelledSong]:
+    """The labelled songs whose music (by content) is no recording's song and not an earlier labelled
+    song's: a recording's song is heard as that recording's (told, for a training recording; kept
+    out of the fit, for a held-out one, whose music must not teach the classifier), and a song
+    listed twice counts once."""
+    seen = {hashes[e.name][Path(e.audio).name] for e in entries if e.audio is not None}
+    kept = []
     for song in songs:
-        other = audio.get(song_hashes[song.name])
-        if other is not None:
-            raise KinectDataError(
-                f"{source}: song {song.name!r} ({song.audio}) is the song of recording {other!r} ({splits[other]}): "
-                "list a song once, as a recording's or as a labelled song"
-            )
+        if song_hashes[song.name] not in seen:
+            kept.append(song)
+            seen.add(song_hashes[song.name])
+    return kept
 
 
 def _refuse_duplicates(entries: list[RecordingEntry], hashes: dict[str, dict[str, str]], splits, source) -> None:

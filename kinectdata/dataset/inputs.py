@@ -26,7 +26,9 @@ from kinectdata.core.resources import validate
 from kinectdata.dataset.collection import find_sessions
 
 MUSIC_FACTS = ("style", "beats_per_bar")
-"""Entry fields that describe the music, for evaluation: they change no built array."""
+"""Entry fields that describe the music: no reading option (:meth:`RecordingEntry.options`), but the
+features that hear a style or count bars are built from them, and evaluate reads them from the
+dataset's manifest, so the build key counts them."""
 
 
 @dataclass(frozen=True)
@@ -76,7 +78,8 @@ class RecordingEntry:
     def options(self) -> dict[str, Any]:
         """What identifies the recording besides its files' contents: name and reading options
         (a schema file by its name; its contents are hashed with the sources). What is said about
-        the music (style, metre) changes no array and is left out."""
+        the music (style, metre) is no reading option and is left out: the keys that depend on it add
+        it (:data:`MUSIC_FACTS`)."""
         opts = {k: v for k, v in self.to_dict().items() if k not in ("recording", "audio", "split", *MUSIC_FACTS)}
         for key in ("schema", "rest_joints"):
             if opts.get(key) is not None and Path(opts[key]).is_file():

@@ -25,6 +25,7 @@ from corpus_copies import (
 
 from kinectdata.cli import main
 from kinectdata.core.errors import ConfigError, CorpusError, SchemaError
+from kinectdata.dataset.build import _key_entry
 from kinectdata.dataset.folds import write_folds
 from kinectdata.dataset.inputs import RecordingEntry, read_recordings, read_songs
 from kinectdata.dataset.recipes import (
@@ -334,11 +335,13 @@ def test_a_tang2018_entry_reads_at_the_dances_own_rate(tang, tmp_path):
     np.testing.assert_array_equal(motion.positions, direct.positions)
 
 
-def test_music_facts_change_no_arrays_so_no_build_key():
+def test_music_facts_are_no_reading_options_but_count_for_the_build():
     entry = RecordingEntry(name="W_1", recording="a.json", audio="a.mp3", offset=0.0, format="tang2018")
     with_facts = RecordingEntry(**{**entry.to_dict(), "style": "waltz", "beats_per_bar": 3})
-    assert with_facts.options() == entry.options()
+    assert with_facts.options() == entry.options()  # a work file's key adds them where the features hear them
     assert with_facts.to_dict()["beats_per_bar"] == 3
+    splits = {"W_1": "train"}
+    assert _key_entry(with_facts, splits) == _key_entry(entry, splits) | {"style": "waltz", "beats_per_bar": 3}
 
 
 def test_a_csv_manifest_reads_beats_per_bar_as_a_whole_number(tang):

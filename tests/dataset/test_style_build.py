@@ -14,7 +14,7 @@ from conftest import REPO
 pytest.importorskip("librosa")
 
 from kinectdata.align.audio import load_audio  # noqa: E402
-from kinectdata.core.errors import ConfigError, KinectDataError, SchemaError  # noqa: E402
+from kinectdata.core.errors import ConfigError, SchemaError  # noqa: E402
 from kinectdata.dataset.build import build_dataset  # noqa: E402
 from kinectdata.dataset.config import BuildConfig  # noqa: E402
 from kinectdata.features import feature_config, style_input_of  # noqa: E402
@@ -116,13 +116,22 @@ def test_labelled_songs_without_a_recording_teach_the_hearing(tmp_path):
     assert style_input_of(feature_config(fewer["config"]["features"])).classifier.undanced == 0
 
 
-def test_a_labelled_song_that_is_a_recordings_song_is_refused(tmp_path):
-    song = {"name": "S_1", "audio": str(SAMPLES / "synth_003.flac"), "style": "rumba"}
-    listed = _with_songs(tmp_path / "m.json", [song])
-    said = r"m\.json: song 'S_1' \(.*\) is the song of recording 'synth_003' \(val\)"
-    with pytest.raises(KinectDataError, match=said):
-        build_dataset(listed, tmp_path / "ds", _config(), allow_outside_paths=True)
-    assert not (tmp_path / "ds").exists()
+def test_a_labelled_song_that_is_a_recordings_song_or_listed_twice_counts_once(tmp_path):
+    # the validation recording's song must not teach the classifier; a training song is told already
+    rumba = _song_file(tmp_path / "another_rumba.wav", SAMPLES / "synth_002.flac", 0.7)
+    songs = [
+        {"name": "S_1", "audio": str(SAMPLES / "synth_003.flac"), "style": "rumba"},
+        {"name": "S_2", "audio": str(SAMPLES / "synth_001.flac"), "style": "waltz"},
+        {"name": "S_3", "audio": str(rumba), "style": "rumba"},
+        {"name": "S_4", "audio": str(rumba), "style": "rumba"},
+    ]
+    built = build_dataset(_with_songs(tmp_path / "m.json", songs), tmp_path / "ds", _config(), allow_outside_paths=True)
+    classifier = style_input_of(feature_config(built["config"]["features"])).classifier
+    described = [
+        song_descriptors(load_audio(p, 16000).samples, 16000)
+        for p in (SAMPLES / "synth_001.flac", SAMPLES / "synth_002.flac", rumba)
+    ]
+    assert classifier == MusicStyleClassifier.fit(np.stack(described), ["waltz", "rumba", "rumba"], [True, True, False])
 
 
 @pytest.mark.parametrize(
