@@ -188,6 +188,11 @@ def _read_manifest(path: Path) -> tuple[list[dict[str, Any]], list[int] | None, 
 _NAME = re.compile(r"[A-Za-z0-9_.+-]+")
 
 
+def _given_name(doc: dict[str, Any], file_key: str) -> str:
+    """An entry's ``name``, else the stem of the file it names under ``file_key``."""
+    return str(doc.get("name", Path(str(doc.get(file_key, ""))).stem))
+
+
 def _checked_name(name: str, where: str, source: Path) -> str:
     if not _NAME.fullmatch(name):
         raise SchemaError(
@@ -310,7 +315,7 @@ def _read_recordings(source: Path, allow_outside: bool) -> list[RecordingEntry]:
             raise SchemaError(
                 source, f"{where}: {d['recording']} needs an 'audio' (it is not an aligned .h5)", line=line
             )
-        name = _checked_name(d.get("name", Path(d["recording"]).stem), where, source)
+        name = _checked_name(_given_name(d, "recording"), where, source)
         if name in seen:
             raise SchemaError(source, f"{where}: name {name!r} is already used by {seen[name]}", line=line)
         seen[name] = where
@@ -364,7 +369,7 @@ def read_songs(source: str | Path, *, allow_outside_paths: bool = False) -> list
         raise SchemaError(source, f"songs: {exc.reason}") from None
     base = source.parent if root is None else _manifest_root(source, root, allow_outside_paths)
     taken = {
-        d.get("name", Path(str(d.get("recording", ""))).stem): f"recordings[{i}]"
+        _given_name(d, "recording"): f"recordings[{i}]"
         for i, d in enumerate(docs if isinstance(docs, list) else [])
         if isinstance(d, dict)
     }
@@ -372,7 +377,7 @@ def read_songs(source: str | Path, *, allow_outside_paths: bool = False) -> list
     for i, d in enumerate(songs):
         where = f"songs[{i}]"
         audio = _existing(source, base, d, "audio", where, None, allow_outside_paths)
-        name = _checked_name(d.get("name", Path(d["audio"]).stem), where, source)
+        name = _checked_name(_given_name(d, "audio"), where, source)
         if name in taken:
             raise SchemaError(source, f"{where}: name {name!r} is already used by {taken[name]}")
         taken[name] = where

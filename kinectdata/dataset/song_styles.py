@@ -29,10 +29,11 @@ from kinectdata.features.style_input import StyleInputConfig
 __all__ = ["fit_style_inputs", "song_samples"]
 
 
-def song_samples(entry: RecordingEntry, sample_rate: int) -> np.ndarray:
-    """[S] float32: the whole song of a recording entry, mono at ``sample_rate`` Hz (its audio file,
-    or an aligned file's audio)."""
-    blocks = audio_blocks(entry.recording) if entry.aligned else AudioReader(entry.audio, sample_rate).blocks()
+def song_samples(entry: RecordingEntry | LabelledSong, sample_rate: int) -> np.ndarray:
+    """[S] float32: the whole song of a recording entry or a labelled song, mono at ``sample_rate`` Hz
+    (its audio file, or an aligned file's audio)."""
+    aligned = isinstance(entry, RecordingEntry) and entry.aligned
+    blocks = audio_blocks(entry.recording) if aligned else AudioReader(entry.audio, sample_rate).blocks()
     return np.concatenate([np.zeros(0, np.float32), *blocks])
 
 
@@ -74,8 +75,7 @@ def fit_style_inputs(
     trained = {e.style for e in training}
     for song in (s for s in songs if s.style in trained):
         try:
-            samples = np.concatenate([np.zeros(0, np.float32), *AudioReader(song.audio, config.sample_rate).blocks()])
-            described.append(song_descriptors(samples, config.sample_rate))
+            described.append(song_descriptors(song_samples(song, config.sample_rate), config.sample_rate))
         except TooLittleMusic:
             continue  # it teaches nothing; the training songs are enough
         except KinectDataError as exc:
