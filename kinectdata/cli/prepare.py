@@ -42,6 +42,13 @@ _SHOWN_SKIPPED = 5
     help="finedance: cross_genre or cross_dancer; tang2018: kinectdata's acceptance split (default) or none (drawn)",
 )
 @click.option(
+    "--labelled-songs",
+    is_flag=True,
+    default=None,
+    help="tang2018: list the folders with a song but no dance as labelled music that teaches the style hearing "
+    "(left out by default: on the folds they cost it a held-out song)",
+)
+@click.option(
     "--unit", type=click.Choice(["cm", "m", "mm", "in"]), default=None, help="bvh-folder: the files' unit (cm)"
 )
 @click.option(

@@ -54,6 +54,7 @@ from kinectdata.dataset.prepare import BuildConfig, Unit, prepare_recording, sou
 from kinectdata.dataset.shards import ShardRecording, row_bytes, write_shard
 from kinectdata.dataset.song_styles import fit_style_inputs
 from kinectdata.features import needs_style
+from kinectdata.features.music_style import HEARING_VERSION
 from kinectdata.targets.hemispheres import apply_flips, flipped_columns, reference_orientations, track_flips
 from kinectdata.targets.normalization import Normalizer, NormStats, count_out_of_range
 from kinectdata.targets.skeleton import merge_bone_offsets
@@ -217,6 +218,7 @@ def build_dataset(
             "inputs": [_key_entry(e, splits) for e in entries],
             "sources": hashes,
             **({"songs": [s.to_dict() | {"audio": song_hashes[s.name]} for s in songs]} if songs else {}),
+            **({"hearing": HEARING_VERSION} if needs_style(config.feature_config) else {}),
         }
     )
     said = empty_split_message(source, entries, splits, config.split_ratios)

@@ -66,7 +66,7 @@ from kinectdata.evaluation.rhythm_eval import (
 )
 from kinectdata.evaluation.run_field import run_field_scores, target_motion
 from kinectdata.evaluation.style import style_features, style_report
-from kinectdata.features import compute_features, feature_config
+from kinectdata.features import compute_features, feature_config, style_input_of
 from kinectdata.features.metre import Metre, recording_metre
 from kinectdata.inference.engines import engine_pairs, make_engine, onnxruntime_available
 from kinectdata.inference.smoothing import NOT_SMOOTHED, smoothing_line
@@ -89,8 +89,9 @@ SILENCE_S = 5.0
 
 
 def split_recordings(dataset: Path, manifest: dict, split: str) -> list[dict[str, Any]]:
-    """The split's clean recordings with their rows (input, current, mask) and their shard index
-    entry's ``info`` (alignment summary, sources)."""
+    """The split's clean recordings with their rows (input, current, mask), their shard index
+    entry's ``info`` (alignment summary, sources) and the style the build gave their song (``style``:
+    told by the manifest or heard in the whole song; None without one)."""
     out = []
     for r in manifest["recordings"]:
         if r["split"] != split or is_copy(r):
@@ -106,6 +107,7 @@ def split_recordings(dataset: Path, manifest: dict, split: str) -> list[dict[str
                     "input": f["input"][rows],
                     "current": f["current"][rows],
                     "mask": f["mask"][rows],
+                    "style": (r.get("style") or {}).get("style"),
                 }
             )
     return out
@@ -646,9 +648,11 @@ def _tell_kind(
 
 def _played_factor(r: dict[str, Any], samples: np.ndarray, features_of: Callable[..., Any], metre: Metre) -> float:
     """The factor a split recording's music is played at (:mod:`kinectdata.inference.style_tempo`; 1.0:
-    as it is), its kind told once (``features_of.play``); kept as ``r["played_factor"]``."""
+    as it is), its kind told once (``features_of.play``); kept as ``r["played_factor"]``. The style is
+    the one the build gave the song (heard in the whole song, as its features were made), not heard
+    again in the stretch of it the dance covers."""
     if "played_factor" not in r:
-        r["played_factor"] = features_of.play(samples, r["input"], metre.beats_per_bar)
+        r["played_factor"] = features_of.play(samples, r["input"], metre.beats_per_bar, r.get("style"))
     return r["played_factor"]
 
 
@@ -657,8 +661,9 @@ def _features_maker(cfg: Any, fps: float, kind: Any, config: dict[str, Any]) -> 
     ``fps``, as the run hears a whole song: a song of a known metre is drawn its metre's turning and
     travel (``drawn_by_metre``), and a run with ``style_tempo`` dances a song far from its style's
     tempo played at it (the kind is told, :meth:`~kinectdata.inference.turning.TurnedKind.know_played`).
-    ``features_of.play(samples, features, beats_per_bar)`` tells the kind for features made already
-    and returns the factor (1.0: as it is)."""
+    ``features_of.play(samples, features, beats_per_bar, style=None)`` tells the kind for features
+    made already and returns the factor (1.0: as it is); ``style``: the song's, when the build gave it
+    one the classifier knows (else heard in ``samples``)."""
     by_metre = isinstance(kind, TurnedKind) and bool(config.get("drawn_by_metre"))
     band = run_style_tempo(config) if isinstance(kind, TurnedKind) else None
 
@@ -669,10 +674,12 @@ def _features_maker(cfg: Any, fps: float, kind: Any, config: dict[str, Any]) -> 
             0
         ]
 
-    def play(samples: np.ndarray, features: np.ndarray, beats_per_bar: int | None) -> float:
+    def play(samples: np.ndarray, features: np.ndarray, beats_per_bar: int | None, style: str | None = None) -> float:
         if band is None:
             return 1.0
-        factor, style = style_tempo_factor(samples, cfg, band)
+        part = style_input_of(cfg)
+        known = part.styles if part is not None else ()
+        factor, style = style_tempo_factor(samples, cfg, band, style if style in known else None)
         if factor != 1.0:  # the style input as the song is heard, not as the played music would be
             played = compute(stretch_audio(samples, factor, cfg.sample_rate), beats_per_bar, style)
             kind.know_played(features, played, factor)

@@ -13,12 +13,15 @@ apart and that a stretch of the tempo (pitch kept) moves little:
 - ``metre``: the bar-to-bar similarity of beat spectra at 3 beats minus that at 4
   (:func:`~kinectdata.features.metre.bar_similarity`): a waltz is in 3;
 - ``tempo``: log2 of the median beat rate (beats per minute) of librosa's tracker: a cha-cha
-  (~120-128 BPM) is faster than a rumba (~100-108);
+  (~120-128 BPM) is faster than a rumba (~100-108). The classifier compares it with octaves set
+  aside (modulo one octave): the tracker reports some songs at twice their beat, and a waltz heard
+  at 174 is as much a waltz as one heard at 87;
 - ``onset_cv``: the onset strength's coefficient of variation (how percussive the music is);
 - ``centroid``, ``flatness``: the logarithm of the mean spectral centroid (Hz) and flatness (timbre).
 
 The classifier (:class:`MusicStyleClassifier`) scales each descriptor by its spread within the
-styles (pooled), takes each style's mean, and names the style whose mean is nearest: every style
+styles (pooled), takes each style's mean (the tempo's: its circular mean modulo an octave, as
+:func:`usual_tempo`), and names the style whose mean is nearest: every style
 counts alike however many songs it has (a corpus with 27 waltzes and 2 cha-chas does not make every
 song a waltz). Labelled songs without a dance (a corpus's songs whose motion is lost, a collection of
 dance music) teach it too: with 3 cha-chas and 5 rumbas, every labelled song counts.
@@ -42,10 +45,22 @@ from kinectdata.core.librosa_import import import_librosa
 from kinectdata.features.beats import music_beats
 from kinectdata.features.metre import bar_similarity, beat_descriptors
 
-__all__ = ["DESCRIPTORS", "MusicStyleClassifier", "TooLittleMusic", "song_descriptors", "usual_tempo"]
+__all__ = [
+    "DESCRIPTORS",
+    "HEARING_VERSION",
+    "MusicStyleClassifier",
+    "TooLittleMusic",
+    "song_descriptors",
+    "usual_tempo",
+]
 
 DESCRIPTORS = ("metre", "tempo", "onset_cv", "centroid", "flatness")
 """The song-level descriptors, in the order :func:`song_descriptors` returns them (module docstring)."""
+_TEMPO = DESCRIPTORS.index("tempo")
+
+HEARING_VERSION = 2
+"""How the classifier hears (1: the tempo compared as is; 2: modulo one octave). A dataset build's key
+holds it, so that a dataset whose features hear the style is built again when the hearing changes."""
 
 
 class TooLittleMusic(KinectDataError):
@@ -102,6 +117,8 @@ class MusicStyleClassifier:
             songs' tempo descriptors); empty for a classifier saved before it was kept.
         undanced: how many of the ``songs`` had no dance (labelled music only): they teach the
             hearing, not the tempi.
+        octave_free: the tempo descriptor is compared modulo one octave (every fit since
+            :data:`HEARING_VERSION` 2; False for a classifier saved before, which compared it as is).
     """
 
     styles: tuple[str, ...]
@@ -112,6 +129,7 @@ class MusicStyleClassifier:
     leave_one_out: int = 0
     tempi: tuple[float, ...] = ()
     undanced: int = 0
+    octave_free: bool = False
 
     def __post_init__(self) -> None:
         d = len(DESCRIPTORS)
@@ -150,12 +168,11 @@ class MusicStyleClassifier:
             raise KinectDataError("a music style classifier's songs' descriptors must be finite")
         fitted = _fit(x, labels)
         right = sum(_fit(np.delete(x, i, 0), np.delete(labels, i)).predict(x[i]) == labels[i] for i in range(len(x)))
-        tempo = DESCRIPTORS.index("tempo")
         tempi = []
         for style in fitted.styles:
             mine = labels == style
             taught = mine & shown if (mine & shown).any() else mine
-            tempi.append(usual_tempo(2.0 ** x[taught, tempo]))
+            tempi.append(usual_tempo(2.0 ** x[taught, _TEMPO]))
         return cls(
             fitted.styles,
             fitted.centres,
@@ -165,12 +182,17 @@ class MusicStyleClassifier:
             leave_one_out=int(right),
             tempi=tuple(tempi),
             undanced=int((~shown).sum()),
+            octave_free=True,
         )
 
     def predict(self, descriptors: np.ndarray) -> str:
         """The style of a song with ``descriptors`` [D]."""
-        scaled = (np.asarray(descriptors, np.float64) - np.array(self.mean)) / np.array(self.scale)
-        distance = ((np.array(self.centres) - scaled[None]) ** 2).sum(axis=1)
+        scale = np.array(self.scale)
+        centres = np.array(self.centres) * scale + np.array(self.mean)
+        off = np.asarray(descriptors, np.float64)[None] - centres
+        if self.octave_free:
+            off[:, _TEMPO] -= np.round(off[:, _TEMPO])
+        distance = ((off / scale) ** 2).sum(axis=1)
         return self.styles[int(distance.argmin())]
 
     def style_of(self, samples: np.ndarray, sample_rate: float) -> str:
@@ -214,6 +236,7 @@ class MusicStyleClassifier:
             "leave_one_out": self.leave_one_out,
             "tempi": list(self.tempi),
             "undanced": self.undanced,
+            "octave_free": self.octave_free,
         }
 
     @classmethod
@@ -228,6 +251,7 @@ class MusicStyleClassifier:
                 int(d.get("leave_one_out", 0)),
                 tuple(float(t) for t in d.get("tempi", ())),
                 int(d.get("undanced", 0)),
+                bool(d.get("octave_free", False)),
             )
         except (KeyError, TypeError, ValueError) as exc:
             raise ConfigError(f"not a music style classifier ({exc})") from exc
@@ -248,11 +272,23 @@ def usual_tempo(tempi_bpm: np.ndarray) -> float:
 def _fit(x: np.ndarray, labels: np.ndarray) -> MusicStyleClassifier:
     styles = tuple(sorted(set(labels.tolist())))
     mean = x.mean(axis=0)
-    within = np.concatenate([x[labels == s] - x[labels == s].mean(axis=0) for s in styles])
+    means = []
+    for s in styles:
+        mine = x[labels == s].mean(axis=0)
+        mine[_TEMPO] = np.log2(usual_tempo(2.0 ** x[labels == s, _TEMPO]))
+        means.append(mine)
+    within = np.concatenate([_off(x[labels == s], m) for s, m in zip(styles, means)])
     dof = max(len(x) - len(styles), 1)
     scale = np.sqrt((within**2).sum(axis=0) / dof)
-    overall = x.std(axis=0)
+    overall = _off(x, mean).std(axis=0)
     # a descriptor no style varies in (one song per style) falls back to its spread over all songs, then to 1
     scale = np.where(scale > 0, scale, np.where(overall > 0, overall, 1.0))
-    centres = tuple(tuple(((x[labels == s].mean(axis=0) - mean) / scale).tolist()) for s in styles)
-    return MusicStyleClassifier(styles, centres, tuple(mean.tolist()), tuple(scale.tolist()))
+    centres = tuple(tuple(((m - mean) / scale).tolist()) for m in means)
+    return MusicStyleClassifier(styles, centres, tuple(mean.tolist()), tuple(scale.tolist()), octave_free=True)
+
+
+def _off(x: np.ndarray, centre: np.ndarray) -> np.ndarray:
+    """[N, D] songs' descriptors ``x`` [N, D] less ``centre`` [D], the tempo's within half an octave."""
+    off = x - centre
+    off[:, _TEMPO] -= np.round(off[:, _TEMPO])
+    return off

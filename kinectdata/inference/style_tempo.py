@@ -9,7 +9,9 @@ A dancer dances the same steps faster or slower; so does a run with ``style_temp
 
 1. the style of the whole song is heard and its tempo read (the classifier the dataset build fitted
    on the training songs, :meth:`~kinectdata.features.music_style.MusicStyleClassifier.tempo_factor`:
-   librosa's beat tracker, octaves set aside);
+   librosa's beat tracker, octaves set aside); a dataset's recording keeps the style the build gave
+   its song (told, or heard in the whole file), and ``evaluate`` does not hear again the stretch of
+   it the dance covers;
 2. a song within a factor ``1 + band`` (0.08: 8 %) of its style's usual tempo is danced as it is;
    any other is played faster or slower with its pitch kept (:func:`~kinectdata.align.stretch.stretch_audio`:
    SoX, or librosa without it) to the band's nearer edge, with the style input of the song as heard

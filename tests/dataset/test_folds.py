@@ -52,7 +52,7 @@ def test_fold_counts_outside_two_to_the_recordings_are_refused(count):
 def test_fold_manifests_sit_beside_the_source_and_build_as_it_does(tmp_path):
     make_tang2018_copy(tmp_path, seconds=0.5)
     result = CliRunner().invoke(main, ["prepare", "tang2018", str(tmp_path / "Music-to-Dance-Motion-Synthesis"),
-                                       "-o", str(tmp_path / "tang.yaml")])  # fmt: skip
+                                       "-o", str(tmp_path / "tang.yaml"), "--labelled-songs"])  # fmt: skip
     assert result.exit_code == 0, result.output
     assert "listed 3 songs without a dance as labelled music (1 cha-cha, 1 rumba, 1 waltz)" in result.output
     source = yaml.safe_load((tmp_path / "tang.yaml").read_text())

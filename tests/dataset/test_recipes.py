@@ -284,7 +284,7 @@ def test_tang2018_lists_the_complete_dances_in_the_acceptance_split(tang):
 
 def test_tang2018_leaves_out_the_incomplete_dances_naming_the_missing_file(tang):
     skipped = dict(prepare_tang2018(tang).skipped)
-    kept = "; its song is kept to hear the style by"
+    kept = "; its song alone is there"
     assert skipped == {
         "C_1": f"DANCE_C_1/skeletons.json is missing or empty{kept}",
         "C_9": "DANCE_C_9/audio.mp3 is missing or empty",
@@ -295,10 +295,13 @@ def test_tang2018_leaves_out_the_incomplete_dances_naming_the_missing_file(tang)
         "W_13": f"DANCE_W_13/skeletons.json is missing or empty{kept}",
     }
     assert set(skipped) == set(TANG2018_DANCES) - COMPLETE
+    listed = dict(prepare_tang2018(tang, labelled_songs=True).skipped)
+    assert listed["C_1"] == "DANCE_C_1/skeletons.json is missing or empty; its song is kept to hear the style by"
 
 
-def test_tang2018_lists_a_song_without_its_dance_as_labelled_music(tang, tmp_path):
-    manifest = prepare_tang2018(tang)
+def test_tang2018_lists_a_song_without_its_dance_as_labelled_music_when_asked(tang, tmp_path):
+    assert prepare_tang2018(tang).songs == ()  # not by default: on the folds they cost the hearing a song
+    manifest = prepare_tang2018(tang, labelled_songs=True)
     assert [(s.name, s.audio, s.style) for s in manifest.songs] == [
         ("C_1", "DANCE_C_1/audio.mp3", "cha-cha"),
         ("R_6", "DANCE_R_6/audio.mp3", "rumba"),
@@ -452,10 +455,12 @@ def test_prepare_tang2018_then_build_dataset_root_centred_keeps_splits_and_music
     lines = result.output.strip().splitlines()
     assert lines[0] == f"wrote {manifest}: 14 recordings of tang2018 (4 train, 3 val, 7 test) under {tang.resolve()}"
     assert lines[1:4] == ["left out 7:",
-                          "  C_1: DANCE_C_1/skeletons.json is missing or empty; its song is kept to hear the style by",
+                          "  C_1: DANCE_C_1/skeletons.json is missing or empty; its song alone is there",
                           "  C_9: DANCE_C_9/audio.mp3 is missing or empty"]  # fmt: skip
-    assert lines[-4] == "  ... and 2 more"
-    assert lines[-3].startswith("listed 3 songs without a dance as labelled music")
+    assert lines[-3] == "  ... and 2 more"
+    listed = runner.invoke(main, ["prepare", "tang2018", str(tang), "-o", str(tmp_path / "s.yaml"), "--labelled-songs"])
+    assert listed.exit_code == 0, listed.output
+    assert "listed 3 songs without a dance as labelled music (1 cha-cha, 1 rumba, 1 waltz)" in listed.output
     assert lines[-2] == (
         f"next: kinectdata build-dataset {manifest} -o DATASET --target positions --root-centre "
         "--features yalta2016_rhythm --allow-outside-paths"

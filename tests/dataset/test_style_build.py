@@ -160,3 +160,18 @@ def test_a_style_changed_in_the_manifest_builds_again(tmp_path):
     assert again["build_key"] != built["build_key"]
     said = {r["name"]: r["style"] for r in again["recordings"]}
     assert said["synth_002"] == {"style": "cha-cha", "source": "manifest"}
+
+
+def test_a_dataset_that_hears_the_style_builds_again_when_the_hearing_changes(tmp_path, monkeypatch):
+    import kinectdata.dataset.build as build
+
+    built = build_dataset(_manifest(tmp_path / "m.json"), tmp_path / "ds", _config(), allow_outside_paths=True)
+    assert style_input_of(feature_config(built["config"]["features"])).classifier.octave_free
+    monkeypatch.setattr(build, "HEARING_VERSION", build.HEARING_VERSION + 1)
+    again = build_dataset(_manifest(tmp_path / "m.json"), tmp_path / "ds", _config(), allow_outside_paths=True)
+    assert again["build_key"] != built["build_key"]
+    # a dataset whose features hear no style keeps its key
+    plain = BuildConfig.from_pipeline("yalta2016", features="yalta2016", target="positions")
+    first = build_dataset(_manifest(tmp_path / "m.json"), tmp_path / "plain", plain, allow_outside_paths=True)
+    monkeypatch.setattr(build, "HEARING_VERSION", build.HEARING_VERSION + 1)
+    assert build_dataset(_manifest(tmp_path / "m.json"), tmp_path / "plain", plain, allow_outside_paths=True) == first

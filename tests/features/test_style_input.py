@@ -11,6 +11,7 @@ pytest.importorskip("librosa")
 
 from helpers import metre_music  # noqa: E402
 from scipy.spatial.distance import cdist  # noqa: E402
+from scipy.stats import circmean  # noqa: E402
 
 from kinectdata.core.errors import ConfigError, KinectDataError  # noqa: E402
 from kinectdata.features import (  # noqa: E402
@@ -54,17 +55,37 @@ def test_the_classifier_names_the_nearest_style_mean_in_pooled_within_style_unit
     counts = {"cha-cha": 3, "rumba": 4, "waltz": 20}  # a majority that must not win by its size
     styles = [s for s, n in counts.items() for _ in range(n)]
     x = np.array([centres[s] for s in styles]) + rng.normal(0, 0.08, (len(styles), 5))
+    x[:6:2, 1] += 1.0  # a cha-cha and two rumbas heard at twice their beat, as librosa's tracker may
     fitted = MusicStyleClassifier.fit(x, styles)
-    assert fitted.styles == ("cha-cha", "rumba", "waltz") and fitted.songs == len(styles)
-    # the same rule computed another way: scipy's standardised Euclidean distance to each style's mean
-    within = np.concatenate([x[np.array(styles) == s] - x[np.array(styles) == s].mean(0) for s in counts])
+    assert fitted.styles == ("cha-cha", "rumba", "waltz") and fitted.songs == len(styles) and fitted.octave_free
+    # the same rule computed another way: scipy's standardised Euclidean distance to each style's mean,
+    # the tempo's mean scipy's circular mean over one octave and each tempo moved by whole octaves to it
+    label = np.array(styles)
+    means = np.stack([x[label == s].mean(0) for s in fitted.styles])
+    means[:, 1] = [circmean(x[label == s, 1], high=1.0, low=0.0) for s in fitted.styles]
+    within = x - means[[fitted.styles.index(s) for s in styles]]
+    within[:, 1] -= np.round(within[:, 1])
     variance = (within**2).sum(0) / (len(styles) - len(counts))
-    means = np.stack([x[np.array(styles) == s].mean(0) for s in fitted.styles])
     asked = rng.normal(x.mean(0), 0.3, (50, 5))
-    expected = np.array(fitted.styles)[cdist(asked, means, "seuclidean", V=variance).argmin(axis=1)]
+    distances = []
+    for centre in means:
+        near = asked.copy()
+        near[:, 1] += np.round(centre[1] - near[:, 1])
+        distances.append(cdist(near, centre[None], "seuclidean", V=variance)[:, 0])
+    expected = np.array(fitted.styles)[np.argmin(distances, axis=0)]
     assert [fitted.predict(a) for a in asked] == expected.tolist()
     assert fitted.leave_one_out == len(styles)  # well apart: every song named right when left out
     assert MusicStyleClassifier.from_dict(fitted.to_dict()) == fitted
+
+
+def test_a_classifier_saved_before_octaves_were_set_aside_hears_as_it_did():
+    centres = ((0.0, 7.0, 0.0, 0.0, 0.0), (0.0, 6.4, 0.0, 0.0, 0.0))
+    older = MusicStyleClassifier(("cha-cha", "waltz"), centres, (0.0,) * 5, (1.0,) * 5).to_dict()
+    del older["octave_free"]
+    song = np.zeros(5)
+    song[1] = 7.35  # a waltz's 87 beats a minute heard at twice: nearer the cha-cha's 128 as is
+    assert MusicStyleClassifier.from_dict(older).predict(song) == "cha-cha"
+    assert MusicStyleClassifier.from_dict({**older, "octave_free": True}).predict(song) == "waltz"
 
 
 def test_a_classifier_fitted_on_songs_names_a_new_song():

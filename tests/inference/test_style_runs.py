@@ -174,3 +174,34 @@ def test_evaluate_dances_the_split_as_generate_does_and_says_which_songs_it_play
     assert as_it_is["style_tempo"] == {"band": None, "line": "every song at its own tempo", "played": {}}
     played, plain = (r["smape"]["without_reset"]["smape_normalised"] for r in (results, as_it_is))
     assert played != plain  # another dance: the song played faster or slower, warped back
+
+
+def test_evaluate_plays_a_split_song_at_the_tempo_of_the_style_the_build_gave_it(style_run, tmp_path):
+    # the build hears the whole song; evaluate plays the stretch the dance covers and must not hear it
+    # again (the two can disagree): told another style in the dataset, the song is played at that one's
+    import shutil
+
+    from kinectdata.evaluation.evaluate import evaluate, split_recordings
+    from kinectdata.evaluation.rhythm_eval import recording_audio
+    from kinectdata.inference.style_tempo import style_tempo_factor
+    from kinectdata.models.run import read_manifest
+
+    run, _ = style_run
+    config = json.loads((run / "config.json").read_text())
+    dataset = tmp_path / "dataset"
+    shutil.copytree(config["dataset"]["path"], dataset)
+    manifest = read_manifest(dataset, checksums=False)
+    record = next(r for r in manifest["recordings"] if r["name"] == "synth_002")
+    told = next(s for s in _classifier(run).styles if s != record["style"]["style"])
+    record["style"] = {"style": told, "source": "heard"}
+    (dataset / "manifest.json").write_text(json.dumps(manifest))
+    (rec,) = split_recordings(dataset, manifest, "val")
+    assert rec["style"] == told
+    entry = next(e for e in manifest["inputs"] if e["name"] == rec["recording"])
+    samples = recording_audio(entry, rec["info"], len(rec["current"]), 30.0, 16000)
+    features = feature_config(config["dataset"]["features"])
+    factor, _ = style_tempo_factor(samples, features, 0.01, told)
+    assert factor != pytest.approx(style_tempo_factor(samples, features, 0.01)[0])  # the styles' tempi differ
+    asked = {"bootstrap": 0, "engines": [], "baselines": False, "tempo_rates": ()}
+    results = evaluate(run, dataset, "val", out=tmp_path / "played", style_tempo=0.01, **asked)
+    assert results["style_tempo"]["played"]["synth_002"] == pytest.approx(factor)

@@ -9,8 +9,10 @@ Readme.md, utils/draw.py, and the data, measured as docs/corpora.md tells):
   corpus's: C cha-cha, R rumba, T tango, W waltz (Readme.md names the four dances).
 - A dance whose files are not all there (the public mirror lacks some blobs) is left out with
   the file that is missing; one whose ``config.json`` cannot be read, with what is wrong in it.
-  A folder whose song is there but not its dance still gives a labelled song (``songs``): its
-  music, with the folder's style, teaches a build's music style classifier.
+  A folder whose song is there but not its dance can give a labelled song (``songs``,
+  ``labelled_songs=True``): its music, with the folder's style, teaches a build's music style
+  classifier. Not by default: on the three folds the copy's 5 Latin ones cost the hearing a
+  held-out song and 4 of 72 stretched ones (docs/notebook/2026-12-real-dance-variety.md).
 - Motion and song share one clock: audio_time = motion_time + start_position / 25, the offset
   written for each dance.
 - Metre: a waltz is in 3 (three beats to the bar), cha-cha, rumba and tango in 4; written as each
@@ -48,20 +50,23 @@ SPLITS = ("kinectdata", "none", None)
 _FOLDER = re.compile(r"DANCE_([A-Z])_(\d+)")
 
 
-def prepare_tang2018(path: str | Path, *, split: str | None = "kinectdata") -> CorpusManifest:
+def prepare_tang2018(
+    path: str | Path, *, split: str | None = "kinectdata", labelled_songs: bool = False
+) -> CorpusManifest:
     """A recordings manifest for a local copy of the Dance with Melody corpus.
 
     Args:
         path: the folder holding the ``DANCE_<style>_<n>/`` folders (the repository's root).
         split: ``"kinectdata"`` for :data:`KINECTDATA_SPLIT`, or ``"none"`` (None) to leave the split
             to the build.
+        labelled_songs: list each folder with a song but no dance as a labelled song of its style.
 
     Returns:
         A :class:`CorpusManifest`: each complete dance as ``format: tang2018`` with its song, offset
         (its start in the song), style and beats per bar, named ``<style letter>_<n>`` (``W_1``);
         the incomplete ones left out with the file that is missing, and those whose ``config.json``
-        cannot be read with what is wrong in it; each folder with a song but no dance as a labelled
-        song of its style.
+        cannot be read with what is wrong in it; with ``labelled_songs``, each folder with a song but
+        no dance as a labelled song of its style.
 
     Raises:
         CorpusError: not a folder, no ``DANCE_*`` folder in it, or no dance complete.
@@ -84,9 +89,11 @@ def prepare_tang2018(path: str | Path, *, split: str | None = "kinectdata") -> C
         missing = [f for f in FILES if not (folder / f).is_file() or (folder / f).stat().st_size == 0]
         if missing:
             song_only = "audio.mp3" not in missing and letter in STYLES
-            if song_only:
+            if song_only and labelled_songs:
                 songs.append(LabelledSong(name, relative(folder / "audio.mp3", path), STYLES[letter][0]))
-            kept = "; its song is kept to hear the style by" if song_only else ""
+            kept = ""
+            if song_only:
+                kept = "; its song is kept to hear the style by" if labelled_songs else "; its song alone is there"
             skipped.append((name, f"{folder.name}/{missing[0]} is missing or empty{kept}"))
             continue
         if letter not in STYLES:
