@@ -207,7 +207,8 @@ def build_dataset(
     _refuse_duplicates(entries, hashes, splits, source)
     # labelled songs without a recording teach a style input's classifier, and nothing else
     songs = read_songs(source, allow_outside_paths=allow_outside_paths)  # checked even when nothing hears them
-    if not needs_style(config.feature_config):
+    hears_style = needs_style(config.feature_config)
+    if not hears_style:
         songs = []
     song_hashes = {s.name: file_sha256(s.audio) for s in songs}
     songs = _songs_of_their_own(songs, song_hashes, entries, hashes)
@@ -218,7 +219,7 @@ def build_dataset(
             "inputs": [_key_entry(e, splits) for e in entries],
             "sources": hashes,
             **({"songs": [s.to_dict() | {"audio": song_hashes[s.name]} for s in songs]} if songs else {}),
-            **({"hearing": HEARING_VERSION} if needs_style(config.feature_config) else {}),
+            **({"hearing": HEARING_VERSION} if hears_style else {}),
         }
     )
     said = empty_split_message(source, entries, splits, config.split_ratios)

@@ -666,6 +666,8 @@ def _features_maker(cfg: Any, fps: float, kind: Any, config: dict[str, Any]) -> 
     one the classifier knows (else heard in ``samples``)."""
     by_metre = isinstance(kind, TurnedKind) and bool(config.get("drawn_by_metre"))
     band = run_style_tempo(config) if isinstance(kind, TurnedKind) else None
+    part = style_input_of(cfg)
+    known = part.styles if part is not None else ()  # a style given that the run does not know is heard
 
     def compute(samples: np.ndarray, beats_per_bar: int | None, style: str | None = None) -> np.ndarray:
         frames = int(len(samples) / cfg.sample_rate * fps)
@@ -677,8 +679,6 @@ def _features_maker(cfg: Any, fps: float, kind: Any, config: dict[str, Any]) -> 
     def play(samples: np.ndarray, features: np.ndarray, beats_per_bar: int | None, style: str | None = None) -> float:
         if band is None:
             return 1.0
-        part = style_input_of(cfg)
-        known = part.styles if part is not None else ()
         factor, style = style_tempo_factor(samples, cfg, band, style if style in known else None)
         if factor != 1.0:  # the style input as the song is heard, not as the played music would be
             played = compute(stretch_audio(samples, factor, cfg.sample_rate), beats_per_bar, style)

@@ -189,9 +189,8 @@ class MusicStyleClassifier:
         """The style of a song with ``descriptors`` [D]."""
         scale = np.array(self.scale)
         centres = np.array(self.centres) * scale + np.array(self.mean)
-        off = np.asarray(descriptors, np.float64)[None] - centres
-        if self.octave_free:
-            off[:, _TEMPO] -= np.round(off[:, _TEMPO])
+        song = np.asarray(descriptors, np.float64)
+        off = _off(centres, song) if self.octave_free else centres - song
         distance = ((off / scale) ** 2).sum(axis=1)
         return self.styles[int(distance.argmin())]
 
