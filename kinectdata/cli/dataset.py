@@ -54,7 +54,8 @@ from kinectdata.targets.specs import shipped_target_specs
     "[153]: the saliences of 65 tempi and the beat's and bar's phase; listen_to_dance_rhythm_bars: the bar in each "
     "song's metre, from the recordings manifest's beats_per_bar or estimated; listen_to_dance_rhythm_counted: "
     "those levels counted from the beat, clocks that turn once a bar whatever the downbeats sound like; "
-    "listen_to_dance_pulse [73]: that pulse alone, without the log-mel bands). "
+    "listen_to_dance_pulse [73]: that pulse alone, without the log-mel bands; listen_to_dance_clocks [6]: the "
+    "clocks of listen_to_dance_rhythm_bars alone, at the beat, bar and two bars). "
     "Default: the pipeline's.",
 )
 @click.option(

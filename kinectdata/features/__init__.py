@@ -94,6 +94,14 @@ LISTEN_TO_DANCE_COUNTED_PULSE = dataclasses.replace(LISTEN_TO_DANCE_BAR_PULSE, c
 clocks that turn once per level whatever the downbeats sound like; the tempogram's phase at a bar's
 tempo hardly turns where the downbeats are not louder, and the cdhc network, the same at every
 instant, cannot divide a beat's clock into bars itself): [73]."""
+LISTEN_TO_DANCE_CLOCKS = dataclasses.replace(LISTEN_TO_DANCE_BAR_PULSE, levels=(1,), saliences=False)
+"""The bar pulse's clocks alone: the beat, the bar and two bars in the song's metre, each ``s* cos``,
+``s* sin`` [6], without the sound, the tempi's saliences (``saliences=False``) or the two beats'
+clock. The cdhc network given the log-mel bands too danced most held-out waltzes at a period of its
+own, between their two beats and their bar; given the clocks with the two beats', at the two beats;
+given these and the style (``listen_to_dance_clocks_style``), at their bar, and met the four goals the
+folds score on folds 2 and 3 at seed 0 (docs/notebook/2026-12-real-dance-variety.md, "The sound or
+the clock")."""
 PRESETS: dict[str, FeatureConfig] = {
     **STFT_PRESETS,
     "listen_to_dance": MelConfig(),
@@ -111,13 +119,16 @@ PRESETS: dict[str, FeatureConfig] = {
         (STFT_PRESETS["yalta2016"], RhythmConfig(columns=5), StyleInputConfig(planes=(129, 5)))
     ),
     "listen_to_dance_rhythm_bars_style": StackConfig((MelConfig(), LISTEN_TO_DANCE_BAR_PULSE, StyleInputConfig())),
+    "listen_to_dance_clocks": LISTEN_TO_DANCE_CLOCKS,
+    "listen_to_dance_clocks_style": StackConfig((LISTEN_TO_DANCE_CLOCKS, StyleInputConfig())),
 }
 """Feature configurations by name: ``yalta2016``, ``motion_dance`` (STFT), ``listen_to_dance``
 (mel), and each with the music's pulse stacked on (``_rhythm``; ``listen_to_dance_rhythm_bars``:
 its bar levels in the song's metre), and each of those with the song's metre as input
 (``_metre``: :mod:`.metre_input`, one value per bar length of 3 and 4 beats) or its dance style
 (``_style``: :mod:`.style_input`, one value per style of the training songs, at most 4; a dataset
-build fits the classifier that hears it)."""
+build fits the classifier that hears it); ``listen_to_dance_clocks`` (``_style``): the pulse's clocks at
+the beat, the bar and two bars alone, without the sound (:data:`LISTEN_TO_DANCE_CLOCKS`)."""
 _CONFIG_TYPES = {
     "stft": StftConfig,
     "mel": MelConfig,

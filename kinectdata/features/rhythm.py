@@ -62,7 +62,8 @@ on that corpus's songs; dB-scaled features 0.7-0.8). So the pulse is computed, c
 
 Output per motion frame: ``[3 * n_tempi + 2 * L]`` values in -1..1, L the levels and bar levels
 (tempo by tempo: salience, cosine, sine; then level by level: cosine, sine; with ``tempo_phases``
-false ``[n_tempi + 2 * L]``: the saliences, then the levels), or with ``columns`` = c, ``[1, 3 * n_tempi,
+false ``[n_tempi + 2 * L]``: the saliences, then the levels; with ``saliences`` false ``[2 * L]``: the
+levels alone), or with ``columns`` = c, ``[1, 3 * n_tempi,
 c]`` (``[1, n_tempi, c]`` without the tempo phases): those values at c instants spread over the
 frame's slice like the STFT features' sub-frames (43 tempi give 129 rows, the STFT's bins: the two
 stack as channels of one [2, 129, 5] input). A frame reads the ``window_s`` before its slice:
@@ -124,6 +125,9 @@ class RhythmConfig:
         tempo_phases: each tempo's ``s cos``, ``s sin`` after its salience (step 3); False: the
             saliences alone, so that the only clocks in the output are the levels' (a network given a
             fixed tempo's phase can keep time at that tempo whatever it hears).
+        saliences: each tempo's values (its salience, and its phases with ``tempo_phases``) before the
+            levels; False: the levels' clocks alone, ``[2 L]`` (the tempi still pick the beat). Needs
+            levels or bar levels, and no ``tempo_phases``.
         counted_levels: the levels above the beat from the beat's counted phase (module
             docstring, step 5) instead of the tempogram's phase at their tempi.
         columns: 0 for a vector per frame (at the slice's end); c > 0 for a [1, 3 n_tempi, c]
@@ -152,6 +156,7 @@ class RhythmConfig:
     beat_range_bpm: tuple[float, float] | None = None
     harmonic_weight: float = 0.0
     tempo_phases: bool = True
+    saliences: bool = True
     counted_levels: bool = False
     columns: int = 0
     column_hop: int = 80
@@ -190,9 +195,12 @@ class RhythmConfig:
         if not float(self.harmonic_weight) >= 0:
             raise ConfigError(f"rhythm features: harmonic_weight must be at least 0, got {self.harmonic_weight!r}")
         object.__setattr__(self, "harmonic_weight", float(self.harmonic_weight))
-        for name in ("tempo_phases", "counted_levels"):
+        for name in ("tempo_phases", "saliences", "counted_levels"):
             if not isinstance(getattr(self, name), bool):
                 raise ConfigError(f"rhythm features: {name} must be true or false, got {getattr(self, name)!r}")
+        if not self.saliences and (self.tempo_phases or not (self.levels or self.bar_levels)):
+            raise ConfigError("rhythm features: without the saliences the output is the levels' clocks: give levels or "
+                              "bar_levels, and no tempo_phases")  # fmt: skip
         if self.counted_levels and not (self.levels or self.bar_levels):
             raise ConfigError("rhythm features: counted_levels counts the levels: give levels or bar_levels")
         if (self.levels or self.bar_levels) and self.columns:
@@ -212,9 +220,10 @@ class RhythmConfig:
 
     @property
     def values_per_instant(self) -> int:
-        """``3 n_tempi + 2 L`` (``n_tempi + 2 L`` without the tempo phases), L the levels and bar
-        levels: the values taken at each instant of a frame."""
-        return (3 if self.tempo_phases else 1) * self.n_tempi + 2 * (len(self.levels) + len(self.bar_levels))
+        """``3 n_tempi + 2 L`` (``n_tempi + 2 L`` without the tempo phases, ``2 L`` without the
+        saliences), L the levels and bar levels: the values taken at each instant of a frame."""
+        tempi = ((3 if self.tempo_phases else 1) * self.n_tempi) if self.saliences else 0
+        return tempi + 2 * (len(self.levels) + len(self.bar_levels))
 
     @property
     def needs_metre(self) -> bool:
@@ -269,12 +278,14 @@ class RhythmConfig:
 
     def to_dict(self) -> dict[str, Any]:
         """A JSON-able dict of every field, with ``"extractor": "rhythm"``; without ``bar_levels``
-        when there are none and ``counted_levels`` when false, as before they existed (so a dataset
-        built then keeps its build key, and its runs their features)."""
+        when there are none, ``counted_levels`` when false and ``saliences`` when true, as before they
+        existed (so a dataset built then keeps its build key, and its runs their features)."""
         d = config_to_dict(self)
         for name in ("bar_levels", "counted_levels"):
             if not d[name]:
                 del d[name]
+        if d["saliences"]:
+            del d["saliences"]
         return d
 
     @classmethod
@@ -416,7 +427,9 @@ def _pulse_values(
     pulse, total = sums[..., :-1], sums[..., -1].real  # [F, c, tempi], [F, c]
     salience = np.where(total[..., None] > 0, np.abs(pulse) / np.maximum(total[..., None], 1e-30), 0.0)
     angle = np.angle(pulse)
-    if config.tempo_phases:
+    if not config.saliences:
+        values = np.zeros((*salience.shape[:2], 0))
+    elif config.tempo_phases:
         values = np.stack([salience, salience * np.cos(angle), salience * np.sin(angle)], axis=-1)  # [F, c, K, 3]
         values = values.reshape(*values.shape[:2], -1)
     else:

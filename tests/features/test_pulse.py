@@ -365,6 +365,25 @@ def test_without_the_tempo_phases_a_frame_is_the_saliences_then_the_levels():
     np.testing.assert_array_equal(bare[:, 65:], full[:, 195:])
 
 
+def test_without_the_saliences_a_frame_is_the_levels_alone():
+    """``saliences=False``: only the levels' clocks, the same values as after the tempi of the full
+    output (whose levels the tests above check against the ideal pulse); the tempi still pick the beat."""
+    audio = accented_bars(100.0, seconds=16.0)[0]
+    starts = frame_starts(audio.size)
+    full, full_padded = rhythm_features(audio, starts, LEVELS)
+    clocks_config = dataclasses.replace(LEVELS, tempo_phases=False, saliences=False)
+    clocks, padded = rhythm_features(audio, starts, clocks_config)
+    assert clocks_config.output_shape == (2 * 3,) == clocks.shape[1:]
+    np.testing.assert_array_equal(clocks, full[:, 195:])
+    np.testing.assert_array_equal(padded, full_padded)
+    assert np.abs(clocks).max() > 0.9  # not all zeros: the clocks turn
+    d = json.loads(json.dumps(clocks_config.to_dict()))
+    assert d["saliences"] is False and RhythmConfig.from_dict(d) == clocks_config
+    assert "saliences" not in LEVELS.to_dict()  # a dataset built before the setting keeps its build key
+    assert PRESETS["listen_to_dance_clocks"].output_shape == (6,)
+    assert PRESETS["listen_to_dance_clocks_style"].output_shape == (10,)
+
+
 def test_the_predominant_pulse_is_zero_in_silence_and_its_settings_round_trip():
     audio, _ = click_track(120.0, seconds=20.0)
     audio[int(8 * SR) :] = 0.0
@@ -445,7 +464,9 @@ def test_chunking_does_not_change_the_values(clicks, config):
     np.testing.assert_allclose(reordered[::-1], whole, rtol=0, atol=1e-9)
 
 
-@pytest.mark.parametrize("preset", ["yalta2016_rhythm", "listen_to_dance_rhythm", "listen_to_dance_rhythm_counted"])
+@pytest.mark.parametrize(
+    "preset", ["yalta2016_rhythm", "listen_to_dance_rhythm", "listen_to_dance_rhythm_counted", "listen_to_dance_clocks"]
+)
 @pytest.mark.parametrize("block", [1777, 16001])
 def test_streaming_equals_the_whole_audio(preset, block):
     config = PRESETS[preset]
@@ -550,6 +571,9 @@ def test_rhythm_config_round_trip_and_dispatch():
         ({"tempo_phases": "no"}, "tempo_phases must be true or false"),
         ({"levels": (1,), "counted_levels": 1}, "counted_levels must be true or false"),
         ({"counted_levels": True}, "counted_levels counts the levels: give levels or bar_levels"),
+        ({"saliences": 0}, "saliences must be true or false"),
+        ({"saliences": False, "tempo_phases": False}, "without the saliences .* give levels or bar_levels"),
+        ({"saliences": False, "levels": (1,)}, "without the saliences .* no tempo_phases"),
     ],
 )
 def test_bad_rhythm_settings_are_config_errors(kwargs, message):
