@@ -78,7 +78,7 @@ envelope each.
 from __future__ import annotations
 
 import functools
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 from typing import Any, ClassVar
 
 import numpy as np
@@ -281,17 +281,20 @@ class RhythmConfig:
         when there are none, ``counted_levels`` when false and ``saliences`` when true, as before they
         existed (so a dataset built then keeps its build key, and its runs their features)."""
         d = config_to_dict(self)
-        for name in ("bar_levels", "counted_levels"):
-            if not d[name]:
+        for name in _ADDED_LATER:
+            if getattr(self, name) == _DEFAULTS[name]:
                 del d[name]
-        if d["saliences"]:
-            del d["saliences"]
         return d
 
     @classmethod
     def from_dict(cls, d: dict[str, Any]) -> RhythmConfig:
         """The config of a :meth:`to_dict` dict; unknown keys raise ConfigError."""
         return config_from_dict(cls, d, "a rhythm")
+
+
+_ADDED_LATER = ("bar_levels", "counted_levels", "saliences")
+"""Fields added after datasets were built: a config's dict leaves each out at its default."""
+_DEFAULTS = {f.name: f.default for f in fields(RhythmConfig)}
 
 
 @functools.lru_cache(maxsize=8)
