@@ -32,6 +32,9 @@ def test_folds_score_every_dance_outside_the_test_split_once(tmp_path, monkeypat
         built = json.loads((tmp_path / "out" / f"fold{fold}" / "yalta_dataset" / "manifest.json").read_text())
         assert not {r["name"] for r in built["recordings"]} & TEST_DANCES  # the test dances in no fold
     assert "a. alive and human:" in printed and "c. listens:" in printed
+    for protocol in ("bailando", "aist"):  # d against baselines made from each fold's own training dances
+        assert f"d. FID_k against the mean pose + noise ({protocol}): " in printed
+    assert "FID_k / the baseline's n/a" not in printed
     assert "[yalta seed 0] the 7 held-out dances of the 2 folds together:" in printed
     assert "dances in their song's style: " in printed
     listed = yaml.safe_load((tmp_path / "out" / "recordings.yaml").read_text())["recordings"]
