@@ -24,10 +24,10 @@ import numpy as np
 from kinectdata.apps.real_dance import build_model_dataset
 from kinectdata.dataset.folds import write_folds
 from kinectdata.dataset.recipes import prepare_corpus
-from kinectdata.evaluation.evaluate import evaluate, variety
+from kinectdata.evaluation.evaluate import variety
 from kinectdata.evaluation.pooled import held_out_following
 
-from .learning_real import PROTOCOLS, train_defaults
+from .learning_real import score_split, train_defaults
 from .real_goals import goals
 from .summary import record
 
@@ -71,9 +71,7 @@ def _seed_on_folds(
         dataset = out / f"fold{fold.index}" / f"{model}_dataset"
         run_dir = out / f"fold{fold.index}" / f"{model}-seed{seed}"
         history, trained = train_defaults(model, dataset, run_dir, guard_minutes, seed, changes)
-        results = evaluate(
-            run_dir, dataset, "val", more_protocols=PROTOCOLS[1:], bootstrap=0, engines=[("torch", "float32")]
-        )
+        results = score_split(run_dir, dataset, "val", bootstrap=0)
         print(f"  [{model} seed {seed}] fold {fold.index}: trained {trained:.1f} min, "
               f"{history[-1]['step']} steps; on its {len(fold.validation)} held-out dances:")  # fmt: skip
         for goal in goals(results, beat_where_real=True):

@@ -123,6 +123,16 @@ def train_defaults(
     return history, (time.perf_counter() - started) / 60
 
 
+def score_split(run_dir: Path, dataset: Path, split: str, bootstrap: int) -> dict[str, Any]:
+    """``evaluate`` as the goals read it: ``split``'s recordings on every protocol of :data:`PROTOCOLS`
+    with the baselines, ``bootstrap`` resamples for the intervals. The forward time on torch only: the
+    other engines' times are bench_model's; an ONNX export here would cost more than the rest of a
+    small run's evaluation."""
+    return evaluate(
+        run_dir, dataset, split, more_protocols=PROTOCOLS[1:], bootstrap=bootstrap, engines=[("torch", "float32")]
+    )
+
+
 def _progress(row: dict[str, Any]) -> None:
     print(f"    epoch {row['epoch']:3d} step {row['step']:5d}: train {row['train_loss']:.4f} "
           f"val {row['val_loss']:.4f}, SMAPE {row['val_smape']:.2f} %, free-running rhythm loss "
@@ -144,11 +154,7 @@ def _score(
     goals themselves under ``goal_objects``, for :func:`across_seeds`)."""
     name = f"{model} seed {seed}"
     figure = curves(history, out / f"learning-real-{model}-seed{seed}.png", f"{model} on {corpus}, seed {seed}")
-    # the forward time on torch only: the other engines' times are bench_model's; an ONNX export here
-    # would cost more than the rest of a small run's evaluation
-    results = evaluate(
-        run_dir, dataset, "test", more_protocols=PROTOCOLS[1:], bootstrap=bootstrap, engines=[("torch", "float32")]
-    )
+    results = score_split(run_dir, dataset, "test", bootstrap)
     kept = next((r for r in history if r.get("kept")), history[-1])
     print(
         f"  [{name}] trained {trained:.1f} min, {history[-1]['step']} steps ({_per_minute(history, trained)} a "
