@@ -621,9 +621,15 @@ def _tell_kind(
     travel by the song's metre (``drawn_by_metre``), and the features of its music played at its
     style's tempo, where the run has ``style_tempo`` and the song is far from that tempo
     (:mod:`kinectdata.inference.style_tempo`; recordings whose music cannot be read are danced as
-    they are). Returns each played recording's factor; nothing for any other kind."""
+    they are), and where its dancer stood, from which its travel is pulled towards the floor's centre
+    (:meth:`~kinectdata.inference.turning.TurnedKind.know_place`). Returns each played recording's
+    factor; nothing for any other kind."""
     by_metre, band = bool(config.get("drawn_by_metre")), run_style_tempo(config)
-    if not isinstance(kind, TurnedKind) or not (by_metre or band is not None):
+    if not isinstance(kind, TurnedKind):
+        return {}
+    for r in recordings:
+        kind.know_place(r["input"], r["info"].get("root_anchor"))
+    if not (by_metre or band is not None):
         return {}
     cfg = feature_config(config["dataset"]["features"])
     fps = config["dataset"]["fps"]
@@ -737,6 +743,8 @@ def _song_set(
         metres[r["name"]] = metre
         if by_metre:
             kind.know_metre(r["input"], metre.beats_per_bar)
+        if isinstance(kind, TurnedKind):
+            kind.know_place(r["input"], r["info"].get("root_anchor"))
         if samples is not None:  # as evaluate's own free runs (held_out_following calls this alone)
             _played_factor(r, samples, features_of, metre)
         first = r.get("first_pose")

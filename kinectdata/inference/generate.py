@@ -250,7 +250,16 @@ def generate(
         rng = np.random.default_rng(int(seed))
         silence = silence_features(data["features"], fps)
         values[made] = turn_song(
-            values[made], np.concatenate(heard)[made], silence, spec, fps, process, rng, moving, travel_generator(seed)
+            values[made],
+            np.concatenate(heard)[made],
+            silence,
+            spec,
+            fps,
+            process,
+            rng,
+            moving,
+            travel_generator(seed),
+            start.anchor,
         )
     smooth_hz = run_smoothing(config)
     if smooth_hz is not None:

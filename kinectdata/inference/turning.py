@@ -14,6 +14,11 @@ the travel after it, both held still where the music is silent
 - one frame at a time (``live``): :func:`live_turning`, seeded by ``seed`` alone; on the same audio
   and seed its frames are ``generate``'s.
 
+A travel fitted with its floor (:mod:`kinectdata.targets.travel`) is pulled towards the floor's
+centre from where the dance starts: in ``evaluate`` the recording's root anchor (the kind is told,
+:meth:`TurnedKind.know_place`), in ``generate`` the start's anchor (a recording's; the floor rule's
+dance starts at the floor's centre), in ``live`` the centre.
+
 A run trained with ``by_metre`` also keeps each metre's processes (``drawn_by_metre``): a song whose
 metre is known (given, listed in the recordings manifest, found by the build or estimated from the
 music, as its bar features are) is drawn its metre's where the run has them, else the pooled ones.
@@ -134,16 +139,19 @@ def turn_song(
     rng: np.random.Generator,
     travel: TravelProcess | None = None,
     travel_rng: np.random.Generator | None = None,
+    start: np.ndarray | None = None,
 ) -> np.ndarray:
     """Denormalised targets [T, D] of ``spec`` at ``fps``, of the frames whose features are
     ``features`` [T, *F], turned by a speed drawn from ``rng`` and then moved by a ``travel`` drawn
-    from ``travel_rng`` (either process None: not drawn), both still where the features are
-    ``silence`` [*F] (:func:`~kinectdata.features.silence.silence_features`)."""
+    from ``travel_rng`` (either process None: not drawn) from ``start`` ([3] where the dance stands,
+    a root anchor, metres; None: no known place), both still where the features are ``silence``
+    [*F] (:func:`~kinectdata.features.silence.silence_features`)."""
     live = ~silent_frames(features, silence)
     if process is not None:
         values = turn_targets(values, spec, draw_turning_speed(process, live, fps, rng), fps, process)
     if travel is not None:
-        values = travel_targets(values, spec, draw_travel(travel, live, fps, travel_rng or rng), fps)
+        floor = None if start is None else np.asarray(start, np.float64)[[0, 2]]
+        values = travel_targets(values, spec, draw_travel(travel, live, fps, travel_rng or rng, floor), fps)
     return values
 
 
@@ -191,6 +199,7 @@ class TurnedKind:
         self.silence = silence_features(config["dataset"]["features"], self.fps)
         self.metres: dict[int, int] = {}  # a song's features' CRC-32 -> its beats per bar
         self.played: dict[int, tuple[np.ndarray, float]] = {}  # a song's features' CRC-32 -> (played, factor)
+        self.places: dict[int, np.ndarray] = {}  # a song's features' CRC-32 -> where its dance starts [3]
         self.songs: dict[int, np.ndarray] = {}  # a song's features' CRC-32 -> the features, for its openings
         self.smooth_hz = run_smoothing(config)
 
@@ -209,6 +218,18 @@ class TurnedKind:
             self.metres.pop(key, None)
         else:
             self.metres[key] = int(beats_per_bar)
+
+    def know_place(self, features: np.ndarray, anchor: np.ndarray | None) -> None:
+        """Start the travel of the song whose features are ``features`` [T, *F] at ``anchor`` ([3]
+        metres, the recording's root anchor: its travel is pulled towards the floor's centre from
+        there); None: no known place (the floor's centre). Nothing to tell a run that draws no travel."""
+        if self.travel is None:
+            return
+        key = self._know(features)
+        if anchor is None or not np.isfinite(np.asarray(anchor, np.float64)).all():
+            self.places.pop(key, None)
+        else:
+            self.places[key] = np.asarray(anchor, np.float64)
 
     def know_played(self, features: np.ndarray, played: np.ndarray, factor: float) -> None:
         """Dance the song whose features are ``features`` [T, *F] from ``played`` [T', *F], the
@@ -264,7 +285,8 @@ class TurnedKind:
 
     def _turned(self, audio: np.ndarray, run: np.ndarray, heading: float = 0.0) -> np.ndarray:
         made = audio[len(audio) - len(run) :]  # a free run makes frames 1..T-1 of features [T]
-        metre = self.metres.get(self._song_key(audio)) if self.metres else None
+        key = self._song_key(audio) if (self.metres or self.places) else None
+        metre = self.metres.get(key) if self.metres else None
         process, travel = self.process, self.travel
         if metre is not None:
             process = run_turning(self.config, metre) if process is not None else None
@@ -282,6 +304,7 @@ class TurnedKind:
             song_generator(self.seed, audio),
             travel,
             travel_generator(self.seed, audio),
+            self.places.get(key) if self.places else None,
         )
         if self.smooth_hz is not None:
             turned = smooth_motion(turned, self.spec, self.fps, self.smooth_hz)

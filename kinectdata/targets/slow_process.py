@@ -66,6 +66,7 @@ def two_stage(noise: np.ndarray, live: np.ndarray, time_constant: float, fps: fl
     b, gain = pole_and_gain(time_constant, fps)
     u = lfilter([1 - b], [1, -b], np.asarray(noise, np.float64), axis=0)
     v = np.zeros_like(u)
-    for t in np.flatnonzero(live):  # v is 0 in silence, so the second stage restarts from 0 after it
-        v[t] = b * (v[t - 1] if t else 0.0) + (1 - b) * u[t]
+    edges = np.flatnonzero(np.diff(np.concatenate([[False], live, [False]]).astype(np.int8)))
+    for start, end in zip(edges[::2], edges[1::2]):  # v is 0 in silence: each stretch of music starts from 0
+        v[start:end] = lfilter([1 - b], [1, -b], u[start:end], axis=0)
     return gain * v

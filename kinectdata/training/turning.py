@@ -9,6 +9,8 @@ least-squares turn of its joints' offsets from the root, the root's travel left 
 :func:`kinectdata.targets.travel.fit_travel`. With ``TrainConfig.by_metre``, :func:`fit_dataset_by_metre`
 fits both again on the training recordings of each metre (``drawn_by_metre``): on tang2018 the Latin
 dancers (4 beats a bar) turn faster and in shorter turns than the waltzers (3), and travel less.
+The travel's floor (its centre, radius and pull) is fitted where every training recording has its
+root anchor (datasets built with ``--root-centre``).
 """
 
 from __future__ import annotations
@@ -43,10 +45,11 @@ MIN_METRE_RECORDINGS = 3
 
 def _training_dances(
     dataset: Path, manifest: dict[str, Any], summary: dict[str, Any]
-) -> list[tuple[int | None, np.ndarray | None, np.ndarray]] | None:
+) -> list[tuple[int | None, np.ndarray | None, np.ndarray, np.ndarray | None]] | None:
     """Each training recording's (metre (:func:`recording_beats_per_bar`), turning speed per frame
-    (None: under 3 frames), root's horizontal track [T, 2] in metres, NaN where unknown), read once;
-    None when the target cannot be turned (:func:`kinectdata.targets.turning.turnable`)."""
+    (None: under 3 frames), root's horizontal track [T, 2] in metres, NaN where unknown, where it
+    stood [2] (its root anchor's x and z, metres; None: built before anchors)), read once; None when
+    the target cannot be turned (:func:`kinectdata.targets.turning.turnable`)."""
     spec = TargetSpec.from_dict(summary["target"])
     if turnable(spec, bool(summary["root_centre"])):
         return None
@@ -60,7 +63,9 @@ def _training_dances(
         if len(r["current"]) >= 3:
             rates = turning_rates(np.delete(positions, root, axis=1), fps, np.delete(mask, root, axis=1))
         track = np.where(mask[:, root, None], positions[:, root][:, [0, 2]], np.nan)
-        out.append((recording_beats_per_bar(manifest, r), rates, track))
+        anchor = r["info"].get("root_anchor")
+        stood = None if anchor is None else np.asarray(anchor, np.float64)[[0, 2]]
+        out.append((recording_beats_per_bar(manifest, r), rates, track, stood))
     return out
 
 
@@ -74,7 +79,7 @@ def _fit_turning(dances, summary: dict[str, Any]) -> TurningProcess | None:
 
 def _fit_travel(dances, summary: dict[str, Any]) -> TravelProcess | None:
     try:
-        return fit_travel([d[2] for d in dances], float(summary["fps"]))
+        return fit_travel([d[2] for d in dances], float(summary["fps"]), [d[3] for d in dances])
     except ConfigError:  # no stretch long enough
         return None
 

@@ -95,6 +95,45 @@ def test_the_travel_moves_the_body_over_the_standing_foot_and_the_turning_is_dra
     np.testing.assert_allclose(both.positions[:, body] - shift - still.positions[:, body], from_turning, atol=1e-6)
 
 
+def test_the_travel_starts_where_the_dance_stands_and_is_pulled_towards_the_floors_centre(centred_run):
+    """The run keeps its training dancer's floor; a dance started off its centre is the same draw
+    as one started at it, less a pull towards the centre along the offset (never across it), and a
+    dance started outside the floor (a recording from another room) is drawn as one at the centre."""
+    from kinectdata.inference.start import StartPose
+    from kinectdata.inference.turning import TurnedKind, with_turning
+    from kinectdata.models.registry import model_kind
+    from kinectdata.targets.travel import TravelProcess
+
+    run, dataset = centred_run
+    config = json.loads((run / "config.json").read_text())
+    floor = TravelProcess.from_dict(config["travel"])
+    assert floor.pull is not None and "pulled towards the floor's centre" in floor.describe()
+    pose = np.asarray(config["dataset"]["start_pose"], np.float32)
+    cx, cz = floor.centre
+
+    def root_travel(x: float) -> np.ndarray:
+        motion, _ = generate(run, SONG, start=StartPose(pose, np.array([x, 0.9, cz])), turning=False)
+        root = motion.positions[:, motion.joint_set.index("SpineBase")][:, [0, 2]]
+        return root - root[0]
+
+    at_centre, off_centre, outside = (root_travel(cx + d) for d in (0.0, floor.radius / 2, floor.radius + 1))
+    np.testing.assert_allclose(outside, at_centre, atol=1e-9)
+    pull = off_centre - at_centre
+    np.testing.assert_allclose(pull[:, 1], 0.0, atol=1e-9)  # along the offset (+x) only
+    assert pull[:, 0].max() <= 1e-9 and pull[:, 0].min() < -1e-4 and np.diff(pull[:, 0]).max() <= 1e-9
+    assert pull[:, 0].min() > -floor.radius / 2  # towards the centre, never past it
+    # evaluate tells its kind where each song's dancer stood: the recording's root anchor
+    from kinectdata.evaluation.evaluate import _tell_kind, split_recordings
+    from kinectdata.models.run import model_name, read_manifest
+
+    kind = with_turning(model_kind(model_name(config)), config)
+    assert isinstance(kind, TurnedKind)
+    manifest = read_manifest(dataset, checksums=False)
+    recordings = split_recordings(dataset, manifest, "test")
+    _tell_kind(kind, recordings, {}, manifest, config, None)
+    assert [p.tolist() for p in kind.places.values()] == [r["info"]["root_anchor"] for r in recordings]
+
+
 def test_live_draws_the_turning_frame_by_frame_as_generate_does(centred_run):
     run, _ = centred_run
     clock = VirtualClock(100.0)

@@ -1,6 +1,8 @@
 """The travel drawn at generation (kinectdata.targets.travel): the velocity's statistics against the
 formulas of two first-order stages, the fit recovering a known process from root tracks (its fast
-steps filtered out), silence, gaps in a track, and the stream against the whole song."""
+steps filtered out), silence, gaps in a track, and the stream against the whole song; the floor: the
+pull's time constant recovered from sampled dancers, the pull's part of a draw against its closed
+form, a start outside the floor, and a record from before floors drawn as it was."""
 
 from __future__ import annotations
 
@@ -11,12 +13,14 @@ import pytest
 
 from kinectdata.core.errors import ConfigError
 from kinectdata.core.jointsets import load_joint_set
+from kinectdata.targets.slow_process import two_stage
 from kinectdata.targets.specs import TargetSpec, generic_target
 from kinectdata.targets.travel import (
     TravelProcess,
     TravelStream,
     draw_travel,
     fit_travel,
+    pull_time_constant,
     slow_velocity,
     travel_targets,
 )
@@ -106,3 +110,86 @@ def test_targets_without_a_root_to_travel_are_refused():
         travel_targets(np.zeros((3, SPEC.dim)), not_centred, np.zeros((3, 2)), FPS)
     with pytest.raises(ConfigError, match="rms_speed must be a finite number >= 0 m/s"):
         TravelProcess(-1.0, 0.5)
+
+
+FLOOR = TravelProcess(0.3, 1.5, centre=(0.5, -1.0), radius=8.0, pull=20.0)
+
+
+def _dancers(process: TravelProcess, count: int, seed: int) -> tuple[list, list, list]:
+    """Dancers drawn from ``process``: their starts (x, z), their tracks from the start, their lengths."""
+    rng = np.random.default_rng(seed)
+    starts, tracks = [], []
+    for _ in range(count):
+        start = np.asarray(process.centre) + rng.normal(0, 2, 2)
+        tracks.append(draw_travel(process, np.ones(int(rng.integers(1500, 6000)), bool), FPS, rng, start))
+        starts.append(start)
+    return starts, tracks, [len(t) for t in tracks]
+
+
+def test_the_pull_is_recovered_from_dancers_drawn_with_it():
+    # the closed form (an impulse response's running sum) against sampled draws (a recursion)
+    starts, tracks, lengths = _dancers(FLOOR, 300, 7)
+    centre = np.asarray(FLOOR.centre)
+    square = np.mean(np.concatenate([np.sum((t + s - centre) ** 2, axis=1) for t, s in zip(tracks, starts)]))
+    offsets = [s - centre for s in starts]
+    assert pull_time_constant(FLOOR, offsets, lengths, square, FPS) == pytest.approx(20.0, rel=0.08)
+    unbounded = TravelProcess(0.3, 1.5)
+    assert pull_time_constant(unbounded, offsets, lengths, 1e6, FPS) is None  # farther than an hour's pull keeps
+    assert pull_time_constant(unbounded, offsets, lengths, 1e-6, FPS) == 1.0  # nearer than the strongest
+
+
+def test_the_fit_keeps_the_floor_where_the_dancers_stood():
+    starts, tracks, _ = _dancers(FLOOR, 60, 8)
+    fitted = fit_travel(tracks, FPS, starts)
+    stood = np.concatenate([t + s for t, s in zip(tracks, starts)])
+    assert fitted.centre == pytest.approx(tuple(stood.mean(axis=0)))
+    assert fitted.radius == pytest.approx(np.hypot(*(stood - stood.mean(axis=0)).T).max())
+    # the fitted pull gives the fitted velocity the dancers' mean square distance from the centre
+    redrawn = [
+        draw_travel(fitted, np.ones(len(t), bool), FPS, np.random.default_rng(k), s)
+        for k, (t, s) in enumerate(zip(tracks * 8, starts * 8))
+    ]
+    square = np.mean(np.concatenate([np.sum((t + s - fitted.centre) ** 2, axis=1) for t, s in zip(tracks, starts)]))
+    again = np.mean(np.concatenate([np.sum((d + s - fitted.centre) ** 2, axis=1) for d, s in zip(redrawn, starts * 8)]))
+    assert again == pytest.approx(square, rel=0.15)
+    assert "pulled towards the floor's centre" in fitted.describe()
+    assert TravelProcess.from_dict(fitted.to_dict()) == fitted
+    assert fit_travel(tracks, FPS, [None, *starts[1:]]).centre is None  # an anchor missing: no floor
+
+
+def test_the_pull_adds_its_closed_form_to_the_same_draws():
+    live = np.ones(1200, bool)
+    live[400:700] = False
+    start = np.array([2.5, 1.0])  # 2.2 m from the centre, inside the floor
+    free = draw_travel(FLOOR, live, FPS, np.random.default_rng(9), start=np.asarray(FLOOR.centre))
+    pulled = draw_travel(FLOOR, live, FPS, np.random.default_rng(9), start=start)
+    a = math.exp(-1 / (FPS * FLOOR.pull))
+    steps = np.cumsum(live)  # the pull acts where the music plays, as the velocity does
+    offset = start - np.asarray(FLOOR.centre)
+    np.testing.assert_allclose(pulled - free, (a ** steps[:, None] - 1) * offset, atol=1e-9)
+    assert np.ptp(pulled[400:700], axis=0).max() == 0.0  # held still in the silence
+    outside = draw_travel(FLOOR, live, FPS, np.random.default_rng(9), start=np.array([20.0, 0.0]))
+    np.testing.assert_array_equal(outside, free)  # a floor of its own: starts at its centre
+
+
+def test_a_record_from_before_floors_draws_as_it_did():
+    old = {"rms_speed": 0.35, "time_constant": 0.5, "recordings": 3, "frames": 900}
+    process = TravelProcess.from_dict(old)
+    assert process.to_dict() == old and process.pull is None
+    live = np.ones(300, bool)
+    expected = np.cumsum(0.35 * two_stage(np.random.default_rng(10).standard_normal((300, 2)), live, 0.5, FPS), axis=0)
+    placed = draw_travel(process, live, FPS, np.random.default_rng(10), start=np.array([3.0, 3.0]))
+    np.testing.assert_array_equal(placed, expected / FPS)
+    with pytest.raises(ConfigError, match="a pull needs the floor's centre and radius"):
+        TravelProcess(0.35, 0.5, pull=30.0)
+
+
+def test_the_pulled_stream_is_the_whole_song():
+    values = np.random.default_rng(11).normal(0, 0.3, (240, SPEC.dim))
+    live = np.ones(240, bool)
+    live[100:150] = False
+    start = np.array([1.5, 0.0])
+    moved = travel_targets(values, SPEC, draw_travel(FLOOR, live, FPS, np.random.default_rng(12), start), FPS)
+    stream = TravelStream(FLOOR, SPEC, FPS, np.random.default_rng(12), start)
+    stepped = np.stack([stream.step(v, bool(k)) for v, k in zip(values, live)])
+    assert np.allclose(stepped, moved, atol=1e-9)
