@@ -201,6 +201,7 @@ def test_the_cdhc_model_dances_live_as_it_generates(cdhc_run, sessions):
         VmcSink("127.0.0.1:39539", dancer.joint_set)
 
 
+@pytest.mark.slow
 def test_the_cdhc_stream_exports_to_onnx_and_runs_in_onnx_runtime_as_in_torch(cdhc_run, sessions, tmp_path):
     """One cache per highway block, named in the file's metadata; ONNX Runtime steps it as torch does."""
     pytest.importorskip("onnxruntime")

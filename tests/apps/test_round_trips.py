@@ -193,6 +193,7 @@ def test_a_shipped_joint_set_comes_back_by_name(trained_run, tmp_path):
     assert np.load(tmp_path / "a.npy").shape[1:] == (24, 3)
 
 
+@pytest.mark.slow
 def test_evaluate_and_score_give_one_table_on_the_same_positions(dancer19_run, tmp_path):
     """evaluate writes the motion it scored; score reads it back (CSV, the joint set's own mapping,
     the beats file) and gets the same numbers; both say which positions they scored."""

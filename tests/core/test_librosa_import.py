@@ -32,6 +32,7 @@ print(repr(time.time()), librosa.util.localmax.__name__, flush=True)
 """
 
 
+@pytest.mark.slow
 def test_a_process_that_needs_librosa_waits_for_the_one_compiling_it(tmp_path):
     pytest.importorskip("librosa")
     env = dict(os.environ, TMPDIR=str(tmp_path))  # a lock of this test's own

@@ -100,6 +100,7 @@ def test_a_song_of_a_fitted_metre_is_drawn_its_metres_processes(centred_run, sam
     assert "songs of 3 beats a bar are drawn their metre's" in drawn_line(doc)
 
 
+@pytest.mark.slow
 def test_live_and_evaluate_draw_by_the_songs_metre_as_generate_does(centred_run, sample_song, tmp_path):
     run, dataset = centred_run
     config = json.loads((run / "config.json").read_text())

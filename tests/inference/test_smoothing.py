@@ -112,6 +112,7 @@ def _smoothed_copy(run, folder, cutoff):
     return folder
 
 
+@pytest.mark.slow
 def test_generate_live_and_evaluate_smooth_the_motion_alike(centred_run, sample_song, tmp_path):
     pytest.importorskip("torch")
     from kinectdata.evaluation.evaluate import evaluate

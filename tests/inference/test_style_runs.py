@@ -143,6 +143,7 @@ def test_generate_dances_a_song_at_its_styles_tempo_and_plays_the_dance_back_at_
     np.testing.assert_allclose(motion.positions, expected, atol=1e-4)
 
 
+@pytest.mark.slow
 def test_evaluate_dances_the_split_as_generate_does_and_says_which_songs_it_played(style_run, tmp_path):
     from kinectdata.evaluation.evaluate import evaluate, format_results, split_recordings
     from kinectdata.evaluation.rhythm_eval import recording_audio

@@ -153,6 +153,7 @@ def test_live_draws_the_turning_frame_by_frame_as_generate_does(centred_run):
     np.testing.assert_allclose(np.stack(kept.positions), expected.positions, atol=1e-6, equal_nan=True)
 
 
+@pytest.mark.slow
 def test_evaluate_says_what_it_drew_and_no_turning_leaves_the_network_alone(centred_run, tmp_path):
     run, dataset = centred_run
     args = ["evaluate", "--run", str(run), "--data", str(dataset), "--split", "test", "--bootstrap", "0"]

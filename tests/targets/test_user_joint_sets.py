@@ -136,6 +136,7 @@ def test_a_generic_target_refuses_recordings_of_two_joint_sets(corpus, tmp_path)
         build_dataset(corpus / "mixed.json", tmp_path / "ds", config)
 
 
+@pytest.mark.slow
 def test_an_unshipped_joint_set_goes_to_a_trained_model_and_the_fields_metrics(corpus, tmp_path):
     """Issue 17's end to end: schema files only, to a dataset, a trained model and the field's
     metrics through the joint-set file's own SMPL-24 mapping."""

@@ -125,6 +125,7 @@ def _replica_worker(rank: int, port: int) -> None:
     torch.distributed.destroy_process_group()
 
 
+@pytest.mark.slow
 def test_replicas_are_checked_across_two_processes():
     with socket.socket() as s:
         s.bind(("127.0.0.1", 0))

@@ -365,6 +365,7 @@ def test_a_run_resumed_keeps_the_network_it_was_started_with(pulse_mel_dataset, 
     assert json.loads((tmp_path / "new" / "config.json").read_text())["model"]["start_silence"] == 20
 
 
+@pytest.mark.slow
 def test_the_songs_metre_reaches_the_features_at_build_and_at_generate(tmp_path):
     """With the bar levels in the song's metre (``listen_to_dance_rhythm_bars``), the sample songs say
     no metre: the build estimates each (the synthesized music is in 4) and records it; generate
