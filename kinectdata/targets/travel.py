@@ -21,18 +21,19 @@ is held at 0 (the dancer stops with the music). Drawn over as many frames as eac
 has, it puts the dancer 1.2 to 5.6 m from the start on average (median 2.9 m; the dancers' 0.8 to
 5.5, 2.8).
 
-Nothing in that process pulls the dancer back, and a ballroom is a floor: the dancers' roots stay
-2.2 to 2.7 m on average from the mean of where they stood, the unbounded draws 3.5 to 3.9 m
-(tang2018's folds), and the aist protocol's kinetic features (whole songs, raw positions: the
-acceleration slip's third value is each joint's distance from the origin) score that distance. So
-:func:`fit_travel`, given where each training dance stood (its root anchor), also keeps the floor: its
-centre (the mean of the dancers' roots, x and z in their world), its radius (the farthest a root was
-from it) and a pull towards the centre, a first-order decay of the offset from it whose time constant
-is the one that gives the dancers' mean squared distance from the centre, in expectation, from their
-own starts over their own lengths (:func:`pull_time_constant`). A draw starts where the dance begins
-(a recording's root anchor, x and z); a dance of no known place, or one that begins outside the
-floor (a recording from another room), starts at the centre of a floor of its own. A pulled draw is
-held still in silence as the unbounded one is.
+Nothing in that process pulls the dancer back, and a ballroom is a floor: on tang2018's three folds
+the training dancers' roots stay 2.4 to 2.6 m on average over a dance from the mean of where they
+stood, the unbounded process drawn from their starts over their dances 3.3 to 3.5 m, and the aist
+protocol's kinetic features (whole songs, raw positions: the acceleration slip's third value is each
+joint's distance from the origin) score that distance. So :func:`fit_travel`, given where each
+training dance stood (its root anchor), also keeps the floor: its centre (the mean of the dancers'
+roots, x and z in their world), its radius (the farthest a root was from it) and a pull towards the
+centre, a first-order decay of the offset from it whose time constant is the one that gives the
+dancers' mean squared distance from the centre, in expectation, from their own starts over their own
+lengths (:func:`pull_time_constant`). A draw starts where the dance begins (a recording's root
+anchor, x and z); a dance of no known place, or one that begins outside the floor (a recording from
+another room), starts at the centre of a floor of its own. A pulled draw is held still in silence as
+the unbounded one is.
 
 Only 3-D position targets centred on their root (``--root-centre``) travel: the root's values are
 its travel. :func:`travel_targets` moves a whole song, :class:`TravelStream` one frame at a time; on
