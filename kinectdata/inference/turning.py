@@ -226,9 +226,9 @@ class TurnedKind:
         if self.travel is None:
             return
         key = self._know(features)
-        if anchor is None or not np.isfinite(np.asarray(anchor, np.float64)).all():
+        if anchor is None:
             self.places.pop(key, None)
-        else:
+        else:  # a place not on the floor (or not finite) starts at the centre: TravelProcess.start_offset
             self.places[key] = np.asarray(anchor, np.float64)
 
     def know_played(self, features: np.ndarray, played: np.ndarray, factor: float) -> None:

@@ -17,6 +17,8 @@ import numpy as np
 from scipy.optimize import minimize_scalar
 from scipy.signal import lfilter
 
+from kinectdata.core.motion import true_runs
+
 __all__ = ["fit_time_constant", "pole_and_gain", "pooled_autocorrelation", "two_stage", "two_stage_autocorrelation"]
 
 
@@ -66,7 +68,6 @@ def two_stage(noise: np.ndarray, live: np.ndarray, time_constant: float, fps: fl
     b, gain = pole_and_gain(time_constant, fps)
     u = lfilter([1 - b], [1, -b], np.asarray(noise, np.float64), axis=0)
     v = np.zeros_like(u)
-    edges = np.flatnonzero(np.diff(np.concatenate([[False], live, [False]]).astype(np.int8)))
-    for start, end in zip(edges[::2], edges[1::2]):  # v is 0 in silence: each stretch of music starts from 0
-        v[start:end] = lfilter([1 - b], [1, -b], u[start:end], axis=0)
+    for first, last in true_runs(live):  # v is 0 in silence: each stretch of music starts from 0
+        v[first : last + 1] = lfilter([1 - b], [1, -b], u[first : last + 1], axis=0)
     return gain * v

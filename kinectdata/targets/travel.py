@@ -52,6 +52,7 @@ from scipy.optimize import brentq
 from scipy.signal import butter, lfilter, sosfiltfilt
 
 from kinectdata.core.errors import ConfigError
+from kinectdata.core.motion import true_runs
 from kinectdata.targets.foot_lock import FootLock, legs_of
 from kinectdata.targets.slow_process import fit_time_constant, pole_and_gain, two_stage
 from kinectdata.targets.specs import TargetSpec
@@ -177,13 +178,11 @@ def slow_velocity(track: np.ndarray, fps: float) -> list[np.ndarray]:
     low-passed below :data:`CUTOFF_HZ` (a zero-phase second-order Butterworth filter), for each
     stretch of known positions at least :data:`MIN_FRAMES_S` long: a list of [T_i, 2]."""
     track = np.asarray(track, np.float64)
-    known = np.isfinite(track).all(axis=1)
-    edges = np.flatnonzero(np.diff(np.concatenate([[0], known.astype(np.int8), [0]])))
     sos = butter(2, CUTOFF_HZ / (fps / 2), output="sos")
     out = []
-    for start, end in zip(edges[::2], edges[1::2]):
-        if end - start >= max(MIN_FRAMES_S * fps, 16):
-            velocity = np.gradient(track[start:end], axis=0) * fps
+    for first, last in true_runs(np.isfinite(track).all(axis=1)):
+        if last + 1 - first >= max(MIN_FRAMES_S * fps, 16):
+            velocity = np.gradient(track[first : last + 1], axis=0) * fps
             out.append(sosfiltfilt(sos, velocity, axis=0))
     return out
 
@@ -274,17 +273,13 @@ def draw_travel(
         return np.cumsum(velocity, axis=0) / fps
     a = math.exp(-1 / (fps * process.pull))
     offset = process.start_offset(start)
-    place, held = np.empty_like(velocity), offset
-    edges = np.flatnonzero(np.diff(np.concatenate([[True], live, [True]]).astype(np.int8)))
-    bounds = np.concatenate([[0], edges, [len(live)]])
-    for begin, end in zip(bounds[:-1], bounds[1:]):
-        if end <= begin:
-            continue
-        if live[begin]:
-            place[begin:end] = lfilter([1.0], [1.0, -a], velocity[begin:end] / fps, axis=0, zi=a * held[None])[0]
-        else:
-            place[begin:end] = held
-        held = place[end - 1]
+    place, held, done = np.empty_like(velocity), offset, 0
+    for first, last in true_runs(live):  # held still in silence, pulled while the music plays
+        place[done:first] = held
+        steps = velocity[first : last + 1] / fps
+        place[first : last + 1] = lfilter([1.0], [1.0, -a], steps, axis=0, zi=a * held[None])[0]
+        held, done = place[last], last + 1
+    place[done:] = held
     return place - offset
 
 
