@@ -88,6 +88,12 @@ _LOOP_OPTIONS = (
         "(hip to ankle, shoulder to wrist) against the real motion's, in proportion; 0: none.",
     ),
     (
+        "repetition_weight",
+        click.FloatRange(min=0),
+        "Weight of how the motion repeats in the free-running loss: the autocorrelation of the joints' heights at "
+        "lags of 0.2-4.5 s against the real motion's, whatever the phase (at one bar or at two); 0: none.",
+    ),
+    (
         "song_starts",
         click.BOOL,
         "Also train on each song's first frames: windows whose context runs before the recording's start, silence "

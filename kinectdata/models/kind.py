@@ -69,6 +69,7 @@ PAPER_LOOP: dict[str, Any] = {
     "bone_jitter_weight": 0.0,
     "low_energy_weight": 0.0,
     "span_weight": 0.0,
+    "repetition_weight": 0.0,
     "keep_energy_weight": 0.0,
     "song_starts": False,
     "turning": False,

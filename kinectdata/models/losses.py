@@ -139,6 +139,81 @@ def masked_periodogram_loss(
     return _spectral_distance(X, Y, valid)
 
 
+REPETITION_LAGS_S = (0.2, 4.5)
+"""The lags :func:`masked_repetition_loss` compares: from a quick half beat to two slow bars, the
+lags the listening figures look for the dominant period in (:mod:`kinectdata.evaluation.beat_following`)."""
+REPETITION_DRIFT_S = 2.0
+"""Seconds; the centred moving average :func:`masked_repetition_loss` takes out first, as the
+listening figures do (:data:`kinectdata.evaluation.rhythm.DRIFT_WINDOW_S`)."""
+
+
+def vertical_repetition(x, valid, fps: float, lags_s=REPETITION_LAGS_S, drift_s: float = REPETITION_DRIFT_S):
+    """How a motion repeats: per window, the autocorrelation of its joints' heights at lags
+    ``lags_s`` (seconds), averaged over the joints, as the listening figures compute it for the
+    dominant period (each height with its centred ``drift_s`` moving average taken out, each lag the
+    Pearson correlation of the pairs ``(h[t], h[t + k])``, no mean taken again).
+
+    Args:
+        x: [B, L, J] heights (any unit: the result is unitless); ``valid``: [B, J] 1.0 for a joint
+            valid throughout its window.
+        fps: frames per second.
+
+    Returns:
+        [B, K] the autocorrelation at the K lags (torch; differentiable), and [B] 1.0 for windows
+        with a valid joint and room for the longest lag.
+    """
+    import torch
+    import torch.nn.functional as F
+
+    B, L, J = x.shape
+    reach = max(1, round(drift_s * fps)) // 2
+    rows = x.permute(0, 2, 1).reshape(B * J, 1, L)
+    drift = F.avg_pool1d(rows, 2 * reach + 1, stride=1, padding=reach, count_include_pad=False)
+    h = (rows - drift).reshape(B * J, L)
+    first, last = max(1, math.ceil(lags_s[0] * fps)), min(int(lags_s[1] * fps), L - 2)
+    if last < first:
+        return x.new_zeros(B, 0), x.new_zeros(B)
+    spectrum = torch.fft.rfft(h, n=2 * L)
+    cross = torch.fft.irfft(spectrum.real**2 + spectrum.imag**2, n=2 * L)[:, first : last + 1]  # sum h[t] h[t+k]
+    energy = torch.cumsum(h**2, dim=1)
+    lags = torch.arange(first, last + 1, device=x.device)
+    head = energy[:, L - 1 - lags]  # sum over t < L - k of h[t]^2
+    tail = energy[:, -1:] - energy[:, lags - 1]  # sum over t >= k of h[t]^2
+    scale = 1e-6 * energy[:, -1:].mean() + 1e-12
+    r = (cross / torch.sqrt(head * tail + scale**2)).reshape(B, J, -1)
+    weights = valid.to(x.dtype)
+    curve = (r * weights[..., None]).sum(dim=1) / weights.sum(dim=1, keepdim=True).clamp(min=1.0)
+    return curve, (weights.sum(dim=1) > 0).to(x.dtype)
+
+
+def masked_repetition_loss(prediction, target, mask, body, fps: float):
+    """How differently two motions repeat, whatever their phase: the mean squared difference of
+    their :func:`vertical_repetition` curves, over windows with a joint valid throughout. The heights
+    are the target's own up-axis components (root-centred joints relative to the root, the root in the
+    world), as the listening figures read a motion's dominant period from the targets; the
+    normalisation, one scale and offset a component, does not change a correlation. The spectra of
+    the changes weigh a slow period by its small speed, and a 10-s window's periodogram hardly parts
+    a bar from two: the cdhc model repeated at one bar in some songs and at two in others, and the
+    rank of its periods with the tempo was lost between songs
+    (docs/notebook/2026-12-real-dance-variety.md). [B, L, D] tensors (positions first, ``body.dims``
+    per joint, the up axis second); a scalar (0 for a body without bones or fewer than 2 components
+    a joint)."""
+    if not body.bones or body.dims < 2:
+        return prediction.new_zeros(())
+    joints = max(max(pair) for pair in body.bones) + 1
+    if body.root is not None:
+        joints = max(joints, body.root + 1)
+    dims = body.dims
+    up = slice(1, joints * dims, dims)
+    whole = mask[..., up].all(dim=1)  # [B, J]: the height valid throughout the window
+    made, counted = vertical_repetition(prediction[..., up], whole, fps)
+    real, _ = vertical_repetition(target[..., up], whole, fps)
+    if made.shape[1] == 0:
+        return prediction.new_zeros(())
+    per_window = ((made - real.detach()) ** 2).mean(dim=1)
+    return (per_window * counted).sum() / counted.sum().clamp(min=1.0)
+
+
 ENERGY_CHUNK_S = 2.0
 """The stretch of a window (seconds) over which :func:`masked_rhythm_loss` matches the motion's speed.
 Over a whole window, a burst of motion then stillness matched the real speed on average: the cdhc
@@ -533,6 +608,7 @@ def masked_rhythm_loss(
     bone_jitter_weight: float = 0.0,
     low_energy_weight: float = 0.0,
     span_weight: float = 0.0,
+    repetition_weight: float = 0.0,
 ):
     """The free-running loss of training (``TrainConfig.free_weight``): the spectra of the motion's
     changes (:func:`masked_rhythm_spectrum_loss`: how often and how much at each tempo, whatever the
@@ -548,8 +624,9 @@ def masked_rhythm_loss(
     :data:`ENERGY_CHUNK_S`, times :data:`WORLD_SPEED_WEIGHT`), how much faster its bones change
     their lengths (:func:`masked_bone_jitter_loss` per :data:`ENERGY_CHUNK_S`, times
     ``bone_jitter_weight``: ``TrainConfig.bone_jitter_weight``), how differently it bends its joints
-    (:func:`masked_span_loss`, times ``span_weight``: ``TrainConfig.span_weight``) and, when the body has feet, how
-    much more they slide (times :data:`FOOT_WEIGHT`). [B, L, D] tensors; a scalar."""
+    (:func:`masked_span_loss`, times ``span_weight``: ``TrainConfig.span_weight``), how differently
+    it repeats (:func:`masked_repetition_loss`, times ``repetition_weight``) and, when the body has
+    feet, how much more they slide (times :data:`FOOT_WEIGHT`). [B, L, D] tensors; a scalar."""
     chunk = max(1, round(ENERGY_CHUNK_S * fps))
     loss = masked_rhythm_spectrum_loss(prediction, target, mask, fps) + masked_energy_loss(
         prediction, target, mask, chunk
@@ -575,6 +652,8 @@ def masked_rhythm_loss(
             loss = loss + bone_jitter_weight * masked_bone_jitter_loss(
                 prediction, target, mask, body.bones, body.scale, body.offset, body.dims, chunk
             )
+        if repetition_weight > 0:
+            loss = loss + repetition_weight * masked_repetition_loss(prediction, target, mask, body, fps)
         if body.feet is not None:
             loss = loss + FOOT_WEIGHT * masked_foot_loss(
                 prediction, target, mask, body.feet, body.scale, body.offset, body.root, body.centred, dims=body.dims

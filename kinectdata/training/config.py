@@ -50,6 +50,7 @@ ADDED_OFF = {
     "bone_jitter_weight": 0.0,
     "low_energy_weight": 0.0,
     "span_weight": 0.0,
+    "repetition_weight": 0.0,
     "keep_energy_weight": 0.0,
     "song_starts": False,
     "context": 0,
@@ -129,6 +130,10 @@ class TrainConfig:
             (:func:`~kinectdata.models.losses.masked_span_loss`: the mean and spread of each two-bone
             chain's span, hip to ankle, shoulder to wrist, against the real one's, in proportion).
             Runs written before it had none.
+        repetition_weight: weight of how the motion repeats in the free-running loss
+            (:func:`~kinectdata.models.losses.masked_repetition_loss`: the autocorrelation of the
+            joints' heights at lags of 0.2-4.5 s against the real one's, whatever the phase: at one
+            bar or at two). Runs written before it had none.
         song_starts: also train on each song's first frames: windows whose ``context`` runs before
             the recording's first frame, silence there (audio zeros; no pose, masked:
             :class:`~kinectdata.dataset.windows.WindowDataset`'s ``lead``). Without them a model
@@ -226,6 +231,7 @@ class TrainConfig:
     bone_jitter_weight: float
     low_energy_weight: float
     span_weight: float
+    repetition_weight: float
     song_starts: bool
     silence_share: float
     keep: str
@@ -288,6 +294,8 @@ class TrainConfig:
             raise ConfigError(f"low_energy_weight must be at least 0, not {self.low_energy_weight!r}")
         if not self.span_weight >= 0:
             raise ConfigError(f"span_weight must be at least 0, not {self.span_weight!r}")
+        if not self.repetition_weight >= 0:
+            raise ConfigError(f"repetition_weight must be at least 0, not {self.repetition_weight!r}")
         if not self.bone_jitter_weight >= 0:
             raise ConfigError(f"bone_jitter_weight must be at least 0, not {self.bone_jitter_weight!r}")
         if not isinstance(self.song_starts, bool):

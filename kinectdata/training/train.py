@@ -486,6 +486,7 @@ def validate(
             config.bone_jitter_weight,
             config.low_energy_weight,
             config.span_weight,
+            config.repetition_weight,
         )
     )
     return loss, smape(generated, real, masks), rhythm
@@ -851,6 +852,7 @@ def train(
                         config.bone_jitter_weight,
                         config.low_energy_weight,
                         config.span_weight,
+                        config.repetition_weight,
                     )
                 else:
                     with forward_precision:

@@ -512,6 +512,7 @@ def test_a_model_that_cannot_run_free_in_training_is_refused():
         ("context", -3),
         ("bone_jitter_weight", -0.5),
         ("span_weight", -0.5),
+        ("repetition_weight", -1.0),
         ("song_starts", "yes"),
     ],
 )
