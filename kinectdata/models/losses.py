@@ -140,8 +140,9 @@ def masked_periodogram_loss(
 
 
 REPETITION_LAGS_S = (0.2, 4.5)
-"""The lags :func:`masked_repetition_loss` compares: from a quick half beat to two slow bars, the
-lags the listening figures look for the dominant period in (:mod:`kinectdata.evaluation.beat_following`)."""
+"""The lags (seconds) :func:`masked_repetition_loss` compares: from a quick half beat to two bars of a
+slow waltz (2 x 3 x 0.7 s), the range the listening figures read a dominant period from
+(:mod:`kinectdata.evaluation.beat_following` looks up to two of the song's bars)."""
 REPETITION_DRIFT_S = 2.0
 """Seconds; the centred moving average :func:`masked_repetition_loss` takes out first, as the
 listening figures do (:data:`kinectdata.evaluation.rhythm.DRIFT_WINDOW_S`)."""
