@@ -201,9 +201,7 @@ def masked_repetition_loss(prediction, target, mask, body, fps: float):
     a joint)."""
     if not body.bones or body.dims < 2:
         return prediction.new_zeros(())
-    joints = max(max(pair) for pair in body.bones) + 1
-    if body.root is not None:
-        joints = max(joints, body.root + 1)
+    joints = body.joints
     dims = body.dims
     up = slice(1, joints * dims, dims)
     whole = mask[..., up].all(dim=1)  # [B, J]: the height valid throughout the window
@@ -459,9 +457,7 @@ def masked_world_speed_loss(prediction, target, mask, body, chunk: int | None = 
     """
     if not body.bones or (body.centred and body.root is None):
         return prediction.new_zeros(())
-    joints = max(max(pair) for pair in body.bones) + 1
-    if body.root is not None:
-        joints = max(joints, body.root + 1)
+    joints = body.joints
     dims = body.dims
     valid = mask[..., : joints * dims].unflatten(-1, (joints, dims)).all(dim=-1)  # [B, L, J]
     if body.centred:
@@ -590,6 +586,12 @@ class Body:
     feet: Any = None
     root: int | None = None
     centred: bool = False
+
+    @property
+    def joints(self) -> int:
+        """How many positioned joints the terms read: through the last joint a bone or the root names."""
+        joints = max(max(pair) for pair in self.bones) + 1
+        return joints if self.root is None else max(joints, self.root + 1)
 
     def to(self, device) -> Body:
         """The same body with its tensors on ``device``."""
