@@ -130,6 +130,10 @@ class RhythmConfig:
             levels or bar levels, and no ``tempo_phases``.
         counted_levels: the levels above the beat from the beat's counted phase (module
             docstring, step 5) instead of the tempogram's phase at their tempi.
+        unit_levels: the levels' clocks at unit amplitude, ``cos``, ``sin`` of their phase wherever
+            the window holds onsets (0 in silence), instead of scaled by the beat's salience (0.07-0.5
+            in most songs of Dance with Melody, so a song whose onsets are less regular is heard with
+            a fainter clock).
         columns: 0 for a vector per frame (at the slice's end); c > 0 for a [1, 3 n_tempi, c]
             (without the tempo phases [1, n_tempi, c]) plane of values at c instants of the slice
             (``column_hop`` samples apart, the last ``column_end`` samples after the slice start, at
@@ -158,6 +162,7 @@ class RhythmConfig:
     tempo_phases: bool = True
     saliences: bool = True
     counted_levels: bool = False
+    unit_levels: bool = False
     columns: int = 0
     column_hop: int = 80
     column_end: int = 480
@@ -195,7 +200,7 @@ class RhythmConfig:
         if not float(self.harmonic_weight) >= 0:
             raise ConfigError(f"rhythm features: harmonic_weight must be at least 0, got {self.harmonic_weight!r}")
         object.__setattr__(self, "harmonic_weight", float(self.harmonic_weight))
-        for name in ("tempo_phases", "saliences", "counted_levels"):
+        for name in ("tempo_phases", "saliences", "counted_levels", "unit_levels"):
             if not isinstance(getattr(self, name), bool):
                 raise ConfigError(f"rhythm features: {name} must be true or false, got {getattr(self, name)!r}")
         if not self.saliences and (self.tempo_phases or not (self.levels or self.bar_levels)):
@@ -203,6 +208,8 @@ class RhythmConfig:
                               "bar_levels, and no tempo_phases")  # fmt: skip
         if self.counted_levels and not (self.levels or self.bar_levels):
             raise ConfigError("rhythm features: counted_levels counts the levels: give levels or bar_levels")
+        if self.unit_levels and not (self.levels or self.bar_levels):
+            raise ConfigError("rhythm features: unit_levels sets the levels' amplitude: give levels or bar_levels")
         if (self.levels or self.bar_levels) and self.columns:
             raise ConfigError("rhythm features: levels are for the vector layout (columns 0)")
         for name in ("detrend_s", "window_s", "decay_s", "fmax"):
@@ -278,8 +285,9 @@ class RhythmConfig:
 
     def to_dict(self) -> dict[str, Any]:
         """A JSON-able dict of every field, with ``"extractor": "rhythm"``; without ``bar_levels``
-        when there are none, ``counted_levels`` when false and ``saliences`` when true, as before they
-        existed (so a dataset built then keeps its build key, and its runs their features)."""
+        when there are none, ``counted_levels`` and ``unit_levels`` when false and ``saliences`` when
+        true, as before they existed (so a dataset built then keeps its build key, and its runs their
+        features)."""
         d = config_to_dict(self)
         for name in _ADDED_LATER:
             if getattr(self, name) == _DEFAULTS[name]:
@@ -292,7 +300,7 @@ class RhythmConfig:
         return config_from_dict(cls, d, "a rhythm")
 
 
-_ADDED_LATER = ("bar_levels", "counted_levels", "saliences")
+_ADDED_LATER = ("bar_levels", "counted_levels", "saliences", "unit_levels")
 """Fields added after datasets were built: a config's dict leaves each out at its default."""
 _DEFAULTS = {f.name: f.default for f in fields(RhythmConfig)}
 
@@ -484,11 +492,17 @@ def _level_values(salience: np.ndarray, angle: np.ndarray, config: RhythmConfig,
     from the saliences and phases [F, c, K] of every tempo."""
     candidates, _, nearest, _ = _level_tempi(config, beats_per_bar)
     best = _beat_candidate(salience, config)  # [F, c]
-    beat_salience = np.take_along_axis(salience, candidates[best][..., None], axis=-1)  # [F, c, 1]
+    beat_salience = _clock_amplitude(np.take_along_axis(salience, candidates[best][..., None], axis=-1), config)
     at = nearest[best]  # [F, c, levels]: the tempo of each level
     phase = np.take_along_axis(angle, at, axis=-1)
     out = np.stack([beat_salience * np.cos(phase), beat_salience * np.sin(phase)], axis=-1)  # [F, c, levels, 2]
     return out.reshape(*out.shape[:2], -1)
+
+
+def _clock_amplitude(beat_salience: np.ndarray, config: RhythmConfig) -> np.ndarray:
+    """The levels' amplitude from the beat's salience [...]: itself, or 1 where it is above 0 with
+    ``config.unit_levels``."""
+    return (beat_salience > 0).astype(beat_salience.dtype) if config.unit_levels else beat_salience
 
 
 @dataclass
@@ -582,7 +596,7 @@ def _counted_levels(
     start = float(now[0]) if count.angles is None else count.phase
     phase = start + np.cumsum(turn)
     count.angles, count.phase = angle[-1].copy(), float(phase[-1])
-    strength = salience[rows, beat][:, None]  # [F, 1]
+    strength = _clock_amplitude(salience[rows, beat][:, None], config)  # [F, 1]
     multiples = np.asarray(config.beat_multiples(beats_per_bar), np.float64)
     counted = phase[:, None] / multiples[None, :]  # [F, L]
     return np.stack([strength * np.cos(counted), strength * np.sin(counted)], axis=-1)

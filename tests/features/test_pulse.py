@@ -384,6 +384,32 @@ def test_without_the_saliences_a_frame_is_the_levels_alone():
     assert PRESETS["listen_to_dance_clocks_style"].output_shape == (10,)
 
 
+@pytest.mark.parametrize("counted", [False, True], ids=["tempogram", "counted"])
+def test_unit_levels_keep_the_phase_at_length_one_and_are_zero_in_silence(counted):
+    """``unit_levels``: every level's phasor, plain or counted, has the phase it has when scaled by
+    the beat's salience (the angle of the same cosine and sine) and length 1 wherever the scaled one
+    is not 0, 0 where it is (silence); the tempi's values are untouched. Music whose onsets are
+    noisy (random clicks: the beat's salience well below 1) shows the difference."""
+    audio = np.concatenate([random_clicks(16.0, seed=7), np.zeros(int(16 * SR), np.float32)])
+    starts = frame_starts(audio.size)
+    scaled_config = dataclasses.replace(COUNTED, counted_levels=counted)
+    unit_config = dataclasses.replace(scaled_config, unit_levels=True)
+    scaled, _ = rhythm_features(audio, starts, scaled_config, beats_per_bar=3)
+    unit, _ = rhythm_features(audio, starts, unit_config, beats_per_bar=3)
+    np.testing.assert_array_equal(unit[:, :195], scaled[:, :195])
+    for i in range(195, 195 + 2 * 4, 2):
+        length = np.hypot(scaled[:, i], scaled[:, i + 1])
+        on = length > 0
+        assert 0.05 < np.median(length[on]) < 0.9 and (~on).sum() > 30  # noisy onsets, then silence
+        np.testing.assert_allclose(np.hypot(unit[on, i], unit[on, i + 1]), 1.0, atol=1e-5)
+        assert not unit[~on, i : i + 2].any()
+        turn = np.angle((unit[on, i] + 1j * unit[on, i + 1]) * (scaled[on, i] - 1j * scaled[on, i + 1]))
+        assert np.abs(turn).max() < 1e-4
+    d = json.loads(json.dumps(unit_config.to_dict()))
+    assert d["unit_levels"] is True and RhythmConfig.from_dict(d) == unit_config
+    assert "unit_levels" not in scaled_config.to_dict()  # a dataset built before the setting keeps its build key
+
+
 def test_the_predominant_pulse_is_zero_in_silence_and_its_settings_round_trip():
     audio, _ = click_track(120.0, seconds=20.0)
     audio[int(8 * SR) :] = 0.0
@@ -572,6 +598,8 @@ def test_rhythm_config_round_trip_and_dispatch():
         ({"levels": (1,), "counted_levels": 1}, "counted_levels must be true or false"),
         ({"counted_levels": True}, "counted_levels counts the levels: give levels or bar_levels"),
         ({"saliences": 0}, "saliences must be true or false"),
+        ({"levels": (1,), "unit_levels": "yes"}, "unit_levels must be true or false"),
+        ({"unit_levels": True}, "unit_levels sets the levels' amplitude: give levels or bar_levels"),
         ({"saliences": False, "tempo_phases": False}, "without the saliences .* give levels or bar_levels"),
         ({"saliences": False, "levels": (1,)}, "without the saliences .* no tempo_phases"),
     ],
