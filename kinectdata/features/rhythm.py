@@ -44,7 +44,8 @@ on that corpus's songs; dB-scaled features 0.7-0.8). So the pulse is computed, c
    beats too: docs/notebook/2026-11-real-dance.md). A level's tempo below ``tempo_range_bpm`` takes the lowest tempo.
    A level above 1 has the phase of the onsets' own periodicity at its tempo: it tells the bar where
    the downbeats sound different (louder, or across more of the spectrum); where they do not, it
-   restarts at every beat.
+   restarts at every beat. With ``unit_levels`` each level's clock is ``cos``, ``sin`` of its phase at
+   length 1 (0 in silence) instead of s* times them.
 5. **Counted levels** (``counted_levels``): where it restarts at every beat, a bar level's phase
    hardly turns (on the 36 training and validation songs of Dance with Melody the bar's clock turned
    0.43 times a bar, median, within 5 % of once a bar in 2 of 36 songs; two bars' 0.00 times;
@@ -492,10 +493,10 @@ def _level_values(salience: np.ndarray, angle: np.ndarray, config: RhythmConfig,
     from the saliences and phases [F, c, K] of every tempo."""
     candidates, _, nearest, _ = _level_tempi(config, beats_per_bar)
     best = _beat_candidate(salience, config)  # [F, c]
-    beat_salience = _clock_amplitude(np.take_along_axis(salience, candidates[best][..., None], axis=-1), config)
+    amplitude = _clock_amplitude(np.take_along_axis(salience, candidates[best][..., None], axis=-1), config)
     at = nearest[best]  # [F, c, levels]: the tempo of each level
     phase = np.take_along_axis(angle, at, axis=-1)
-    out = np.stack([beat_salience * np.cos(phase), beat_salience * np.sin(phase)], axis=-1)  # [F, c, levels, 2]
+    out = np.stack([amplitude * np.cos(phase), amplitude * np.sin(phase)], axis=-1)  # [F, c, levels, 2]
     return out.reshape(*out.shape[:2], -1)
 
 
