@@ -73,6 +73,22 @@ FLAT_BEFORE = ("units", "activation", "feedback", "channels", "decoder_channels"
 reading such a run keeps its model's and ignores the other model's."""
 
 
+_WEIGHTS = (
+    "free_weight",
+    "posture_weight",
+    "jitter_weight",
+    "periodogram_weight",
+    "keep_energy_weight",
+    "low_energy_weight",
+    "span_weight",
+    "repetition_weight",
+    "bone_jitter_weight",
+)
+"""The loop's loss weights: each at least 0."""
+_SWITCHES = ("song_starts", "turning", "travel", "facing", "by_metre")
+"""The loop's settings that are true or false."""
+
+
 @dataclass(frozen=True, init=False)
 class TrainConfig:
     """Training settings: the loop's and the model's own.
@@ -280,34 +296,12 @@ class TrainConfig:
             raise ConfigError(f"previous_noise must be at least 0, not {self.previous_noise!r}")
         if not 0 <= self.weight_average < 1:
             raise ConfigError(f"weight_average must be in [0, 1), not {self.weight_average!r}")
-        if not self.free_weight >= 0:
-            raise ConfigError(f"free_weight must be at least 0, not {self.free_weight!r}")
-        if not self.posture_weight >= 0:
-            raise ConfigError(f"posture_weight must be at least 0, not {self.posture_weight!r}")
-        if not self.jitter_weight >= 0:
-            raise ConfigError(f"jitter_weight must be at least 0, not {self.jitter_weight!r}")
-        if not self.periodogram_weight >= 0:
-            raise ConfigError(f"periodogram_weight must be at least 0, not {self.periodogram_weight!r}")
-        if not self.keep_energy_weight >= 0:
-            raise ConfigError(f"keep_energy_weight must be at least 0, not {self.keep_energy_weight!r}")
-        if not self.low_energy_weight >= 0:
-            raise ConfigError(f"low_energy_weight must be at least 0, not {self.low_energy_weight!r}")
-        if not self.span_weight >= 0:
-            raise ConfigError(f"span_weight must be at least 0, not {self.span_weight!r}")
-        if not self.repetition_weight >= 0:
-            raise ConfigError(f"repetition_weight must be at least 0, not {self.repetition_weight!r}")
-        if not self.bone_jitter_weight >= 0:
-            raise ConfigError(f"bone_jitter_weight must be at least 0, not {self.bone_jitter_weight!r}")
-        if not isinstance(self.song_starts, bool):
-            raise ConfigError(f"song_starts must be true or false, not {self.song_starts!r}")
-        if not isinstance(self.turning, bool):
-            raise ConfigError(f"turning must be true or false, not {self.turning!r}")
-        if not isinstance(self.travel, bool):
-            raise ConfigError(f"travel must be true or false, not {self.travel!r}")
-        if not isinstance(self.facing, bool):
-            raise ConfigError(f"facing must be true or false, not {self.facing!r}")
-        if not isinstance(self.by_metre, bool):
-            raise ConfigError(f"by_metre must be true or false, not {self.by_metre!r}")
+        for name in _WEIGHTS:
+            if not getattr(self, name) >= 0:
+                raise ConfigError(f"{name} must be at least 0, not {getattr(self, name)!r}")
+        for name in _SWITCHES:
+            if not isinstance(getattr(self, name), bool):
+                raise ConfigError(f"{name} must be true or false, not {getattr(self, name)!r}")
         if self.by_metre and not (self.turning or self.travel):
             raise ConfigError("by_metre: a run that fits its drawn processes by metre must draw its turning or travel")
         if self.smooth_hz is not None and not (isinstance(self.smooth_hz, (int, float)) and self.smooth_hz > 0):
