@@ -599,64 +599,75 @@ class Body:
         return replace(self, scale=self.scale.to(device), offset=self.offset.to(device), feet=feet)
 
 
+@dataclass(frozen=True)
+class RhythmWeights:
+    """The weights of :func:`masked_rhythm_loss`'s optional terms (``TrainConfig``'s fields of the
+    same names with ``_weight``: :meth:`~kinectdata.training.config.TrainConfig.rhythm_weights`); a
+    term of weight 0 is not computed. Named, not positional: seven floats in a row are easy to
+    pass in the wrong order."""
+
+    posture: float = 3.0
+    jitter: float = 0.0
+    periodogram: float = 0.0
+    bone_jitter: float = 0.0
+    low_energy: float = 0.0
+    span: float = 0.0
+    repetition: float = 0.0
+
+
 def masked_rhythm_loss(
     prediction,
     target,
     mask,
     fps: float,
     body=None,
-    posture_weight: float = 3.0,
-    jitter_weight: float = 0.0,
-    periodogram_weight: float = 0.0,
-    bone_jitter_weight: float = 0.0,
-    low_energy_weight: float = 0.0,
-    span_weight: float = 0.0,
-    repetition_weight: float = 0.0,
+    weights: RhythmWeights | None = None,
 ):
     """The free-running loss of training (``TrainConfig.free_weight``): the spectra of the motion's
     changes (:func:`masked_rhythm_spectrum_loss`: how often and how much at each tempo, whatever the
     phase), its speed and the size of its speed's changes in every :data:`ENERGY_CHUNK_S` seconds
     (:func:`masked_energy_loss` of the motion and of its frame-to-frame changes: the second keeps a
     motion made from the music alone from jittering), its postures' means and spreads
-    (:func:`masked_posture_loss`, times ``posture_weight``: ``TrainConfig.posture_weight``), how much
-    more it jitters (:func:`masked_jitter_loss`, times ``jitter_weight``: ``TrainConfig.jitter_weight``),
-    where its periods lie (:func:`masked_periodogram_loss`, times ``periodogram_weight``), the
-    speed of its slow part (:func:`masked_low_band_energy_loss`, times ``low_energy_weight``) and,
-    given a :class:`Body`, how much its bones stretch against the target's (times
-    :data:`BONE_WEIGHT`), its joints' speeds in the world (:func:`masked_world_speed_loss`, per
-    :data:`ENERGY_CHUNK_S`, times :data:`WORLD_SPEED_WEIGHT`), how much faster its bones change
-    their lengths (:func:`masked_bone_jitter_loss` per :data:`ENERGY_CHUNK_S`, times
-    ``bone_jitter_weight``: ``TrainConfig.bone_jitter_weight``), how differently it bends its joints
-    (:func:`masked_span_loss`, times ``span_weight``: ``TrainConfig.span_weight``), how differently
-    it repeats (:func:`masked_repetition_loss`, times ``repetition_weight``) and, when the body has
-    feet, how much more they slide (times :data:`FOOT_WEIGHT`). [B, L, D] tensors; a scalar."""
+    (:func:`masked_posture_loss`) and, given a :class:`Body`, how much its bones stretch against the
+    target's (times :data:`BONE_WEIGHT`), its joints' speeds in the world
+    (:func:`masked_world_speed_loss`, per :data:`ENERGY_CHUNK_S`, times :data:`WORLD_SPEED_WEIGHT`)
+    and, when the body has feet, how much more they slide (times :data:`FOOT_WEIGHT`).
+
+    ``weights`` (:class:`RhythmWeights`, its defaults when None) weigh the posture term and the
+    optional ones: how much more the motion jitters (:func:`masked_jitter_loss`), where its periods
+    lie (:func:`masked_periodogram_loss`), the speed of its slow part
+    (:func:`masked_low_band_energy_loss`) and, given a body, how much faster its bones change their
+    lengths (:func:`masked_bone_jitter_loss` per :data:`ENERGY_CHUNK_S`), how differently it bends
+    its joints (:func:`masked_span_loss`) and how differently it repeats
+    (:func:`masked_repetition_loss`). [B, L, D] tensors; a scalar."""
+    w = RhythmWeights() if weights is None else weights
     chunk = max(1, round(ENERGY_CHUNK_S * fps))
     loss = masked_rhythm_spectrum_loss(prediction, target, mask, fps) + masked_energy_loss(
         prediction, target, mask, chunk
     )
     loss = loss + masked_energy_loss(*_changes(prediction, target, mask), chunk)
-    loss = loss + posture_weight * masked_posture_loss(prediction, target, mask)
-    if jitter_weight > 0:
-        loss = loss + jitter_weight * masked_jitter_loss(prediction, target, mask, chunk)
-    if periodogram_weight > 0:
-        loss = loss + periodogram_weight * masked_periodogram_loss(prediction, target, mask, fps)
-    if low_energy_weight > 0:
-        loss = loss + low_energy_weight * masked_low_band_energy_loss(prediction, target, mask, fps, chunk)
+    loss = loss + w.posture * masked_posture_loss(prediction, target, mask)
+    if w.jitter > 0:
+        loss = loss + w.jitter * masked_jitter_loss(prediction, target, mask, chunk)
+    if w.periodogram > 0:
+        loss = loss + w.periodogram * masked_periodogram_loss(prediction, target, mask, fps)
+    if w.low_energy > 0:
+        loss = loss + w.low_energy * masked_low_band_energy_loss(prediction, target, mask, fps, chunk)
     if body is not None:
         loss = loss + BONE_WEIGHT * masked_bone_loss(
             prediction, target, mask, body.bones, body.scale, body.offset, body.dims
         )
         loss = loss + WORLD_SPEED_WEIGHT * masked_world_speed_loss(prediction, target, mask, body, chunk)
-        if span_weight > 0:
-            loss = loss + span_weight * masked_span_loss(
+        if w.span > 0:
+            loss = loss + w.span * masked_span_loss(
                 prediction, target, mask, body.bones, body.scale, body.offset, body.dims
             )
-        if bone_jitter_weight > 0:
-            loss = loss + bone_jitter_weight * masked_bone_jitter_loss(
+        if w.bone_jitter > 0:
+            loss = loss + w.bone_jitter * masked_bone_jitter_loss(
                 prediction, target, mask, body.bones, body.scale, body.offset, body.dims, chunk
             )
-        if repetition_weight > 0:
-            loss = loss + repetition_weight * masked_repetition_loss(prediction, target, mask, body, fps)
+        if w.repetition > 0:
+            loss = loss + w.repetition * masked_repetition_loss(prediction, target, mask, body, fps)
         if body.feet is not None:
             loss = loss + FOOT_WEIGHT * masked_foot_loss(
                 prediction, target, mask, body.feet, body.scale, body.offset, body.root, body.centred, dims=body.dims

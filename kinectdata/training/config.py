@@ -15,6 +15,7 @@ from typing import Any
 from kinectdata.core.errors import ConfigError, KinectDataError
 from kinectdata.dataset.layout import BALANCE_FIELDS
 from kinectdata.models.kind import PAPER_LOOP
+from kinectdata.models.losses import RhythmWeights
 from kinectdata.models.registry import DEFAULT_MODEL, make_settings, model_kind
 
 LOOP_DEFAULTS: dict[str, Any] = {
@@ -361,6 +362,20 @@ class TrainConfig:
         """(name, this value, ``other``'s value) of every setting in which the two differ."""
         mine, theirs = self.to_dict(), other.to_dict()
         return [(k, mine.get(k), theirs.get(k)) for k in {**mine, **theirs} if mine.get(k) != theirs.get(k)]
+
+    @property
+    def rhythm_weights(self) -> RhythmWeights:
+        """The free-running loss's term weights (``posture_weight``, ``jitter_weight``, ... as
+        :func:`~kinectdata.models.losses.masked_rhythm_loss` takes them)."""
+        return RhythmWeights(
+            posture=self.posture_weight,
+            jitter=self.jitter_weight,
+            periodogram=self.periodogram_weight,
+            bone_jitter=self.bone_jitter_weight,
+            low_energy=self.low_energy_weight,
+            span=self.span_weight,
+            repetition=self.repetition_weight,
+        )
 
     @classmethod
     def for_model(cls, model: str, paper: bool = False, **settings: Any) -> TrainConfig:

@@ -480,13 +480,7 @@ def validate(
             torch.from_numpy(masks),
             fps,
             body,
-            config.posture_weight,
-            config.jitter_weight,
-            config.periodogram_weight,
-            config.bone_jitter_weight,
-            config.low_energy_weight,
-            config.span_weight,
-            config.repetition_weight,
+            config.rhythm_weights,
         )
     )
     return loss, smape(generated, real, masks), rhythm
@@ -846,13 +840,7 @@ def train(
                         mask,
                         fps,
                         body,
-                        config.posture_weight,
-                        config.jitter_weight,
-                        config.periodogram_weight,
-                        config.bone_jitter_weight,
-                        config.low_energy_weight,
-                        config.span_weight,
-                        config.repetition_weight,
+                        config.rhythm_weights,
                     )
                 else:
                     with forward_precision:

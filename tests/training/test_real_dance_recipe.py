@@ -4,6 +4,7 @@ keeping the best free-running validation epoch, the papers' settings by name."""
 from __future__ import annotations
 
 import csv
+import dataclasses
 import json
 import math
 
@@ -16,6 +17,7 @@ from conftest import REPO, TINY_TRAINING
 from kinectdata.cli import main
 from kinectdata.core.errors import ConfigError, KinectDataError
 from kinectdata.models.losses import (
+    RhythmWeights,
     masked_energy_loss,
     masked_jitter_loss,
     masked_periodogram_loss,
@@ -92,7 +94,7 @@ def test_the_energy_loss_is_the_itakura_saito_divergence_of_mean_squared_changes
     assert float(masked_energy_loss(real, real, mask)) == pytest.approx(0.0, abs=1e-9)
     from kinectdata.models.losses import ENERGY_CHUNK_S, masked_posture_loss
 
-    combined = masked_rhythm_loss(real * 2.0, real, mask, 30.0, posture_weight=7.0)
+    combined = masked_rhythm_loss(real * 2.0, real, mask, 30.0, weights=RhythmWeights(posture=7.0))
     posture = float(masked_posture_loss(real * 2.0, real, mask))
     assert posture > 0.1  # twice the spread
     chunk = round(ENERGY_CHUNK_S * 30.0)
@@ -133,7 +135,7 @@ def test_the_jitter_loss_costs_an_excess_of_acceleration_and_jerk_in_proportion(
     assert float(masked_jitter_loss(real, real, mask, chunk)) == pytest.approx(0.0, abs=1e-9)
     smoother = float(masked_jitter_loss(real, tremor, mask, chunk))  # the same ratio the other way round
     assert shaking > 3 * smoother
-    with_term = float(masked_rhythm_loss(tremor, real, mask, 30.0, jitter_weight=2.0))
+    with_term = float(masked_rhythm_loss(tremor, real, mask, 30.0, weights=RhythmWeights(jitter=2.0)))
     without = float(masked_rhythm_loss(tremor, real, mask, 30.0))
     assert with_term - without == pytest.approx(2.0 * shaking, rel=1e-4)
 
@@ -181,7 +183,7 @@ def test_the_periodogram_tells_a_waltz_bar_from_a_cha_cha_bar():
     spectra = [float(masked_rhythm_spectrum_loss(made, real, mask, 30.0)) for made in (other_bar, other_phase)]
     # the wrong bar costs 36 x the wrong phase here, 4 x in the rhythm spectra's 0.23-Hz bins
     assert wrong_bar / wrong_phase > 20 > 5 > spectra[0] / spectra[1]
-    with_term = float(masked_rhythm_loss(other_bar, real, mask, 30.0, periodogram_weight=0.5))
+    with_term = float(masked_rhythm_loss(other_bar, real, mask, 30.0, weights=RhythmWeights(periodogram=0.5)))
     without = float(masked_rhythm_loss(other_bar, real, mask, 30.0))
     assert with_term - without == pytest.approx(0.5 * wrong_bar, rel=1e-4)
 
@@ -579,7 +581,9 @@ def test_the_bone_jitter_loss_costs_bones_changing_length_fast_not_bones_moving(
     assert float(masked_jitter_loss(normalise(rigid), normalise(still), mask, chunk)) > 1.0
 
     body = Body(bones=[(1, 0)], scale=scale, offset=offset)
-    with_term = float(masked_rhythm_loss(normalise(made), normalise(real), mask, 30.0, body, bone_jitter_weight=3.0))
+    with_term = float(
+        masked_rhythm_loss(normalise(made), normalise(real), mask, 30.0, body, RhythmWeights(bone_jitter=3.0))
+    )
     without = float(masked_rhythm_loss(normalise(made), normalise(real), mask, 30.0, body))
     assert with_term - without == pytest.approx(3.0 * got, rel=1e-4)
 
@@ -645,3 +649,40 @@ def test_a_run_with_mirrored_windows_resumes_exactly_and_a_target_with_orientati
     with pytest.raises(ConfigError, match="target 'yalta65': only positions and limb lengths can be mirrored"):
         train(sample_dataset, tmp_path / "refused", TrainConfig(**{**TINY_TRAINING, "mirror_share": 0.5}))
     assert not (tmp_path / "refused").exists()
+
+
+def test_each_training_weight_reaches_its_own_term_of_the_free_running_loss():
+    """``TrainConfig.rhythm_weights`` hands each ``*_weight`` to its own term: raising one weight by
+    1.7 raises the loss by 1.7 times that term, computed here by the term's own function."""
+    from kinectdata.models import losses
+
+    rng = np.random.default_rng(5)
+    fps, frames, joints = 30.0, 96, 4
+    real = torch.from_numpy(rng.normal(0, 0.3, (2, frames, 3 * joints)).astype(np.float32))
+    made = torch.from_numpy(rng.normal(0, 0.2, (2, frames, 3 * joints)).astype(np.float32))
+    mask = torch.ones_like(real, dtype=torch.bool)
+    scale, offset = torch.full((3 * joints,), 0.5), torch.zeros(3 * joints)
+    body = losses.Body(bones=[(1, 0), (2, 1), (3, 0)], scale=scale, offset=offset)
+    chunk = max(1, round(losses.ENERGY_CHUNK_S * fps))
+    terms = {
+        "posture": lambda: losses.masked_posture_loss(made, real, mask),
+        "jitter": lambda: losses.masked_jitter_loss(made, real, mask, chunk),
+        "periodogram": lambda: losses.masked_periodogram_loss(made, real, mask, fps),
+        "low_energy": lambda: losses.masked_low_band_energy_loss(made, real, mask, fps, chunk),
+        "bone_jitter": lambda: losses.masked_bone_jitter_loss(
+            made, real, mask, body.bones, scale, offset, body.dims, chunk
+        ),
+        "span": lambda: losses.masked_span_loss(made, real, mask, body.bones, scale, offset, body.dims),
+        "repetition": lambda: losses.masked_repetition_loss(made, real, mask, body, fps),
+    }
+    assert set(terms) == {f.name for f in dataclasses.fields(RhythmWeights)}
+    config = TrainConfig.for_model("cdhc")
+    for name, term in terms.items():
+        base = config.replace(**{f"{name}_weight": 0.0})
+        raised = config.replace(**{f"{name}_weight": 1.7})
+        assert getattr(raised.rhythm_weights, name) == 1.7
+        gained = masked_rhythm_loss(made, real, mask, fps, body, raised.rhythm_weights) - masked_rhythm_loss(
+            made, real, mask, fps, body, base.rhythm_weights
+        )
+        assert float(term()) > 1e-3, name  # each term is awake on these windows
+        assert float(gained) == pytest.approx(1.7 * float(term()), rel=1e-4), name

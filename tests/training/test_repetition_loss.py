@@ -13,6 +13,7 @@ from kinectdata.models.losses import (  # noqa: E402
     REPETITION_DRIFT_S,
     REPETITION_LAGS_S,
     Body,
+    RhythmWeights,
     masked_repetition_loss,
     masked_rhythm_loss,
     vertical_repetition,
@@ -108,6 +109,6 @@ def test_the_weight_adds_the_term_to_the_free_running_loss():
     made, real = windows(dancer(300, 0.1, 0.0)), windows(dancer(300, 0.05, 0.1))
     mask = torch.ones(1, 300, 3 * JOINTS, dtype=torch.bool)
     without = float(masked_rhythm_loss(made, real, mask, FPS, BODY))
-    with_term = float(masked_rhythm_loss(made, real, mask, FPS, BODY, repetition_weight=4.0))
+    with_term = float(masked_rhythm_loss(made, real, mask, FPS, BODY, RhythmWeights(repetition=4.0)))
     term = float(masked_repetition_loss(made, real, mask, BODY, FPS))
     assert with_term - without == pytest.approx(4.0 * term, rel=1e-6)

@@ -8,6 +8,7 @@ torch = pytest.importorskip("torch")
 
 from kinectdata.models.losses import (  # noqa: E402
     Body,
+    RhythmWeights,
     masked_rhythm_loss,
     masked_span_loss,
     spans_of,
@@ -78,6 +79,6 @@ def test_masked_frames_do_not_count_and_the_weight_scales_the_term():
     made, real = made.double(), real.double()  # the whole loss is large: its sum in float64
     body = Body(bones=BONES, scale=SCALE.double(), offset=OFFSET.double())
     term = float(masked_span_loss(made, real, mask, BONES, body.scale, body.offset))
-    with_term = float(masked_rhythm_loss(made, real, mask, 30.0, body, span_weight=4.0))
+    with_term = float(masked_rhythm_loss(made, real, mask, 30.0, body, RhythmWeights(span=4.0)))
     without = float(masked_rhythm_loss(made, real, mask, 30.0, body))
     assert with_term - without == pytest.approx(4.0 * term, rel=1e-4)

@@ -98,8 +98,8 @@ def test_the_free_running_loss_adds_the_world_term_per_two_seconds():
     mask = torch.ones(1, len(stepping), 9, dtype=torch.bool)
     made, real, body = _tensor(_centred(planted)), _tensor(_centred(stepping)), _body(centred=True)
     chunk = round(losses.ENERGY_CHUNK_S * 30.0)
-    whole = float(losses.masked_rhythm_loss(made, real, mask, 30.0, body, posture_weight=2.0))
-    without_body = float(losses.masked_rhythm_loss(made, real, mask, 30.0, None, posture_weight=2.0))
+    whole = float(losses.masked_rhythm_loss(made, real, mask, 30.0, body, losses.RhythmWeights(posture=2.0)))
+    without_body = float(losses.masked_rhythm_loss(made, real, mask, 30.0, None, losses.RhythmWeights(posture=2.0)))
     bones = float(losses.masked_bone_loss(made, real, mask, BONES, body.scale, body.offset))
     world = float(masked_world_speed_loss(made, real, mask, body, chunk))
     assert world > 1.0
