@@ -165,6 +165,17 @@ def _levels(beats_per_bar: int) -> list[tuple[str, float]]:
     return [(n, b if b is not None else (beats_per_bar if n == "bar" else 2 * beats_per_bar)) for n, b in LEVELS]
 
 
+def dominant_level(levels: dict[str, int]) -> str:
+    """The metrical level most recordings sit at, from ``levels`` (name -> how many; ``"none"``
+    for recordings at no level): ``"none"`` loses a tie, and of tied levels the finer one in
+    :data:`LEVELS`'s order wins, so that the order the songs came in never decides; ``"none"``
+    when ``levels`` is empty or only ``"none"``."""
+    order = {name: i for i, (name, _) in enumerate(LEVELS)}
+    if not levels:
+        return "none"
+    return max(levels, key=lambda k: (levels[k], k != "none", -order.get(k, len(order))))
+
+
 def level_beats(level: str, beats_per_bar: int) -> float:
     """Beats in a metrical level of a song with ``beats_per_bar`` (``bar``: 3 in a waltz, 4 in a
     cha-cha); 1 for ``none`` and unknown names."""
@@ -370,8 +381,8 @@ class BeatFollowing:
 
     @property
     def dominant_level(self) -> str:
-        """The metrical level most recordings' periods sit at ("none" when most sit at none)."""
-        return max(self.levels, key=lambda k: (self.levels[k], k != "none")) if self.levels else "none"
+        """The metrical level most recordings' periods sit at (:func:`dominant_level`)."""
+        return dominant_level(self.levels)
 
     def verdicts(self, what: str = "motion") -> list[str]:
         """Plain lines with a yes or no and the figures next to it."""
@@ -603,7 +614,7 @@ def _tempo_correlation(
 
     from scipy.stats import rankdata, spearmanr
 
-    level = max(levels, key=lambda k: (levels[k], k != "none"))
+    level = dominant_level(levels)
     if len(rhythms) < 3 or level == "none":
         return None, None
     motion, music = [], []

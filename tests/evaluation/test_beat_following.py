@@ -11,6 +11,7 @@ from kinectdata.evaluation.beat_following import (
     RecordingBeats,
     _prior_match_rate,
     beat_following,
+    dominant_level,
     dominant_period,
     metrical_level,
 )
@@ -88,6 +89,22 @@ def _set(periods, *, phase_s=0.0, motion_periods=None, seconds=40.0):
             RecordingBeats(f"r{i}", bouncer(mp, seconds, phase_s=phase_s, seed=i), None, FPS, beats(p, seconds))
         )
     return recs
+
+
+def test_a_tie_between_levels_goes_to_the_finer_one_whatever_the_songs_order():
+    """Three songs danced at two beats and three at the bar: the same dominant level, and the same
+    tempo rank read at it, with the songs listed either way round (the first listed once decided:
+    the rank was read at the bar one way and at two beats the other)."""
+    periods = [0.75, 0.63, 0.55, 0.48, 0.70, 0.52]
+    motion = [2 * p for p in periods[:3]] + [4 * p for p in periods[3:]]
+    songs = _set(periods, motion_periods=motion)
+    forward, backward = beat_following(songs, draws=50), beat_following(songs[::-1], draws=50)
+    assert forward.levels == {"two beats": 3, "bar": 3} and list(backward.levels) == ["bar", "two beats"]
+    assert forward.dominant_level == backward.dominant_level == "two beats"
+    assert forward.tempo_correlation is not None
+    assert forward.tempo_correlation == pytest.approx(backward.tempo_correlation)
+    assert dominant_level({"none": 3, "bar": 3}) == "bar" and dominant_level({"none": 4, "bar": 3}) == "none"
+    assert dominant_level({"two bars": 2, "beat": 2, "bar": 1}) == "beat" and dominant_level({}) == "none"
 
 
 def test_motion_locked_to_the_beat_follows_it_significantly():
