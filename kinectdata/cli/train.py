@@ -94,6 +94,13 @@ _LOOP_OPTIONS = (
         "lags of 0.2-4.5 s against the real motion's, whatever the phase (at one bar or at two); 0: none.",
     ),
     (
+        "world_excess_weight",
+        click.FloatRange(min=0),
+        "Weight of the joints' excess speed in the world in the free-running loss: each joint's speed along each "
+        "axis per 2 s against the real motion's, faster costing in proportion (a foot bouncing up and down); "
+        "0: none.",
+    ),
+    (
         "song_starts",
         click.BOOL,
         "Also train on each song's first frames: windows whose context runs before the recording's start, silence "

@@ -70,6 +70,7 @@ PAPER_LOOP: dict[str, Any] = {
     "low_energy_weight": 0.0,
     "span_weight": 0.0,
     "repetition_weight": 0.0,
+    "world_excess_weight": 0.0,
     "keep_energy_weight": 0.0,
     "song_starts": False,
     "turning": False,

@@ -433,7 +433,7 @@ def masked_span_loss(prediction, target, mask, bones, scale, offset, dims: int =
     return (gap / typical.clamp(min=1e-3) * counted).sum() / counted.sum().clamp(min=1.0)
 
 
-def masked_world_speed_loss(prediction, target, mask, body, chunk: int | None = None):
+def masked_world_speed_loss(prediction, target, mask, body, chunk: int | None = None, excess: bool = False):
     """How far each joint's speed in the world is from the target's, in ratio: the
     :func:`masked_energy_loss` of the joints' positions in metres along each world axis, with the
     root's travel added back to root-centred joints (per stretch of ``chunk`` frame-to-frame
@@ -451,6 +451,9 @@ def masked_world_speed_loss(prediction, target, mask, body, chunk: int | None = 
         body: the :class:`Body` (its bones give the positioned joints; ``root`` is needed when
             ``centred``).
         chunk: frame-to-frame changes per stretch.
+        excess: the divergence turned round (:func:`masked_energy_loss`'s ``excess``): a joint
+            moving faster in the world than the target's costs in proportion, slower only in log
+            ratio (``RhythmWeights.world_excess``).
 
     Returns:
         A scalar tensor (0 for a body without bones, or a centred one without a root).
@@ -467,7 +470,7 @@ def masked_world_speed_loss(prediction, target, mask, body, chunk: int | None = 
     def world(x):
         return _world(x, body.scale, body.offset, joints, dims, body.root, body.centred).flatten(-2)
 
-    return masked_energy_loss(world(prediction), world(target), world_mask, chunk)
+    return masked_energy_loss(world(prediction), world(target), world_mask, chunk, excess=excess)
 
 
 def masked_foot_loss(
@@ -613,6 +616,7 @@ class RhythmWeights:
     low_energy: float = 0.0
     span: float = 0.0
     repetition: float = 0.0
+    world_excess: float = 0.0
 
 
 def masked_rhythm_loss(
@@ -638,8 +642,9 @@ def masked_rhythm_loss(
     lie (:func:`masked_periodogram_loss`), the speed of its slow part
     (:func:`masked_low_band_energy_loss`) and, given a body, how much faster its bones change their
     lengths (:func:`masked_bone_jitter_loss` per :data:`ENERGY_CHUNK_S`), how differently it bends
-    its joints (:func:`masked_span_loss`) and how differently it repeats
-    (:func:`masked_repetition_loss`). [B, L, D] tensors; a scalar."""
+    its joints (:func:`masked_span_loss`), how differently it repeats
+    (:func:`masked_repetition_loss`) and how much faster its joints move in the world than the
+    target's (:func:`masked_world_speed_loss` with ``excess``). [B, L, D] tensors; a scalar."""
     w = RhythmWeights() if weights is None else weights
     chunk = max(1, round(ENERGY_CHUNK_S * fps))
     loss = masked_rhythm_spectrum_loss(prediction, target, mask, fps) + masked_energy_loss(
@@ -658,6 +663,8 @@ def masked_rhythm_loss(
             prediction, target, mask, body.bones, body.scale, body.offset, body.dims
         )
         loss = loss + WORLD_SPEED_WEIGHT * masked_world_speed_loss(prediction, target, mask, body, chunk)
+        if w.world_excess > 0:
+            loss = loss + w.world_excess * masked_world_speed_loss(prediction, target, mask, body, chunk, excess=True)
         if w.span > 0:
             loss = loss + w.span * masked_span_loss(
                 prediction, target, mask, body.bones, body.scale, body.offset, body.dims

@@ -52,6 +52,7 @@ ADDED_OFF = {
     "low_energy_weight": 0.0,
     "span_weight": 0.0,
     "repetition_weight": 0.0,
+    "world_excess_weight": 0.0,
     "keep_energy_weight": 0.0,
     "song_starts": False,
     "context": 0,
@@ -83,6 +84,7 @@ _WEIGHTS = (
     "low_energy_weight",
     "span_weight",
     "repetition_weight",
+    "world_excess_weight",
     "bone_jitter_weight",
 )
 """The loop's loss weights: each at least 0."""
@@ -151,6 +153,11 @@ class TrainConfig:
             (:func:`~kinectdata.models.losses.masked_repetition_loss`: the autocorrelation of the
             joints' heights at lags of 0.2-4.5 s against the real one's, whatever the phase: at one
             bar or at two). Runs written before it had none.
+        world_excess_weight: weight of the joints' excess speed in the world in the free-running
+            loss (:func:`~kinectdata.models.losses.masked_world_speed_loss` with ``excess``: each
+            joint's speed along each world axis per 2 s against the real one's, faster costing in
+            proportion; the world speed term itself costs slower more). Runs written before it had
+            none.
         song_starts: also train on each song's first frames: windows whose ``context`` runs before
             the recording's first frame, silence there (audio zeros; no pose, masked:
             :class:`~kinectdata.dataset.windows.WindowDataset`'s ``lead``). Without them a model
@@ -249,6 +256,7 @@ class TrainConfig:
     low_energy_weight: float
     span_weight: float
     repetition_weight: float
+    world_excess_weight: float
     song_starts: bool
     silence_share: float
     keep: str
@@ -375,6 +383,7 @@ class TrainConfig:
             low_energy=self.low_energy_weight,
             span=self.span_weight,
             repetition=self.repetition_weight,
+            world_excess=self.world_excess_weight,
         )
 
     @classmethod

@@ -41,16 +41,16 @@ def _body(centred: bool) -> Body:
     return Body(bones=BONES, scale=torch.ones(9), offset=torch.zeros(9), root=ROOT, centred=centred)
 
 
-def _divergence(made: np.ndarray, real: np.ndarray, chunk: int) -> float:
+def _divergence(made: np.ndarray, real: np.ndarray, chunk: int, excess: bool = False) -> float:
     """numpy: per world component and stretch of ``chunk`` steps, 2 (r/m - log(r/m) - 1) of the mean
-    squared steps, floored at 1 % of the real ones' mean, averaged."""
+    squared steps (``excess``: m/r), floored at 1 % of the real ones' mean, averaged."""
     m, r = made.reshape(len(made), -1), real.reshape(len(real), -1)
     dm, dr = np.diff(m, axis=0) ** 2, np.diff(r, axis=0) ** 2
     bounds = range(0, len(dm), chunk)
     em = np.array([dm[a : a + chunk].mean(axis=0) for a in bounds])
     er = np.array([dr[a : a + chunk].mean(axis=0) for a in bounds])
     floor = 1e-2 * er.mean()
-    ratio = (er + floor) / (em + floor)
+    ratio = (em + floor) / (er + floor) if excess else (er + floor) / (em + floor)
     return float(np.mean(2 * (ratio - np.log(ratio) - 1)))
 
 
@@ -105,3 +105,22 @@ def test_the_free_running_loss_adds_the_world_term_per_two_seconds():
     assert world > 1.0
     expected = without_body + losses.BONE_WEIGHT * bones + losses.WORLD_SPEED_WEIGHT * world
     assert whole == pytest.approx(expected, rel=1e-5)
+
+
+def test_the_excess_form_costs_a_bouncing_foot_more_than_a_still_one():
+    """Turned round (``excess``), the world term charges a foot that moves where the dancer's stands
+    in proportion and a foot that stands where the dancer's moves only in log ratio: the numpy
+    divergence with made and real swapped, and the other way round from the plain term."""
+    stepping, planted = _world_dance(True), _world_dance(False)
+    mask = torch.ones(1, len(stepping), 9, dtype=torch.bool)
+    body = _body(centred=True)
+    bouncing, still = _tensor(_centred(stepping)), _tensor(_centred(planted))
+    too_fast = float(masked_world_speed_loss(bouncing, still, mask, body, chunk=30, excess=True))
+    too_slow = float(masked_world_speed_loss(still, bouncing, mask, body, chunk=30, excess=True))
+    assert too_fast == pytest.approx(_divergence(stepping, planted, 30, excess=True), rel=1e-4)
+    assert too_slow == pytest.approx(_divergence(planted, stepping, 30, excess=True), rel=1e-4)
+    assert too_fast > too_slow
+    plain_fast = float(masked_world_speed_loss(bouncing, still, mask, body, chunk=30))
+    plain_slow = float(masked_world_speed_loss(still, bouncing, mask, body, chunk=30))
+    assert plain_slow > plain_fast
+    assert float(masked_world_speed_loss(still, still, mask, body, chunk=30, excess=True)) == pytest.approx(0, abs=1e-6)
