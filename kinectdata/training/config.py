@@ -373,18 +373,11 @@ class TrainConfig:
 
     @property
     def rhythm_weights(self) -> RhythmWeights:
-        """The free-running loss's term weights (``posture_weight``, ``jitter_weight``, ... as
-        :func:`~kinectdata.models.losses.masked_rhythm_loss` takes them)."""
-        return RhythmWeights(
-            posture=self.posture_weight,
-            jitter=self.jitter_weight,
-            periodogram=self.periodogram_weight,
-            bone_jitter=self.bone_jitter_weight,
-            low_energy=self.low_energy_weight,
-            span=self.span_weight,
-            repetition=self.repetition_weight,
-            world_excess=self.world_excess_weight,
-        )
+        """The free-running loss's term weights as
+        :func:`~kinectdata.models.losses.masked_rhythm_loss` takes them: each field of
+        :class:`~kinectdata.models.losses.RhythmWeights` from the setting of its name with
+        ``_weight`` (``posture`` from ``posture_weight``...)."""
+        return RhythmWeights(**{f.name: getattr(self, f"{f.name}_weight") for f in dataclasses.fields(RhythmWeights)})
 
     @classmethod
     def for_model(cls, model: str, paper: bool = False, **settings: Any) -> TrainConfig:
