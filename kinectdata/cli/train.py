@@ -101,6 +101,13 @@ _LOOP_OPTIONS = (
         "0: none.",
     ),
     (
+        "world_jitter_weight",
+        click.FloatRange(min=0),
+        "Weight of the joints' excess acceleration in the world in the free-running loss: each joint's mean "
+        "squared acceleration and jerk along each axis per 2 s against the real motion's, more costing in "
+        "proportion (a trunk swaying faster than the dancers'); 0: none.",
+    ),
+    (
         "song_starts",
         click.BOOL,
         "Also train on each song's first frames: windows whose context runs before the recording's start, silence "

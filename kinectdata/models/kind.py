@@ -71,6 +71,7 @@ PAPER_LOOP: dict[str, Any] = {
     "span_weight": 0.0,
     "repetition_weight": 0.0,
     "world_excess_weight": 0.0,
+    "world_jitter_weight": 0.0,
     "keep_energy_weight": 0.0,
     "song_starts": False,
     "turning": False,

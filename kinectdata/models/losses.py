@@ -433,11 +433,32 @@ def masked_span_loss(prediction, target, mask, bones, scale, offset, dims: int =
     return (gap / typical.clamp(min=1e-3) * counted).sum() / counted.sum().clamp(min=1.0)
 
 
+def world_positions(prediction, target, mask, body):
+    """The positioned joints of [B, L, D] windows in metres in the world, flattened to
+    [B, L, J * dims] (the root's travel added back to root-centred joints), for the prediction and
+    the target, and where the joint (and, centred, the root) is valid in the target [B, L, J * dims];
+    None for a body without bones, or a centred one without a root. Torch tensors; differentiable."""
+    if not body.bones or (body.centred and body.root is None):
+        return None
+    joints = body.joints
+    dims = body.dims
+    valid = mask[..., : joints * dims].unflatten(-1, (joints, dims)).all(dim=-1)  # [B, L, J]
+    if body.centred:
+        valid = valid & valid[..., body.root : body.root + 1]
+    world_mask = valid[..., None].expand(*valid.shape, dims).flatten(-2)
+
+    def world(x):
+        return _world(x, body.scale, body.offset, joints, dims, body.root, body.centred).flatten(-2)
+
+    return world(prediction), world(target), world_mask
+
+
 def masked_world_speed_loss(prediction, target, mask, body, chunk: int | None = None, excess: bool = False):
     """How far each joint's speed in the world is from the target's, in ratio: the
-    :func:`masked_energy_loss` of the joints' positions in metres along each world axis, with the
-    root's travel added back to root-centred joints (per stretch of ``chunk`` frame-to-frame
-    changes; None: the whole window), over the frames where the joint (and the root) are valid.
+    :func:`masked_energy_loss` of the joints' positions in metres along each world axis
+    (:func:`world_positions`: the root's travel added back to root-centred joints), per stretch of
+    ``chunk`` frame-to-frame changes (None: the whole window), over the frames where the joint
+    (and the root) are valid.
 
     The speed term of :func:`masked_rhythm_loss` on the targets themselves cannot see this: a
     root-centred foot that cancels the root's sway keeps its target-space speed while it stands
@@ -458,19 +479,34 @@ def masked_world_speed_loss(prediction, target, mask, body, chunk: int | None = 
     Returns:
         A scalar tensor (0 for a body without bones, or a centred one without a root).
     """
-    if not body.bones or (body.centred and body.root is None):
+    world = world_positions(prediction, target, mask, body)
+    if world is None:
         return prediction.new_zeros(())
-    joints = body.joints
-    dims = body.dims
-    valid = mask[..., : joints * dims].unflatten(-1, (joints, dims)).all(dim=-1)  # [B, L, J]
-    if body.centred:
-        valid = valid & valid[..., body.root : body.root + 1]
-    world_mask = valid[..., None].expand(*valid.shape, dims).flatten(-2)
+    return masked_energy_loss(*world, chunk, excess=excess)
 
-    def world(x):
-        return _world(x, body.scale, body.offset, joints, dims, body.root, body.centred).flatten(-2)
 
-    return masked_energy_loss(world(prediction), world(target), world_mask, chunk, excess=excess)
+def masked_world_jitter_loss(prediction, target, mask, body, chunk: int | None = None):
+    """How much more each joint accelerates in the world than the target's: :func:`masked_jitter_loss`
+    (the mean squared accelerations and jerks per stretch of ``chunk`` frames, too much costing in
+    proportion) of the joints' positions in metres along each world axis (:func:`world_positions`).
+
+    The jitter term on the targets works about the root, where a root-centred trunk holds still
+    while the root carries it: there the cdhc model's trunk accelerated along the floor at 2-2.5 x
+    the dancers' on tang2018's validation dances (pelvis 2.1-2.7 m/s^2 against 1.1), and its rumbas
+    were named cha-chas by their motion (docs/notebook/2026-12-real-dance-variety.md).
+
+    Args:
+        prediction, target, mask: [B, L, D]; positions first, ``body.dims`` components per joint.
+        body: the :class:`Body`.
+        chunk: frames per stretch (None: the whole window).
+
+    Returns:
+        A scalar tensor (0 for a body without bones, or a centred one without a root).
+    """
+    world = world_positions(prediction, target, mask, body)
+    if world is None:
+        return prediction.new_zeros(())
+    return masked_jitter_loss(*world, chunk)
 
 
 def masked_foot_loss(
@@ -606,8 +642,8 @@ class Body:
 class RhythmWeights:
     """The weights of :func:`masked_rhythm_loss`'s optional terms (``TrainConfig``'s fields of the
     same names with ``_weight``: :meth:`~kinectdata.training.config.TrainConfig.rhythm_weights`); a
-    term of weight 0 is not computed. Named, not positional: seven floats in a row are easy to
-    pass in the wrong order."""
+    term of weight 0 is not computed. Named, not positional: nine floats in a row are easy to pass
+    in the wrong order."""
 
     posture: float = 3.0
     jitter: float = 0.0
@@ -617,6 +653,7 @@ class RhythmWeights:
     span: float = 0.0
     repetition: float = 0.0
     world_excess: float = 0.0
+    world_jitter: float = 0.0
 
 
 def masked_rhythm_loss(
@@ -643,8 +680,9 @@ def masked_rhythm_loss(
     (:func:`masked_low_band_energy_loss`) and, given a body, how much faster its bones change their
     lengths (:func:`masked_bone_jitter_loss` per :data:`ENERGY_CHUNK_S`), how differently it bends
     its joints (:func:`masked_span_loss`), how differently it repeats
-    (:func:`masked_repetition_loss`) and how much faster its joints move in the world than the
-    target's (:func:`masked_world_speed_loss` with ``excess``). [B, L, D] tensors; a scalar."""
+    (:func:`masked_repetition_loss`), how much faster its joints move in the world than the
+    target's (:func:`masked_world_speed_loss` with ``excess``) and how much more they accelerate
+    there (:func:`masked_world_jitter_loss`). [B, L, D] tensors; a scalar."""
     w = RhythmWeights() if weights is None else weights
     chunk = max(1, round(ENERGY_CHUNK_S * fps))
     loss = masked_rhythm_spectrum_loss(prediction, target, mask, fps) + masked_energy_loss(
@@ -662,9 +700,13 @@ def masked_rhythm_loss(
         loss = loss + BONE_WEIGHT * masked_bone_loss(
             prediction, target, mask, body.bones, body.scale, body.offset, body.dims
         )
-        loss = loss + WORLD_SPEED_WEIGHT * masked_world_speed_loss(prediction, target, mask, body, chunk)
-        if w.world_excess > 0:
-            loss = loss + w.world_excess * masked_world_speed_loss(prediction, target, mask, body, chunk, excess=True)
+        world = world_positions(prediction, target, mask, body)
+        if world is not None:
+            loss = loss + WORLD_SPEED_WEIGHT * masked_energy_loss(*world, chunk)
+            if w.world_excess > 0:
+                loss = loss + w.world_excess * masked_energy_loss(*world, chunk, excess=True)
+            if w.world_jitter > 0:
+                loss = loss + w.world_jitter * masked_jitter_loss(*world, chunk)
         if w.span > 0:
             loss = loss + w.span * masked_span_loss(
                 prediction, target, mask, body.bones, body.scale, body.offset, body.dims

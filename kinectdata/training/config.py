@@ -53,6 +53,7 @@ ADDED_OFF = {
     "span_weight": 0.0,
     "repetition_weight": 0.0,
     "world_excess_weight": 0.0,
+    "world_jitter_weight": 0.0,
     "keep_energy_weight": 0.0,
     "song_starts": False,
     "context": 0,
@@ -85,6 +86,7 @@ _WEIGHTS = (
     "span_weight",
     "repetition_weight",
     "world_excess_weight",
+    "world_jitter_weight",
     "bone_jitter_weight",
 )
 """The loop's loss weights: each at least 0."""
@@ -158,6 +160,10 @@ class TrainConfig:
             joint's speed along each world axis per 2 s against the real one's, faster costing in
             proportion; the world speed term itself costs slower more). Runs written before it had
             none.
+        world_jitter_weight: weight of the joints' excess acceleration in the world in the
+            free-running loss (:func:`~kinectdata.models.losses.masked_world_jitter_loss`: the
+            jitter term on each joint's position along each world axis, the root's travel added
+            back: a trunk swaying faster than the dancers'). Runs written before it had none.
         song_starts: also train on each song's first frames: windows whose ``context`` runs before
             the recording's first frame, silence there (audio zeros; no pose, masked:
             :class:`~kinectdata.dataset.windows.WindowDataset`'s ``lead``). Without them a model
@@ -257,6 +263,7 @@ class TrainConfig:
     span_weight: float
     repetition_weight: float
     world_excess_weight: float
+    world_jitter_weight: float
     song_starts: bool
     silence_share: float
     keep: str

@@ -8,7 +8,13 @@ import pytest
 
 torch = pytest.importorskip("torch")
 
-from kinectdata.models.losses import Body, masked_energy_loss, masked_world_speed_loss  # noqa: E402
+from kinectdata.models.losses import (  # noqa: E402
+    Body,
+    masked_energy_loss,
+    masked_jitter_loss,
+    masked_world_jitter_loss,
+    masked_world_speed_loss,
+)
 
 ROOT, FOOT, HEAD = 0, 1, 2
 BONES = [(FOOT, ROOT), (HEAD, ROOT)]
@@ -124,3 +130,40 @@ def test_the_excess_form_costs_a_bouncing_foot_more_than_a_still_one():
     plain_slow = float(masked_world_speed_loss(still, bouncing, mask, body, chunk=30))
     assert plain_slow > plain_fast
     assert float(masked_world_speed_loss(still, still, mask, body, chunk=30, excess=True)) == pytest.approx(0, abs=1e-6)
+
+
+def _swaying_trunk(with_root: bool, frames: int = 120) -> np.ndarray:
+    """[T, 3, 3] world positions of a root swaying along x at 2 Hz and a head above it that sways
+    with it, twice as far in the world (``with_root``), or against it, holding still in the world;
+    the foot stays on the floor. Root-centred, the head moves as much either way."""
+    t = np.arange(frames) / 30.0
+    sway = 0.05 * np.sin(2 * np.pi * 2.0 * t)
+    root = np.stack([sway, 0.9 + 0 * t, 0 * t], axis=1)
+    head = np.stack([2 * sway if with_root else 0 * t, 1.6 + 0 * t, 0 * t], axis=1)
+    return np.stack([root, np.zeros((frames, 3)), head], axis=1)
+
+
+def test_a_trunk_swaying_with_the_root_pays_its_acceleration_only_in_the_world():
+    """Root-centred, the head swaying with the root and the one swaying against it accelerate
+    alike, so the jitter term on the targets cannot tell them apart; in the world the first head
+    accelerates and the second holds still. The world jitter term equals numpy's divergence of the
+    world accelerations and jerks, too much costing in proportion (made and real swapped cost
+    less)."""
+    swaying, steady = _swaying_trunk(True), _swaying_trunk(False)
+    mask = torch.ones(1, len(swaying), 9, dtype=torch.bool)
+    body = _body(centred=True)
+    made, real = _tensor(_centred(swaying)), _tensor(_centred(steady))
+    assert float(masked_jitter_loss(made, real, mask, 30)) == pytest.approx(0.0, abs=1e-5)
+    world = float(masked_world_jitter_loss(made, real, mask, body, chunk=30))
+
+    def numpy_jitter(m: np.ndarray, r: np.ndarray) -> float:
+        m1, r1 = np.diff(m, axis=0), np.diff(r, axis=0)
+        acceleration = _divergence(m1, r1, 30, excess=True)
+        return acceleration + _divergence(np.diff(m1, axis=0), np.diff(r1, axis=0), 30, excess=True)
+
+    assert world == pytest.approx(numpy_jitter(swaying, steady), rel=1e-4)
+    assert world > 1.0
+    backwards = float(masked_world_jitter_loss(real, made, mask, body, chunk=30))
+    assert backwards == pytest.approx(numpy_jitter(steady, swaying), rel=1e-4)
+    assert backwards < world
+    assert float(masked_world_jitter_loss(made, made, mask, body, chunk=30)) == pytest.approx(0.0, abs=1e-6)
