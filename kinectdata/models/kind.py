@@ -52,6 +52,7 @@ from typing import Any, Protocol, runtime_checkable
 import numpy as np
 
 from kinectdata.core.errors import ConfigError
+from kinectdata.models.losses import rhythm_weight_settings
 
 PAPER_LOOP: dict[str, Any] = {
     "sequence": 150,
@@ -63,15 +64,7 @@ PAPER_LOOP: dict[str, Any] = {
     "noise_gamma": 0.55,
     "clip_norm": None,
     "free_weight": 0.0,
-    "posture_weight": 0.0,
-    "jitter_weight": 0.0,
-    "periodogram_weight": 0.0,
-    "bone_jitter_weight": 0.0,
-    "low_energy_weight": 0.0,
-    "span_weight": 0.0,
-    "repetition_weight": 0.0,
-    "world_excess_weight": 0.0,
-    "world_jitter_weight": 0.0,
+    **dict.fromkeys(rhythm_weight_settings(), 0.0),
     "keep_energy_weight": 0.0,
     "song_starts": False,
     "turning": False,

@@ -656,6 +656,15 @@ class RhythmWeights:
     world_jitter: float = 0.0
 
 
+def rhythm_weight_settings() -> tuple[str, ...]:
+    """The training settings that weigh :func:`masked_rhythm_loss`'s terms: each field of
+    :class:`RhythmWeights` with ``_weight`` (``posture_weight``...), in the fields' order. The one
+    list the training settings, the published loop's zeros and the checks on them are made from."""
+    from dataclasses import fields
+
+    return tuple(f"{f.name}_weight" for f in fields(RhythmWeights))
+
+
 def masked_rhythm_loss(
     prediction,
     target,

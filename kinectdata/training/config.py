@@ -15,7 +15,7 @@ from typing import Any
 from kinectdata.core.errors import ConfigError, KinectDataError
 from kinectdata.dataset.layout import BALANCE_FIELDS
 from kinectdata.models.kind import PAPER_LOOP
-from kinectdata.models.losses import RhythmWeights
+from kinectdata.models.losses import RhythmWeights, rhythm_weight_settings
 from kinectdata.models.registry import DEFAULT_MODEL, make_settings, model_kind
 
 LOOP_DEFAULTS: dict[str, Any] = {
@@ -45,15 +45,8 @@ ADDED_OFF = {
     "predicts": "pose",
     "style_path": "convs",
     "inputs": "music-and-poses",
-    "posture_weight": 10.0,
-    "jitter_weight": 0.0,
-    "periodogram_weight": 0.0,
-    "bone_jitter_weight": 0.0,
-    "low_energy_weight": 0.0,
-    "span_weight": 0.0,
-    "repetition_weight": 0.0,
-    "world_excess_weight": 0.0,
-    "world_jitter_weight": 0.0,
+    **dict.fromkeys(rhythm_weight_settings(), 0.0),
+    "posture_weight": 10.0,  # the posture term was always on; its weight was 10 before it was a setting
     "keep_energy_weight": 0.0,
     "song_starts": False,
     "context": 0,
@@ -76,19 +69,7 @@ FLAT_BEFORE = ("units", "activation", "feedback", "channels", "decoder_channels"
 reading such a run keeps its model's and ignores the other model's."""
 
 
-_WEIGHTS = (
-    "free_weight",
-    "posture_weight",
-    "jitter_weight",
-    "periodogram_weight",
-    "keep_energy_weight",
-    "low_energy_weight",
-    "span_weight",
-    "repetition_weight",
-    "world_excess_weight",
-    "world_jitter_weight",
-    "bone_jitter_weight",
-)
+_WEIGHTS = ("free_weight", "keep_energy_weight", *rhythm_weight_settings())
 """The loop's loss weights: each at least 0."""
 _SWITCHES = ("song_starts", "turning", "travel", "facing", "by_metre")
 """The loop's settings that are true or false."""

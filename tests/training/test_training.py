@@ -219,6 +219,24 @@ def test_no_real_dance_default_leaks_into_the_paper_settings(model):
     }
 
 
+def test_every_free_running_term_has_a_setting_an_option_and_is_off_in_the_papers_loop():
+    """The weights are listed once (RhythmWeights' fields): each is a training setting, the train
+    command's option, 0 in the published loop, and a run written before it trained without it
+    (but the posture term, at 10 before it was a setting)."""
+    from kinectdata.cli.train import train_baseline
+    from kinectdata.models.losses import RhythmWeights
+
+    options = {p.name for p in train_baseline.params}
+    fields = {f.name for f in dataclasses.fields(TrainConfig)}
+    for term in dataclasses.fields(RhythmWeights):
+        name = f"{term.name}_weight"
+        assert name in fields and name in options, name
+        with pytest.raises(ConfigError, match=f"{name} must be at least 0"):
+            TrainConfig("cdhc", **{name: -1.0})
+    assert TrainConfig("cdhc", paper=True).rhythm_weights == RhythmWeights(posture=0.0)
+    assert TrainConfig.from_dict({"model": "cdhc"}).rhythm_weights == RhythmWeights(posture=10.0)
+
+
 def test_the_defaults_are_the_recipe_that_learns_real_dance():
     for model in ("yalta", "cdhc"):
         c = TrainConfig(model)
