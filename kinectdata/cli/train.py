@@ -108,6 +108,13 @@ _LOOP_OPTIONS = (
         "proportion (a trunk swaying faster than the dancers'); 0: none.",
     ),
     (
+        "component_floor",
+        click.BOOL,
+        "Floor each component's speed, jitter and bone terms in the free-running loss at 1 % of its own mean, "
+        "not of every component's: a component far smaller than the rest in normalised units (the root's sway "
+        "along the floor) then costs what it does.",
+    ),
+    (
         "song_starts",
         click.BOOL,
         "Also train on each song's first frames: windows whose context runs before the recording's start, silence "

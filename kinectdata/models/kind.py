@@ -71,6 +71,7 @@ PAPER_LOOP: dict[str, Any] = {
     "travel": False,
     "facing": False,
     "by_metre": False,
+    "component_floor": False,
     "smooth_hz": None,
     "style_tempo": None,
     "silence_share": 0.0,

@@ -220,7 +220,9 @@ model on tang2018's validation dances moved 2-18 x the real energy in its first 
 after (docs/notebook/2026-11-real-dance.md)."""
 
 
-def masked_energy_loss(prediction, target, mask, chunk: int | None = None, excess: bool = False):
+def masked_energy_loss(
+    prediction, target, mask, chunk: int | None = None, excess: bool = False, component_floor: bool = False
+):
     """How far a motion's speed is from the target's, in ratio: per component of [B, L, D] windows
     and per stretch of ``chunk`` frame-to-frame changes (None: the whole window; a last shorter
     stretch counts as one), twice the Itakura-Saito divergence ``r/m - log(r/m) - 1`` of the mean
@@ -233,7 +235,14 @@ def masked_energy_loss(prediction, target, mask, chunk: int | None = None, exces
     training windows that mean is 0.56 x the real energy, where the squared log ratio left the
     models (docs/notebook/2026-11-real-dance.md). A stretch where the target holds still asks the motion to hold
     still too. With ``excess`` the divergence is turned round (the made energy's from the target's):
-    too much then costs in proportion and too little only in log ratio (:func:`masked_jitter_loss`)."""
+    too much then costs in proportion and too little only in log ratio (:func:`masked_jitter_loss`).
+
+    ``component_floor``: each component floored at 1 % of its own mean over the batch instead of
+    the mean over every component. A component far smaller than the rest, in the normalised units
+    the network is trained in, lies under the shared floor and costs nothing however it moves: on
+    tang2018 the root's sway along the floor (its columns scaled by the floor's width, its travel
+    taken out) has a 5th-10th of that floor (docs/notebook/2026-12-real-dance-variety.md, "The feet,
+    and the root that the targets' terms do not see")."""
     import torch
 
     both = (mask[:, 1:] & mask[:, :-1]).to(prediction.dtype)  # [B, L-1, D]
@@ -247,7 +256,8 @@ def masked_energy_loss(prediction, target, mask, chunk: int | None = None, exces
         return torch.stack([squared[:, a:b].sum(dim=1) for a, b in bounds], dim=1) / pairs.clamp(min=1.0)
 
     made, real = energy(prediction), energy(target)
-    floor = 1e-2 * (real * (pairs > 0)).sum().detach() / (pairs > 0).sum().clamp(min=1) + 1e-12
+    over = (0, 1) if component_floor else (0, 1, 2)
+    floor = 1e-2 * (real * (pairs > 0)).sum(dim=over).detach() / (pairs > 0).sum(dim=over).clamp(min=1) + 1e-12
     counted = (pairs > 0).to(prediction.dtype)
     ratio = (made + floor) / (real + floor) if excess else (real + floor) / (made + floor)
     divergence = 2.0 * (ratio - torch.log(ratio) - 1.0)
@@ -284,22 +294,24 @@ def low_passed(x, mask, fps: float, hz: float = LOW_BAND_HZ):
     return conv(x * valid, kernel), whole
 
 
-def masked_low_band_energy_loss(prediction, target, mask, fps: float, chunk: int | None = None):
+def masked_low_band_energy_loss(
+    prediction, target, mask, fps: float, chunk: int | None = None, component_floor: bool = False
+):
     """:func:`masked_energy_loss` of the motions' slow part (:func:`low_passed`, below about
     :data:`LOW_BAND_HZ`): how far the speed of the large, slow motion (a sway, a step across the
     floor) is from the target's, per ``chunk`` frames. The cdhc model moved at half the dancers' energy
     with 1.9-2 x their jerk: faster for its size than they are; a gain on its output below 1.5 Hz
     brought the energy but made the feet slide (docs/notebook/2026-12-real-dance-variety.md), so the
     slow motion is asked for in training, where the foot loss sees it. [B, L, D] tensors; a scalar
-    (0 for windows shorter than the smoother)."""
+    (0 for windows shorter than the smoother). ``component_floor``: :func:`masked_energy_loss`'s."""
     made = low_passed(prediction, mask, fps)
     if made is None:
         return prediction.sum() * 0.0
     real, valid = low_passed(target, mask, fps)
-    return masked_energy_loss(made[0], real, valid & made[1], chunk)
+    return masked_energy_loss(made[0], real, valid & made[1], chunk, component_floor=component_floor)
 
 
-def masked_jitter_loss(prediction, target, mask, chunk: int | None = None):
+def masked_jitter_loss(prediction, target, mask, chunk: int | None = None, component_floor: bool = False):
     """How much more a motion jitters than the target: per component of [B, L, D] windows and per
     stretch of ``chunk`` frames, the mean squared accelerations and jerks (second and third
     frame-to-frame differences) made against the target's, by the Itakura-Saito divergence turned
@@ -308,10 +320,11 @@ def masked_jitter_loss(prediction, target, mask, chunk: int | None = None):
     other way (ten times the target's acceleration costs 2.8): without this term the cdhc model,
     making its motion from the music alone, jittered on held-out dances at 4-12 x the real dancers'
     mean squared acceleration and 8-36 x their jerk's, most of the excess above the rhythm
-    spectra's 6 Hz (docs/notebook/2026-11-real-dance.md). Torch tensors; a scalar."""
+    spectra's 6 Hz (docs/notebook/2026-11-real-dance.md). Torch tensors; a scalar.
+    ``component_floor``: :func:`masked_energy_loss`'s."""
     made, real, both = _changes(prediction, target, mask)
-    loss = masked_energy_loss(made, real, both, chunk, excess=True)
-    return loss + masked_energy_loss(*_changes(made, real, both), chunk, excess=True)
+    loss = masked_energy_loss(made, real, both, chunk, excess=True, component_floor=component_floor)
+    return loss + masked_energy_loss(*_changes(made, real, both), chunk, excess=True, component_floor=component_floor)
 
 
 def masked_posture_loss(prediction, target, mask):
@@ -453,7 +466,9 @@ def world_positions(prediction, target, mask, body):
     return world(prediction), world(target), world_mask
 
 
-def masked_world_speed_loss(prediction, target, mask, body, chunk: int | None = None, excess: bool = False):
+def masked_world_speed_loss(
+    prediction, target, mask, body, chunk: int | None = None, excess: bool = False, component_floor: bool = False
+):
     """How far each joint's speed in the world is from the target's, in ratio: the
     :func:`masked_energy_loss` of the joints' positions in metres along each world axis
     (:func:`world_positions`: the root's travel added back to root-centred joints), per stretch of
@@ -475,6 +490,7 @@ def masked_world_speed_loss(prediction, target, mask, body, chunk: int | None = 
         excess: the divergence turned round (:func:`masked_energy_loss`'s ``excess``): a joint
             moving faster in the world than the target's costs in proportion, slower only in log
             ratio (``RhythmWeights.world_excess``).
+        component_floor: :func:`masked_energy_loss`'s.
 
     Returns:
         A scalar tensor (0 for a body without bones, or a centred one without a root).
@@ -482,10 +498,10 @@ def masked_world_speed_loss(prediction, target, mask, body, chunk: int | None = 
     world = world_positions(prediction, target, mask, body)
     if world is None:
         return prediction.new_zeros(())
-    return masked_energy_loss(*world, chunk, excess=excess)
+    return masked_energy_loss(*world, chunk, excess=excess, component_floor=component_floor)
 
 
-def masked_world_jitter_loss(prediction, target, mask, body, chunk: int | None = None):
+def masked_world_jitter_loss(prediction, target, mask, body, chunk: int | None = None, component_floor: bool = False):
     """How much more each joint accelerates in the world than the target's: :func:`masked_jitter_loss`
     (the mean squared accelerations and jerks per stretch of ``chunk`` frames, too much costing in
     proportion) of the joints' positions in metres along each world axis (:func:`world_positions`).
@@ -499,6 +515,7 @@ def masked_world_jitter_loss(prediction, target, mask, body, chunk: int | None =
         prediction, target, mask: [B, L, D]; positions first, ``body.dims`` components per joint.
         body: the :class:`Body`.
         chunk: frames per stretch (None: the whole window).
+        component_floor: :func:`masked_energy_loss`'s.
 
     Returns:
         A scalar tensor (0 for a body without bones, or a centred one without a root).
@@ -506,7 +523,7 @@ def masked_world_jitter_loss(prediction, target, mask, body, chunk: int | None =
     world = world_positions(prediction, target, mask, body)
     if world is None:
         return prediction.new_zeros(())
-    return masked_jitter_loss(*world, chunk)
+    return masked_jitter_loss(*world, chunk, component_floor=component_floor)
 
 
 def masked_foot_loss(
@@ -560,7 +577,17 @@ def masked_foot_loss(
     return (excess**2 * counted).sum() / counted.sum().clamp(min=1.0)
 
 
-def masked_bone_jitter_loss(prediction, target, mask, bones, scale, offset, dims: int = 3, chunk: int | None = None):
+def masked_bone_jitter_loss(
+    prediction,
+    target,
+    mask,
+    bones,
+    scale,
+    offset,
+    dims: int = 3,
+    chunk: int | None = None,
+    component_floor: bool = False,
+):
     """How much faster a motion's bones stretch and shrink than the target's: per bone and per stretch
     of ``chunk`` frames, the mean squared frame-to-frame change of its length (metres, after undoing
     the normalisation ``y = (x - offset) * scale``) made against the target's, by the Itakura-Saito
@@ -580,11 +607,12 @@ def masked_bone_jitter_loss(prediction, target, mask, bones, scale, offset, dims
         bones: (joint, parent) index pairs into the positioned joints.
         scale, offset: [D] the normalisation.
         chunk: frames per stretch (None: the whole window).
+        component_floor: :func:`masked_energy_loss`'s (each bone floored by its own length changes).
     """
     if not bones:
         return prediction.new_zeros(())
     made_length, real_length, valid = _bone_lengths(prediction, target, mask, bones, scale, offset, dims)
-    return masked_energy_loss(made_length, real_length, valid, chunk, excess=True)
+    return masked_energy_loss(made_length, real_length, valid, chunk, excess=True, component_floor=component_floor)
 
 
 FOOT_WEIGHT = 10.0
@@ -672,6 +700,7 @@ def masked_rhythm_loss(
     fps: float,
     body=None,
     weights: RhythmWeights | None = None,
+    component_floor: bool = False,
 ):
     """The free-running loss of training (``TrainConfig.free_weight``): the spectra of the motion's
     changes (:func:`masked_rhythm_spectrum_loss`: how often and how much at each tempo, whatever the
@@ -691,38 +720,43 @@ def masked_rhythm_loss(
     its joints (:func:`masked_span_loss`), how differently it repeats
     (:func:`masked_repetition_loss`), how much faster its joints move in the world than the
     target's (:func:`masked_world_speed_loss` with ``excess``) and how much more they accelerate
-    there (:func:`masked_world_jitter_loss`). [B, L, D] tensors; a scalar."""
+    there (:func:`masked_world_jitter_loss`). ``component_floor``: every speed, jitter and bone
+    term floors each component by its own mean (:func:`masked_energy_loss`'s). [B, L, D] tensors;
+    a scalar."""
+    cf = component_floor
     w = RhythmWeights() if weights is None else weights
     chunk = max(1, round(ENERGY_CHUNK_S * fps))
     loss = masked_rhythm_spectrum_loss(prediction, target, mask, fps) + masked_energy_loss(
-        prediction, target, mask, chunk
+        prediction, target, mask, chunk, component_floor=cf
     )
-    loss = loss + masked_energy_loss(*_changes(prediction, target, mask), chunk)
+    loss = loss + masked_energy_loss(*_changes(prediction, target, mask), chunk, component_floor=cf)
     loss = loss + w.posture * masked_posture_loss(prediction, target, mask)
     if w.jitter > 0:
-        loss = loss + w.jitter * masked_jitter_loss(prediction, target, mask, chunk)
+        loss = loss + w.jitter * masked_jitter_loss(prediction, target, mask, chunk, component_floor=cf)
     if w.periodogram > 0:
         loss = loss + w.periodogram * masked_periodogram_loss(prediction, target, mask, fps)
     if w.low_energy > 0:
-        loss = loss + w.low_energy * masked_low_band_energy_loss(prediction, target, mask, fps, chunk)
+        loss = loss + w.low_energy * masked_low_band_energy_loss(
+            prediction, target, mask, fps, chunk, component_floor=cf
+        )
     if body is not None:
         loss = loss + BONE_WEIGHT * masked_bone_loss(
             prediction, target, mask, body.bones, body.scale, body.offset, body.dims
         )
         world = world_positions(prediction, target, mask, body)
         if world is not None:
-            loss = loss + WORLD_SPEED_WEIGHT * masked_energy_loss(*world, chunk)
+            loss = loss + WORLD_SPEED_WEIGHT * masked_energy_loss(*world, chunk, component_floor=cf)
             if w.world_excess > 0:
-                loss = loss + w.world_excess * masked_energy_loss(*world, chunk, excess=True)
+                loss = loss + w.world_excess * masked_energy_loss(*world, chunk, excess=True, component_floor=cf)
             if w.world_jitter > 0:
-                loss = loss + w.world_jitter * masked_jitter_loss(*world, chunk)
+                loss = loss + w.world_jitter * masked_jitter_loss(*world, chunk, component_floor=cf)
         if w.span > 0:
             loss = loss + w.span * masked_span_loss(
                 prediction, target, mask, body.bones, body.scale, body.offset, body.dims
             )
         if w.bone_jitter > 0:
             loss = loss + w.bone_jitter * masked_bone_jitter_loss(
-                prediction, target, mask, body.bones, body.scale, body.offset, body.dims, chunk
+                prediction, target, mask, body.bones, body.scale, body.offset, body.dims, chunk, component_floor=cf
             )
         if w.repetition > 0:
             loss = loss + w.repetition * masked_repetition_loss(prediction, target, mask, body, fps)

@@ -31,6 +31,7 @@ LOOP_DEFAULTS: dict[str, Any] = {
     "travel": True,
     "facing": False,
     "by_metre": False,
+    "component_floor": False,
     "style_tempo": None,
 }
 """The training loop's settings and their base defaults (Yalta et al.'s; a model's
@@ -57,6 +58,7 @@ ADDED_OFF = {
     "travel": False,
     "facing": False,
     "by_metre": False,
+    "component_floor": False,
     "smooth_hz": None,
     "style_tempo": None,
     "precision": "float32",
@@ -71,7 +73,7 @@ reading such a run keeps its model's and ignores the other model's."""
 
 _WEIGHTS = ("free_weight", "keep_energy_weight", *rhythm_weight_settings())
 """The loop's loss weights: each at least 0."""
-_SWITCHES = ("song_starts", "turning", "travel", "facing", "by_metre")
+_SWITCHES = ("song_starts", "turning", "travel", "facing", "by_metre", "component_floor")
 """The loop's settings that are true or false."""
 
 
@@ -200,6 +202,11 @@ class TrainConfig:
             (:func:`~kinectdata.training.turning.fit_dataset_by_metre`), kept in the run as
             ``drawn_by_metre``: a song is drawn its metre's processes where the run has them, else the
             pooled ones. Runs written before it had none.
+        component_floor: the free-running loss's speed, jitter and bone terms floor each component
+            at 1 % of its own mean over the batch, not of every component's
+            (:func:`~kinectdata.models.losses.masked_energy_loss`'s ``component_floor``): on tang2018
+            the root's sway along the floor, in normalised units, lies under the shared floor and
+            costs nothing however fast it sways. Runs written before it had it off.
         smooth_hz: low-pass the motion the run makes (after its drawn turning and travel) at this
             cutoff, Hz, wherever it makes positions: ``evaluate``'s free runs (so the kept epoch's
             whole songs too), ``generate`` and ``live`` (:mod:`kinectdata.inference.smoothing`: a causal
@@ -257,6 +264,7 @@ class TrainConfig:
     travel: bool
     facing: bool
     by_metre: bool
+    component_floor: bool
     smooth_hz: float | None
     style_tempo: float | None
     precision: str

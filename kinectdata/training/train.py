@@ -481,6 +481,7 @@ def validate(
             fps,
             body,
             config.rhythm_weights,
+            component_floor=config.component_floor,
         )
     )
     return loss, smape(generated, real, masks), rhythm
@@ -841,6 +842,7 @@ def train(
                         fps,
                         body,
                         config.rhythm_weights,
+                        component_floor=config.component_floor,
                     )
                 else:
                     with forward_precision:
