@@ -31,7 +31,6 @@ LOOP_DEFAULTS: dict[str, Any] = {
     "travel": True,
     "facing": False,
     "by_metre": False,
-    "component_floor": False,
     "style_tempo": None,
 }
 """The training loop's settings and their base defaults (Yalta et al.'s; a model's
@@ -373,7 +372,7 @@ class TrainConfig:
         :func:`~kinectdata.models.losses.masked_rhythm_loss` takes them: each field of
         :class:`~kinectdata.models.losses.RhythmWeights` from the setting of its name with
         ``_weight`` (``posture`` from ``posture_weight``...)."""
-        return RhythmWeights(**{f.name: getattr(self, f"{f.name}_weight") for f in dataclasses.fields(RhythmWeights)})
+        return RhythmWeights(*(getattr(self, name) for name in rhythm_weight_settings()))
 
     @classmethod
     def for_model(cls, model: str, paper: bool = False, **settings: Any) -> TrainConfig:
