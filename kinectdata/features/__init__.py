@@ -103,6 +103,10 @@ given these and the style (``listen_to_dance_clocks_style``), at their bar, and 
 in 3 of 6 fold runs (the real-dance recipe's features: 3 of 7), losing another goal in the others: a
 choice, not the default (docs/notebook/2026-12-real-dance-variety.md, "The sound or the clock" and
 "The bar's clocks over seeds")."""
+YALTA_CLOCK_PLANES = dataclasses.replace(LISTEN_TO_DANCE_CLOCKS, unit_levels=True, planes=(129, 5))
+"""The pulse's clocks at the beat, the bar and two bars in the song's metre at unit amplitude (the
+cdhc model's candidate clocks on the folds), each value a constant [129, 5] plane [6, 129, 5]: for
+the yalta model, whose side channels take them past its convolutions beside the audio code."""
 PRESETS: dict[str, FeatureConfig] = {
     **STFT_PRESETS,
     "listen_to_dance": MelConfig(),
@@ -120,6 +124,9 @@ PRESETS: dict[str, FeatureConfig] = {
         (STFT_PRESETS["yalta2016"], RhythmConfig(columns=5), StyleInputConfig(planes=(129, 5)))
     ),
     "listen_to_dance_rhythm_bars_style": StackConfig((MelConfig(), LISTEN_TO_DANCE_BAR_PULSE, StyleInputConfig())),
+    "yalta2016_rhythm_clocks_style": StackConfig(
+        (STFT_PRESETS["yalta2016"], RhythmConfig(columns=5), YALTA_CLOCK_PLANES, StyleInputConfig(planes=(129, 5)))
+    ),
     "listen_to_dance_clocks": LISTEN_TO_DANCE_CLOCKS,
     "listen_to_dance_clocks_style": StackConfig((LISTEN_TO_DANCE_CLOCKS, StyleInputConfig())),
 }
@@ -129,7 +136,9 @@ its bar levels in the song's metre), and each of those with the song's metre as 
 (``_metre``: :mod:`.metre_input`, one value per bar length of 3 and 4 beats) or its dance style
 (``_style``: :mod:`.style_input`, one value per style of the training songs, at most 4; a dataset
 build fits the classifier that hears it); ``listen_to_dance_clocks`` (``_style``): the pulse's clocks at
-the beat, the bar and two bars alone, without the sound (:data:`LISTEN_TO_DANCE_CLOCKS`)."""
+the beat, the bar and two bars alone, without the sound (:data:`LISTEN_TO_DANCE_CLOCKS`);
+``yalta2016_rhythm_clocks_style``: the yalta model's spectra and pulse, the clocks and the style as
+constant planes (:data:`YALTA_CLOCK_PLANES`) that its side channels take past the convolutions."""
 _CONFIG_TYPES = {
     "stft": StftConfig,
     "mel": MelConfig,

@@ -63,17 +63,17 @@ on that corpus's songs; dB-scaled features 0.7-0.8). So the pulse is computed, c
 
 Output per motion frame: ``[3 * n_tempi + 2 * L]`` values in -1..1, L the levels and bar levels
 (tempo by tempo: salience, cosine, sine; then level by level: cosine, sine; with ``tempo_phases``
-false ``[n_tempi + 2 * L]``: the saliences, then the levels; with ``saliences`` false ``[2 * L]``: the
-levels alone), or with ``columns`` = c, ``[1, 3 * n_tempi,
-c]`` (``[1, n_tempi, c]`` without the tempo phases): those values at c instants spread over the
-frame's slice like the STFT features' sub-frames (43 tempi give 129 rows, the STFT's bins: the two
-stack as channels of one [2, 129, 5] input). A frame reads the ``window_s`` before its slice:
-history, so ``padded`` flags only frames whose own slice runs off the audio. Each frame's onsets are
-taken on a grid of hops through its last instant (the window of the last value ends exactly there),
-so its values depend on its own span of samples only, not on where the audio passed in begins:
-streaming gives what the whole file gives, up to float rounding. Frames whose instants lie at
-different phases of the hop (3 at 30 fps and 16 kHz: 534 + round(k 533.3) modulo 80) need one onset
-envelope each.
+false ``[n_tempi + 2 * L]``: the saliences, then the levels; with ``saliences`` false ``[2 * L]``:
+the levels alone), or with ``columns`` = c, ``[1, 3 * n_tempi, c]`` (``[1, n_tempi, c]`` without the
+tempo phases): those values at c instants spread over the frame's slice like the STFT features'
+sub-frames (43 tempi give 129 rows, the STFT's bins: the two stack as channels of one [2, 129, 5]
+input), or with ``planes`` = (rows, columns) ``[values, rows, columns]``, each value a constant
+plane (the clocks stacked after spectra). A frame reads the ``window_s`` before its slice: history,
+so ``padded`` flags only frames whose own slice runs off the audio. Each frame's onsets are taken on
+a grid of hops through its last instant (the window of the last value ends exactly there), so its
+values depend on its own span of samples only, not on where the audio passed in begins: streaming
+gives what the whole file gives, up to float rounding. Frames whose instants lie at different phases
+of the hop (3 at 30 fps and 16 kHz: 534 + round(k 533.3) modulo 80) need one onset envelope each.
 """
 
 from __future__ import annotations
@@ -141,6 +141,10 @@ class RhythmConfig:
             most ``slice_samples``: the STFT features' sub-frames end at 160, 240, ..., 480). A
             value is taken at the last hop of the frame's grid at or before its instant (exactly at
             it when ``column_hop`` is a multiple of ``hop_samples``).
+        planes: None for the vector layout; (rows, columns) to give each of its values as a constant
+            plane, ``[values_per_instant, rows, columns]`` (only with ``columns`` 0): the levels'
+            clocks beside spectra, for a model that takes them past its convolutions (the yalta
+            model's side channels) as it takes the style input's planes.
     """
 
     extractor: ClassVar[str] = "rhythm"
@@ -167,6 +171,7 @@ class RhythmConfig:
     columns: int = 0
     column_hop: int = 80
     column_end: int = 480
+    planes: tuple[int, int] | None = None
 
     def __post_init__(self) -> None:
         for name in ("sample_rate", "slice_samples", "hop_samples", "frame_samples", "n_mels", "n_tempi"):
@@ -213,6 +218,15 @@ class RhythmConfig:
             raise ConfigError("rhythm features: unit_levels sets the levels' amplitude: give levels or bar_levels")
         if (self.levels or self.bar_levels) and self.columns:
             raise ConfigError("rhythm features: levels are for the vector layout (columns 0)")
+        if self.planes is not None:
+            planes = tuple(self.planes)
+            if len(planes) != 2 or any(isinstance(v, bool) or int(v) != v or v < 1 for v in planes):
+                raise ConfigError(
+                    f"rhythm features: planes must be (rows, columns), each at least 1, got {self.planes!r}"
+                )
+            if self.columns:
+                raise ConfigError("rhythm features: planes are for the vector layout (columns 0)")
+            object.__setattr__(self, "planes", tuple(int(v) for v in planes))
         for name in ("detrend_s", "window_s", "decay_s", "fmax"):
             if not float(getattr(self, name)) > 0:
                 raise ConfigError(f"rhythm features: {name} must be positive, got {getattr(self, name)!r}")
@@ -252,8 +266,11 @@ class RhythmConfig:
 
     @property
     def output_shape(self) -> tuple[int, ...]:
-        """``(values_per_instant,)``, or ``(1, values_per_instant, columns)``."""
+        """``(values_per_instant,)``, ``(1, values_per_instant, columns)`` or with ``planes``
+        ``(values_per_instant, *planes)``."""
         rows = self.values_per_instant
+        if self.planes:
+            return (rows, *self.planes)
         return (1, rows, self.columns) if self.columns else (rows,)
 
     @property
@@ -286,9 +303,9 @@ class RhythmConfig:
 
     def to_dict(self) -> dict[str, Any]:
         """A JSON-able dict of every field, with ``"extractor": "rhythm"``; without ``bar_levels``
-        when there are none, ``counted_levels`` and ``unit_levels`` when false and ``saliences`` when
-        true, as before they existed (so a dataset built then keeps its build key, and its runs their
-        features)."""
+        when there are none, ``counted_levels`` and ``unit_levels`` when false, ``planes`` when None
+        and ``saliences`` when true, as before they existed (so a dataset built then keeps its build
+        key, and its runs their features)."""
         d = config_to_dict(self)
         for name in _ADDED_LATER:
             if getattr(self, name) == _DEFAULTS[name]:
@@ -301,7 +318,7 @@ class RhythmConfig:
         return config_from_dict(cls, d, "a rhythm")
 
 
-_ADDED_LATER = ("bar_levels", "counted_levels", "saliences", "unit_levels")
+_ADDED_LATER = ("bar_levels", "counted_levels", "saliences", "unit_levels", "planes")
 """Fields added after datasets were built: a config's dict leaves each out at its default."""
 _DEFAULTS = {f.name: f.default for f in fields(RhythmConfig)}
 
@@ -661,6 +678,8 @@ def rhythm_features(
             values[:, 0, -2 * above.size :] = levels.reshape(block.size, -1)
         if config.columns:
             out[c0 : c0 + block.size, 0] = np.transpose(values, (0, 2, 1))
+        elif config.planes:
+            out[c0 : c0 + block.size] = values[:, 0, :, None, None]
         else:
             out[c0 : c0 + block.size] = values[:, 0]
     return out, padded

@@ -67,18 +67,23 @@ def _inputs_field(default: str):
     )
 
 
-def _style_planes(manifest: dict[str, Any]) -> int:
-    """How many of a dataset's last feature channels are the style input's constant planes (0: none,
-    or not last in its stack)."""
-    from kinectdata.features import StackConfig, feature_config, style_input_of
+def _side_planes(manifest: dict[str, Any]) -> int:
+    """How many of a dataset's last feature channels are constant planes (0: none): the parts at the
+    end of its stack whose output is one value per plane (the style input's, the metre input's, the
+    pulse's clocks with ``planes``)."""
+    from kinectdata.features import StackConfig, feature_config
 
     described = manifest.get("config", {}).get("features")
     if described is None:  # a manifest that does not say its features (a test's): nothing bypasses
         return 0
     features = feature_config(described)
-    part = style_input_of(features)
-    last = features.parts[-1] if isinstance(features, StackConfig) else features
-    return part.slots if part is not None and part is last and part.planes is not None else 0
+    parts = features.parts if isinstance(features, StackConfig) else (features,)
+    side = 0
+    for part in reversed(parts):
+        if getattr(part, "planes", None) is None:
+            break
+        side += part.output_shape[0]
+    return side if side < sum(p.output_shape[0] for p in parts) else 0
 
 
 @dataclass(frozen=True)
@@ -108,8 +113,8 @@ class YaltaSettings:
     style_path: str = field(
         default="lstm",
         metadata={
-            "help": "where features that hear the song's style (planes after the spectra) enter: beside the audio "
-            "code before LSTM4-6, or through the convolutions as the spectra do.",
+            "help": "where the constant planes after the spectra (the song's style, the pulse's clocks) enter: "
+            "beside the audio code before LSTM4-6, or through the convolutions as the spectra do.",
             "choices": STYLE_PATHS,
         },
     )
@@ -203,7 +208,7 @@ class YaltaKind(ModelKind):
             activation=settings.activation,
             input_shape=tuple(manifest["feature_shape"]),
             inputs=settings.inputs,
-            side_channels=_style_planes(manifest) if settings.style_path == "lstm" else 0,
+            side_channels=_side_planes(manifest) if settings.style_path == "lstm" else 0,
         ).to_dict()
 
     def build(self, config: dict[str, Any]):

@@ -11,11 +11,11 @@ Per motion frame (their Table 1):
   the pose (D values, no activation: the targets are normalised into -0.9..0.9).
 
 Side channels (not the paper's): with ``side_channels`` = S, the last S input channels are
-constant planes that say something about the whole song (the style input,
-:mod:`kinectdata.features.style_input`, as planes). They bypass the convolutions and LSTM1-3: each
-plane's mean joins the fc1 code before LSTM4-6 (65 + S values): the decoder is told which dance,
-and the convolutions, whose 33x2 kernels would otherwise mix a constant one-hot plane into every
-spectral feature, hear the music alone, as in the paper.
+constant planes: the style input (:mod:`kinectdata.features.style_input`) and the pulse's
+clocks (:data:`kinectdata.features.YALTA_CLOCK_PLANES`). They bypass the convolutions and LSTM1-3:
+each plane's mean joins the fc1 code before LSTM4-6 (65 + S values): the decoder is told which
+dance and where the beat and the bar are, and the convolutions, whose 33x2 kernels would otherwise
+mix a constant plane into every spectral feature, hear the music alone, as in the paper.
 
 The previous pose is the model's own previous output (``feedback="predicted"``, their Figure 4)
 or the true one (``"teacher"``); with ``inputs="music"`` LSTM4-6 are given zeros in its place,

@@ -15,6 +15,7 @@ from rhythm_reference import accented_eighths, ideal_pulse, reference_frames, re
 from kinectdata.core.errors import ConfigError
 from kinectdata.features import (
     PRESETS,
+    YALTA_CLOCK_PLANES,
     MelConfig,
     RhythmConfig,
     StackConfig,
@@ -384,6 +385,29 @@ def test_without_the_saliences_a_frame_is_the_levels_alone():
     assert PRESETS["listen_to_dance_clocks_style"].output_shape == (10,)
 
 
+def test_clock_planes_hold_each_value_of_the_vector_as_a_constant_plane():
+    """``planes``: every value of the vector layout (the clocks, which the tests above check against
+    the ideal pulse) fills its own [rows, columns] plane, in the same order; the yalta preset's clocks
+    and style stack after its spectra and pulse as 6 + 4 planes."""
+    audio = accented_bars(100.0, seconds=16.0)[0]
+    starts = frame_starts(audio.size)
+    clocks_config = dataclasses.replace(LEVELS, tempo_phases=False, saliences=False, unit_levels=True)
+    vector, vector_padded = rhythm_features(audio, starts, clocks_config, beats_per_bar=3)
+    plane_config = dataclasses.replace(clocks_config, planes=(129, 5))
+    planes, padded = rhythm_features(audio, starts, plane_config, beats_per_bar=3)
+    assert plane_config.output_shape == (6, 129, 5) == planes.shape[1:]
+    for k in range(6):
+        assert (planes[:, k] == vector[:, k, None, None]).all()
+    np.testing.assert_array_equal(padded, vector_padded)
+    assert np.abs(vector).max() > 0.9
+    d = json.loads(json.dumps(plane_config.to_dict()))
+    assert d["planes"] == [129, 5] and RhythmConfig.from_dict(d) == plane_config
+    assert "planes" not in clocks_config.to_dict()  # a dataset built before the setting keeps its build key
+    preset = PRESETS["yalta2016_rhythm_clocks_style"]
+    assert preset.output_shape == (12, 129, 5)
+    assert [p.output_shape[0] for p in preset.parts] == [1, 1, 6, 4]
+
+
 @pytest.mark.parametrize("counted", [False, True], ids=["tempogram", "counted"])
 def test_unit_levels_keep_the_phase_at_length_one_and_are_zero_in_silence(counted):
     """``unit_levels``: every level's phasor, plain or counted, has the phase it has when scaled by
@@ -491,11 +515,18 @@ def test_chunking_does_not_change_the_values(clicks, config):
 
 
 @pytest.mark.parametrize(
-    "preset", ["yalta2016_rhythm", "listen_to_dance_rhythm", "listen_to_dance_rhythm_counted", "listen_to_dance_clocks"]
+    "preset",
+    [
+        "yalta2016_rhythm",
+        "listen_to_dance_rhythm",
+        "listen_to_dance_rhythm_counted",
+        "listen_to_dance_clocks",
+        "yalta_clock_planes",
+    ],
 )
 @pytest.mark.parametrize("block", [1777, 16001])
 def test_streaming_equals_the_whole_audio(preset, block):
-    config = PRESETS[preset]
+    config = {**PRESETS, "yalta_clock_planes": YALTA_CLOCK_PLANES}[preset]
     audio = random_clicks(11.0, seed=block)
     starts = frame_starts(audio.size + 300)  # the last frames run past the end
     expected, expected_padded = compute_features(audio, starts, config)
@@ -602,6 +633,9 @@ def test_rhythm_config_round_trip_and_dispatch():
         ({"unit_levels": True}, "unit_levels sets the levels' amplitude: give levels or bar_levels"),
         ({"saliences": False, "tempo_phases": False}, "without the saliences .* give levels or bar_levels"),
         ({"saliences": False, "levels": (1,)}, "without the saliences .* no tempo_phases"),
+        ({"planes": (129,)}, r"planes must be \(rows, columns\)"),
+        ({"planes": (129, 0)}, r"planes must be \(rows, columns\)"),
+        ({"planes": (129, 5), "columns": 5}, "planes are for the vector layout"),
     ],
 )
 def test_bad_rhythm_settings_are_config_errors(kwargs, message):

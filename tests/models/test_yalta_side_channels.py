@@ -92,15 +92,27 @@ def test_side_channels_are_validated_and_old_configs_have_none():
 
 def manifest_for(preset: str) -> dict:
     config = PRESETS[preset]
-    shape = {"yalta2016_rhythm_style": [6, 129, 5], "yalta2016_rhythm": [2, 129, 5]}[preset]
+    shape = {
+        "yalta2016_rhythm_style": [6, 129, 5],
+        "yalta2016_rhythm": [2, 129, 5],
+        "yalta2016_rhythm_clocks_style": [12, 129, 5],
+        "yalta2016_rhythm_metre": [4, 129, 5],
+    }[preset]
     return {"feature_shape": shape, "target_dim": D, "config": {"features": json.loads(json.dumps(config.to_dict()))}}
 
 
 @pytest.mark.parametrize(
     "preset,path,side",
-    [("yalta2016_rhythm_style", "lstm", 4), ("yalta2016_rhythm_style", "convs", 0), ("yalta2016_rhythm", "lstm", 0)],
+    [
+        ("yalta2016_rhythm_style", "lstm", 4),
+        ("yalta2016_rhythm_style", "convs", 0),
+        ("yalta2016_rhythm", "lstm", 0),
+        ("yalta2016_rhythm_clocks_style", "lstm", 10),  # the clocks' 6 planes and the style's 4
+        ("yalta2016_rhythm_clocks_style", "convs", 0),
+        ("yalta2016_rhythm_metre", "lstm", 2),
+    ],
 )
-def test_a_run_routes_the_style_planes_as_its_settings_say(preset, path, side):
+def test_a_run_routes_the_constant_planes_as_its_settings_say(preset, path, side):
     manifest = manifest_for(preset)
     assert feature_config(manifest["config"]["features"]) == PRESETS[preset]
     kind = model_kind("yalta")
