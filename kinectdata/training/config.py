@@ -29,9 +29,6 @@ LOOP_DEFAULTS: dict[str, Any] = {
     "mirror_share": 0.0,
     "turning": True,
     "travel": True,
-    "facing": False,
-    "by_metre": False,
-    "style_tempo": None,
 }
 """The training loop's settings and their base defaults (Yalta et al.'s; a model's
 ``training_defaults`` change them)."""
