@@ -16,6 +16,7 @@ the same kinectdata installed.
 
 from __future__ import annotations
 
+import multiprocessing
 import os
 import threading
 import time
@@ -63,7 +64,14 @@ class LocalExecutor:
         (``names`` are not needed: the worker's own error travels back)."""
         results = []
         if self.jobs > 1 and len(tasks) > 1:
-            pool = ProcessPoolExecutor(max_workers=self.jobs, initializer=exit_with_parent, initargs=(os.getpid(),))
+            # spawned, not forked: a fork copies whatever lock another thread of this process held
+            # (a test suite's, a notebook's), and a worker then hung in its first large allocation
+            pool = ProcessPoolExecutor(
+                max_workers=self.jobs,
+                mp_context=multiprocessing.get_context("spawn"),
+                initializer=exit_with_parent,
+                initargs=(os.getpid(),),
+            )
             with pool:
                 for i, result in enumerate(pool.map(function, tasks)):
                     results.append(result)
