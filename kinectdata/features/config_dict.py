@@ -37,3 +37,12 @@ def config_from_dict(cls: type, d: dict[str, Any], kind: str) -> Any:
         if name in kw and kw[name] is not None:
             kw[name] = tuple(kw[name])
     return cls(**kw)
+
+
+def checked_planes(planes: Any, kind: str) -> tuple[int, int]:
+    """``planes`` (a config's constant planes: rows, columns) as a tuple of two whole numbers, each at
+    least 1; ConfigError naming ``kind`` (e.g. "style input") otherwise."""
+    values = tuple(planes)
+    if len(values) != 2 or any(isinstance(v, bool) or int(v) != v or v < 1 for v in values):
+        raise ConfigError(f"{kind}: planes must be (rows, columns), each at least 1, got {planes!r}")
+    return int(values[0]), int(values[1])

@@ -25,7 +25,7 @@ from typing import Any, ClassVar
 import numpy as np
 
 from kinectdata.core.errors import ConfigError
-from kinectdata.features.config_dict import config_from_dict, config_to_dict
+from kinectdata.features.config_dict import checked_planes, config_from_dict, config_to_dict
 
 __all__ = ["MetreInputConfig", "metre_input_features", "on_sounding_frames", "sounding_slices"]
 
@@ -59,8 +59,8 @@ class MetreInputConfig:
             raise ConfigError(f"metre input: values must differ, got {self.values!r}")
         if self.sample_rate < 1 or self.slice_samples < 1:
             raise ConfigError("metre input: sample_rate and slice_samples must be positive")
-        if self.planes is not None and (len(self.planes) != 2 or min(self.planes) < 1):
-            raise ConfigError(f"metre input: planes must be (rows, columns), each at least 1, got {self.planes!r}")
+        if self.planes is not None:
+            object.__setattr__(self, "planes", checked_planes(self.planes, "metre input"))
 
     @property
     def output_shape(self) -> tuple[int, ...]:

@@ -85,7 +85,7 @@ from typing import Any, ClassVar
 import numpy as np
 
 from kinectdata.core.errors import ConfigError
-from kinectdata.features.config_dict import config_from_dict, config_to_dict
+from kinectdata.features.config_dict import checked_planes, config_from_dict, config_to_dict
 
 __all__ = ["DEFAULT_BEATS_PER_BAR", "PulseCount", "RhythmConfig", "predominant_beat", "rhythm_features"]
 
@@ -219,14 +219,9 @@ class RhythmConfig:
         if (self.levels or self.bar_levels) and self.columns:
             raise ConfigError("rhythm features: levels are for the vector layout (columns 0)")
         if self.planes is not None:
-            planes = tuple(self.planes)
-            if len(planes) != 2 or any(isinstance(v, bool) or int(v) != v or v < 1 for v in planes):
-                raise ConfigError(
-                    f"rhythm features: planes must be (rows, columns), each at least 1, got {self.planes!r}"
-                )
+            object.__setattr__(self, "planes", checked_planes(self.planes, "rhythm features"))
             if self.columns:
                 raise ConfigError("rhythm features: planes are for the vector layout (columns 0)")
-            object.__setattr__(self, "planes", tuple(int(v) for v in planes))
         for name in ("detrend_s", "window_s", "decay_s", "fmax"):
             if not float(getattr(self, name)) > 0:
                 raise ConfigError(f"rhythm features: {name} must be positive, got {getattr(self, name)!r}")

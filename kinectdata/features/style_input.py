@@ -26,6 +26,7 @@ from typing import Any, ClassVar
 import numpy as np
 
 from kinectdata.core.errors import ConfigError
+from kinectdata.features.config_dict import checked_planes
 from kinectdata.features.metre_input import on_sounding_frames, sounding_slices
 from kinectdata.features.music_style import MusicStyleClassifier, TooLittleMusic
 
@@ -66,8 +67,8 @@ class StyleInputConfig:
             )
         if self.sample_rate < 1 or self.slice_samples < 1:
             raise ConfigError("style input: sample_rate and slice_samples must be positive")
-        if self.planes is not None and (len(self.planes) != 2 or min(self.planes) < 1):
-            raise ConfigError(f"style input: planes must be (rows, columns), each at least 1, got {self.planes!r}")
+        if self.planes is not None:
+            object.__setattr__(self, "planes", checked_planes(self.planes, "style input"))
 
     @property
     def output_shape(self) -> tuple[int, ...]:

@@ -83,7 +83,7 @@ def _side_planes(manifest: dict[str, Any]) -> int:
         if getattr(part, "planes", None) is None:
             break
         side += part.output_shape[0]
-    return side if side < sum(p.output_shape[0] for p in parts) else 0
+    return side if side < features.output_shape[0] else 0
 
 
 @dataclass(frozen=True)
