@@ -22,6 +22,7 @@ import threading
 import time
 from collections.abc import Callable, Sequence
 from concurrent.futures import ProcessPoolExecutor
+from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass
 from typing import Any
 
@@ -61,7 +62,8 @@ class LocalExecutor:
 
     def map(self, function: Callable, tasks: Sequence, names: Sequence[str], progress: Progress = None) -> list[Any]:
         """``function(task)`` for each task, in task order. A worker's error is raised as is
-        (``names`` are not needed: the worker's own error travels back)."""
+        (``names`` are not needed: the worker's own error travels back); a worker that dies is a
+        KinectDataError."""
         results = []
         if self.jobs > 1 and len(tasks) > 1:
             # spawned, not forked: a fork copies whatever lock another thread of this process held
@@ -73,10 +75,18 @@ class LocalExecutor:
                 initargs=(os.getpid(),),
             )
             with pool:
-                for i, result in enumerate(pool.map(function, tasks)):
-                    results.append(result)
-                    if progress:
-                        progress(i + 1, len(tasks))
+                try:
+                    for i, result in enumerate(pool.map(function, tasks)):
+                        results.append(result)
+                        if progress:
+                            progress(i + 1, len(tasks))
+                except BrokenProcessPool:
+                    raise KinectDataError(
+                        f"a worker process died before its task was done ({len(results)} of {len(tasks)} done): "
+                        "killed or out of memory, or a script that starts this work outside "
+                        '`if __name__ == "__main__":` (the workers are spawned and import it again); '
+                        "--jobs 1 runs it in this process"
+                    ) from None
         else:
             for i, task in enumerate(tasks):
                 results.append(function(task))

@@ -248,6 +248,13 @@ def test_a_failing_recording_on_a_worker_is_named_and_the_rerun_resumes(cluster,
     assert _files_bytes(out) == _files_bytes(tmp_path / "local")
 
 
+def test_a_local_worker_that_dies_is_a_clear_error():
+    """A worker process that exits mid-task (killed, out of memory, a script without a main guard)
+    is one KinectDataError saying so, not the pool's BrokenProcessPool."""
+    with pytest.raises(KinectDataError, match=r"a worker process died before its task was done \(0 of 2 done\)"):
+        LocalExecutor(2).map(os._exit, [3, 3], ["a", "b"])
+
+
 def test_other_failures_on_the_cluster_name_the_task(cluster):
     with pytest.raises(KinectDataError, match=r"^task -1: failed on the Dask cluster at tcp://.*ValueError"):
         DaskExecutor(cluster).map(math.sqrt, [4.0, -1.0], ["task 4", "task -1"])
