@@ -268,7 +268,12 @@ def train_options(f):
                 settings.setdefault(field.name, []).append((kind, field))
     for name, owners in settings.items():
         defaults = [getattr(kind.settings_type(), name) for kind, _ in owners]
-        helps = "; ".join(f"{kind.name}: {field.metadata.get('help', name)}" for kind, field in owners)
+        texts = [field.metadata.get("help", name) for _, field in owners]
+        helps = (  # a setting both models share (their phrase code) is said once
+            texts[0]
+            if len(owners) > 1 and len(set(texts)) == 1
+            else "; ".join(f"{kind.name}: {text}" for (kind, _), text in zip(owners, texts))
+        )
         options.append(
             click.option(
                 f"--{name.replace('_', '-')}",
@@ -352,7 +357,11 @@ def turning_options(f, seeded: bool = True):
     )(f)
     if seeded:
         f = click.option(
-            "--seed", default=0, show_default=True, type=click.INT, help="Seed of the drawn turning and travel."
+            "--seed",
+            default=0,
+            show_default=True,
+            type=click.INT,
+            help="Seed of the drawn turning and travel, and the draw of a phrase code (--latent-dims).",
         )(f)
     return f
 
@@ -571,6 +580,8 @@ def generate_command(
         click.echo(f"  the motion {timing['smoothing']}")
     if timing.get("style_tempo", AS_IT_IS) != AS_IT_IS:
         click.echo(f"  {timing['style_tempo']}")
+    if "phrase_code" in timing:
+        click.echo(f"  the phrase code {timing['phrase_code']}")
     if motion.joint_set.dimensions == 2:
         fps = 1 / float(motion.times[1] - motion.times[0]) if motion.n_frames > 1 else 30.0
         click.echo(f"  (OpenPose JSON Lines hold no frame rate: read or render it with --video-fps {fps:g})")

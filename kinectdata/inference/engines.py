@@ -35,8 +35,8 @@ ENGINES = ("torch", "onnxruntime")
 class TorchEngine:
     """A network's stream in torch (``precision``: its weights', as its model offers)."""
 
-    def __init__(self, net: torch.nn.Module, precision: str = "float32", kind: ModelKind | None = None):
-        self.module = (kind or kind_of(net)).stream(net, precision).eval()
+    def __init__(self, net: torch.nn.Module, precision: str = "float32", kind: ModelKind | None = None, draw: int = 0):
+        self.module = _stream(kind or kind_of(net), net, precision, draw).eval()
         self.initial = tuple(self.module.initial_state())  # once: the cdhc stream's steps through its start silence
         self.name = f"torch {precision}"
         self.reset()
@@ -55,7 +55,7 @@ class OnnxRuntimeEngine:
     """A network's stream exported to ONNX and run by ONNX Runtime on the CPU with ``threads``
     threads (one is fastest at batch 1)."""
 
-    def __init__(self, net: torch.nn.Module, threads: int = 1, kind: ModelKind | None = None):
+    def __init__(self, net: torch.nn.Module, threads: int = 1, kind: ModelKind | None = None, draw: int = 0):
         try:
             import onnxruntime as ort
         except ImportError:
@@ -72,7 +72,7 @@ class OnnxRuntimeEngine:
             self.session = ort.InferenceSession(str(path), options, providers=["CPUExecutionProvider"])
         self.inputs = stream_names(kind, network_config(net))[0]  # by name: an exporter may drop an input it ignores
         self.kept = {i.name for i in self.session.get_inputs()}
-        self.initial = [s.detach().cpu().numpy() for s in kind.stream(net, "float32").initial_state()]
+        self.initial = [s.detach().cpu().numpy() for s in _stream(kind, net, "float32", draw).initial_state()]
         self.name = "onnxruntime float32"
         self.reset()
 
@@ -106,14 +106,26 @@ def check_engine(kind: ModelKind, engine: str, precision: str) -> None:
 
 
 def make_engine(
-    net: torch.nn.Module, engine: str = "torch", precision: str = "float32", kind: ModelKind | None = None
+    net: torch.nn.Module,
+    engine: str = "torch",
+    precision: str = "float32",
+    kind: ModelKind | None = None,
+    draw: int = 0,
 ) -> TorchEngine | OnnxRuntimeEngine:
-    """A streaming engine for a trained network of a model (``kind``, or found from the network)."""
+    """A streaming engine for a trained network of a model (``kind``, or found from the network),
+    from draw ``draw`` of a network that draws (:meth:`~kinectdata.models.kind.ModelKind.takes_draws`)."""
     kind = kind or kind_of(net)
     check_engine(kind, engine, precision)
     if engine == "onnxruntime":
-        return OnnxRuntimeEngine(net, kind=kind)
-    return TorchEngine(net, precision, kind)
+        return OnnxRuntimeEngine(net, kind=kind, draw=draw)
+    return TorchEngine(net, precision, kind, draw)
+
+
+def _stream(kind: ModelKind, net: torch.nn.Module, precision: str, draw: int):
+    """The kind's stream of the network, from ``draw`` when its network draws."""
+    if kind.takes_draws(network_config(net)):
+        return kind.stream(net, precision, draw=draw)
+    return kind.stream(net, precision)
 
 
 def onnxruntime_available() -> bool:

@@ -154,9 +154,13 @@ def generate(
     ``timing["smoothing"]`` says how. A run trained with ``style_tempo`` dances a song far from its
     heard style's tempo at that tempo and plays the dance back at the song's
     (:mod:`kinectdata.inference.style_tempo`: the whole song is decoded first); ``timing["style_tempo"]`` says how.
+    A run with a phrase code (``--latent-dims``: :mod:`kinectdata.models.latent`) draws it from row
+    ``seed`` of its table of draws: another seed, another dance to the same music;
+    ``timing["phrase_code"]`` says which.
     """
     net, config = load_model(run)
     kind = model_kind(model_name(config))
+    draws = kind.takes_draws(config["model"])
     data = config["dataset"]
     fps, sr = data["fps"], data["sample_rate"]
     spec = TargetSpec.from_dict(data["target"])
@@ -190,7 +194,7 @@ def generate(
     drawing = (turning and config.get("turning") is not None) or (travel and config.get("travel") is not None)
     heard: list[np.ndarray] = []  # every frame's features, when the turning needs to know the silent ones
     if kind.streams:
-        stepper = make_engine(net, engine, precision, kind)
+        stepper = make_engine(net, engine, precision, kind, draw=int(seed))
 
         def step(k0: int, features: np.ndarray, padded: np.ndarray) -> None:
             nonlocal pose
@@ -231,10 +235,11 @@ def generate(
     if not kind.streams:  # frames 1..n-1 from the true first pose, or 0..n-1 from the mean pose before frame 0
         features = np.concatenate(song)
         ran = time.perf_counter()
+        drawn_from = {"draw": int(seed)} if draws else {}
         if true_first:
-            poses[1:] = kind.free_run(net, features, pose)
+            poses[1:] = kind.free_run(net, features, pose, **drawn_from)
         else:
-            poses[:] = kind.free_run(net, np.concatenate([features[:1], features]), pose)
+            poses[:] = kind.free_run(net, np.concatenate([features[:1], features]), pose, **drawn_from)
         step_times = [(time.perf_counter() - ran) / n] * n
     if played != 1.0:  # back onto the song's clock: its frame k is the played dance's frame k / factor
         poses = warp_back(poses, played, song_frames).astype(np.float32)
@@ -306,6 +311,8 @@ def generate(
         drawn.append(f"those of the training dances of {bar} beats a bar")
     timing["turning"] = "; ".join(drawn) if drawn else "none drawn"
     timing["smoothing"] = smoothing_line(config)
+    if draws:
+        timing["phrase_code"] = f"drawn from row {int(seed)} of the run's table (--seed)"
     timing["style_tempo"] = style_tempo_line(band) + ("" if band is None else f": this song x{played:.2f}")
     if "placement" in motion.metadata:
         timing["placement"] = motion.metadata["placement"]

@@ -62,7 +62,8 @@ class LiveDancer:
             them draws none. A run trained with ``smooth_hz`` low-passes each frame after them
             (:class:`~kinectdata.inference.smoothing.MotionSmoother`), as ``generate`` does. A run
             trained with ``style_tempo`` dances live music at its own tempo: a network cannot hear
-            music faster than it arrives (:mod:`kinectdata.inference.style_tempo`).
+            music faster than it arrives (:mod:`kinectdata.inference.style_tempo`). A run with a
+            phrase code (``--latent-dims``) draws it from row ``seed`` of its table, as ``generate`` does.
     """
 
     def __init__(
@@ -95,7 +96,7 @@ class LiveDancer:
             offered = "onnxruntime" in self.kind.engines and precision in self.kind.engines["onnxruntime"]
             engine = "onnxruntime" if offered and onnxruntime_available() else "torch"
         self.engine = f"{engine} {precision}"
-        self.stepper = make_engine(net, engine, precision, self.kind)
+        self.stepper = make_engine(net, engine, precision, self.kind, draw=self.seed)  # a phrase code's draws too
         self.pose = np.asarray(self.data["start_pose"], np.float32)
         self.anchor: np.ndarray | None = None
         self.joint_set = self.spec.joints

@@ -87,7 +87,59 @@ def _side_planes(manifest: dict[str, Any]) -> int:
 
 
 @dataclass(frozen=True)
-class YaltaSettings:
+class PhraseCodeSettings:
+    """Both models' phrase code (:mod:`kinectdata.models.latent`): a small latent vector per phrase,
+    inferred from the dancer's poses in training (with a KL term towards N(0, I)) and drawn in
+    generation (``generate``'s and ``live``'s ``--seed``), so that the dance can choose among
+    figures the music does not fix. Off (``latent_dims`` 0) by default."""
+
+    latent_dims: int = field(
+        default=0,
+        metadata={
+            "help": "size of a phrase code: inferred from the dancer's poses in training, drawn in generation, so "
+            "that the dance can choose among figures the music does not fix (0: none).",
+            "min": 0,
+        },
+    )
+    phrase_seconds: float = field(
+        default=2.0,
+        metadata={"help": "with --latent-dims: seconds per phrase of the code.", "min": 0, "min_open": True},
+    )
+    latent_weight: float = field(
+        default=0.01,
+        metadata={"help": "with --latent-dims: weight of the phrase code's KL divergence (nats per phrase).", "min": 0},
+    )
+    free_nats: float = field(
+        default=0.5,
+        metadata={"help": "with --latent-dims: nats per dimension of the code that its KL term forgives.", "min": 0},
+    )
+
+    def __post_init__(self) -> None:
+        if self.latent_dims < 0 or not self.phrase_seconds > 0 or self.latent_weight < 0 or self.free_nats < 0:
+            raise ConfigError(
+                "latent_dims, latent_weight and free_nats must be at least 0 and phrase_seconds positive, not "
+                f"{self.latent_dims}, {self.latent_weight}, {self.free_nats}, {self.phrase_seconds}"
+            )
+
+    def phrase_config(self, manifest: dict[str, Any]) -> dict[str, Any]:
+        """The network config's phrase code entries (none without one): its size, and its phrase in
+        frames at the dataset's rate."""
+        if not self.latent_dims:
+            return {}
+        frames = max(1, round(self.phrase_seconds * float(manifest["config"]["fps"])))
+        return {"latent_dims": self.latent_dims, "phrase_frames": frames}
+
+    def with_kl(self, loss, net):
+        """``loss`` plus the KL term of the network's last posterior pass (unchanged without one)."""
+        from kinectdata.models.latent import kl_term
+
+        if getattr(net, "phrase_code", None) is None or net.latent_kl is None or not self.latent_weight:
+            return loss
+        return loss + self.latent_weight * kl_term(net.latent_kl.float(), self.free_nats)
+
+
+@dataclass(frozen=True)
+class YaltaSettings(PhraseCodeSettings):
     """The yalta model's settings (defaults: the recipe for real dance; the paper's best,
     ELU, 500 units and its own previous output fed back, with ``--paper``)."""
 
@@ -131,6 +183,7 @@ class YaltaSettings:
             raise ConfigError(f"units must be a positive integer, not {self.units!r}")
         if not self.velocity_weight >= 0:
             raise ConfigError("velocity_weight must be at least 0")
+        super().__post_init__()
 
 
 YALTA_SWEEP = Sweep(
@@ -209,6 +262,7 @@ class YaltaKind(ModelKind):
             input_shape=tuple(manifest["feature_shape"]),
             inputs=settings.inputs,
             side_channels=_side_planes(manifest) if settings.style_path == "lstm" else 0,
+            **settings.phrase_config(manifest),
         ).to_dict()
 
     def build(self, config: dict[str, Any]):
@@ -218,24 +272,26 @@ class YaltaKind(ModelKind):
 
     def predict(self, net, audio, previous, settings: YaltaSettings, context: int = 0):
         """[B, L - context, D] from a batch: ``previous`` [B, L, D] the true poses before each frame
-        (the LSTMs' state carries the context: every frame is stepped)."""
-        given = previous if settings.feedback == "teacher" else previous[:, 0]
-        return net(audio, given, settings.feedback)[:, context:]
+        (the LSTMs' state carries the context: every frame is stepped; a phrase code is inferred
+        from them)."""
+        posterior = settings.latent_dims > 0
+        return net(audio, previous, settings.feedback, posterior=posterior)[:, context:]
 
     def predict_free(self, net, audio, previous, settings: YaltaSettings, context: int = 0):
         """The configured feedback's poses and the free run, on one pass of the audio path."""
-        given = previous if settings.feedback == "teacher" else previous[:, 0]
+        posterior = settings.latent_dims > 0
         if settings.feedback == "predicted":  # its training already runs free
-            poses = net(audio, given, "predicted")[:, context:]
+            poses = net(audio, previous, "predicted", posterior=posterior)[:, context:]
             return poses, poses
-        poses, free = net(audio, previous, "teacher", free=True)
+        poses, free = net(audio, previous, "teacher", free=True, posterior=posterior)
         return poses[:, context:], free[:, context:]
 
     def loss(self, net, pred, pose, mask, settings: YaltaSettings):
+        """MSE (and the velocity term), and a phrase code's KL term from the last :meth:`predict`."""
         loss = masked_mse(pred, pose, mask)
         if settings.velocity_weight > 0:
             loss = loss + settings.velocity_weight * masked_velocity_mse(pred, pose, mask)
-        return loss
+        return settings.with_kl(loss, net)
 
     def free_batch(self, net, audio, previous, pred, settings: YaltaSettings) -> np.ndarray:
         """Predicted feedback already runs free in training: its predictions are the free run."""
@@ -248,20 +304,30 @@ class YaltaKind(ModelKind):
         with torch.no_grad():  # outputs start at the mean pose, not 0: maxabs targets are far from centred
             net.fc2.bias.copy_(torch.tensor(start_pose))
 
-    def free_run(self, net, audio: np.ndarray, first_pose: np.ndarray, reset_every: int | None = None):
+    def takes_draws(self, config) -> bool:
+        """A network with a phrase code (``--latent-dims``) draws it."""
+        return bool(config.get("latent_dims"))
+
+    def free_run(self, net, audio: np.ndarray, first_pose: np.ndarray, reset_every: int | None = None, draw: int = 0):
         from kinectdata.models.yalta import free_run
 
-        return free_run(net, audio, first_pose, reset_every)
+        return free_run(net, audio, first_pose, reset_every, draw)
 
-    def free_runs(self, net, audios, first_poses, reset_every: int | None = None):
+    def free_runs(self, net, audios, first_poses, reset_every: int | None = None, draws: list[int] | None = None):
         from kinectdata.models.yalta import free_runs
 
-        return in_run_batches(lambda a, p: free_runs(net, a, p, reset_every), audios, first_poses)
+        return in_run_batches(lambda a, p, *d: free_runs(net, a, p, reset_every, *d), audios, first_poses, draws)
 
-    def stream(self, net, precision: str = "float32"):
-        from kinectdata.models.yalta import StreamingYalta
+    def stream(self, net, precision: str = "float32", draw: int = 0):
+        from kinectdata.models.yalta import PhrasedStreamingYalta, StreamingYalta
 
+        if net.phrase_code is not None:
+            return PhrasedStreamingYalta(net.eval(), precision, draw)
         return StreamingYalta(net.eval(), precision)
+
+    def stream_state_names(self, config):
+        """The LSTMs' states, and a phrase code's frame count."""
+        return (*self.state_names, *(("phrase_frame",) if config.get("latent_dims") else ()))
 
     def example_frame(self, net):
         import torch
@@ -274,6 +340,7 @@ class YaltaKind(ModelKind):
             "inputs": {
                 "features": list(config["input_shape"]),
                 **{name: [3, config["units"]] for name in self.state_names},
+                **({"phrase_frame": [1]} if config.get("latent_dims") else {}),
             },
             "activation": config["activation"],
             "units": config["units"],
@@ -288,7 +355,7 @@ class YaltaKind(ModelKind):
 
 
 @dataclass(frozen=True)
-class CdhcSettings:
+class CdhcSettings(PhraseCodeSettings):
     """The cdhc model's settings (defaults: the recipe for real dance, 128 channels, no dropout;
     the paper's widths and DC-TTS's dropout with ``--paper``).
 
@@ -341,6 +408,7 @@ class CdhcSettings:
             raise ConfigError("channels must be positive, dropout in [0, 1) and limb_weight at least 0")
         if not self.velocity_weight >= 0:
             raise ConfigError("velocity_weight must be at least 0")
+        super().__post_init__()
 
 
 class CdhcKind(ModelKind):
@@ -484,6 +552,7 @@ class CdhcKind(ModelKind):
             output=output,
             leak=settings.leak if output == "residual" else 0.0,
             inputs=settings.inputs,
+            **settings.phrase_config(manifest),
         ).to_dict()
 
     def build(self, config: dict[str, Any]):
@@ -516,43 +585,51 @@ class CdhcKind(ModelKind):
 
     def predict(self, net, audio, previous, settings: CdhcSettings, context: int = 0):
         """Teacher forcing (the true pose of each previous frame); the context's frames computed
-        only as far as later frames read them."""
-        return net(audio, previous, skip=context)
+        only as far as later frames read them. A phrase code is inferred from the true poses."""
+        return net(audio, previous, skip=context, posterior=True)
 
     def predict_free(self, net, audio, previous, settings: CdhcSettings, context: int = 0):
-        return net(audio, previous, free=True, skip=context)
+        return net(audio, previous, free=True, skip=context, posterior=True)
 
     def loss(self, net, pred, pose, mask, settings: CdhcSettings):
+        """The L1 and limb loss (and the velocity term), and a phrase code's KL term from the last
+        :meth:`predict` (kept on the network)."""
         from kinectdata.models.cdhc import cdhc_loss
 
         loss = cdhc_loss(pred, pose, mask, net.config, settings.limb_weight)[0]
         if settings.velocity_weight > 0:
             loss = loss + settings.velocity_weight * masked_velocity_l1(pred, pose, mask)
-        return loss
+        return settings.with_kl(loss, net)
 
     def init_output(self, net, start_pose: list[float]) -> None:
         from kinectdata.models.cdhc import init_output_bias
 
         init_output_bias(net, np.asarray(start_pose))
 
-    def free_run(self, net, audio: np.ndarray, first_pose: np.ndarray, reset_every: int | None = None):
+    def takes_draws(self, config) -> bool:
+        """A network with a phrase code (``--latent-dims``) draws it."""
+        return bool(config.get("latent_dims"))
+
+    def free_run(self, net, audio: np.ndarray, first_pose: np.ndarray, reset_every: int | None = None, draw: int = 0):
         """Poses [T-1, D] of frames 1..T-1 from the audio of those frames, starting from the true
-        pose of frame 0 (``reset_every`` does not apply)."""
+        pose of frame 0 (``reset_every`` does not apply); a phrase code drawn from row ``draw`` on."""
         from kinectdata.models.cdhc import generate
 
-        return generate(net, audio[1:], first_pose)
+        return generate(net, audio[1:], first_pose, draw)
 
-    def free_runs(self, net, audios, first_poses, reset_every: int | None = None):
+    def free_runs(self, net, audios, first_poses, reset_every: int | None = None, draws: list[int] | None = None):
         from kinectdata.models.cdhc import generate_many
 
-        return in_run_batches(lambda a, p: generate_many(net, [x[1:] for x in a], p), audios, first_poses)
+        return in_run_batches(
+            lambda a, p, *d: generate_many(net, [x[1:] for x in a], p, *d), audios, first_poses, draws
+        )
 
-    def stream(self, net, precision: str = "float32"):
+    def stream(self, net, precision: str = "float32", draw: int = 0):
         from kinectdata.models.cdhc import FrameCdhc
 
         if precision != "float32":
             raise ConfigError(f"the cdhc model streams float32 weights only, not {precision}")
-        return FrameCdhc(net)
+        return FrameCdhc(net, draw)
 
     def example_frame(self, net):
         import torch
@@ -578,4 +655,5 @@ def _cdhc_caches(config: Mapping[str, Any]) -> list[tuple[str, list[int]]]:
         ("skeleton", net.channels, net.encoder_dilations),
         ("decoder", net.decoder_channels, net.decoder_dilations),
     )
-    return [(f"{part}{i}", [1, width, k * d]) for part, width, dilations in parts for i, d in enumerate(dilations)]
+    caches = [(f"{part}{i}", [1, width, k * d]) for part, width, dilations in parts for i, d in enumerate(dilations)]
+    return caches + ([("phrase_frame", [1])] if net.latent_dims else [])

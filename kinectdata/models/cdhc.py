@@ -47,6 +47,7 @@ from torch import nn
 
 from kinectdata.core.errors import KinectDataError
 from kinectdata.models.kind import check_inputs
+from kinectdata.models.latent import PhraseCode
 
 OPENPOSE_MPI_LIMBS = (
     (0, 1),  # Head-Neck
@@ -102,6 +103,10 @@ class CdhcConfig:
             initial state alike: the silence its training windows had before each song
             (``TrainConfig.song_starts``: as many frames as its context). 0 (runs written before):
             the song starts with every layer's history zero. Only with ``inputs`` ``music``.
+        latent_dims: the size of a phrase code added to the fused code (:mod:`kinectdata.models.latent`):
+            inferred from the true poses in training, drawn in generation. 0: none (the paper's).
+        phrase_frames: frames per phrase of the code.
+        latent_draws: rows of the code's table of prior draws.
     """
 
     output_dim: int
@@ -119,8 +124,16 @@ class CdhcConfig:
     leak: float = 0.0
     inputs: str = "music-and-poses"
     start_silence: int = 0
+    latent_dims: int = 0
+    phrase_frames: int = 60
+    latent_draws: int = 64
 
     def __post_init__(self) -> None:
+        if self.latent_dims < 0 or self.phrase_frames < 1 or self.latent_draws < 1:
+            raise KinectDataError(
+                f"CDHC config: latent_dims must be at least 0, phrase_frames and latent_draws positive, not "
+                f"{self.latent_dims}, {self.phrase_frames}, {self.latent_draws}"
+            )
         if not 0.0 <= self.leak <= 1.0:
             raise KinectDataError(f"CDHC config: leak must be in 0..1, not {self.leak}")
         check_inputs(self.inputs, "CDHC config: ")
@@ -296,13 +309,21 @@ class Decoder(nn.Module):
         self.squash = config.output == "sigmoid"
 
     def forward(
-        self, audio: torch.Tensor, skeleton: torch.Tensor, caches: list[torch.Tensor] | None = None, skip: int = 0
+        self,
+        audio: torch.Tensor,
+        skeleton: torch.Tensor,
+        caches: list[torch.Tensor] | None = None,
+        skip: int = 0,
+        phrase: torch.Tensor | None = None,
     ) -> tuple[torch.Tensor, list[torch.Tensor]]:
         """Codes [B, T, C] -> ([B, T - skip, D] poses of rows ``skip``.., []), or one frame of codes
         [B, C] and the blocks' caches -> ([B, D], new caches). Dropped rows still feed the blocks'
-        history: rows 0.. must be frames 0.. unless ``skip`` is at least the blocks' history."""
+        history: rows 0.. must be frames 0.. unless ``skip`` is at least the blocks' history.
+        ``phrase``: the projected phrase code ([B, T, decoder channels] or [B, decoder channels]),
+        added to the fused code."""
         g = torch.sigmoid(self.gate(torch.cat([audio, skeleton], dim=-1)))
-        x, caches = _run_blocks(self.blocks, self.fuse(g * audio + (1.0 - g) * skeleton), caches, skip)
+        fused = self.fuse(g * audio + (1.0 - g) * skeleton)
+        x, caches = _run_blocks(self.blocks, fused if phrase is None else fused + phrase, caches, skip)
         out = self.output(self.convs(x))
         return (torch.sigmoid(out) if self.squash else out), caches
 
@@ -319,6 +340,18 @@ class CdhcNet(nn.Module):
         self.audio_encoder = Encoder(config.input_dim, config)
         self.skeleton_encoder = Encoder(config.output_dim, config)
         self.decoder = Decoder(config)
+        self.phrase_code = (
+            PhraseCode(
+                config.latent_dims,
+                config.phrase_frames,
+                config.output_dim,
+                config.decoder_channels,
+                config.latent_draws,
+            )
+            if config.latent_dims
+            else None
+        )
+        self.latent_kl: torch.Tensor | None = None  # the last posterior pass's KL [B, phrases, dims]
         if config.output == "residual":  # the pose a leaky residual output returns to (init_output_bias)
             self.register_buffer("anchor", torch.zeros(config.output_dim))
 
@@ -337,10 +370,22 @@ class CdhcNet(nn.Module):
         """Frames (at the motion rate) that output t depends on: t - R + 1 .. t, in both inputs."""
         return self.config.receptive_field
 
-    def forward(self, audio: torch.Tensor, previous: torch.Tensor, free: bool = False, skip: int = 0):
+    def forward(
+        self,
+        audio: torch.Tensor,
+        previous: torch.Tensor,
+        free: bool = False,
+        skip: int = 0,
+        posterior: bool = False,
+        draw: torch.Tensor | int = 0,
+    ):
         """Poses from audio features and the previous poses (teacher forcing); with ``free``, also
         the free run from ``previous[:, 0]`` (the network fed its own outputs, frame by frame with
         the blocks' caches, differentiable): ``(poses, free poses)``.
+
+        A network with a phrase code takes it, with ``posterior``, from the true poses in
+        ``previous`` (training: its KL is kept in :attr:`latent_kl` for the loss), else from its
+        table of draws from row ``draw`` on ([B] or one for all; frame 0 the first of a phrase).
 
         Args:
             audio: [B, T, F] features, frame t at the motion's frame t.
@@ -360,7 +405,9 @@ class CdhcNet(nn.Module):
         steps_free = free and self.config.inputs != "music"  # the free run reads every frame's audio code
         codes, _ = self.audio_encoder(audio, skip=0 if steps_free else first)
         a = codes[:, first:] if steps_free else codes
-        poses = self.decoder(a, self._skeleton_codes(previous, first), skip=skip - first)[0]
+        phrase = self._phrase(previous, posterior, draw)
+        cut = None if phrase is None else phrase[:, first:]
+        poses = self.decoder(a, self._skeleton_codes(previous, first), skip=skip - first, phrase=cut)[0]
         if self.config.output == "residual":
             poses = self.add_change(poses, previous[:, skip:])
         if not free:
@@ -371,9 +418,19 @@ class CdhcNet(nn.Module):
         _, caches = stream.initial_state(audio.shape[0])
         pose, steps = previous[:, 0], []
         for t in range(audio.shape[1]):
-            pose, caches = stream.decode(codes[:, t], pose, caches)
+            pose, caches = stream.decode(codes[:, t], pose, caches, None if phrase is None else phrase[:, t])
             steps.append(pose)
         return poses, torch.stack(steps[skip:], dim=1)
+
+    def _phrase(self, previous: torch.Tensor, posterior: bool, draw: torch.Tensor | int) -> torch.Tensor | None:
+        """The projected phrase code of every frame [B, T, decoder channels] (None without one)."""
+        if self.phrase_code is None:
+            return None
+        if posterior:
+            code, self.latent_kl = self.phrase_code.posterior(previous)
+        else:
+            code = self.phrase_code.drawn(previous.shape[0], previous.shape[1], draw)
+        return self.phrase_code.project(code.to(previous.dtype))
 
     def _skeleton_codes(self, previous: torch.Tensor, first: int) -> torch.Tensor:
         """The skeleton encoder's codes [B, T - first, C] of frames ``first``.. of the previous poses [B, T, D]."""
@@ -403,7 +460,9 @@ class StreamingCdhc(nn.Module):
 
     ``forward(audio [B, F], previous [B, D], audio_caches, pose_caches)`` returns the pose [B, D]
     and the new caches; start with :meth:`initial_state` (zeros, the zero padding before frame 0
-    of :class:`CdhcNet`, after the config's ``start_silence``). The audio encoder does not depend
+    of :class:`CdhcNet`, after the config's ``start_silence``). A network with a phrase code also
+    carries, last of the pose caches, the frames [B] counted since the start (its draw's offset
+    included), which choose each frame's code from its table of draws. The audio encoder does not depend
     on the poses: when the whole audio is known, its codes can come from one parallel pass and
     :meth:`decode` does the rest. Results equal :meth:`CdhcNet.forward` over the same sequences up
     to float rounding. The network is shared, not copied, and evaluated in its current mode: call
@@ -414,10 +473,14 @@ class StreamingCdhc(nn.Module):
         super().__init__()
         self.net = net
 
-    def initial_state(self, batch: int = 1) -> tuple[list[torch.Tensor], list[torch.Tensor]]:
+    def initial_state(
+        self, batch: int = 1, draw: torch.Tensor | int = 0
+    ) -> tuple[list[torch.Tensor], list[torch.Tensor]]:
         """The caches at a song's start for a batch, one [B, channels, history] tensor per highway
-        block: (audio encoder's, skeleton encoder's and decoder's). Zeros, then the config's
-        ``start_silence`` frames of zero features stepped through (poses not used: music only)."""
+        block: (audio encoder's, skeleton encoder's and decoder's), and the frame counter of a
+        phrase code (``draw`` phrases: the row of its table of draws the dance starts from, [B] or
+        one for all). Zeros, then the config's ``start_silence`` frames of zero features stepped
+        through (poses not used: music only)."""
         like = self.net.decoder.output.weight
 
         def zeros(blocks) -> list[torch.Tensor]:
@@ -425,6 +488,9 @@ class StreamingCdhc(nn.Module):
 
         pose_blocks = [*self.net.skeleton_encoder.blocks, *self.net.decoder.blocks]
         audio_caches, pose_caches = zeros(self.net.audio_encoder.blocks), zeros(pose_blocks)
+        if self.net.phrase_code is not None:
+            offset = torch.as_tensor(draw, dtype=like.dtype, device=like.device).reshape(-1).expand(batch)
+            pose_caches.append(offset * self.net.config.phrase_frames)
         silence = like.new_zeros(batch, self.net.config.input_dim)
         nothing = like.new_zeros(batch, self.net.config.output_dim)
         with torch.no_grad():
@@ -433,15 +499,28 @@ class StreamingCdhc(nn.Module):
         return audio_caches, pose_caches
 
     def decode(
-        self, code: torch.Tensor, previous: torch.Tensor, pose_caches: list[torch.Tensor]
+        self,
+        code: torch.Tensor,
+        previous: torch.Tensor,
+        pose_caches: list[torch.Tensor],
+        phrase: torch.Tensor | None = None,
     ) -> tuple[torch.Tensor, list[torch.Tensor]]:
-        """One frame from its audio code [B, C] and the previous pose [B, D] -> ([B, D] pose, new caches)."""
+        """One frame from its audio code [B, C] and the previous pose [B, D] -> ([B, D] pose, new
+        caches). ``phrase``: the projected phrase code [B, decoder channels] to use instead of the
+        drawn one (a free run in training, on the posterior's codes)."""
         n = len(self.net.skeleton_encoder.blocks)
+        m = n + len(self.net.decoder.blocks)
+        counted = []
+        if self.net.phrase_code is not None:
+            frame = pose_caches[m]
+            if phrase is None:
+                phrase = self.net.phrase_code.project(self.net.phrase_code.at_frame(frame).to(code.dtype))
+            counted = [frame + 1]
         s, skeleton_caches = self.net.skeleton_encoder(self.net.seen_poses(previous), pose_caches[:n])
-        pose, decoder_caches = self.net.decoder(code, s, pose_caches[n:])
+        pose, decoder_caches = self.net.decoder(code, s, pose_caches[n:m], phrase=phrase)
         if self.net.config.output == "residual":
             pose = self.net.add_change(pose, previous)
-        return pose, skeleton_caches + decoder_caches
+        return pose, skeleton_caches + decoder_caches + counted
 
     def forward(
         self,
@@ -459,15 +538,17 @@ class FrameCdhc(nn.Module):
     """:class:`StreamingCdhc` for one unbatched frame with its caches as one flat state, the stream
     interface of :class:`kinectdata.models.kind.Stream`: ``forward(features [F], previous [D], *caches)``
     returns ``(pose [D], *new caches)``, the audio encoder's caches first, then the skeleton
-    encoder's and the decoder's."""
+    encoder's and the decoder's, and for a network with a phrase code the frame counter [1] (from
+    phrase ``draw`` of its table of draws)."""
 
-    def __init__(self, net: CdhcNet):
+    def __init__(self, net: CdhcNet, draw: int = 0):
         super().__init__()
         self.stream = StreamingCdhc(net.eval())
         self.audio_blocks = len(net.audio_encoder.blocks)
+        self.draw = draw
 
     def initial_state(self) -> tuple[torch.Tensor, ...]:
-        audio_caches, pose_caches = self.stream.initial_state()
+        audio_caches, pose_caches = self.stream.initial_state(draw=self.draw)
         return (*audio_caches, *pose_caches)
 
     def forward(self, features: torch.Tensor, previous: torch.Tensor, *state: torch.Tensor):
@@ -476,7 +557,9 @@ class FrameCdhc(nn.Module):
         return (pose[0], *audio_caches, *pose_caches)
 
 
-def generate(net: CdhcNet, audio: torch.Tensor | np.ndarray, first_pose: torch.Tensor | np.ndarray) -> np.ndarray:
+def generate(
+    net: CdhcNet, audio: torch.Tensor | np.ndarray, first_pose: torch.Tensor | np.ndarray, draw: int = 0
+) -> np.ndarray:
     """Dance for a whole audio feature sequence, autoregressively.
 
     The previous pose at frame 0 is ``first_pose``, at frame t the network's own output at t-1;
@@ -489,15 +572,20 @@ def generate(net: CdhcNet, audio: torch.Tensor | np.ndarray, first_pose: torch.T
         net: a trained network.
         audio: [T, F] features at the motion's frame rate.
         first_pose: [D], normalised (e.g. the mean training pose).
+        draw: a network with a phrase code: the row of its table of draws the dance starts from
+            (another draw, another dance to the same music).
 
     Returns:
         [T, D] float32 poses in 0..1.
     """
-    return generate_many(net, [audio], [first_pose])[0]
+    return generate_many(net, [audio], [first_pose], [draw])[0]
 
 
 def generate_many(
-    net: CdhcNet, audios: list[torch.Tensor | np.ndarray], first_poses: list[torch.Tensor | np.ndarray]
+    net: CdhcNet,
+    audios: list[torch.Tensor | np.ndarray],
+    first_poses: list[torch.Tensor | np.ndarray],
+    draws: list[int] | None = None,
 ) -> list[np.ndarray]:
     """:func:`generate` for several songs at once, stepped as one batch: the per-frame cost is
     mostly fixed, so N songs cost little more than the longest one. Shorter songs are padded
@@ -507,6 +595,7 @@ def generate_many(
     Args:
         audios: N feature sequences [T_i, F].
         first_poses: N poses [D].
+        draws: N draws (:func:`generate`'s ``draw``; None: 0 for each).
 
     Returns:
         N arrays [T_i, D] float32 in 0..1.
@@ -522,6 +611,9 @@ def generate_many(
             raise KinectDataError(f"CDHC generate: audio must be [T >= 1, {config.input_dim}], not {list(a.shape)}")
         if p.shape != (config.output_dim,):
             raise KinectDataError(f"CDHC generate: first_pose must be [{config.output_dim}], not {list(p.shape)}")
+    draw = torch.as_tensor([0] * len(audios) if draws is None else draws, device=like.device)
+    if draw.shape != (len(audios),):
+        raise KinectDataError(f"CDHC generate: {len(audios)} songs but {draw.numel()} draws")
     lengths = [len(a) for a in audios]
     audio = torch.zeros(len(audios), max(lengths), config.input_dim, dtype=like.dtype, device=like.device)
     for i, a in enumerate(audios):
@@ -535,10 +627,10 @@ def generate_many(
                 silence = config.start_silence
                 audio = torch.cat([audio.new_zeros(len(audios), silence, config.input_dim), audio], dim=1)
                 nothing = torch.zeros(*audio.shape[:2], config.output_dim, dtype=like.dtype, device=like.device)
-                out = net(audio, nothing, skip=silence)
+                out = net(audio, nothing, skip=silence, draw=draw)
                 return [out[i, :n].float().cpu().numpy() for i, n in enumerate(lengths)]
             codes, _ = net.audio_encoder(audio)
-            _, caches = stream.initial_state(len(audios))
+            _, caches = stream.initial_state(len(audios), draw)
             out = torch.empty(len(audios), max(lengths), config.output_dim, dtype=like.dtype, device=like.device)
             pose = torch.stack(poses)
             for t in range(max(lengths)):

@@ -28,6 +28,10 @@ It says:
 - **running free**: :meth:`free_run` over a whole recording, given its first true pose (:meth:`free_runs`
   over several at once);
   ``resets`` says whether it can zero a state every training sequence (evaluation's "with reset");
+- **draws**: :meth:`takes_draws` says whether a network of a configuration draws something in
+  generation (a phrase code, :mod:`kinectdata.models.latent`): then :meth:`free_run`,
+  :meth:`free_runs` and :meth:`stream` take which draw (``draw``, ``draws``: ``generate``'s and
+  ``live``'s ``--seed``), and another draw makes another dance to the same music;
 - **streaming**: ``streams`` says whether it has a network stepping one frame at a time with
   its state passed in and out (:meth:`stream`, the :class:`Stream` contract); ``engines`` maps the
   inference engines that run that stream (``torch``, ``onnxruntime``) to their weight precisions;
@@ -142,12 +146,14 @@ def run_batches(lengths: list[int], max_frames: int = 20_000, max_batch: int = 3
     return groups
 
 
-def in_run_batches(run: Callable[[list, list], list], audios: list, first_poses: list) -> list:
+def in_run_batches(run: Callable[..., list], audios: list, first_poses: list, draws: list[int] | None = None) -> list:
     """``run(audios, first_poses) -> outputs`` (a network stepping recordings as one batch) over
-    :func:`run_batches` groups; the outputs in the order given."""
+    :func:`run_batches` groups; the outputs in the order given. With ``draws`` (one per recording),
+    ``run(audios, first_poses, draws)``."""
     out: list[Any] = [None] * len(audios)
     for group in run_batches([len(a) for a in audios]):
-        for i, result in zip(group, run([audios[i] for i in group], [first_poses[i] for i in group])):
+        given = [[audios[i] for i in group], [first_poses[i] for i in group]]
+        for i, result in zip(group, run(*given, *([] if draws is None else [[draws[i] for i in group]]))):
             out[i] = result
     return out
 
@@ -231,6 +237,12 @@ class ModelKind(Protocol):
 
     def init_output(self, net: Any, start_pose: list[float]) -> None:
         """Start the output layer at the mean training pose ``[D]`` (default: leave it)."""
+
+    def takes_draws(self, config: Mapping[str, Any]) -> bool:
+        """Whether a network of this configuration draws in generation (then :meth:`free_run`,
+        :meth:`free_runs` and :meth:`stream` take ``draw``/``draws``, from row 0 without them).
+        Default: no, and those methods take no draw."""
+        return False
 
     def free_run(self, net: Any, audio: np.ndarray, first_pose: np.ndarray, reset_every: int | None = None) -> Any:
         """Poses ``[T-1, D]`` (numpy) for frames 1..T-1 of features ``[T, *F]``, starting from the

@@ -22,6 +22,11 @@ or the true one (``"teacher"``); with ``inputs="music"`` LSTM4-6 are given zeros
 so each pose is a function of the music so far. The convolutions and LSTM1-3 do not depend on it, so they run over
 a whole sequence at once; only LSTM4-6 and fc2 step frame by frame when the predictions are fed
 back. :class:`StreamingYalta` is the same network one frame at a time, for live use and export.
+
+A phrase code (not the paper's; ``latent_dims`` > 0, :mod:`kinectdata.models.latent`) joins
+LSTM4-6's input after the previous pose: inferred from the true poses in training, drawn from the
+network's table in generation (:class:`PhrasedStreamingYalta` carries the frame count that picks
+each phrase's draw).
 """
 
 from __future__ import annotations
@@ -34,6 +39,7 @@ from torch import nn
 
 from kinectdata.core.errors import ConfigError
 from kinectdata.models.kind import check_inputs
+from kinectdata.models.latent import PhraseCode
 
 ACTIVATIONS = {"tanh": nn.Tanh, "relu": nn.ReLU, "elu": nn.ELU}
 CONV_CHANNELS = (16, 32, 64, 65)
@@ -54,6 +60,9 @@ class YaltaConfig:
             ``music`` (they are given zeros in its place: no feedback).
         side_channels: S, the last input channels that bypass the convolutions (module docstring;
             0: every channel is convolved, as runs before them were).
+        latent_dims: the size of a phrase code given to LSTM4-6 (0: none, the paper's).
+        phrase_frames: frames per phrase of the code.
+        latent_draws: rows of the code's table of prior draws.
     """
 
     output_dim: int
@@ -62,9 +71,17 @@ class YaltaConfig:
     input_shape: tuple[int, int, int] = (1, 129, 5)
     inputs: str = "music-and-poses"
     side_channels: int = 0
+    latent_dims: int = 0
+    phrase_frames: int = 60
+    latent_draws: int = 64
 
     def __post_init__(self) -> None:
         check_inputs(self.inputs)
+        if self.latent_dims < 0 or self.phrase_frames < 1 or self.latent_draws < 1:
+            raise ConfigError(
+                f"latent_dims must be at least 0, phrase_frames and latent_draws positive, not "
+                f"{self.latent_dims}, {self.phrase_frames}, {self.latent_draws}"
+            )
         if not 0 <= self.side_channels < self.input_shape[0]:
             raise ConfigError(
                 f"side_channels must leave at least one of the {self.input_shape[0]} input channels to convolve, "
@@ -125,9 +142,18 @@ class YaltaNet(nn.Module):
         self.lstm1 = nn.LSTM(CODE, config.units, num_layers=3, batch_first=True)
         self.fc1 = nn.Sequential(nn.Linear(config.units, CODE), act())
         self.lstm2 = nn.LSTM(
-            CODE + config.side_channels + config.output_dim, config.units, num_layers=3, batch_first=True
+            CODE + config.side_channels + config.output_dim + config.latent_dims,
+            config.units,
+            num_layers=3,
+            batch_first=True,
         )
         self.fc2 = nn.Linear(config.units, config.output_dim)
+        self.phrase_code = (
+            PhraseCode(config.latent_dims, config.phrase_frames, config.output_dim, None, config.latent_draws)
+            if config.latent_dims
+            else None
+        )
+        self.latent_kl: torch.Tensor | None = None  # the last posterior pass's KL [B, phrases, dims]
 
     def encode(self, audio: torch.Tensor, state=None):
         """[B, T, C, 129, 5] features -> ([B, T, 65 + S] fc1 codes and the side channels' means,
@@ -149,51 +175,94 @@ class YaltaNet(nn.Module):
                 code = torch.cat([code, side.to(code.dtype)], dim=-1)
             return code, state
 
-    def decode(self, codes: torch.Tensor, previous: torch.Tensor, feedback: str, state=None):
+    def decode(
+        self,
+        codes: torch.Tensor,
+        previous: torch.Tensor,
+        feedback: str,
+        state=None,
+        phrase: torch.Tensor | None = None,
+    ):
         """Poses from fc1 codes [B, T, 65 + S] (:meth:`encode`).
 
         Args:
             previous: ``teacher``: [B, T, D], the true pose before each frame; ``predicted``:
                 [B, D], the true pose before the first frame (then the model's own outputs).
             state: LSTM4-6 state to start from (None: zeros).
+            phrase: a network with a phrase code: each frame's code [B, T, latent dims].
 
         Returns:
             ([B, T, D] poses, LSTM4-6 state).
         """
+        if (phrase is None) != (self.phrase_code is None):
+            raise ConfigError("a network with a phrase code decodes with one, a network without none")
         with _in_float32(codes):
-            return self._decode(codes.to(self.fc2.weight.dtype), previous, feedback, state)
+            dtype = self.fc2.weight.dtype
+            return self._decode(
+                codes.to(dtype), previous, feedback, state, None if phrase is None else phrase.to(dtype)
+            )
 
-    def _decode(self, codes: torch.Tensor, previous: torch.Tensor, feedback: str, state):
+    def _decode(self, codes: torch.Tensor, previous: torch.Tensor, feedback: str, state, phrase):
         if self.config.inputs == "music":
             previous = torch.zeros_like(previous)
         if feedback == "teacher" or self.config.inputs == "music":  # music only: no feedback to step
             if previous.dim() == 2:
                 previous = previous[:, None].expand(-1, codes.shape[1], -1)
-            hidden, state = self.lstm2(torch.cat([codes, previous], dim=-1), state)
+            given = [codes, previous] + ([] if phrase is None else [phrase])
+            hidden, state = self.lstm2(torch.cat(given, dim=-1), state)
             return self.fc2(hidden), state
         if feedback != "predicted":
             raise ConfigError(f"feedback must be 'predicted' or 'teacher', not {feedback!r}")
         pose, outputs = previous, []
         for t in range(codes.shape[1]):
-            hidden, state = self.lstm2(torch.cat([codes[:, t], pose], dim=-1)[:, None], state)
+            given = [codes[:, t], pose] + ([] if phrase is None else [phrase[:, t]])
+            hidden, state = self.lstm2(torch.cat(given, dim=-1)[:, None], state)
             pose = self.fc2(hidden[:, 0])
             outputs.append(pose)
         return torch.stack(outputs, dim=1), state
 
-    def forward(self, audio: torch.Tensor, previous: torch.Tensor, feedback: str = "predicted", free: bool = False):
-        """[B, T, C, 129, 5] features and the previous poses (see :meth:`decode`) -> [B, T, D] poses.
+    def forward(
+        self,
+        audio: torch.Tensor,
+        previous: torch.Tensor,
+        feedback: str = "predicted",
+        free: bool = False,
+        posterior: bool = False,
+        draw: torch.Tensor | int = 0,
+    ):
+        """[B, T, C, 129, 5] features and the previous poses (see :meth:`decode`; [B, T, D] also
+        under ``predicted``, whose first pose is then the start) -> [B, T, D] poses.
 
         With ``free`` (``previous`` [B, T, D], the true poses before each frame), also the free run
         from the first of them on the same audio codes: ``(poses, free poses [B, T, D])``.
+
+        A network with a phrase code takes it, with ``posterior``, from the true poses in
+        ``previous`` [B, T, D] (training: its KL is kept in :attr:`latent_kl` for the loss), else from
+        its table of draws from row ``draw`` on ([B] or one for all; frame 0 the first of a phrase).
         """
         codes, _ = self.encode(audio)
-        if not free:
-            return self.decode(codes, previous, feedback)[0]
+        phrase = self._phrase(previous, codes.shape[:2], posterior, draw)
         first = previous[:, 0] if previous.dim() == 3 else previous
-        poses = self.decode(codes, previous, feedback)[0]
+        given = first if feedback == "predicted" else previous
+        poses = self.decode(codes, given, feedback, phrase=phrase)[0]
+        if not free:
+            return poses
         if self.config.inputs == "music":  # the free run is this same pass
             return poses, poses
-        return poses, self.decode(codes, first, "predicted")[0]
+        return poses, self.decode(codes, first, "predicted", phrase=phrase)[0]
+
+    def _phrase(
+        self, previous: torch.Tensor, shape: torch.Size, posterior: bool, draw: torch.Tensor | int
+    ) -> torch.Tensor | None:
+        """Every frame's phrase code [B, T, latent dims] (None without one)."""
+        if self.phrase_code is None:
+            return None
+        if not posterior:
+            return self.phrase_code.drawn(shape[0], shape[1], draw)
+        if previous.dim() != 3:
+            raise ConfigError(f"a phrase code is inferred from the true poses [B, T, D], not {list(previous.shape)}")
+        code, self.latent_kl = self.phrase_code.posterior(previous)
+        return code
 
 
 def _packed(lstm: nn.LSTM) -> tuple[list[torch.Tensor], list[torch.Tensor]]:
@@ -305,6 +374,17 @@ class StreamingYalta(nn.Module):
             return torch.relu(x)
         return torch.nn.functional.elu(x)
 
+    def _audio_code(self, features: torch.Tensor, h1: torch.Tensor, c1: torch.Tensor):
+        """The convolutions, LSTM1-3 and fc1 on one frame: (code [65 + S], h1, c1)."""
+        x = features[None, : self.convolved]
+        for conv in self.convs:
+            x = self._act(conv(x))
+        hidden, h1, c1 = self.lstm1(x.reshape(-1), h1, c1)
+        code = self._act(self.fc1(hidden))
+        if self.side_channels:
+            code = torch.cat([code, features[self.convolved :].mean(dim=(1, 2))])
+        return code, h1, c1
+
     def forward(
         self,
         features: torch.Tensor,
@@ -314,27 +394,66 @@ class StreamingYalta(nn.Module):
         h2: torch.Tensor,
         c2: torch.Tensor,
     ):
-        x = features[None, : self.convolved]
-        for conv in self.convs:
-            x = self._act(conv(x))
-        hidden, h1, c1 = self.lstm1(x.reshape(-1), h1, c1)
-        code = self._act(self.fc1(hidden))
-        if self.side_channels:
-            code = torch.cat([code, features[self.convolved :].mean(dim=(1, 2))])
+        code, h1, c1 = self._audio_code(features, h1, c1)
         hidden, h2, c2 = self.lstm2(torch.cat([code, previous]), h2, c2)
         return self.fc2(hidden), h1, c1, h2, c2
 
 
-def free_run(net: YaltaNet, audio: np.ndarray, first_pose: np.ndarray, reset_every: int | None = None) -> np.ndarray:
+class PhrasedStreamingYalta(StreamingYalta):
+    """:class:`StreamingYalta` of a network with a phrase code: its state also carries the frames
+    counted since the start [1] (from phrase ``draw`` of the table on), which pick each phrase's code
+    from the network's table of draws: ``forward(features, previous, h1, c1, h2, c2, frame)``
+    returns ``(pose, h1, c1, h2, c2, frame + 1)``."""
+
+    def __init__(self, net: YaltaNet, precision: str = "float32", draw: int = 0):
+        super().__init__(net, precision)
+        if net.phrase_code is None:
+            raise ConfigError("this network has no phrase code: StreamingYalta steps it")
+        self.phrase = net.config.phrase_frames
+        self.start = float(draw * net.config.phrase_frames)
+        self.register_buffer("draws", net.phrase_code.draws.detach().clone())
+
+    @torch.jit.export
+    def initial_state(self) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor]:
+        like = self.convs[0].weight
+        z = torch.zeros(3, self.units, device=like.device, dtype=like.dtype)
+        frame = torch.full((1,), self.start, device=like.device, dtype=like.dtype)
+        return z, z.clone(), z.clone(), z.clone(), frame
+
+    def forward(
+        self,
+        features: torch.Tensor,
+        previous: torch.Tensor,
+        h1: torch.Tensor,
+        c1: torch.Tensor,
+        h2: torch.Tensor,
+        c2: torch.Tensor,
+        frame: torch.Tensor,
+    ):
+        code, h1, c1 = self._audio_code(features, h1, c1)
+        row = torch.div(frame, self.phrase, rounding_mode="floor").long() % self.draws.shape[0]
+        phrase = self.draws[row].reshape(-1).to(code.dtype)
+        hidden, h2, c2 = self.lstm2(torch.cat([code, previous, phrase]), h2, c2)
+        return self.fc2(hidden), h1, c1, h2, c2, frame + 1
+
+
+def free_run(
+    net: YaltaNet, audio: np.ndarray, first_pose: np.ndarray, reset_every: int | None = None, draw: int = 0
+) -> np.ndarray:
     """Poses [T-1, D] for frames 1..T-1 of features [T, 1, 129, 5], starting from the true pose
     [D] of frame 0 and then fed the model's own outputs, in evaluation mode (the net's mode is
     restored after). With ``reset_every`` = L every LSTM state is zeroed every L frames (the
-    paper's "with reset"); the fed-back pose carries on."""
-    return free_runs(net, [audio], [first_pose], reset_every)[0]
+    paper's "with reset"); the fed-back pose carries on. A phrase code is drawn from row ``draw``
+    of the network's table on, its phrases counted from frame 1."""
+    return free_runs(net, [audio], [first_pose], reset_every, [draw])[0]
 
 
 def free_runs(
-    net: YaltaNet, audios: list[np.ndarray], first_poses: list[np.ndarray], reset_every: int | None = None
+    net: YaltaNet,
+    audios: list[np.ndarray],
+    first_poses: list[np.ndarray],
+    reset_every: int | None = None,
+    draws: list[int] | None = None,
 ) -> list[np.ndarray]:
     """:func:`free_run` for several recordings as one batch (the per-frame cost is mostly fixed).
     Shorter feature sequences are padded with zeros at their end, which (the network being
@@ -350,13 +469,20 @@ def free_runs(
         x[i, : lengths[i]] = torch.from_numpy(np.ascontiguousarray(a[1:], np.float32))
     previous = torch.from_numpy(np.stack([np.asarray(p, np.float32) for p in first_poses]))
     pieces, step = [], reset_every or max(longest, 1)
+    phrase = None
+    if net.phrase_code is not None:
+        phrase = net.phrase_code.drawn(
+            len(audios), longest, torch.as_tensor([0] * len(audios) if draws is None else draws)
+        )
     was_training = net.training
     net.eval()  # batch normalisation from its running statistics: the padding must not enter them
     try:
         with torch.no_grad():
             for s in range(0, longest, step):
                 codes, _ = net.encode(x[:, s : s + step])
-                poses, _ = net.decode(codes, previous, "predicted")
+                poses, _ = net.decode(
+                    codes, previous, "predicted", phrase=None if phrase is None else phrase[:, s : s + step]
+                )
                 pieces.append(poses.numpy())
                 previous = poses[:, -1]
     finally:

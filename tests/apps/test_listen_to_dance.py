@@ -239,6 +239,63 @@ def test_the_cdhc_stream_exports_to_onnx_and_runs_in_onnx_runtime_as_in_torch(cd
     np.testing.assert_allclose(onnx_pose, pose, atol=1e-5)
 
 
+@pytest.mark.slow
+def test_a_phrase_code_trains_and_its_draws_step_the_same_in_onnx_runtime(ltd_dataset, sessions, tmp_path):
+    """``--latent-dims``: the code is inferred in training and drawn in generation; the exported
+    stream carries the frame counter that picks each phrase's draw, and ONNX Runtime steps it as
+    torch does, from the same draw."""
+    pytest.importorskip("onnxruntime")
+    import onnxruntime as ort
+    import torch
+
+    from kinectdata.models.cdhc import FrameCdhc, generate
+    from kinectdata.models.run import load_model
+    from kinectdata.training.config import TrainConfig
+    from kinectdata.training.train import train
+
+    run = tmp_path / "latent"
+    train(
+        ltd_dataset, run, TrainConfig.for_model("cdhc", **{**TINY_CDHC, "epochs": 1}, latent_dims=3, phrase_seconds=0.5)
+    )
+    config = json.loads((run / "config.json").read_text())["model"]
+    assert (config["latent_dims"], config["phrase_frames"]) == (3, 15)
+    result = run_cli("export", "--run", run, "-o", tmp_path / "latent.onnx")
+    assert result.exit_code == 0, result.output
+    session = ort.InferenceSession(str(tmp_path / "latent.onnx"), providers=["CPUExecutionProvider"])
+    names = [i.name for i in session.get_inputs()]
+    assert names[-1] == "phrase_frame"
+    net, _ = load_model(run)
+    stream = FrameCdhc(net, draw=5)
+    torch_state, onnx_state = list(stream.initial_state()), [t.numpy() for t in stream.initial_state()]
+    start = np.asarray(json.loads((run / "config.json").read_text())["dataset"]["start_pose"], np.float32)
+    pose = onnx_pose = start
+    rng = np.random.default_rng(4)
+    features = rng.normal(size=(50, *session.get_inputs()[0].shape)).astype(np.float32)
+    stepped = []
+    for frame in features:
+        onnx_pose, *onnx_state = session.run(None, dict(zip(names, [frame, onnx_pose, *onnx_state])))
+        with torch.inference_mode():
+            pose, *torch_state = stream(torch.from_numpy(frame), torch.as_tensor(pose), *torch_state)
+        pose = pose.numpy()
+        stepped.append(pose)
+    np.testing.assert_allclose(onnx_pose, pose, atol=1e-5)
+    np.testing.assert_allclose(np.stack(stepped), generate(net, features, start, draw=5), atol=1e-5)
+    assert np.abs(generate(net, features, start, draw=6) - np.stack(stepped)).max() > 1e-4
+
+    # `generate --seed` picks the draw, in either engine; the output says so
+    dances = {}
+    for seed, engine in ((0, "torch"), (3, "torch"), (3, "onnxruntime")):
+        out = tmp_path / f"dance_{seed}_{engine}.jsonl"
+        result = run_cli(
+            "generate", "--run", run, sessions / "dance_11.flac", "-o", out, "--seed", seed, "--engine", engine
+        )
+        assert result.exit_code == 0, result.output
+        assert f"the phrase code drawn from row {seed} of the run's table (--seed)" in result.output
+        dances[seed, engine] = read_motion(out, video_fps=30.0).positions
+    np.testing.assert_allclose(dances[3, "onnxruntime"], dances[3, "torch"], atol=1e-4)
+    assert np.nanmax(np.abs(dances[0, "torch"] - dances[3, "torch"])) > 1e-3
+
+
 def test_evaluate_reports_rhythm_with_the_real_motion_peaking_at_the_beat(cdhc_run, ltd_dataset, tmp_path):
     run, _ = cdhc_run
     result = run_cli("evaluate", "--run", run, "--data", ltd_dataset, "--out", tmp_path / "ev")
