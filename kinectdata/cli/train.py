@@ -108,6 +108,24 @@ _LOOP_OPTIONS = (
         "proportion (a trunk swaying faster than the dancers'); 0: none.",
     ),
     (
+        "bone_weight",
+        click.FloatRange(min=0),
+        "Weight of the bones' stretch in the free-running loss: how much each bone's length varies against the "
+        "real motion's; 0: none.",
+    ),
+    (
+        "world_speed_weight",
+        click.FloatRange(min=0),
+        "Weight of the joints' speed in the world in the free-running loss: each joint's speed along each axis per "
+        "2 s against the real motion's, slower costing more; 0: none.",
+    ),
+    (
+        "foot_weight",
+        click.FloatRange(min=0),
+        "Weight of the feet's sliding in the free-running loss: EDGE's foot contact score against the real "
+        "motion's, more costing in proportion; 0: none.",
+    ),
+    (
         "component_floor",
         click.BOOL,
         "Floor each component's speed, jitter and bone terms in the free-running loss at 1 % of its own mean, "

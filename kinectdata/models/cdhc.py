@@ -47,7 +47,7 @@ from torch import nn
 
 from kinectdata.core.errors import KinectDataError
 from kinectdata.models.kind import check_inputs
-from kinectdata.models.latent import PhraseCode
+from kinectdata.models.latent import PhraseCode, without_unused_code
 
 OPENPOSE_MPI_LIMBS = (
     (0, 1),  # Head-Neck
@@ -179,7 +179,7 @@ class CdhcConfig:
         d["encoder_dilations"] = list(self.encoder_dilations)
         d["decoder_dilations"] = list(self.decoder_dilations)
         d["limbs"] = [list(pair) for pair in self.limbs]
-        return d
+        return without_unused_code(d)
 
     @classmethod
     def from_dict(cls, d: dict) -> CdhcConfig:

@@ -23,6 +23,15 @@ from torch import nn
 
 from kinectdata.core.errors import KinectDataError
 
+PHRASE_FIELDS = ("latent_dims", "phrase_frames", "latent_draws")
+"""A network config's phrase code entries: a config without a code (``latent_dims`` 0) records none."""
+
+
+def without_unused_code(config: dict) -> dict:
+    """A network config's dict without its phrase code entries when it has no code."""
+    return config if config.get("latent_dims") else {k: v for k, v in config.items() if k not in PHRASE_FIELDS}
+
+
 DRAW_SEED = 20261206
 """The seed of every network's table of draws (the table is saved with its weights)."""
 

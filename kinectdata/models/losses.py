@@ -615,24 +615,6 @@ def masked_bone_jitter_loss(
     return masked_energy_loss(made_length, real_length, valid, chunk, excess=True, component_floor=component_floor)
 
 
-FOOT_WEIGHT = 10.0
-"""The foot term's weight in :func:`masked_rhythm_loss`: feet sliding twice as much as the real
-dancer's then cost 4.8, the order of the other terms'."""
-
-
-BONE_WEIGHT = 10.0
-"""The bone term's weight in :func:`masked_rhythm_loss`: a stretch of a tenth of a bone's length
-(about the real dancers' bone-length CV on tang2018) then weighs 1, the order of the spectral
-term; the stretch in metres at weight 1 left the bones 1.5 times as variable as the real ones on
-the validation dances (docs/notebook/2026-11-real-dance.md)."""
-
-
-WORLD_SPEED_WEIGHT = 1.0
-"""The world speed term's weight in :func:`masked_rhythm_loss`, that of the speed term on the
-targets: with it the cdhc model's feet step and its torso sways less on the validation dances
-(docs/notebook/2026-11-real-dance.md)."""
-
-
 @dataclass(frozen=True)
 class Body:
     """What :func:`masked_rhythm_loss` needs to measure a motion's body in metres.
@@ -671,7 +653,15 @@ class RhythmWeights:
     """The weights of :func:`masked_rhythm_loss`'s optional terms (``TrainConfig``'s fields of the
     same names with ``_weight``: :meth:`~kinectdata.training.config.TrainConfig.rhythm_weights`); a
     term of weight 0 is not computed. Named, not positional: nine floats in a row are easy to pass
-    in the wrong order."""
+    in the wrong order.
+
+    Three terms on the body were always part of the loss and have weights other than 0 by default:
+    ``bone`` (10: a stretch of a tenth of a bone's length, about the real dancers' bone-length CV on
+    tang2018, then weighs 1, the order of the spectral term; at 1 the bones were 1.5 times as
+    variable as the real ones on the validation dances, docs/notebook/2026-11-real-dance.md),
+    ``world_speed`` (1, that of the speed term on the targets: with it the cdhc model's feet step
+    and its torso sways less, docs/notebook/2026-11-real-dance.md) and ``foot`` (10: feet sliding
+    twice as much as the real dancer's then cost 4.8, the order of the other terms')."""
 
     posture: float = 3.0
     jitter: float = 0.0
@@ -682,6 +672,9 @@ class RhythmWeights:
     repetition: float = 0.0
     world_excess: float = 0.0
     world_jitter: float = 0.0
+    bone: float = 10.0
+    world_speed: float = 1.0
+    foot: float = 10.0
 
 
 def rhythm_weight_settings() -> tuple[str, ...]:
@@ -708,9 +701,9 @@ def masked_rhythm_loss(
     (:func:`masked_energy_loss` of the motion and of its frame-to-frame changes: the second keeps a
     motion made from the music alone from jittering), its postures' means and spreads
     (:func:`masked_posture_loss`) and, given a :class:`Body`, how much its bones stretch against the
-    target's (times :data:`BONE_WEIGHT`), its joints' speeds in the world
-    (:func:`masked_world_speed_loss`, per :data:`ENERGY_CHUNK_S`, times :data:`WORLD_SPEED_WEIGHT`)
-    and, when the body has feet, how much more they slide (times :data:`FOOT_WEIGHT`).
+    target's (``weights.bone``), its joints' speeds in the world
+    (:func:`masked_world_speed_loss`, per :data:`ENERGY_CHUNK_S`, ``weights.world_speed``)
+    and, when the body has feet, how much more they slide (``weights.foot``).
 
     ``weights`` (:class:`RhythmWeights`, its defaults when None) weigh the posture term and the
     optional ones: how much more the motion jitters (:func:`masked_jitter_loss`), where its periods
@@ -740,12 +733,14 @@ def masked_rhythm_loss(
             prediction, target, mask, fps, chunk, component_floor=cf
         )
     if body is not None:
-        loss = loss + BONE_WEIGHT * masked_bone_loss(
-            prediction, target, mask, body.bones, body.scale, body.offset, body.dims
-        )
+        if w.bone > 0:
+            loss = loss + w.bone * masked_bone_loss(
+                prediction, target, mask, body.bones, body.scale, body.offset, body.dims
+            )
         world = world_positions(prediction, target, mask, body)
         if world is not None:
-            loss = loss + WORLD_SPEED_WEIGHT * masked_energy_loss(*world, chunk, component_floor=cf)
+            if w.world_speed > 0:
+                loss = loss + w.world_speed * masked_energy_loss(*world, chunk, component_floor=cf)
             if w.world_excess > 0:
                 loss = loss + w.world_excess * masked_energy_loss(*world, chunk, excess=True, component_floor=cf)
             if w.world_jitter > 0:
@@ -760,8 +755,8 @@ def masked_rhythm_loss(
             )
         if w.repetition > 0:
             loss = loss + w.repetition * masked_repetition_loss(prediction, target, mask, body, fps)
-        if body.feet is not None:
-            loss = loss + FOOT_WEIGHT * masked_foot_loss(
+        if body.feet is not None and w.foot > 0:
+            loss = loss + w.foot * masked_foot_loss(
                 prediction, target, mask, body.feet, body.scale, body.offset, body.root, body.centred, dims=body.dims
             )
     return loss

@@ -39,7 +39,7 @@ from torch import nn
 
 from kinectdata.core.errors import ConfigError
 from kinectdata.models.kind import check_inputs
-from kinectdata.models.latent import PhraseCode
+from kinectdata.models.latent import PhraseCode, without_unused_code
 
 ACTIVATIONS = {"tanh": nn.Tanh, "relu": nn.ReLU, "elu": nn.ELU}
 CONV_CHANNELS = (16, 32, 64, 65)
@@ -98,7 +98,7 @@ class YaltaConfig:
     def to_dict(self) -> dict:
         d = asdict(self)
         d["input_shape"] = list(self.input_shape)
-        return d
+        return without_unused_code(d)
 
     @classmethod
     def from_dict(cls, d: dict) -> YaltaConfig:

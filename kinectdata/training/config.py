@@ -29,6 +29,10 @@ LOOP_DEFAULTS: dict[str, Any] = {
     "mirror_share": 0.0,
     "turning": True,
     "travel": True,
+    # the body's terms of the free-running loss, in it before they were settings (RhythmWeights)
+    "bone_weight": 10.0,
+    "world_speed_weight": 1.0,
+    "foot_weight": 10.0,
 }
 """The training loop's settings and their base defaults (Yalta et al.'s; a model's
 ``training_defaults`` change them)."""
@@ -44,6 +48,9 @@ ADDED_OFF = {
     "inputs": "music-and-poses",
     **dict.fromkeys(rhythm_weight_settings(), 0.0),
     "posture_weight": 10.0,  # the posture term was always on; its weight was 10 before it was a setting
+    "bone_weight": 10.0,  # so were the bone, world speed and foot terms, at these weights
+    "world_speed_weight": 1.0,
+    "foot_weight": 10.0,
     "keep_energy_weight": 0.0,
     "song_starts": False,
     "context": 0,
@@ -143,6 +150,14 @@ class TrainConfig:
             free-running loss (:func:`~kinectdata.models.losses.masked_world_jitter_loss`: the
             jitter term on each joint's position along each world axis, the root's travel added
             back: a trunk swaying faster than the dancers'). Runs written before it had none.
+        bone_weight: weight of the bones' stretch in the free-running loss
+            (:func:`~kinectdata.models.losses.masked_bone_loss`; 10, as runs written before it had).
+        world_speed_weight: weight of the joints' speed in the world in the free-running loss
+            (:func:`~kinectdata.models.losses.masked_world_speed_loss`, slower costing more; 1, as
+            runs written before it had).
+        foot_weight: weight of the feet's sliding in the free-running loss
+            (:func:`~kinectdata.models.losses.masked_foot_loss`: EDGE's foot contact score against
+            the real one's; 10, as runs written before it had).
         song_starts: also train on each song's first frames: windows whose ``context`` runs before
             the recording's first frame, silence there (audio zeros; no pose, masked:
             :class:`~kinectdata.dataset.windows.WindowDataset`'s ``lead``). Without them a model
@@ -248,6 +263,9 @@ class TrainConfig:
     repetition_weight: float
     world_excess_weight: float
     world_jitter_weight: float
+    bone_weight: float
+    world_speed_weight: float
+    foot_weight: float
     song_starts: bool
     silence_share: float
     keep: str

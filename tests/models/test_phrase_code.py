@@ -124,6 +124,7 @@ def test_a_phrase_code_is_validated_and_saved_in_the_config():
     config = CdhcConfig(output_dim=D, input_dim=F, latent_dims=2, phrase_frames=45)
     assert CdhcConfig.from_dict(config.to_dict()) == config
     assert CdhcNet(CdhcConfig(output_dim=D, input_dim=F)).phrase_code is None
+    assert "phrase_frames" not in CdhcConfig(output_dim=D, input_dim=F).to_dict()  # no code, no entries
 
 
 @pytest.mark.parametrize("inputs", ["music", "music-and-poses"])

@@ -233,7 +233,9 @@ def test_every_free_running_term_has_a_setting_an_option_and_is_off_in_the_paper
         assert name in fields and name in options, name
         with pytest.raises(ConfigError, match=f"{name} must be at least 0"):
             TrainConfig("cdhc", **{name: -1.0})
-    assert TrainConfig("cdhc", paper=True).rhythm_weights == RhythmWeights(posture=0.0)
+    assert TrainConfig("cdhc", paper=True).rhythm_weights == RhythmWeights(
+        posture=0.0, bone=0.0, world_speed=0.0, foot=0.0
+    )
     assert TrainConfig.from_dict({"model": "cdhc"}).rhythm_weights == RhythmWeights(posture=10.0)
 
 

@@ -109,7 +109,7 @@ def test_the_free_running_loss_adds_the_world_term_per_two_seconds():
     bones = float(losses.masked_bone_loss(made, real, mask, BONES, body.scale, body.offset))
     world = float(masked_world_speed_loss(made, real, mask, body, chunk))
     assert world > 1.0
-    expected = without_body + losses.BONE_WEIGHT * bones + losses.WORLD_SPEED_WEIGHT * world
+    expected = without_body + 10.0 * bones + 1.0 * world  # RhythmWeights' default bone and world speed weights
     assert whole == pytest.approx(expected, rel=1e-5)
 
 
