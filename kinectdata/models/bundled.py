@@ -344,6 +344,7 @@ class YaltaKind(ModelKind):
             },
             "activation": config["activation"],
             "units": config["units"],
+            **_phrase_metadata(config),
         }
 
     def describe(self, settings: YaltaSettings) -> str:
@@ -496,6 +497,7 @@ class CdhcKind(ModelKind):
             "output": net.output,
             # the state at a song's start: zeros, then this many frames of zero features stepped through
             "start_silence_frames": net.start_silence,
+            **_phrase_metadata(config),
         }
 
     @property
@@ -657,3 +659,18 @@ def _cdhc_caches(config: Mapping[str, Any]) -> list[tuple[str, list[int]]]:
     )
     caches = [(f"{part}{i}", [1, width, k * d]) for part, width, dilations in parts for i, d in enumerate(dilations)]
     return caches + ([("phrase_frame", [1])] if net.latent_dims else [])
+
+
+def _phrase_metadata(config: Mapping[str, Any]) -> dict[str, Any]:
+    """What a program stepping an exported stream with a phrase code needs to know of it: the state
+    ``phrase_frame`` starts at draw x ``phrase_frames`` (draw 0: 0) and the stream returns it one
+    more every frame; phrase i takes row (draw + i) mod ``latent_draws`` of the table in the file."""
+    if not config.get("latent_dims"):
+        return {}
+    return {
+        "phrase_code": {
+            "phrase_frames": config["phrase_frames"],
+            "latent_draws": config.get("latent_draws", 64),
+            "start": "phrase_frame = draw x phrase_frames; the stream returns it plus one",
+        }
+    }

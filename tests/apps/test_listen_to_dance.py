@@ -264,6 +264,8 @@ def test_a_phrase_code_trains_and_its_draws_step_the_same_in_onnx_runtime(ltd_da
     session = ort.InferenceSession(str(tmp_path / "latent.onnx"), providers=["CPUExecutionProvider"])
     names = [i.name for i in session.get_inputs()]
     assert names[-1] == "phrase_frame"
+    meta = json.loads(session.get_modelmeta().custom_metadata_map["kinectdata"])
+    assert meta["inputs"]["phrase_frame"] == [1] and meta["phrase_code"]["phrase_frames"] == 15
     net, _ = load_model(run)
     stream = FrameCdhc(net, draw=5)
     torch_state, onnx_state = list(stream.initial_state()), [t.numpy() for t in stream.initial_state()]
