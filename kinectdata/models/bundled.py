@@ -321,7 +321,7 @@ class YaltaKind(ModelKind):
     def stream(self, net, precision: str = "float32", draw: int = 0):
         from kinectdata.models.yalta import PhrasedStreamingYalta, StreamingYalta
 
-        if net.phrase_code is not None:
+        if getattr(net, "phrase_code", None) is not None:
             return PhrasedStreamingYalta(net.eval(), precision, draw)
         return StreamingYalta(net.eval(), precision)
 

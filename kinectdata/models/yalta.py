@@ -469,20 +469,17 @@ def free_runs(
         x[i, : lengths[i]] = torch.from_numpy(np.ascontiguousarray(a[1:], np.float32))
     previous = torch.from_numpy(np.stack([np.asarray(p, np.float32) for p in first_poses]))
     pieces, step = [], reset_every or max(longest, 1)
-    phrase = None
-    if net.phrase_code is not None:
-        phrase = net.phrase_code.drawn(
-            len(audios), longest, torch.as_tensor([0] * len(audios) if draws is None else draws)
-        )
+    phrase, code = None, getattr(net, "phrase_code", None)  # a network written before codes has none
+    if code is not None:
+        phrase = code.drawn(len(audios), longest, torch.as_tensor([0] * len(audios) if draws is None else draws))
     was_training = net.training
     net.eval()  # batch normalisation from its running statistics: the padding must not enter them
     try:
         with torch.no_grad():
             for s in range(0, longest, step):
                 codes, _ = net.encode(x[:, s : s + step])
-                poses, _ = net.decode(
-                    codes, previous, "predicted", phrase=None if phrase is None else phrase[:, s : s + step]
-                )
+                drawn = {} if phrase is None else {"phrase": phrase[:, s : s + step]}
+                poses, _ = net.decode(codes, previous, "predicted", **drawn)
                 pieces.append(poses.numpy())
                 previous = poses[:, -1]
     finally:
