@@ -305,8 +305,7 @@ class YaltaKind(ModelKind):
             net.fc2.bias.copy_(torch.tensor(start_pose))
 
     def takes_draws(self, config) -> bool:
-        """A network with a phrase code (``--latent-dims``) draws it."""
-        return bool(config.get("latent_dims"))
+        return _has_phrase_code(config)
 
     def free_run(self, net, audio: np.ndarray, first_pose: np.ndarray, reset_every: int | None = None, draw: int = 0):
         from kinectdata.models.yalta import free_run
@@ -327,7 +326,7 @@ class YaltaKind(ModelKind):
 
     def stream_state_names(self, config):
         """The LSTMs' states, and a phrase code's frame count."""
-        return (*self.state_names, *(("phrase_frame",) if config.get("latent_dims") else ()))
+        return (*self.state_names, *(("phrase_frame",) if _has_phrase_code(config) else ()))
 
     def example_frame(self, net):
         import torch
@@ -340,7 +339,7 @@ class YaltaKind(ModelKind):
             "inputs": {
                 "features": list(config["input_shape"]),
                 **{name: [3, config["units"]] for name in self.state_names},
-                **({"phrase_frame": [1]} if config.get("latent_dims") else {}),
+                **({"phrase_frame": [1]} if _has_phrase_code(config) else {}),
             },
             "activation": config["activation"],
             "units": config["units"],
@@ -609,8 +608,7 @@ class CdhcKind(ModelKind):
         init_output_bias(net, np.asarray(start_pose))
 
     def takes_draws(self, config) -> bool:
-        """A network with a phrase code (``--latent-dims``) draws it."""
-        return bool(config.get("latent_dims"))
+        return _has_phrase_code(config)
 
     def free_run(self, net, audio: np.ndarray, first_pose: np.ndarray, reset_every: int | None = None, draw: int = 0):
         """Poses [T-1, D] of frames 1..T-1 from the audio of those frames, starting from the true
@@ -661,11 +659,17 @@ def _cdhc_caches(config: Mapping[str, Any]) -> list[tuple[str, list[int]]]:
     return caches + ([("phrase_frame", [1])] if net.latent_dims else [])
 
 
+def _has_phrase_code(config: Mapping[str, Any]) -> bool:
+    """Whether a network config (either model's) has a phrase code (``--latent-dims``): then its
+    kind takes draws, and its stream carries the frame count ``phrase_frame``."""
+    return bool(config.get("latent_dims"))
+
+
 def _phrase_metadata(config: Mapping[str, Any]) -> dict[str, Any]:
     """What a program stepping an exported stream with a phrase code needs to know of it: the state
     ``phrase_frame`` starts at draw x ``phrase_frames`` (draw 0: 0) and the stream returns it one
     more every frame; phrase i takes row (draw + i) mod ``latent_draws`` of the table in the file."""
-    if not config.get("latent_dims"):
+    if not _has_phrase_code(config):
         return {}
     return {
         "phrase_code": {

@@ -85,11 +85,11 @@ class PhraseCode(nn.Module):
         code = mean + torch.randn_like(mean) * (0.5 * log_var).exp() if self.training else mean
         return code.repeat_interleave(self.phrase, dim=1)[:, :T], kl
 
-    def drawn(self, batch: int, frames: int, draw: torch.Tensor | int = 0, start: int = 0) -> torch.Tensor:
-        """Codes from the table of prior draws: [B, T, dims] for frames ``start .. start + T - 1``,
-        ``draw`` a row offset per dance ([B] or one for all)."""
+    def drawn(self, batch: int, frames: int, draw: torch.Tensor | int = 0) -> torch.Tensor:
+        """Codes from the table of prior draws: [B, T, dims] for frames 0 .. T - 1, ``draw`` a row
+        offset per dance ([B] or one for all)."""
         draw = torch.as_tensor(draw, device=self.draws.device).reshape(-1, 1).expand(batch, 1)
-        t = torch.arange(start, start + frames, device=self.draws.device)
+        t = torch.arange(frames, device=self.draws.device)
         return self.draws[(draw + torch.div(t, self.phrase, rounding_mode="floor")) % len(self.draws)]
 
     def at_frame(self, frame: torch.Tensor) -> torch.Tensor:
