@@ -24,7 +24,8 @@ shapes, the turning about the vertical and the travel across the floor to draw a
 (``turning``, ``travel``: the processes of :mod:`kinectdata.targets.turning` and
 :mod:`kinectdata.targets.travel`, which the network does not make; null: none), how the travel plants
 the standing foot (``foot_lock``: the catch-up time and the feet's height softness of
-:mod:`kinectdata.targets.foot_lock`; null: the whole body moves), the low-pass run on the poses
+:mod:`kinectdata.targets.foot_lock`, and ``steps_at_reach``: the other foot stands when the standing
+leg reaches no further; null: the whole body moves), the low-pass run on the poses
 after them (``smoothing``: a causal Butterworth's order and cutoff, started at rest on the first
 pose, :mod:`kinectdata.inference.smoothing`; null: none), and what the model
 adds (:meth:`~kinectdata.models.kind.ModelKind.export_metadata`).
@@ -119,7 +120,7 @@ def _foot_lock(run_config: dict[str, Any]) -> dict[str, float] | None:
         return None
     if legs_of(TargetSpec.from_dict(run_config["dataset"]["target"])) is None:
         return None
-    return {"catch_up_s": CATCH_UP_S, "standing_softness_m": PIVOT_SOFTNESS_M}
+    return {"catch_up_s": CATCH_UP_S, "standing_softness_m": PIVOT_SOFTNESS_M, "steps_at_reach": True}
 
 
 def check_export(kind: ModelKind, fmt: str, precision: str = "float32") -> None:

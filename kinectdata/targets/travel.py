@@ -16,7 +16,8 @@ dancer's steps add to it faster is the network's to make), is the two-stage proc
 constant; the two axes are drawn independently. Its sum over frames, over fps, is added to the
 root's travel: the body moves with it, after the turning, over the standing foot where the target
 has both legs (:mod:`kinectdata.targets.foot_lock`: the standing foot stays planted, the swinging one
-catches up, the knees bend to keep the legs' lengths). Where the music is silent the velocity
+catches up, the other foot stands where the leg reaches no further, the knees bend to keep the
+legs' lengths). Where the music is silent the velocity
 is held at 0 (the dancer stops with the music). Drawn over as many frames as each training dance
 has, it puts the dancer 1.2 to 5.6 m from the start on average (median 2.9 m; the dancers' 0.8 to
 5.5, 2.8).
@@ -129,7 +130,8 @@ class TravelProcess:
             )
         return (
             f"travel drawn at generation: {self.rms_speed:.2f} m/s root mean square along each horizontal axis, "
-            f"correlated over {self.time_constant:.2f} s (two stages){floor}, over the standing foot{fitted}"
+            f"correlated over {self.time_constant:.2f} s (two stages){floor}, over the standing foot "
+            f"(a step where the leg reaches no further){fitted}"
         )
 
     def start_offset(self, start: np.ndarray | None) -> np.ndarray:

@@ -70,13 +70,33 @@ def test_the_legs_keep_their_lengths_and_the_knee_its_plane():
     assert np.abs(ankle[-1] - values[-1, _col("left_ankle")]).max() > 0.1  # the foot did stay behind
 
 
-def test_the_leg_reaches_no_further_than_its_bones_then_the_foot_slides():
+def test_the_leg_reaches_no_further_than_its_bones():
     values = np.tile(_pose(right_lift=0.1), (90, 1))
     moved = travel_targets(values, SPEC, _forward(90, 1.5), FPS)
-    hip, knee, ankle = (moved[:, _col(j)] for j in ("left_hip", "left_knee", "left_ankle"))
-    leg = np.linalg.norm(knee - hip, axis=1) + np.linalg.norm(ankle - knee, axis=1)
-    assert (np.linalg.norm(ankle - hip, axis=1) <= leg + 1e-9).all()
+    for side in ("left", "right"):
+        hip, knee, ankle = (moved[:, _col(f"{side}_{j}")] for j in ("hip", "knee", "ankle"))
+        leg = np.linalg.norm(knee - hip, axis=1) + np.linalg.norm(ankle - knee, axis=1)
+        assert (np.linalg.norm(ankle - hip, axis=1) <= leg + 1e-9).all()
     assert np.linalg.norm(_world(moved, "left_ankle")[-1] - _world(moved, "left_ankle")[0]) > 1.0
+
+
+def test_a_dancer_who_never_lifts_a_foot_steps_at_the_legs_reach():
+    """The right foot held 5 cm up for 10 s while the body travels 0.4 m/s: the left foot stands
+    until its leg reaches no further, then the weight shifts to the right one over a few frames and
+    the left catches up, in turn. Without the steps the left foot would slide with the body from its
+    first reach on, and the slower foot would move at the body's speed."""
+    frames = 300
+    values = np.tile(_pose(right_lift=0.05), (frames, 1))
+    moved = travel_targets(values, SPEC, _forward(frames, 4.0), FPS)
+    along = [np.diff(_world(moved, f"{s}_ankle")[:, [0, 2]], axis=0) for s in ("left", "right")]
+    speed = np.linalg.norm(np.stack(along), axis=-1) * FPS  # [2, T-1] m/s
+    assert (speed.min(axis=0) < 0.05).mean() > 0.75  # a foot stands but while the weight shifts
+    assert np.abs(np.diff(speed, axis=1)).max() < 0.6  # m/s per frame: a foot sets off and stops over frames
+    fast = speed > 0.8  # a step's start: the swinging foot catching up
+    steps = [int((np.diff(fast[k].astype(int)) == 1).sum()) for k in (0, 1)]
+    assert min(steps) >= 4  # each foot steps again and again (about 0.3 m a step over 4 m)
+    ends = [_world(moved, f"{s}_ankle")[-1, 2] - moved[-1, _col("pelvis").start + 2] for s in ("left", "right")]
+    assert max(abs(e) for e in ends) < 0.5  # both feet kept up with the body
 
 
 def test_a_stepping_dancers_standing_foot_stops_sliding():
