@@ -17,9 +17,9 @@ keeps a **lag** (metres, horizontal): how far the foot is from where the frames 
   lengths of the hip.
 - **A step at the leg's reach**: when the standing foot's lag reaches that bound, the dancer steps:
   over the next :data:`SHIFT_S` the weight shifts to the other foot and the one that stood sets off
-  to catch up. The stance is then
-  the heights' turned round, so that a step the network makes with its feet's heights still moves
-  the stance from one foot to the other, and the next reach turns it back.
+  to catch up. The stance is then the heights' turned round, so that a step the network makes
+  with its feet's heights still moves the stance from one foot to the other, and the next reach
+  turns it back.
 
 The foot (its ankle and the joints below it) is moved back by its lag, and the knee is placed again by
 two-bone inverse kinematics, so that the thigh and the shin keep their lengths in every frame and the
@@ -35,9 +35,11 @@ feet slide on their own, by less than the travel but as often.
 
 The step at the leg's reach, on fold 1 (docs/notebook/2026-12-real-dance-variety.md, "The step at the
 leg's reach"): three cdhc networks held their right foot 1-6 cm up through every song, stood on the
-left one in 99-100 % of the frames and slid it from the leg's first reach on. The shifted weight
-over :data:`SHIFT_S` rather than in one frame: the yalta candidate's jerk 2.74 -> 2.17 x the
-dancers' (1.89 x without steps). The cdhc candidate: PFC 1.25 -> 0.81 x, jerk 1.09 -> 1.15 x.
+left one in 99-100 % of the frames and slid it from the leg's first reach on. With the step, the
+weight shifted over :data:`SHIFT_S` (in one frame the yalta candidate's jerk rose from 1.89 to
+2.74 x the dancers', over 0.15 s to 2.17 x), the cdhc candidate's PFC fell from 1.25 to 0.81 x, its
+jerk rose from 1.09 to 1.15 x, and its nine fold runs' PFC fell in every one (1.16-2.10 ->
+0.73-1.55 x).
 """
 
 from __future__ import annotations
