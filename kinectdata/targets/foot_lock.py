@@ -40,6 +40,10 @@ weight shifted over :data:`SHIFT_S` (in one frame the yalta candidate's jerk ros
 2.74 x the dancers', over 0.15 s to 2.17 x), the cdhc candidate's PFC fell from 1.25 to 0.81 x, its
 jerk rose from 1.09 to 1.15 x, and its nine fold runs' PFC fell in every one (1.16-2.10 ->
 0.73-1.55 x).
+
+A target without both feet, their knees and their hips among its positions is not changed
+(:func:`legs_of` is None). :class:`FootLock` works one frame at a time, so that a whole song and a
+live dance plant the same frames (and take the same steps).
 """
 
 from __future__ import annotations

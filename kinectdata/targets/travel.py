@@ -17,8 +17,8 @@ constant; the two axes are drawn independently. Its sum over frames, over fps, i
 root's travel: the body moves with it, after the turning, over the standing foot where the target
 has both legs (:mod:`kinectdata.targets.foot_lock`: the standing foot stays planted, the swinging one
 catches up, the other foot stands where the leg reaches no further, the knees bend to keep the
-legs' lengths). Where the music is silent the velocity
-is held at 0 (the dancer stops with the music). Drawn over as many frames as each training dance
+legs' lengths). Where the music is silent the velocity is held at 0 (the dancer stops with the
+music). Drawn over as many frames as each training dance
 has, it puts the dancer 1.2 to 5.6 m from the start on average (median 2.9 m; the dancers' 0.8 to
 5.5, 2.8).
 
