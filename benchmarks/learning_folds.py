@@ -5,10 +5,10 @@ The corpus's recordings outside the test split are dealt into K folds (``kinectd
 style spread over them); for each model, each fold's dataset is built as the acceptance run builds
 the corpus's, a model is trained on the other folds' recordings with ``train-baseline``'s defaults
 (and the budget), and scored with ``evaluate`` on the fold's own (the ``val`` split of the fold's
-manifest). Printed: each fold's goals a-e (d against the baselines made for the fold's own held-out
-songs from its training dances, on both protocols; c asks for the beat followed only where the
-fold's real dancers follow it), then the
-beat-following figures of every fold's held-out songs read together
+manifest), its turning and travel drawn with the run's seed as the acceptance run draws them.
+Printed: each fold's goals a-e (d against the baselines made for the fold's own held-out songs from
+its training dances, on both protocols; c asks for the beat followed only where the fold's real
+dancers follow it), then the beat-following figures of every fold's held-out songs read together
 (:func:`kinectdata.evaluation.pooled.held_out_following`), beside the real dancers' on the same
 songs. The test dances are in no fold: nothing here trains, tunes or picks on them.
 """
@@ -71,7 +71,7 @@ def _seed_on_folds(
         dataset = out / f"fold{fold.index}" / f"{model}_dataset"
         run_dir = out / f"fold{fold.index}" / f"{model}-seed{seed}"
         history, trained = train_defaults(model, dataset, run_dir, guard_minutes, seed, changes)
-        results = score_split(run_dir, dataset, "val", bootstrap=0)
+        results = score_split(run_dir, dataset, "val", 0, seed)
         print(f"  [{model} seed {seed}] fold {fold.index}: trained {trained:.1f} min, "
               f"{history[-1]['step']} steps; on its {len(fold.validation)} held-out dances:")  # fmt: skip
         for goal in goals(results, beat_where_real=True):
@@ -82,7 +82,7 @@ def _seed_on_folds(
             varied.append(divs[0] / divs[1])
         style = results.get("style", {})
         styled += [(n, s["style"], s["named"]) for n, s in style.get("songs", {}).items() if n in style["counted"]]
-    pooled = held_out_following(pairs, "val")
+    pooled = held_out_following(pairs, "val", draw_seed=seed)
     energy = np.array(list(pooled.energy_ratios.values()))
     name = f"{model} seed {seed}"
     print(f"  [{name}] the {len(energy)} held-out dances of the {len(made)} folds together:")

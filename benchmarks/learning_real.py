@@ -123,13 +123,20 @@ def train_defaults(
     return history, (time.perf_counter() - started) / 60
 
 
-def score_split(run_dir: Path, dataset: Path, split: str, bootstrap: int) -> dict[str, Any]:
+def score_split(run_dir: Path, dataset: Path, split: str, bootstrap: int, seed: int) -> dict[str, Any]:
     """``evaluate`` as the goals read it: ``split``'s recordings on every protocol of :data:`PROTOCOLS`
-    with the baselines, ``bootstrap`` resamples for the intervals. The forward time on torch only: the
-    other engines' times are bench_model's; an ONNX export here would cost more than the rest of a
-    small run's evaluation."""
+    with the baselines, ``bootstrap`` resamples for the intervals, the turning and travel drawn with
+    the run's own ``seed`` (a seed stands for all of a recipe's chance: the weights and the draws).
+    The forward time on torch only: the other engines' times are bench_model's; an ONNX export here
+    would cost more than the rest of a small run's evaluation."""
     return evaluate(
-        run_dir, dataset, split, more_protocols=PROTOCOLS[1:], bootstrap=bootstrap, engines=[("torch", "float32")]
+        run_dir,
+        dataset,
+        split,
+        more_protocols=PROTOCOLS[1:],
+        bootstrap=bootstrap,
+        engines=[("torch", "float32")],
+        draw_seed=seed,
     )
 
 
@@ -154,7 +161,7 @@ def _score(
     goals themselves under ``goal_objects``, for :func:`across_seeds`)."""
     name = f"{model} seed {seed}"
     figure = curves(history, out / f"learning-real-{model}-seed{seed}.png", f"{model} on {corpus}, seed {seed}")
-    results = score_split(run_dir, dataset, "test", bootstrap)
+    results = score_split(run_dir, dataset, "test", bootstrap, seed)
     kept = next((r for r in history if r.get("kept")), history[-1])
     print(
         f"  [{name}] trained {trained:.1f} min, {history[-1]['step']} steps ({_per_minute(history, trained)} a "

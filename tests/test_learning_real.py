@@ -6,6 +6,7 @@ seeds."""
 from __future__ import annotations
 
 import json
+from pathlib import Path
 
 import pytest
 from conftest import REPO
@@ -44,6 +45,9 @@ def test_the_real_corpus_benchmark_prints_every_goal(tmp_path, monkeypatch, caps
             assert keys[-1] == ("e", "as varied as the music"), keys
             assert (tmp_path / "out" / f"learning-real-{model}-seed{seed}.png").is_file()
         assert f"[{model}] the goals over seeds 0, 1:" in printed
+    # each seed's dances are drawn with its own seed: its turning and travel too, not seed 0's
+    drawn = {(Path(r).parent.name, kw["draw_seed"]) for r, (_, kw, _) in evaluated.items()}
+    assert drawn == {("seed0", 0), ("seed1", 1)}
     assert "goals met in every seed:" in printed
     for model, shape in (("yalta", [2, 129, 5]), ("cdhc", [157])):  # spectra (or mel), the pulse; cdhc: the style
         built = json.loads((tmp_path / "out" / f"{model}_dataset" / "manifest.json").read_text())

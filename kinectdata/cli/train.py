@@ -471,6 +471,14 @@ def train_baseline(data, out, resume, paper, no_checksums, **options) -> None:
 @no_checksums_option
 @functools.partial(turning_options, seeded=False)
 @click.option(
+    "--seed",
+    default=0,
+    show_default=True,
+    type=click.INT,
+    help="Seed of the turning and travel drawn in every free run (each song's draws keyed by its music too): "
+    "score a run trained with --seed N on its own draws with --seed N.",
+)
+@click.option(
     "--style-tempo",
     default=None,
     type=click.FloatRange(0, 1, max_open=True),
@@ -479,7 +487,19 @@ def train_baseline(data, out, resume, paper, no_checksums, **options) -> None:
     "Default: the run's.",
 )
 def evaluate_command(
-    run_dir, data, split, out, silence, protocol, bootstrap, beats_per_bar, no_checksums, turning, travel, style_tempo
+    run_dir,
+    data,
+    split,
+    out,
+    silence,
+    protocol,
+    bootstrap,
+    beats_per_bar,
+    no_checksums,
+    turning,
+    travel,
+    seed,
+    style_tempo,
 ) -> None:
     """Score a run as the paper does: SMAPE (%) free-running without and with reset, on normalised
     and denormalised values; per-frame forward time; generated-against-real plots; the silence test;
@@ -501,6 +521,7 @@ def evaluate_command(
         turning=turning,
         travel=travel,
         style_tempo="run" if style_tempo is None else style_tempo,
+        draw_seed=seed,
     )
     click.echo(format_results(results))
 

@@ -233,6 +233,7 @@ def evaluate(
     travel: bool = True,
     tempo_rates: tuple[float, ...] | None = None,
     style_tempo: float | None | str = "run",
+    draw_seed: int = 0,
 ) -> dict[str, Any]:
     """Score a run on a dataset split; write ``results.json``, ``metrics.json`` (the field's table)
     and figures into ``out`` (default ``RUN/evaluation``); return the results. ``engines``: the
@@ -255,7 +256,12 @@ def evaluate(
     ``style_tempo``: the band within which a song is danced at its own tempo, and beyond which at its
     style's (:mod:`kinectdata.inference.style_tempo`): ``"run"``, the run's; None or 0, every song as
     it is (the network alone); a share (0.08), that band. It plays the split's songs and the tempo
-    control's; ``results["style_tempo"]`` says how and which songs were played faster or slower."""
+    control's; ``results["style_tempo"]`` says how and which songs were played faster or slower.
+    ``draw_seed``: the seed of the turning and travel drawn in every free run (each song's draws are
+    keyed by its music too, :func:`~kinectdata.inference.turning.song_generator`), which
+    ``results["draw_seed"]`` records: a model trained with another seed is scored on other draws by
+    giving it that seed, since the drawn turning and travel are as much a part of its dance as its
+    weights."""
     protocol = get_protocol(protocol) if isinstance(protocol, str) else protocol
     run, dataset = Path(run), Path(dataset)
     net, config = load_model(run)
@@ -276,7 +282,7 @@ def evaluate(
     recordings = split_recordings(dataset, manifest, split)
     if not recordings:
         raise KinectDataError(f"{dataset}: the {split} split holds no recording")
-    kind = with_turning(model_kind(model_name(config)), config)
+    kind = with_turning(model_kind(model_name(config)), config, seed=draw_seed)
     beats = split_beats(recordings, manifest, config["dataset"]["fps"])
     played = _tell_kind(kind, recordings, beats, manifest, config, beats_per_bar)
     for rec in recordings:  # the true first pose, masked values as the model's fill_previous says
@@ -294,6 +300,7 @@ def evaluate(
         "recordings": [r["name"] for r in recordings],
         "smape_zero_over_zero": 0.0,
         "turning": kind.describe() if isinstance(kind, TurnedKind) else None,
+        "draw_seed": int(draw_seed),
         "smoothing": smoothing_line(config),
         "style_tempo": {
             "band": run_style_tempo(config),
@@ -768,16 +775,18 @@ def split_songs(
     *,
     beats_per_bar: int | None = None,
     checksums: bool = True,
+    draw_seed: int = 0,
 ) -> SongSet:
     """The clean recordings of a dataset split as :class:`SongSet` for a network trained with
     ``run_config`` (a run's ``config.json``): e.g. to measure beat following during training.
     ``beats_per_bar``: the metre of the songs whose manifest entry does not give one (default:
-    estimated from the music)."""
+    estimated from the music). ``draw_seed``: :func:`evaluate`'s."""
     dataset = Path(dataset)
     manifest = read_manifest(dataset, checksums=checksums)
     recordings = split_recordings(dataset, manifest, split)
     beats = split_beats(recordings, manifest, run_config["dataset"]["fps"])
-    return _song_set(net, recordings, beats, manifest, run_config, beats_per_bar)
+    kind = with_turning(model_kind(model_name(run_config)), run_config, seed=draw_seed)
+    return _song_set(net, recordings, beats, manifest, run_config, beats_per_bar, kind)
 
 
 def listening_controls(
@@ -839,7 +848,7 @@ def format_results(results: dict[str, Any]) -> str:
         f"split {results['split']}: {len(results['recordings'])} recordings, free-running from the first true pose"
     ]
     if results.get("turning"):
-        lines.append(f"  {results['turning']}")
+        lines.append(f"  {results['turning']}; drawn with seed {results.get('draw_seed', 0)}")
     if results.get("smoothing", NOT_SMOOTHED) != NOT_SMOOTHED:
         lines.append(f"  the motion {results['smoothing']}")
     tempo = results.get("style_tempo") or {"line": AS_IT_IS, "played": {}}

@@ -45,6 +45,7 @@ def held_out_following(
     draws: int = 200,
     seed: int = 0,
     checksums: bool = True,
+    draw_seed: int = 0,
 ) -> PooledFollowing:
     """Generate each run's ``split`` songs from its dataset and read all of them together.
 
@@ -54,6 +55,7 @@ def held_out_following(
         draws: chance draws per recording.
         seed: the chance draws' seed.
         checksums: verify each dataset's shards first.
+        draw_seed: the seed of the turning and travel drawn in each free run (``evaluate``'s).
 
     Raises:
         KinectDataError: no run, a run or dataset that cannot be read, a split with no song, or a
@@ -65,7 +67,7 @@ def held_out_following(
     for run, dataset in runs:
         net, config = load_model(run)
         net.eval()
-        songs = split_songs(net, config, dataset, split, checksums=checksums)
+        songs = split_songs(net, config, dataset, split, checksums=checksums, draw_seed=draw_seed)
         if not songs.songs:
             raise KinectDataError(f"{dataset}: its {split} split has no song to score")
         motions = songs.generate_many([(s.features, s.first_pose) for s in songs.songs])

@@ -166,11 +166,18 @@ def test_evaluate_says_what_it_drew_and_no_turning_leaves_the_network_alone(cent
     assert "turning drawn" not in plain.output and "travel drawn at generation" in plain.output
     neither = CliRunner().invoke(main, [*args, "--out", str(tmp_path / "c"), "--no-turning", "--no-travel"])
     assert neither.exit_code == 0, neither.output
-    results = [json.loads((tmp_path / x / "results.json").read_text()) for x in "abc"]
+    seeded = CliRunner().invoke(main, [*args, "--out", str(tmp_path / "d"), "--seed", "1"])
+    assert seeded.exit_code == 0, seeded.output
+    assert "drawn with seed 0" in drawn.output and "drawn with seed 1" in seeded.output
+    results = [json.loads((tmp_path / x / "results.json").read_text()) for x in "abcd"]
     assert results[2]["turning"] is None and results[0]["turning"].startswith("turning drawn")
     assert "travel drawn" in results[0]["turning"]
     # heights are the network's either way; the horizontal places are not
     assert results[0]["smape"]["without_reset"] != results[2]["smape"]["without_reset"]
+    # another seed, other draws of the same network: other places, the same description
+    assert (results[0]["draw_seed"], results[3]["draw_seed"]) == (0, 1)
+    assert results[3]["turning"] == results[0]["turning"]
+    assert results[0]["smape"]["without_reset"] != results[3]["smape"]["without_reset"]
 
 
 def test_a_facing_run_dances_on_from_its_first_pose_whichever_way_that_pose_faces(centred_run, tmp_path):
