@@ -356,9 +356,12 @@ def beats_per_bar_option(help_text: str):
     return click.option("--beats-per-bar", default=None, type=click.IntRange(2, 12), help=help_text)
 
 
-def turning_options(f, seeded: bool = True):
-    """``--turning/--no-turning`` and ``--travel/--no-travel`` (default on) and, with ``seeded``,
-    ``--seed`` of their draws."""
+DRAWS_SEED_HELP = "Seed of the drawn turning and travel, and the draw of a phrase code (--latent-dims)."
+
+
+def turning_options(f, seed_help: str = DRAWS_SEED_HELP):
+    """``--turning/--no-turning`` and ``--travel/--no-travel`` (default on) and ``--seed`` of their
+    draws (``seed_help`` says what else it draws)."""
     f = click.option(
         "--travel/--no-travel",
         default=True,
@@ -373,15 +376,7 @@ def turning_options(f, seeded: bool = True):
         help="Draw the run's turning about the vertical, fitted on its training dancers (none for a run trained "
         "without it); --no-turning: the network's motion alone (smoothed, if the run smooths).",
     )(f)
-    if seeded:
-        f = click.option(
-            "--seed",
-            default=0,
-            show_default=True,
-            type=click.INT,
-            help="Seed of the drawn turning and travel, and the draw of a phrase code (--latent-dims).",
-        )(f)
-    return f
+    return click.option("--seed", default=0, show_default=True, type=click.INT, help=seed_help)(f)
 
 
 @click.command("train-baseline")
@@ -469,13 +464,9 @@ def train_baseline(data, out, resume, paper, no_checksums, **options) -> None:
     "from each song."
 )
 @no_checksums_option
-@functools.partial(turning_options, seeded=False)
-@click.option(
-    "--seed",
-    default=0,
-    show_default=True,
-    type=click.INT,
-    help="Seed of the turning and travel drawn in every free run (each song's draws keyed by its music too): "
+@functools.partial(
+    turning_options,
+    seed_help="Seed of the turning and travel drawn in every free run (each song's draws keyed by its music too): "
     "score a run trained with --seed N on its own draws with --seed N.",
 )
 @click.option(
