@@ -11,8 +11,9 @@ beats), with one trained network:
   one whose tempo differs most): the motion's period must follow the new song;
 - **noise**: the audio replaced by white noise of the song's loudness (RMS): beat following falls
   to its chance level;
-- **shifted**: the audio shifted against the motion by a random time (2 s or more, a fraction of
-  a beat off the grid): the Beat Align Score against the original beats falls to its chance level;
+- **shifted**: the audio shifted against the motion by whole beats (2 s or more) and a random
+  quarter to three quarters of a beat more (:func:`shift_frames`), so that its beats fall between the
+  original ones: the Beat Align Score against the original beats falls to its chance level;
 - **silence**: all-silent audio: the motion's energy against the energy with music (the paper's
   Figure 7: the motion stops);
 - **baselines** for the phase: the mean real pose with Gaussian noise of the real motion's
@@ -52,6 +53,9 @@ ALIVE_RANGE = (0.5, 2.0)
 SILENCE_STOPS = 0.1
 """Silence stops the motion when the energy under silence is below this fraction of the energy with music."""
 MIN_SHIFT_S = 2.0
+"""The shifted-audio control moves each song's music by at least this (seconds), then a fraction of a beat."""
+OFF_GRID = (0.25, 0.75)
+"""... that fraction of a beat: the shifted music's beats fall this far between the original ones."""
 TURNS_AT_ALL = 0.05
 """The real motion turns when turning is at least this share of its energy; below it the turning verdict is
 not asked."""
@@ -452,9 +456,7 @@ def listening_report(
             noisy.append((features_of(audio)[: len(s.features)], s.first_pose))
     rolled = []
     for s, rhythm in zip(songs, real.recordings):
-        frames = len(s.features)
-        shift = int(round((MIN_SHIFT_S + rng.uniform(0.25, 0.75) * rhythm.beat_period_s) * s.fps))
-        shift = shift % frames if frames > 2 * shift else max(1, frames // 3)
+        shift = shift_frames(len(s.features), rhythm.beat_period_s, s.fps, rng.uniform(*OFF_GRID))
         rolled.append((np.roll(s.features, shift, axis=0), s.first_pose))
     silent = [features_of(np.zeros(_samples_for(s, features_of), np.float32))[: len(s.features)] for s in songs]
     quiet = [(f, s.first_pose) for f, s in zip(silent, songs)]
@@ -576,6 +578,19 @@ def _period(song: HeldOutSong) -> float:
     from kinectdata.evaluation.rhythm import beat_period_s
 
     return beat_period_s(song.beats_s)
+
+
+def shift_frames(frames: int, beat_period_s: float, fps: float, fraction: float) -> int:
+    """How many frames the shifted-audio control rolls a song of ``frames`` frames by: whole beats
+    (``beat_period_s`` seconds each) to reach :data:`MIN_SHIFT_S`, at most a third of a song too short
+    for that, then ``fraction`` of a beat more (drawn from :data:`OFF_GRID`), so that the shifted
+    music's beats fall between the original ones. Two seconds alone are no whole number of beats: at
+    a beat of 0.72 s, 2 s and a quarter beat land 0.03 beat from the original grid, where a motion
+    that follows the shifted music also follows the original beats."""
+    whole = max(1, int(np.ceil(MIN_SHIFT_S / beat_period_s - 1e-9)))
+    if (whole + OFF_GRID[1]) * beat_period_s * fps * 2 >= frames:  # a short song: a third of it at most
+        whole = max(0, int((frames / 3 / fps) // beat_period_s) - 1)
+    return max(1, int(round((whole + fraction) * beat_period_s * fps)))
 
 
 def _swap_partners(songs: list[HeldOutSong], real: BeatFollowing, level: str) -> list[tuple[int, int]]:

@@ -9,7 +9,13 @@ import numpy as np
 import pytest
 from helpers import skip_unless_installed
 
-from kinectdata.evaluation.listening import HeldOutSong, listening_report, motion_energy_per_s
+from kinectdata.evaluation.listening import (
+    MIN_SHIFT_S,
+    HeldOutSong,
+    listening_report,
+    motion_energy_per_s,
+    shift_frames,
+)
 
 FPS = 30.0
 RATE = 1000  # audio samples per second of the fake feature extractor
@@ -261,3 +267,49 @@ def test_the_tempo_control_runs_on_songs_whose_music_is_given():
     assert "keeps time with the song at other tempi: not measured (the music of some songs could not be read)" in (
         "\n".join(without.verdicts())
     )
+
+
+@pytest.mark.parametrize("beat_s", np.linspace(0.3, 1.0, 36))
+def test_the_shifted_audio_lands_between_the_original_beats(beat_s):
+    frames = int(SECONDS * FPS)
+    for fraction in (0.25, 0.5, 0.75):
+        shift_s = shift_frames(frames, beat_s, FPS, fraction) / FPS
+        assert shift_s >= MIN_SHIFT_S
+        off = shift_s / beat_s % 1.0  # where the shifted beats fall between the original ones
+        assert fraction - 0.5 / FPS / beat_s - 1e-9 <= off <= fraction + 0.5 / FPS / beat_s + 1e-9
+    short = int(4 * beat_s * FPS)  # four beats: rolled by a third at most, still off the grid
+    shift = shift_frames(short, beat_s, FPS, 0.5)
+    assert 1 <= shift <= short / 3 + 1 and abs(shift / FPS / beat_s % 1.0 - 0.5) <= 0.5 / FPS / beat_s + 1e-9
+
+
+def stepper(features: np.ndarray, first_pose: np.ndarray) -> np.ndarray:
+    """Frames 1..T-1, every joint gliding along x and still once a beat, on each onset it hears (a
+    bounce would be still twice, at its bottom and its top)."""
+    onsets = np.flatnonzero(features[:, 0] > 0.5)
+    t = np.arange(len(features))
+    count = np.interp(t, onsets, np.arange(len(onsets))) if len(onsets) >= 2 else np.zeros(len(t))  # beats heard
+    x = 0.1 * (count - np.sin(2 * np.pi * count) / (2 * np.pi))  # speed 0.1 (1 - cos): still on each beat
+    pos = np.zeros((len(features), 6, 3))
+    pos[:, :, 0] = x[:, None] + np.arange(6) * 0.1
+    pos[:, :, 1] = np.arange(6) * 0.2
+    pos[:, :, 2] = 2.5
+    return pos[1:]
+
+
+def test_a_listener_at_tempi_that_two_seconds_do_not_divide_has_its_shifted_audio_at_chance():
+    # 2 s is 2.78 beats of 0.72 s, 5.56 of 0.36 s and 4.35 of 0.46 s: 2 s and a quarter to three
+    # quarters of a beat more could put the shifted beats back on the original ones
+    frames = int(SECONDS * FPS)
+    tempo_songs = []
+    for i, period in enumerate((0.72, 0.36, 0.46, 0.72, 0.36, 0.46)):
+        beats = np.arange(0.4, SECONDS - 0.5, period)
+        features = np.zeros((frames, 1))
+        features[np.round(beats * FPS).astype(int), 0] = 1.0
+        real = stepper(features, None)
+        tempo_songs.append(HeldOutSong(f"song{i}", features, real[0], real, None, beats[beats > 0.5], FPS, rms=0.1))
+    for seed in range(4):
+        result = listening_report(tempo_songs, stepper, features_of, seed=seed, draws=100)
+        assert result.generated.on_beat
+        own = {r.name: r.beat_align_music for r in result.generated.recordings}
+        assert all(r.beat_align_music < 0.5 * own[r.name] for r in result.shifted.recordings)
+        assert result.shifted_at_chance
