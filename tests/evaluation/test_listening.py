@@ -47,14 +47,17 @@ def features_of(samples: np.ndarray) -> np.ndarray:
 features_of.sample_rate = RATE
 
 
-def songs() -> list[HeldOutSong]:
+def songs(periods: tuple[float, ...] = PERIODS, dance=bounce) -> list[HeldOutSong]:
+    """A song per beat period (s): an onset on every beat in its features, its real motion made by
+    ``dance(lowest_frames, frames)`` on those beats."""
     out = []
     frames = int(SECONDS * FPS)
-    for i, period in enumerate(PERIODS):
+    for i, period in enumerate(periods):
         beats = np.arange(0.4, SECONDS, period)
+        beats = beats[np.round(beats * FPS) < frames]
         features = np.zeros((frames, 1))
         features[np.round(beats * FPS).astype(int), 0] = 1.0
-        real = bounce(beats * FPS, frames)
+        real = dance(beats * FPS, frames)
         out.append(HeldOutSong(f"song{i}", features, real[0], real, None, beats, FPS, rms=0.1))
     return out
 
@@ -282,33 +285,30 @@ def test_the_shifted_audio_lands_between_the_original_beats(beat_s):
     assert 1 <= shift <= short / 3 + 1 and abs(shift / FPS / beat_s % 1.0 - 0.5) <= 0.5 / FPS / beat_s + 1e-9
 
 
-def stepper(features: np.ndarray, first_pose: np.ndarray) -> np.ndarray:
-    """Frames 1..T-1, every joint gliding along x and still once a beat, on each onset it hears (a
-    bounce would be still twice, at its bottom and its top)."""
-    onsets = np.flatnonzero(features[:, 0] > 0.5)
-    t = np.arange(len(features))
-    count = np.interp(t, onsets, np.arange(len(onsets))) if len(onsets) >= 2 else np.zeros(len(t))  # beats heard
-    x = 0.1 * (count - np.sin(2 * np.pi * count) / (2 * np.pi))  # speed 0.1 (1 - cos): still on each beat
-    pos = np.zeros((len(features), 6, 3))
-    pos[:, :, 0] = x[:, None] + np.arange(6) * 0.1
-    pos[:, :, 1] = np.arange(6) * 0.2
+def glide(still_frames: np.ndarray, frames: int, joints: int = 6) -> np.ndarray:
+    """[frames, J, 3]: every joint gliding along x, still once a beat at the given frames (a bounce
+    is still twice, at its bottom and its top); still without them."""
+    count = np.zeros(frames)
+    if len(still_frames) >= 2:
+        count = np.interp(np.arange(frames), still_frames, np.arange(len(still_frames)))  # beats so far
+    pos = np.zeros((frames, joints, 3))
+    pos[:, :, 0] = 0.1 * (count - np.sin(2 * np.pi * count) / (2 * np.pi))[:, None] + np.arange(joints) * 0.1
+    pos[:, :, 1] = np.arange(joints) * 0.2
     pos[:, :, 2] = 2.5
-    return pos[1:]
+    return pos
+
+
+def glider(features: np.ndarray, first_pose: np.ndarray) -> np.ndarray:
+    """Frames 1..T-1, gliding and still on every onset it hears."""
+    return glide(np.flatnonzero(features[:, 0] > 0.5), len(features))[1:]
 
 
 def test_a_listener_at_tempi_that_two_seconds_do_not_divide_has_its_shifted_audio_at_chance():
     # 2 s is 2.78 beats of 0.72 s, 5.56 of 0.36 s and 4.35 of 0.46 s: 2 s and a quarter to three
     # quarters of a beat more could put the shifted beats back on the original ones
-    frames = int(SECONDS * FPS)
-    tempo_songs = []
-    for i, period in enumerate((0.72, 0.36, 0.46, 0.72, 0.36, 0.46)):
-        beats = np.arange(0.4, SECONDS - 0.5, period)
-        features = np.zeros((frames, 1))
-        features[np.round(beats * FPS).astype(int), 0] = 1.0
-        real = stepper(features, None)
-        tempo_songs.append(HeldOutSong(f"song{i}", features, real[0], real, None, beats[beats > 0.5], FPS, rms=0.1))
+    tempo_songs = songs((0.72, 0.36, 0.46, 0.72, 0.36, 0.46), dance=glide)
     for seed in range(4):
-        result = listening_report(tempo_songs, stepper, features_of, seed=seed, draws=100)
+        result = listening_report(tempo_songs, glider, features_of, seed=seed, draws=100)
         assert result.generated.on_beat
         own = {r.name: r.beat_align_music for r in result.generated.recordings}
         assert all(r.beat_align_music < 0.5 * own[r.name] for r in result.shifted.recordings)
