@@ -187,7 +187,8 @@ def goals(results: dict[str, Any], beat_where_real: bool = False) -> list[Goal]:
                 low=None if pairs is None else math.ceil(FOLLOWS_AT_LEAST * pairs - 1e-9),
                 shown=f"not measured: {listening.get('tempo_unavailable')}"
                 if tempo is None
-                else f"{tempo['followed']} of {pairs}",
+                else f"{tempo['followed']} of {pairs}"
+                + (f", stretched by {tempo['stretcher']}" if tempo.get("stretcher") else ""),
             ),  # fmt: skip
         ]
         note = _listening_note(listening)

@@ -95,7 +95,7 @@ class TempoControl:
             f"keeps time with the song at other tempi: {'yes' if self.keeps_time else 'no'} ({self.followed} of "
             f"{len(self.pairs)} pairs follow: the dance for the song at {rates}, warped back by the tempo, repeats "
             f"more like the dance at x1.00 than unwarped; chance half, p {p}; wanted at least "
-            f"{FOLLOWS_AT_LEAST:.0%})"
+            f"{FOLLOWS_AT_LEAST:.0%}; the songs stretched by {self.stretcher})"
         )
 
     def to_dict(self) -> dict[str, Any]:

@@ -61,6 +61,9 @@ def test_the_count_its_chance_and_the_verdict():
     assert control.followed == 12 and control.keeps_time
     assert control.p_value == pytest.approx(binomtest(12, 14, 0.5, alternative="greater").pvalue)
     assert "keeps time with the song at other tempi: yes (12 of 14 pairs follow" in control.verdict()
+    # which program stretched the songs is said: SoX and librosa's fallback move the pairs differently
+    assert control.verdict().endswith("the songs stretched by sox)")
+    assert TempoControl(pairs, (0.85, 1.18), "librosa").verdict().endswith("the songs stretched by librosa)")
     eleven = TempoControl(pairs[:11] + pairs[12:] + (TempoPair("x", 0.85, 0.1, 0.5),), (0.85, 1.18), "sox")
     assert eleven.followed == 11 and not eleven.keeps_time
     assert control.to_dict()["pairs"][0] == {"song": "s0", "rate": 1.18, "warped": 0.9, "unwarped": 0.5,
