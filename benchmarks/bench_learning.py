@@ -312,6 +312,12 @@ def main(argv: list[str] | None = None) -> None:
         help="with --corpus: train and score on K cross-validation folds of the dances outside the test split "
         "(--minutes per fold), to compare a recipe without the test split",
     )
+    parser.add_argument(
+        "--allow-librosa",
+        action="store_true",
+        help="with --corpus: run without SoX, the songs of the tempo control and the style tempo stretched by "
+        "librosa's phase vocoder (its figures differ from SoX's: docs/rhythm.md)",
+    )
     args = parser.parse_args(argv or [])
     if args.rescore and (args.corpus is None or args.out is None):
         parser.error("--rescore evaluates the runs of an earlier real-corpus benchmark: give --corpus and --out")
@@ -324,6 +330,8 @@ def main(argv: list[str] | None = None) -> None:
         parser.error(f"--seeds takes whole numbers separated by commas, not {args.seeds!r}")
     if not seeds:
         parser.error("--seeds names no seed")
+    if args.corpus is not None:
+        _require_sox(args.allow_librosa)
     torch.set_num_threads(2)
     if args.corpus is None:
         print("  real corpus: not run (--corpus tang2018 PATH: a local copy of Dance with Melody, docs/corpora.md)")
@@ -364,6 +372,24 @@ def main(argv: list[str] | None = None) -> None:
                     _headline(model, label, scored)
                     summary[f"{model} {name}: {label}"] = scored["results"]["listening"]
         (out / "learning.json").write_text(json.dumps(summary, indent=1, default=str))
+
+
+def _require_sox(allow_librosa: bool) -> None:
+    """Exit with one line unless the songs can be stretched by SoX (or, with ``allow_librosa``, by
+    librosa): the goals' tempo figures are SoX's, and librosa's fallback moved them on the same
+    network (docs/rhythm.md), so a run without SoX must say it is one."""
+    from kinectdata.align.stretch import available_stretcher
+
+    found = available_stretcher()
+    if found == "sox" or (found == "librosa" and allow_librosa):
+        return
+    if found is None:
+        why = "neither SoX nor librosa is installed (apt-get install sox)"
+    else:
+        why = ("SoX is not installed (apt-get install sox); --allow-librosa runs with librosa's phase vocoder "
+               "instead, whose tempo figures differ from SoX's")  # fmt: skip
+    print(f"bench_learning: the real corpus's tempo control stretches its songs with SoX: {why}", file=sys.stderr)
+    raise SystemExit(2)
 
 
 def _guard(minutes: float | None) -> float:

@@ -80,3 +80,29 @@ def test_without_a_corpus_the_real_benchmark_says_why_it_is_not_run(monkeypatch,
     with pytest.raises(SystemExit):
         bench.main(["--minutes", "0.01"])
     assert "real corpus: not run (--corpus tang2018 PATH" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize("allow", [False, True])
+def test_without_sox_the_real_benchmark_refuses_librosa_unless_allowed(tmp_path, monkeypatch, capsys, allow):
+    """The goals' tempo figures are SoX's; librosa's fallback moved them on the same network, so a run
+    without SoX stops with one line, or says it runs with librosa when told it may."""
+    monkeypatch.syspath_prepend(str(REPO))
+    pytest.importorskip("librosa")
+    import benchmarks.bench_learning as bench
+    import benchmarks.learning_real as real
+    import kinectdata.align.stretch as stretch
+
+    monkeypatch.setattr(stretch.shutil, "which", lambda name: None)
+    ran = []
+    monkeypatch.setattr(real, "run", lambda *a, **k: ran.append(a))
+    argv = ["--corpus", "tang2018", str(tmp_path)] + (["--allow-librosa"] if allow else [])
+    if allow:
+        bench.main(argv)
+        assert len(ran) == 1
+        return
+    with pytest.raises(SystemExit) as stopped:
+        bench.main(argv)
+    assert stopped.value.code == 2 and not ran
+    said = capsys.readouterr().err.strip().splitlines()
+    assert len(said) == 1, said
+    assert "SoX is not installed" in said[0] and "--allow-librosa" in said[0], said
