@@ -82,21 +82,23 @@ def test_without_a_corpus_the_real_benchmark_says_why_it_is_not_run(monkeypatch,
     assert "real corpus: not run (--corpus tang2018 PATH" in capsys.readouterr().out
 
 
-@pytest.mark.parametrize("allow", [False, True])
-def test_without_sox_the_real_benchmark_refuses_librosa_unless_allowed(tmp_path, monkeypatch, capsys, allow):
+STRETCHER_CASES = [("librosa", False, False), ("librosa", True, True), (None, True, False), ("sox", False, True)]
+
+
+@pytest.mark.parametrize("found, allow, runs", STRETCHER_CASES)
+def test_the_real_benchmark_stops_without_sox_unless_librosa_allowed(tmp_path, monkeypatch, capsys, found, allow, runs):
     """The goals' tempo figures are SoX's; librosa's fallback moved them on the same network, so a run
-    without SoX stops with one line, or says it runs with librosa when told it may."""
+    without SoX stops with one line, unless told it may run with librosa (goal c then names it)."""
     monkeypatch.syspath_prepend(str(REPO))
-    pytest.importorskip("librosa")
     import benchmarks.bench_learning as bench
     import benchmarks.learning_real as real
     import kinectdata.align.stretch as stretch
 
-    monkeypatch.setattr(stretch.shutil, "which", lambda name: None)
+    monkeypatch.setattr(stretch, "available_stretcher", lambda: found)
     ran = []
     monkeypatch.setattr(real, "run", lambda *a, **k: ran.append(a))
     argv = ["--corpus", "tang2018", str(tmp_path)] + (["--allow-librosa"] if allow else [])
-    if allow:
+    if runs:
         bench.main(argv)
         assert len(ran) == 1
         return
@@ -105,4 +107,5 @@ def test_without_sox_the_real_benchmark_refuses_librosa_unless_allowed(tmp_path,
     assert stopped.value.code == 2 and not ran
     said = capsys.readouterr().err.strip().splitlines()
     assert len(said) == 1, said
-    assert "SoX is not installed" in said[0] and "--allow-librosa" in said[0], said
+    assert said[0].startswith("bench_learning: ") and "apt-get install sox" in said[0], said
+    assert ("--allow-librosa" in said[0]) == (found == "librosa"), said
