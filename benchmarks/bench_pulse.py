@@ -6,8 +6,10 @@ verdicts are built on), for each ``harmonic_weight``: the share of frames at the
 at twice it and at half of it. Then the clocks of the levels above the beat (two beats, the bar and
 two bars in each song's metre, ``listen_to_dance_rhythm_bars``), from the tempogram's phase at their
 tempi and counted from the beat (``listen_to_dance_rhythm_counted``): how many times each turns per
-such span of librosa's beats (1: once a level). Skipped, with the reason, without
-``--corpus``.
+such span of librosa's beats (1: once a level). Last, for each ``beat_hold`` (``--holds``), how
+steady the pick is: the share of frames at librosa's beat, how often a minute the pick moves to
+another tempo, and the share of frames at which the beat's clock jumps (its turn that frame more than
+0.5 rad from its median turn). Skipped, with the reason, without ``--corpus``.
 """
 
 from __future__ import annotations
@@ -56,6 +58,8 @@ CLOCK_SETTLE_S = 12.0
 CLOCK_SPAN_S = 10.0
 """A song's clocks are read over at least this long after the settling (shorter songs are skipped)."""
 CLOCKS = {"tempogram": LISTEN_TO_DANCE_BAR_PULSE, "counted": LISTEN_TO_DANCE_COUNTED_PULSE}
+JUMP_RAD = 0.5
+"""A clock's turn in one frame this far (radians) from its median turn is a jump."""
 
 
 def level_clocks(samples: np.ndarray, beats_per_bar: int, beat: float) -> dict[str, np.ndarray] | None:
@@ -77,6 +81,44 @@ def level_clocks(samples: np.ndarray, beats_per_bar: int, beat: float) -> dict[s
         rates = np.array([np.polyfit(t, np.unwrap(np.arctan2(lv[:, 1], lv[:, 0])), 1)[0] for lv in levels])
         out[name] = rates / (2 * np.pi) * np.asarray(config.beat_multiples(beats_per_bar)) * beat
     return out
+
+
+def held_picks(samples: np.ndarray, beats_per_bar: int, bpm: float, holds: tuple[float, ...]) -> np.ndarray | None:
+    """[holds, 3] per ``beat_hold``: the share of frames whose beat is librosa's ``bpm`` (within 5 %),
+    the pick's moves to another tempo per minute, and the share of frames at which the beat's clock
+    (``listen_to_dance_rhythm_bars``) jumps (:data:`JUMP_RAD`), read after :data:`CLOCK_SETTLE_S`.
+    None for a song shorter than :data:`CLOCK_SETTLE_S` + :data:`CLOCK_SPAN_S`."""
+    if samples.size < (CLOCK_SETTLE_S + CLOCK_SPAN_S) * 16000:
+        return None
+    starts = (np.arange(int(CLOCK_SETTLE_S * 30), int(samples.size / 16000 * 30) - 1) * 16000 // 30).astype(np.int64)
+    rows = []
+    for hold in holds:
+        config = dataclasses.replace(LISTEN_TO_DANCE_BAR_PULSE, tempo_phases=False, beat_hold=hold)
+        feats, _ = rhythm_features(samples, starts, config, beats_per_bar=beats_per_bar)
+        beat = predominant_beat(feats[:, : config.n_tempi].astype(np.float64), config)
+        at_beat = np.mean(np.abs(np.log2(config.tempi_bpm[beat] / bpm)) < TOLERANCE)
+        moves = np.count_nonzero(np.diff(beat)) / (starts.size / 30 / 60)
+        beat_clock = feats[:, config.n_tempi : config.n_tempi + 2]  # the first level (the beat): cosine, sine
+        turn = np.angle(np.exp(1j * np.diff(np.arctan2(beat_clock[:, 1], beat_clock[:, 0]))))
+        off = np.abs(np.angle(np.exp(1j * (turn - np.median(turn)))))
+        rows.append((at_beat, moves, np.mean(off > JUMP_RAD)))
+    return np.asarray(rows)
+
+
+def report_holds(rows: list[np.ndarray | None], holds: tuple[float, ...]) -> None:
+    """Print the mean over songs of :func:`held_picks` for each hold."""
+    read = np.stack([r for r in rows if r is not None]) if any(r is not None for r in rows) else None
+    if read is None:
+        print("  no song long enough to read how steady the pick is")
+        return
+    print(f"  the beat held ({len(read)} songs, after the first {CLOCK_SETTLE_S:g} s):")
+    for i, hold in enumerate(holds):
+        at_beat, moves, jumps = read[:, i].mean(axis=0)
+        print(
+            f"  beat_hold {hold:g}: at librosa's beat in {at_beat:.0%} of the frames; the pick moves {moves:.0f} times "
+            f"a minute; the beat's clock jumps in {jumps:.1%} of the frames"
+        )
+        record("pulse", f"beat held {hold:g}", f"moves {moves:.0f} a minute, beat clock jumps in {jumps:.1%} of frames")
 
 
 def report_clocks(rows: list[tuple[str, int, dict[str, np.ndarray] | None]]) -> dict[str, np.ndarray]:
@@ -108,13 +150,13 @@ def report_clocks(rows: list[tuple[str, int, dict[str, np.ndarray] | None]]) -> 
     return result
 
 
-def run(corpus: str, path: Path, weights: tuple[float, ...]) -> dict[float, np.ndarray]:
+def run(corpus: str, path: Path, weights: tuple[float, ...], holds: tuple[float, ...] = ()) -> dict[float, np.ndarray]:
     manifest = prepare_corpus(corpus, path)
     songs = [e for e in manifest.recordings if e.split in ("train", "val") and e.audio]
     print(f"  {corpus}: {len(songs)} training and validation songs (the test songs are not looked at)")
     print("  song     librosa  " + "  ".join(f"weight {w:g}: beat / 2x / half" for w in weights))
     per_song = {w: [] for w in weights}
-    clock_rows = []
+    clock_rows, hold_rows = [], []
     for entry in songs:
         audio = load_audio(manifest.root / entry.audio).samples
         first = int(round(float(entry.offset) * 16000))
@@ -122,6 +164,8 @@ def run(corpus: str, path: Path, weights: tuple[float, ...]) -> dict[float, np.n
         bpm, shares = song_shares(segment, weights)
         metre = int(entry.beats_per_bar or 4)
         clock_rows.append((entry.name, metre, level_clocks(segment, metre, 60.0 / bpm)))
+        if holds:
+            hold_rows.append(held_picks(segment, metre, bpm, holds))
         for w in weights:
             per_song[w].append(shares[w])
         cells = "  ".join(f"{'':10s}{s[0]:.2f} / {s[1]:.2f} / {s[2]:.2f}" for s in shares.values())
@@ -142,6 +186,8 @@ def run(corpus: str, path: Path, weights: tuple[float, ...]) -> dict[float, np.n
             f"{m[0]:.0%} of frames (at twice it {m[1]:.0%})",
         )
     report_clocks(clock_rows)
+    if holds:
+        report_holds(hold_rows, holds)
     return means
 
 
@@ -149,12 +195,14 @@ def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(prog="python -m benchmarks.bench_pulse", description=__doc__.split("\n")[0])
     parser.add_argument("--corpus", nargs=2, metavar=("NAME", "PATH"), default=None)
     parser.add_argument("--weights", default="0,1", help="comma-separated harmonic weights to compare")
+    parser.add_argument("--holds", default="0,0.3", help="comma-separated beat holds to compare ('' for none)")
     args = parser.parse_args(argv or [])
     if args.corpus is None:
         print("  not run: needs --corpus tang2018 PATH (a local copy of Dance with Melody, docs/corpora.md)")
         return
     name, path = args.corpus
-    run(name, Path(path), tuple(float(w) for w in args.weights.split(",")))
+    holds = tuple(float(h) for h in args.holds.split(",") if h.strip())
+    run(name, Path(path), tuple(float(w) for w in args.weights.split(",")), holds)
 
 
 if __name__ == "__main__":

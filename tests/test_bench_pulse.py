@@ -24,6 +24,16 @@ def test_on_accented_eighth_notes_only_the_harmonic_weight_picks_the_beat(monkey
     assert shares[1.0][0] > 0.9 and shares[1.0][1] < 0.1, shares[1.0]
 
 
+def steady_clicks(bpm: float, seconds: float = 30.0, sr: int = 16000) -> np.ndarray:
+    """float32 audio: 5 ms 1.5 kHz clicks every 60 / bpm s from 0.3 s, in digital silence."""
+    audio = np.zeros(int(sr * seconds), np.float32)
+    burst = 0.5 * np.sin(2 * np.pi * 1500 * np.arange(80) / sr) * np.exp(-np.arange(80) / 20)
+    for t in np.arange(0.3, seconds, 60.0 / bpm):
+        i = int(round(t * sr))
+        audio[i : i + 80] += burst[: audio.size - i]
+    return audio
+
+
 def test_the_levels_clocks_where_every_beat_sounds_alike(monkeypatch):
     """Clicks at 120 BPM for 30 s, every beat alike, read as a song in 4 with its beat of 0.5 s:
     counted from the beat, the two beats, the bar and two bars turn once a level (within 2 %); the
@@ -32,15 +42,25 @@ def test_the_levels_clocks_where_every_beat_sounds_alike(monkeypatch):
     from benchmarks.bench_pulse import level_clocks
 
     sr, bpm = 16000, 120.0
-    audio = np.zeros(sr * 30, np.float32)
-    burst = 0.5 * np.sin(2 * np.pi * 1500 * np.arange(80) / sr) * np.exp(-np.arange(80) / 20)
-    for t in np.arange(0.3, 30.0, 60.0 / bpm):
-        i = int(round(t * sr))
-        audio[i : i + 80] += burst[: audio.size - i]
+    audio = steady_clicks(bpm)
     clocks = level_clocks(audio, 4, 60.0 / bpm)
     np.testing.assert_allclose(clocks["counted"], 1.0, atol=0.02)
     assert np.all(np.abs(clocks["tempogram"][2:]) < 0.25), clocks["tempogram"]
     assert level_clocks(audio[: sr * 15], 4, 60.0 / bpm) is None  # too short to read after the pulse settles
+
+
+def test_a_held_beat_on_a_steady_click_track(monkeypatch):
+    """Clicks at 120 BPM for 30 s: picked afresh or held, the beat is librosa's 120 BPM in nearly every
+    frame and the beat's clock never jumps; held, the pick moves no more often than afresh."""
+    monkeypatch.syspath_prepend(str(REPO))
+    from benchmarks.bench_pulse import held_picks
+
+    sr, bpm = 16000, 120.0
+    audio = steady_clicks(bpm)
+    rows = held_picks(audio, 4, bpm, (0.0, 0.3))
+    assert rows.shape == (2, 3) and np.all(rows[:, 0] > 0.95), rows
+    assert rows[1, 1] <= rows[0, 1] and np.all(rows[:, 2] < 0.01), rows
+    assert held_picks(audio[: sr * 15], 4, bpm, (0.0,)) is None
 
 
 def test_on_a_corpus_copy_it_looks_at_the_training_and_validation_songs_only(tmp_path, monkeypatch, capsys):
@@ -48,7 +68,7 @@ def test_on_a_corpus_copy_it_looks_at_the_training_and_validation_songs_only(tmp
     from benchmarks.bench_pulse import main, run
 
     corpus = make_tang2018_copy(tmp_path, seconds=8.0)
-    means = run("tang2018", corpus, (0.0, 1.0))
+    means = run("tang2018", corpus, (0.0, 1.0), (0.0, 0.3))
     printed = capsys.readouterr().out
     listed = [line.split()[0] for line in printed.splitlines() if "BPM" in line and "harmonic" not in line]
     assert sorted(listed) == ["C_6", "C_7", "R_4", "R_5", "W_4", "W_5", "W_6"], listed
@@ -56,5 +76,6 @@ def test_on_a_corpus_copy_it_looks_at_the_training_and_validation_songs_only(tmp
         assert np.all(shares >= 0) and shares.sum() <= 1 + 1e-9
     assert "at the music's beat most often: harmonic weight" in printed
     assert "C_6      4 beats not read: shorter than 22 s" in printed  # the 8-s copies
+    assert "no song long enough to read how steady the pick is" in printed
     main([])
     assert "not run: needs --corpus tang2018 PATH" in capsys.readouterr().out

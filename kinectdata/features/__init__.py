@@ -222,8 +222,8 @@ def compute_features(
 
 def feature_state(config: FeatureConfig, live: bool = False) -> Any:
     """A fresh state for a stream of :func:`compute_features` calls over consecutive frames, or None
-    when every frame's features depend on its own samples alone (all but the pulse's counted levels:
-    :class:`~kinectdata.features.rhythm.PulseCount`). ``live``: calls a frame or two apart, which may
+    when every frame's features depend on its own samples alone (all but the pulse's counted levels
+    and held beat: :class:`~kinectdata.features.rhythm.PulseCount`). ``live``: calls a frame or two apart, which may
     keep what one call computed for the next (the pulse's onset spectra) without changing the output."""
     new_state = getattr(config, "new_state", None)
     if new_state is None:

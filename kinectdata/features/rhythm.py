@@ -30,7 +30,13 @@ on that corpus's songs; dB-scaled features 0.7-0.8). So the pulse is computed, c
    it lies above ``tempo_range_bpm``): a Fourier tempogram peaks at the beat's multiples too (the
    eighth notes): on the 36 training and validation songs of Dance with Melody the pick without it
    was at librosa's beat in 45 % of the frames and at twice it in 38 %; with h = 1, at it in 69 %,
-   at twice it in none, at half of it in 14 % (``python -m benchmarks.bench_pulse``). For each
+   at twice it in none, at half of it in 14 % (``python -m benchmarks.bench_pulse``). Picked afresh
+   at every frame, the beat flickers between neighbouring tempi whose scores are near a tie (on
+   those songs, after the first 12 s, it moves to another tempo 71 times a minute), and the levels'
+   clocks, read at the new tempo's phase, jump with it (the beat's clock turns more than 0.5 rad off
+   its median turn in 4.0 % of the frames); with ``beat_hold`` b > 0 the beat of the frame before is
+   kept unless another tempo's score is more than 1 + b times its own (b = 0.3: 11 moves a minute,
+   1.4 % of the frames, at librosa's beat in 72 % of the frames instead of 70 %). For each
    level m (1 the beat, 2 two beats, 3 and 4 a bar of 3 or 4 beats...) the pulse of the tempo
    nearest the beat's tempo / m gives ``s* cos(arg T)``, ``s* sin(arg T)``, s* the beat's salience:
    a clock at the song's own beat and bar whatever its tempo, which a network can read without
@@ -56,10 +62,10 @@ on that corpus's songs; dB-scaled features 0.7-0.8). So the pulse is computed, c
    a clock that turns once a bar at the song's tempo whatever the downbeats sound like (on the same
    songs 1.00 times a bar, median, within 5 % in 24 of 36; 6 waltzes at half, their beat picked at
    half librosa's). Where the bar starts is unknown (the count starts at the first frame), so it is
-   a clock at the bar's rate, not the downbeat's. This is the one
-   output that depends on every earlier frame, not only on the frame's own samples: the frames must
+   a clock at the bar's rate, not the downbeat's. The counted levels and a held beat are the
+   outputs that depend on every earlier frame, not only on the frame's own samples: the frames must
    be given in time order, each less than half a beat after the one before (consecutive motion
-   frames), and a stream carries the count from call to call (:class:`PulseCount`).
+   frames), and a stream carries the count and the held beat from call to call (:class:`PulseCount`).
 
 Output per motion frame: ``[3 * n_tempi + 2 * L]`` values in -1..1, L the levels and bar levels
 (tempo by tempo: salience, cosine, sine; then level by level: cosine, sine; with ``tempo_phases``
@@ -123,6 +129,9 @@ class RhythmConfig:
             all of them).
         harmonic_weight: the share of the salience at twice a tempo added to its own when the beat
             is picked (module docstring, step 4); 0: none.
+        beat_hold: the beat picked at a frame is kept at the next unless another tempo's score
+            exceeds its score by more than this share (module docstring, step 4); 0: picked afresh at
+            every frame. Needs levels or bar levels.
         tempo_phases: each tempo's ``s cos``, ``s sin`` after its salience (step 3); False: the
             saliences alone, so that the only clocks in the output are the levels' (a network given a
             fixed tempo's phase can keep time at that tempo whatever it hears).
@@ -164,6 +173,7 @@ class RhythmConfig:
     bar_levels: tuple[int, ...] = ()
     beat_range_bpm: tuple[float, float] | None = None
     harmonic_weight: float = 0.0
+    beat_hold: float = 0.0
     tempo_phases: bool = True
     saliences: bool = True
     counted_levels: bool = False
@@ -206,6 +216,15 @@ class RhythmConfig:
         if not float(self.harmonic_weight) >= 0:
             raise ConfigError(f"rhythm features: harmonic_weight must be at least 0, got {self.harmonic_weight!r}")
         object.__setattr__(self, "harmonic_weight", float(self.harmonic_weight))
+        try:
+            hold = float("nan") if isinstance(self.beat_hold, bool) else float(self.beat_hold)
+        except (TypeError, ValueError):
+            hold = float("nan")
+        if not 0 <= hold < float("inf"):
+            raise ConfigError(f"rhythm features: beat_hold must be a finite number at least 0, got {self.beat_hold!r}")
+        object.__setattr__(self, "beat_hold", float(self.beat_hold))
+        if self.beat_hold and not (self.levels or self.bar_levels):
+            raise ConfigError("rhythm features: beat_hold holds the levels' beat: give levels or bar_levels")
         for name in ("tempo_phases", "saliences", "counted_levels", "unit_levels"):
             if not isinstance(getattr(self, name), bool):
                 raise ConfigError(f"rhythm features: {name} must be true or false, got {getattr(self, name)!r}")
@@ -248,12 +267,18 @@ class RhythmConfig:
         return bool(self.bar_levels)
 
     def new_state(self, live: bool = False) -> PulseCount | None:
-        """A fresh count for a stream of calls (:class:`PulseCount`), or None without counted levels;
-        ``live``: a stream of a frame or two per call, which keeps the onset spectra it computed
-        (:class:`OnsetSpectra`: the same output, a fraction of the work)."""
+        """A fresh count for a stream of calls (:class:`PulseCount`), or None without counted levels
+        or a held beat; ``live``: a stream of a frame or two per call, which keeps the onset spectra
+        it computed (:class:`OnsetSpectra`: the same output, a fraction of the work)."""
         if live:
             return PulseCount(spectra=OnsetSpectra())
-        return PulseCount() if self.counted_levels else None
+        return PulseCount() if self.follows_earlier_frames else None
+
+    @property
+    def follows_earlier_frames(self) -> bool:
+        """True when a frame's values depend on the frames before it (counted levels, a held beat):
+        frames must then come in time order, and a stream carries a :class:`PulseCount`."""
+        return self.counted_levels or (self.beat_hold > 0 and bool(self.levels or self.bar_levels))
 
     def beat_multiples(self, beats_per_bar: int) -> tuple[int, ...]:
         """Every output level in beats: ``levels``, then ``bar_levels`` x ``beats_per_bar``."""
@@ -298,9 +323,9 @@ class RhythmConfig:
 
     def to_dict(self) -> dict[str, Any]:
         """A JSON-able dict of every field, with ``"extractor": "rhythm"``; without ``bar_levels``
-        when there are none, ``counted_levels`` and ``unit_levels`` when false, ``planes`` when None
-        and ``saliences`` when true, as before they existed (so a dataset built then keeps its build
-        key, and its runs their features)."""
+        when there are none, ``counted_levels`` and ``unit_levels`` when false, ``beat_hold`` when 0,
+        ``planes`` when None and ``saliences`` when true, as before they existed (so a dataset built
+        then keeps its build key, and its runs their features)."""
         d = config_to_dict(self)
         for name in _ADDED_LATER:
             if getattr(self, name) == _DEFAULTS[name]:
@@ -313,7 +338,7 @@ class RhythmConfig:
         return config_from_dict(cls, d, "a rhythm")
 
 
-_ADDED_LATER = ("bar_levels", "counted_levels", "saliences", "unit_levels", "planes")
+_ADDED_LATER = ("bar_levels", "beat_hold", "counted_levels", "saliences", "unit_levels", "planes")
 """Fields added after datasets were built: a config's dict leaves each out at its default."""
 _DEFAULTS = {f.name: f.default for f in fields(RhythmConfig)}
 
@@ -426,11 +451,10 @@ def _pulse_values(
     starts: np.ndarray,
     phase: int,
     config: RhythmConfig,
-    beats_per_bar: int,
     spectra: OnsetSpectra | None = None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The values [F, c, V] of frames ``starts`` whose last instants lie at ``phase`` modulo the hop,
-    with every tempo's salience and phase [F, c, K] (for the counted levels)."""
+    """The tempi's values [F, c, V] (no levels: :func:`_level_values` adds them) of frames ``starts``
+    whose last instants lie at ``phase`` modulo the hop, with every tempo's salience and phase [F, c, K]."""
     hop = config.hop_samples
     need = int(starts.min()) - config.history
     first = need - (need - phase) % hop  # at or before what the frames need, on their grid
@@ -458,8 +482,6 @@ def _pulse_values(
         values = values.reshape(*values.shape[:2], -1)
     else:
         values = salience
-    if config.levels or config.bar_levels:
-        values = np.concatenate([values, _level_values(salience, angle, config, beats_per_bar)], axis=-1)
     return values, salience, angle
 
 
@@ -484,32 +506,47 @@ def _level_tempi(config: RhythmConfig, beats_per_bar: int = 4) -> tuple[np.ndarr
     return candidates, log_prior, nearest, double
 
 
-def _beat_candidate(salience: np.ndarray, config: RhythmConfig) -> np.ndarray:
-    """[...] the beat's index into :func:`_level_tempi`'s candidates (see :func:`predominant_beat`)."""
+def _beat_candidate(salience: np.ndarray, config: RhythmConfig, count: PulseCount | None = None) -> np.ndarray:
+    """[...] the beat's index into :func:`_level_tempi`'s candidates (see :func:`predominant_beat`);
+    with ``config.beat_hold``, ``salience`` is [F, K] of consecutive frames and ``count`` (advanced
+    here; None: a fresh one) holds the beat from the frame before."""
     candidates, log_prior, _, double = _level_tempi(config)
     support = salience[..., candidates]
     if config.harmonic_weight > 0:
         support = support + config.harmonic_weight * np.where(double >= 0, salience[..., double], 0.0)
-    return (support * np.exp(log_prior)).argmax(axis=-1)
+    score = support * np.exp(log_prior)
+    best = score.argmax(axis=-1)
+    if config.beat_hold == 0 or best.size == 0:
+        return best
+    count = PulseCount() if count is None else count
+    held = int(best[0]) if count.beat is None else count.beat
+    keep = 1.0 + config.beat_hold
+    for frame, (top, row) in enumerate(zip(best, score)):  # sequential: each frame holds the one before's
+        if row[top] > keep * row[held]:
+            held = int(top)
+        best[frame] = held
+    count.beat = held
+    return best
 
 
 def predominant_beat(salience: np.ndarray, config: RhythmConfig) -> np.ndarray:
     """The beat's tempo index (into ``config.tempi_bpm``) [...] from the saliences [..., n_tempi] of
     every tempo: among ``beat_range_bpm``, the greatest salience (plus ``harmonic_weight`` x the
-    salience at twice the tempo) times the log-normal prior (module docstring, step 4)."""
+    salience at twice the tempo) times the log-normal prior (module docstring, step 4); with
+    ``beat_hold``, of consecutive frames [F, n_tempi], each frame's beat held from the one before."""
     return _level_tempi(config)[0][_beat_candidate(salience, config)]
 
 
-def _level_values(salience: np.ndarray, angle: np.ndarray, config: RhythmConfig, beats_per_bar: int) -> np.ndarray:
-    """[F, c, 2 L] the predominant pulse's phasor at each metrical level (module docstring, step 4)
-    from the saliences and phases [F, c, K] of every tempo."""
+def _level_values(
+    salience: np.ndarray, angle: np.ndarray, best: np.ndarray, config: RhythmConfig, beats_per_bar: int
+) -> np.ndarray:
+    """[F, 2 L] the predominant pulse's phasor at each metrical level (module docstring, step 4)
+    from the saliences and phases [F, K] of every tempo and the beat [F] (:func:`_beat_candidate`)."""
     candidates, _, nearest, _ = _level_tempi(config, beats_per_bar)
-    best = _beat_candidate(salience, config)  # [F, c]
-    amplitude = _clock_amplitude(np.take_along_axis(salience, candidates[best][..., None], axis=-1), config)
-    at = nearest[best]  # [F, c, levels]: the tempo of each level
-    phase = np.take_along_axis(angle, at, axis=-1)
-    out = np.stack([amplitude * np.cos(phase), amplitude * np.sin(phase)], axis=-1)  # [F, c, levels, 2]
-    return out.reshape(*out.shape[:2], -1)
+    amplitude = _clock_amplitude(np.take_along_axis(salience, candidates[best][:, None], axis=-1), config)
+    phase = np.take_along_axis(angle, nearest[best], axis=-1)  # [F, levels]: at the tempo of each level
+    out = np.stack([amplitude * np.cos(phase), amplitude * np.sin(phase)], axis=-1)  # [F, levels, 2]
+    return out.reshape(out.shape[0], -1)
 
 
 def _clock_amplitude(beat_salience: np.ndarray, config: RhythmConfig) -> np.ndarray:
@@ -527,12 +564,15 @@ class PulseCount:
     Attributes:
         angles: [n_tempi] every tempo's phase at the last frame, radians (None before the first frame).
         phase: the beat's phase summed since the first frame, radians.
+        beat: the beat held at the last frame (``beat_hold``), an index into the beat's candidate
+            tempi (None before the first frame).
         spectra: the onset spectra already computed (:class:`OnsetSpectra`), for a stream of calls a
             frame or two apart (live), whose pieces of audio overlap by seconds; None: none kept.
     """
 
     angles: np.ndarray | None = None
     phase: float = 0.0
+    beat: int | None = None
     spectra: OnsetSpectra | None = None
 
 
@@ -595,12 +635,12 @@ class OnsetSpectra:
 
 
 def _counted_levels(
-    salience: np.ndarray, angle: np.ndarray, config: RhythmConfig, beats_per_bar: int, count: PulseCount
-) -> np.ndarray:
+    salience: np.ndarray, angle: np.ndarray, best: np.ndarray, config: RhythmConfig, beats_per_bar: int,
+    count: PulseCount,
+) -> np.ndarray:  # fmt: skip
     """[F, L, 2] every level's phasor from the beat's counted phase, from the saliences and phases
-    [F, K] of consecutive frames; advances ``count``."""
+    [F, K] of consecutive frames and their beat [F] (:func:`_beat_candidate`); advances ``count``."""
     candidates, _, _, _ = _level_tempi(config, beats_per_bar)
-    best = _beat_candidate(salience, config)
     beat = candidates[best]  # [F] the beat's tempo index per frame
     rows = np.arange(beat.size)
     now = angle[rows, beat]
@@ -642,7 +682,7 @@ def rhythm_features(
     metre = DEFAULT_BEATS_PER_BAR if beats_per_bar is None else int(beats_per_bar)
     if metre < 1:
         raise ConfigError(f"rhythm features: beats_per_bar must be at least 1, got {beats_per_bar!r}")
-    if config.counted_levels and state is None:
+    if config.follows_earlier_frames and state is None:
         state = PulseCount()
     x = np.asarray(samples, np.float32)
     starts = np.asarray(starts, np.int64)
@@ -658,19 +698,22 @@ def rhythm_features(
         # depend on its own samples only, not on where the audio passed in begins (streamed audio
         # arrives in a buffer that starts anywhere): one onset envelope per phase of that grid.
         phase = (block + last_instant) % hop
-        values = np.empty((block.size, config.instants.size, config.values_per_instant))
+        n_levels = len(config.beat_multiples(metre))
+        values = np.empty((block.size, config.instants.size, config.values_per_instant - 2 * n_levels))
         salience = np.empty((block.size, config.instants.size, config.n_tempi))
         angle = np.empty_like(salience)
         for p in np.unique(phase):
             rows = np.flatnonzero(phase == p)
             values[rows], salience[rows], angle[rows] = _pulse_values(
-                x, block[rows], int(p), config, metre, None if state is None else state.spectra
+                x, block[rows], int(p), config, None if state is None else state.spectra
             )
-        if config.counted_levels:  # above the beat (the beat keeps its own phase)
-            above = np.asarray(config.beat_multiples(metre)) > 1
-            levels = values[:, 0, -2 * above.size :].reshape(block.size, above.size, 2)
-            levels[:, above] = _counted_levels(salience[:, 0], angle[:, 0], config, metre, state)[:, above]
-            values[:, 0, -2 * above.size :] = levels.reshape(block.size, -1)
+        if n_levels:  # levels have the vector layout: one instant per frame
+            best = _beat_candidate(salience[:, 0], config, state)  # in time order, for a held beat
+            levels = _level_values(salience[:, 0], angle[:, 0], best, config, metre).reshape(block.size, n_levels, 2)
+            if config.counted_levels:  # above the beat (the beat keeps its own phase)
+                above = np.asarray(config.beat_multiples(metre)) > 1
+                levels[:, above] = _counted_levels(salience[:, 0], angle[:, 0], best, config, metre, state)[:, above]
+            values = np.concatenate([values, levels.reshape(block.size, 1, -1)], axis=-1)
         if config.columns:
             out[c0 : c0 + block.size, 0] = np.transpose(values, (0, 2, 1))
         elif config.planes:

@@ -24,7 +24,7 @@ from kinectdata.features import (
     feature_config,
     needs_metre,
 )
-from kinectdata.features.rhythm import onset_envelope, rhythm_features
+from kinectdata.features.rhythm import onset_envelope, predominant_beat, rhythm_features
 from kinectdata.features.streaming import StreamingFeatures
 
 librosa = pytest.importorskip("librosa")
@@ -208,17 +208,19 @@ def accented_bars(
     return x.astype(np.float32), beats[::beats_per_bar]
 
 
+@pytest.mark.parametrize("hold", [0.0, 0.3])
 @pytest.mark.parametrize("bpm", [100.0, 150.0])
-def test_the_predominant_pulse_turns_at_the_beat_and_at_its_bar(bpm):
+def test_the_predominant_pulse_turns_at_the_beat_and_at_its_bar(bpm, hold):
     """Bars of 4 at 100 and 150 BPM, downbeats louder across the spectrum: the levels' phasors
     (after the 65 tempi) turn at the beat rate, half and a quarter of it (the slope of the unwrapped
     phase against time, fitted by numpy, within half the tempo grid's spacing, 2.2 %), with the
     beat's salience as their length; the bar's phase is 2 pi (bar rate) (time since the downbeat)
     to within 0.4 rad (the onset is seen a few hops after the burst begins, and the grid's tempo
-    nearest the bar's, up to 2.2 % off, turns up to 0.14 rad away from it over a bar)."""
+    nearest the bar's, up to 2.2 % off, turns up to 0.14 rad away from it over a bar). The same with
+    the beat held (``beat_hold``) where the tempo is steady."""
     audio, downbeats = accented_bars(bpm)
     starts = frame_starts(audio.size)
-    feats, _ = rhythm_features(audio, starts, LEVELS)
+    feats, _ = rhythm_features(audio, starts, dataclasses.replace(LEVELS, beat_hold=hold))
     assert feats.shape == (starts.size, 3 * 65 + 2 * 3)
     late = np.flatnonzero(starts / SR > 14.0)
     t = (starts[late] + LEVELS.slice_samples) / SR
@@ -277,16 +279,21 @@ def test_the_metre_reaches_the_pulse_through_stacks_and_streams():
     waltz, _ = compute_features(audio, starts, config, beats_per_bar=3)
     np.testing.assert_array_equal(waltz[:, 80:], rhythm_features(audio, starts, BAR_LEVELS, beats_per_bar=3)[0])
     assert not np.array_equal(waltz, compute_features(audio, starts, config, beats_per_bar=4)[0])
-    got = np.full_like(waltz, np.nan)
+    np.testing.assert_allclose(streamed(audio, starts, config, 16001, beats_per_bar=3), waltz, rtol=0, atol=1e-6)
+
+
+def streamed(audio: np.ndarray, starts: np.ndarray, config, block: int, beats_per_bar: int | None = None) -> np.ndarray:
+    """The features of ``starts`` from a StreamingFeatures pushed ``audio`` ``block`` samples at a time."""
+    got = np.full((starts.size, *config.output_shape), np.nan, np.float32)
 
     def sink(k0, feats, pad):
         got[k0 : k0 + len(feats)] = feats
 
-    stream = StreamingFeatures(starts, config, sink, beats_per_bar=3)
-    for i in range(0, audio.size, 16001):
-        stream.push(audio[i : i + 16001])
+    stream = StreamingFeatures(starts, config, sink, beats_per_bar=beats_per_bar)
+    for i in range(0, audio.size, block):
+        stream.push(audio[i : i + block])
     stream.finish()
-    np.testing.assert_allclose(got, waltz, rtol=0, atol=1e-6)
+    return got
 
 
 COUNTED = dataclasses.replace(BAR_LEVELS, levels=(1, 2), counted_levels=True)
@@ -351,6 +358,41 @@ def test_the_harmonic_weight_picks_the_beat_where_its_eighth_notes_are_more_sali
         phase = np.arctan2(feats[late, 196], feats[late, 195])
         turns_per_s = np.polyfit(t, np.unwrap(phase), 1)[0] / (2 * np.pi)
         assert abs(turns_per_s / (beat_bpm / 60) - 1) < spacing / 2 + 1e-3, (weight, turns_per_s)
+
+
+def test_a_held_beat_changes_only_when_another_tempo_is_clearly_ahead():
+    """Saliences made by hand at two neighbouring tempi, their scores (salience x the prior
+    exp(-log2(bpm / 120)^2 / 2), computed here) in the ratios ``ratio``: picked afresh, the beat
+    follows every frame's greater score; held with a margin of 0.3, it moves to the other tempo only
+    where that one's score is more than 1.3 x its own (frame 5: 1.31; back at frame 8: 1 / 0.76)."""
+    config = dataclasses.replace(LEVELS, harmonic_weight=0.0)
+    tempi = config.tempi_bpm
+    a, b = int(np.argmin(np.abs(tempi - 120.0))), int(np.argmin(np.abs(tempi - 120.0))) + 1
+    prior = np.exp(-0.5 * np.log2(tempi / 120.0) ** 2)
+    ratio = np.array([0.9, 1.1, 0.95, 1.2, 1.29, 1.31, 0.99, 0.8, 0.76, 0.7])
+    salience = np.zeros((ratio.size, tempi.size))
+    salience[:, a] = 0.4 / prior[a]
+    salience[:, b] = 0.4 * ratio / prior[b]
+    fresh = predominant_beat(salience, config)
+    np.testing.assert_array_equal(fresh, np.where(ratio > 1, b, a))
+    held = predominant_beat(salience, dataclasses.replace(config, beat_hold=0.3))
+    np.testing.assert_array_equal(held, [a, a, a, a, a, b, b, b, a, a])
+
+
+def test_a_held_beat_moves_only_the_levels_and_streams_as_one_call():
+    """Onsets with a loose pulse: holding the beat leaves every tempo's values as they were, changes
+    the levels' clocks where the pick would have flickered between tempi, and its hold runs on
+    across chunks and across the calls of a stream as in one call over every frame."""
+    config = dataclasses.replace(BAR_LEVELS, beat_hold=0.3, harmonic_weight=1.0)
+    audio = random_clicks(20.0, seed=5)
+    starts = frame_starts(audio.size)
+    fresh, _ = rhythm_features(audio, starts, dataclasses.replace(config, beat_hold=0.0), beats_per_bar=3)
+    held, _ = rhythm_features(audio, starts, config, beats_per_bar=3)
+    np.testing.assert_array_equal(held[:, :195], fresh[:, :195])
+    assert np.any(np.abs(held[:, 195:] - fresh[:, 195:]) > 0.1)
+    chunked, _ = rhythm_features(audio, starts, config, beats_per_bar=3, chunk_frames=97)
+    np.testing.assert_allclose(chunked, held, rtol=0, atol=1e-5)
+    np.testing.assert_allclose(streamed(audio, starts, config, 7001, beats_per_bar=3), held, rtol=0, atol=1e-6)
 
 
 def test_without_the_tempo_phases_a_frame_is_the_saliences_then_the_levels():
@@ -442,8 +484,9 @@ def test_the_predominant_pulse_is_zero_in_silence_and_its_settings_round_trip():
     assert np.all(feats[starts / SR > 8.0 + LEVELS.window_s + 1.0, 195:] == 0.0)
     assert np.abs(feats[(starts / SR > 5.0) & (starts / SR < 7.5), 195:]).max() > 0.9
     assert RhythmConfig.from_dict(json.loads(json.dumps(LEVELS.to_dict()))) == LEVELS
-    halved = dataclasses.replace(LEVELS, harmonic_weight=0.5)
+    halved = dataclasses.replace(LEVELS, harmonic_weight=0.5, beat_hold=0.3)
     assert RhythmConfig.from_dict(json.loads(json.dumps(halved.to_dict()))) == halved
+    assert "beat_hold" not in LEVELS.to_dict() and halved.to_dict()["beat_hold"] == 0.3
     assert LEVELS.output_shape == (201,) and RhythmConfig().levels == ()
 
 
@@ -625,6 +668,10 @@ def test_rhythm_config_round_trip_and_dispatch():
         ({"beat_range_bpm": (30.0, 200.0)}, r"beat_range_bpm \(30, 200\) must be a range within tempo_range_bpm"),
         ({"levels": (1, 2), "columns": 5}, "levels are for the vector layout"),
         ({"harmonic_weight": -0.5}, "harmonic_weight must be at least 0"),
+        ({"levels": (1,), "beat_hold": -0.1}, "beat_hold must be a finite number at least 0"),
+        ({"levels": (1,), "beat_hold": "some"}, "beat_hold must be a finite number at least 0"),
+        ({"levels": (1,), "beat_hold": float("inf")}, "beat_hold must be a finite number at least 0"),
+        ({"beat_hold": 0.3}, "beat_hold holds the levels' beat: give levels or bar_levels"),
         ({"tempo_phases": "no"}, "tempo_phases must be true or false"),
         ({"levels": (1,), "counted_levels": 1}, "counted_levels must be true or false"),
         ({"counted_levels": True}, "counted_levels counts the levels: give levels or bar_levels"),
