@@ -242,12 +242,15 @@ def goals(results: dict[str, Any], beat_where_real: bool = False) -> list[Goal]:
 def _styles_named(style: dict[str, Any]) -> str:
     """Each dance's song style and the style named, with the style heard where the run heard another
     (:class:`~kinectdata.evaluation.style.StyleReport`): a run that dances what it hears names no
-    more songs right than it hears."""
+    more songs right than it hears; and how many of the songs' real dances are named right (the
+    figure a run that danced as the dancers did would reach)."""
     songs, heard = style.get("songs", {}), style.get("heard", {})
     named = ", ".join(
         f"{n} {s['style']} -> {s['named']}" + (f" (heard {heard[n]})" if heard.get(n, s["style"]) != s["style"] else "")
         for n, s in songs.items()
     )
+    if style.get("real_right") is not None:
+        named += f"; the real dances of these songs named right in {style['real_right']} of {len(style['counted'])}"
     if style.get("hearing"):
         named += f"; {style['hearing']}"
     return named

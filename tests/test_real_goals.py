@@ -143,6 +143,9 @@ def test_goal_e_tells_the_style_heard_from_the_style_danced(real_goals):
     r["style"].update(heard={}, hearing="")  # a run that hears no style
     e = next(g for g in real_goals.goals(r) if g.key == "e")
     assert e.note.endswith("T_5 tango -> waltz")
+    r["style"]["real_right"] = 3  # the songs' real dances, named by the same classifier
+    e = next(g for g in real_goals.goals(r) if g.key == "e")
+    assert e.note.endswith("T_5 tango -> waltz; the real dances of these songs named right in 3 of 3")
 
 
 def test_a_figure_not_measured_fails_and_is_the_worst(real_goals):

@@ -420,7 +420,7 @@ def evaluate(
             results["field"] = entry
         else:
             results.setdefault("field_protocols", {})[chosen.name] = entry
-    results["style"] = style_scores(dataset, manifest, free, config, norm, protocol, anchors)
+    results["style"] = style_scores(dataset, manifest, free, config, norm, protocol, anchors, real)
     shown_rhythm = next((name for name, r in per_recording.items() if "real" in r), None)
     if shown_rhythm is not None:
         for which in ("real", "generated"):
@@ -488,11 +488,13 @@ def style_scores(
     norm: Normalizer,
     protocol: Protocol,
     anchors: dict[str, np.ndarray],
+    real: dict[str, tuple[np.ndarray, np.ndarray]] | None = None,
 ) -> dict[str, Any]:
     """Whether each free run is recognisably its song's style (:mod:`~kinectdata.evaluation.style`):
     the classifier fitted on the dataset's real training dances, the styles the recordings manifest
     gives; ``{"unavailable": why}`` when the manifest gives no styles, the target cannot become
-    SMPL-24 joints or fewer than two training dances have a style."""
+    SMPL-24 joints or fewer than two training dances have a style. ``real``: the scored songs' real
+    dances (denormalised values and mask, [T, D] each), named by the same classifier beside them."""
     spec = TargetSpec.from_dict(config["dataset"]["target"])
     styles = {e["name"]: e.get("style") for e in manifest["inputs"]}
     style_of = {r["name"]: styles.get(r["recording"]) for r in manifest["recordings"]}
@@ -528,7 +530,12 @@ def style_scores(
             for r in manifest["recordings"]
             if isinstance(r.get("style"), dict) and r["style"].get("source") == "heard" and r["name"] in free
         }
-        return style_report(training, generated, heard).to_dict()
+        dancers = [
+            (name, features(values, mask, name, anchors.get(name)))
+            for name, (values, mask) in (real or {}).items()
+            if name in free and style_of.get(name)
+        ]
+        return style_report(training, generated, heard, dancers).to_dict()
     except KinectDataError as exc:  # 2-D targets, a joint set without an SMPL-24 mapping
         return {"unavailable": str(exc)}
 

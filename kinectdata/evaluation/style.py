@@ -103,12 +103,15 @@ class StyleReport:
         leave_one_out: training dances named right when left out, and how many there are.
         heard: per generated dance, the style its run heard in the music (a run whose features hear
             it, :mod:`kinectdata.features.style_input`); empty otherwise.
+        real: per generated dance, the style the classifier names its song's real dance (where the
+            split has it): what a run that danced as the dancers did would be named; empty otherwise.
     """
 
     songs: dict[str, tuple[str, str, str]]
     held: dict[str, int]
     leave_one_out: tuple[int, int]
     heard: dict[str, str] = field(default_factory=dict)
+    real: dict[str, str] = field(default_factory=dict)
 
     @property
     def counted(self) -> list[str]:
@@ -152,15 +155,22 @@ class StyleReport:
             f"danced as heard in {self.danced_as_heard} of {n}"
         )
 
+    @property
+    def real_right(self) -> int | None:
+        """Counted dances whose song's real dance the classifier names right (None: no real dance
+        given): how many a run that danced as the dancers did would have right."""
+        return sum(self.real.get(n) == self.songs[n][0] for n in self.counted) if self.real else None
+
     def verdict(self) -> str:
         named = ", ".join(f"{n} {style} -> {said}" for n, (style, said, _) in self.songs.items())
         per_style = ", ".join(f"{style} {r} of {t}" for style, (r, t) in self.by_style.items())
         right, n = self.leave_one_out
         heard = f"; {self.hearing()}" if self.heard else ""
+        real = f"; the real dances of these songs named right in {self.real_right} of {len(self.counted)}"
         return (
             f"dances in their song's style: {self.right} of {len(self.counted)} ({named}; by style {per_style}; "
             f"the nearest style's mean in the kinetic and geometric features of the {n} training dances, which "
-            f"names {right} of them right when each is left out{heard})"
+            f"names {right} of them right when each is left out{real if self.real else ''}{heard})"
         )
 
     def to_dict(self) -> dict[str, Any]:
@@ -175,6 +185,8 @@ class StyleReport:
             "heard_right": self.heard_right,
             "danced_as_heard": self.danced_as_heard,
             "hearing": self.hearing(),
+            "real": self.real,
+            "real_right": self.real_right,
             "verdict": self.verdict(),
         }
 
@@ -183,6 +195,7 @@ def style_report(
     training: Sequence[tuple[str, str, np.ndarray]],
     generated: Sequence[tuple[str, str, np.ndarray]],
     heard: dict[str, str] | None = None,
+    real: Sequence[tuple[str, np.ndarray]] = (),
 ) -> StyleReport:
     """Name the style of each generated dance by the real training dances.
 
@@ -190,6 +203,8 @@ def style_report(
         training: (name, style, :func:`style_features`) of each real training dance.
         generated: (name, its song's style, :func:`style_features`) of each generated dance.
         heard: the style the run heard in each generated dance's music, where it hears one.
+        real: (name, :func:`style_features`) of the real dance of a generated dance's song, where
+            there is one: named by the same classifier, the figure a run can be held to.
     """
     classifier = StyleClassifier(
         tuple(n for n, _, _ in training), tuple(s for _, s, _ in training), np.stack([f for _, _, f in training])
@@ -197,4 +212,12 @@ def style_report(
     named = classifier.predict(np.stack([f for _, _, f in generated])) if generated else []
     songs = {n: (style, said, near) for (n, style, _), (said, near) in zip(generated, named)}
     held = dict(sorted(Counter(classifier.styles).items()))
-    return StyleReport(songs, held, (classifier.leave_one_out(), len(classifier.names)), dict(heard or {}))
+    real = [(n, f) for n, f in real if n in songs]
+    real_named = classifier.predict(np.stack([f for _, f in real])) if real else []
+    return StyleReport(
+        songs,
+        held,
+        (classifier.leave_one_out(), len(classifier.names)),
+        dict(heard or {}),
+        {n: said for (n, _), (said, _) in zip(real, real_named)},
+    )

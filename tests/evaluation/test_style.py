@@ -79,6 +79,23 @@ def test_a_style_no_training_dance_holds_is_not_counted():
     assert heard.to_dict()["heard"] == {"C_1": "cha-cha", "W_1": "rumba", "T_5": "x"}
 
 
+def test_the_real_dances_of_the_songs_are_named_beside_the_generated_ones():
+    """The songs' real dances, named by the same classifier (scikit-learn's nearest centroid as the
+    reference): how many a run that danced as the dancers did would have right, of the counted songs
+    only; a real dance of a song not generated is left out."""
+    names, styles, rows = clusters()
+    generated = [("C_1", "cha-cha", rows[-1] + 0.01), ("T_5", "tango", rows[0]), ("W_1", "waltz", rows[-2])]
+    real = [("C_1", rows[0] * 0.9), ("W_1", rows[-1] * 1.1), ("T_5", rows[3]), ("R_9", rows[5])]
+    report = style_report(list(zip(names, styles, rows)), generated, real=real)
+    expected = reference().fit(rows, styles).predict(np.stack([f for _, f in real[:3]]))
+    assert report.real == dict(zip(["C_1", "W_1", "T_5"], expected))
+    assert report.real_right == (expected[0] == "cha-cha") + (expected[1] == "waltz")
+    assert f"; the real dances of these songs named right in {report.real_right} of 2" in report.verdict()
+    assert report.to_dict()["real_right"] == report.real_right
+    plain = style_report(list(zip(names, styles, rows)), generated)
+    assert plain.real_right is None and "real dances" not in plain.verdict()
+
+
 def test_too_few_or_broken_training_dances_are_refused():
     with pytest.raises(KinectDataError, match="at least 2 training dances"):
         StyleClassifier(("a",), ("waltz",), np.zeros((1, 3)))
