@@ -518,6 +518,9 @@ def _beat_candidate(salience: np.ndarray, config: RhythmConfig, count: PulseCoun
     best = score.argmax(axis=-1)
     if config.beat_hold == 0 or best.size == 0:
         return best
+    if best.ndim != 1:
+        shape = tuple(salience.shape)
+        raise ConfigError(f"rhythm features: a held beat is picked over consecutive frames [F, n_tempi], not {shape}")
     count = PulseCount() if count is None else count
     held = int(best[0]) if count.beat is None else count.beat
     keep = 1.0 + config.beat_hold

@@ -377,6 +377,8 @@ def test_a_held_beat_changes_only_when_another_tempo_is_clearly_ahead():
     np.testing.assert_array_equal(fresh, np.where(ratio > 1, b, a))
     held = predominant_beat(salience, dataclasses.replace(config, beat_hold=0.3))
     np.testing.assert_array_equal(held, [a, a, a, a, a, b, b, b, a, a])
+    with pytest.raises(ConfigError, match=r"consecutive frames \[F, n_tempi\]"):
+        predominant_beat(salience[None], dataclasses.replace(config, beat_hold=0.3))
 
 
 def test_a_held_beat_moves_only_the_levels_and_streams_as_one_call():
