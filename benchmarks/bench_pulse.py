@@ -62,6 +62,14 @@ JUMP_RAD = 0.5
 """A clock's turn in one frame this far (radians) from its median turn is a jump."""
 
 
+def clock_frames(samples: np.ndarray) -> np.ndarray | None:
+    """The slice starts [F] (16 kHz samples, 30 frames a second) of the frames read after
+    :data:`CLOCK_SETTLE_S`, or None for a song shorter than :data:`CLOCK_SETTLE_S` + :data:`CLOCK_SPAN_S`."""
+    if samples.size < (CLOCK_SETTLE_S + CLOCK_SPAN_S) * 16000:
+        return None
+    return (np.arange(int(CLOCK_SETTLE_S * 30), int(samples.size / 16000 * 30) - 1) * 16000 // 30).astype(np.int64)
+
+
 def level_clocks(samples: np.ndarray, beats_per_bar: int, beat: float) -> dict[str, np.ndarray] | None:
     """Per way of making the levels (:data:`CLOCKS`), [4] how many times the beat's, two beats', the
     bar's and two bars' clocks turn per such span of the music's beats of ``beat`` seconds (the slope
@@ -69,9 +77,9 @@ def level_clocks(samples: np.ndarray, beats_per_bar: int, beat: float) -> dict[s
     period): 1 when a level turns once a level, 0 when its phase restarts at every beat, 2 or 0.5
     where the pick is at twice or half that beat. ``samples``: [S] mono 16-kHz audio. None for a
     song shorter than :data:`CLOCK_SETTLE_S` + :data:`CLOCK_SPAN_S`."""
-    if samples.size < (CLOCK_SETTLE_S + CLOCK_SPAN_S) * 16000:
+    starts = clock_frames(samples)
+    if starts is None:
         return None
-    starts = (np.arange(int(CLOCK_SETTLE_S * 30), int(samples.size / 16000 * 30) - 1) * 16000 // 30).astype(np.int64)
     t = starts / 16000.0
     out = {}
     for name, config in CLOCKS.items():
@@ -88,9 +96,9 @@ def held_picks(samples: np.ndarray, beats_per_bar: int, bpm: float, holds: tuple
     the pick's moves to another tempo per minute, and the share of frames at which the beat's clock
     (``listen_to_dance_rhythm_bars``) jumps (:data:`JUMP_RAD`), read after :data:`CLOCK_SETTLE_S`.
     None for a song shorter than :data:`CLOCK_SETTLE_S` + :data:`CLOCK_SPAN_S`."""
-    if samples.size < (CLOCK_SETTLE_S + CLOCK_SPAN_S) * 16000:
+    starts = clock_frames(samples)
+    if starts is None:
         return None
-    starts = (np.arange(int(CLOCK_SETTLE_S * 30), int(samples.size / 16000 * 30) - 1) * 16000 // 30).astype(np.int64)
     rows = []
     for hold in holds:
         config = dataclasses.replace(LISTEN_TO_DANCE_BAR_PULSE, tempo_phases=False, beat_hold=hold)

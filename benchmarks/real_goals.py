@@ -249,8 +249,8 @@ def _styles_named(style: dict[str, Any]) -> str:
         f"{n} {s['style']} -> {s['named']}" + (f" (heard {heard[n]})" if heard.get(n, s["style"]) != s["style"] else "")
         for n, s in songs.items()
     )
-    if style.get("real_right") is not None:
-        named += f"; the real dances of these songs named right in {style['real_right']} of {len(style['counted'])}"
+    if style.get("dancers"):
+        named += f"; {style['dancers']}"
     if style.get("hearing"):
         named += f"; {style['hearing']}"
     return named

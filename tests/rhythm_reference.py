@@ -104,6 +104,18 @@ def ideal_pulse(t: float, clicks: np.ndarray, tempi_bpm: np.ndarray, config) -> 
     return (weights[None, :] * np.exp(2j * np.pi * (tempi_bpm[:, None] / 60) * lag[None, :])).sum(1) / weights.sum()
 
 
+def click_track(bpm: float, seconds: float = 14.0, first: float = 0.3) -> tuple[np.ndarray, np.ndarray]:
+    """(float32 audio at 16 kHz, click times in s): 5 ms 1.5 kHz clicks every 60 / bpm s in digital silence."""
+    n = int(seconds * 16000)
+    x = np.zeros(n)
+    burst = 0.5 * np.sin(2 * np.pi * 1500 * np.arange(80) / 16000) * np.exp(-np.arange(80) / 20)
+    times = np.arange(first, seconds, 60.0 / bpm)
+    samples = np.round(times * 16000).astype(int)
+    for i in samples:
+        x[i : i + 80] += burst[: n - i]
+    return x.astype(np.float32), samples / 16000
+
+
 def accented_eighths(bpm: float, seconds: float = 30.0, first: float = 0.3) -> np.ndarray:
     """float32 audio at 16 kHz: 30 ms noise bursts at twice ``bpm``, those on the beat three times as loud as
     those halfway between, over noise at -60 dBFS: onsets most periodic at twice the beat's rate."""

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 from conftest import REPO
 from corpus_copies import make_tang2018_copy
-from rhythm_reference import accented_eighths
+from rhythm_reference import accented_eighths, click_track
 
 pytest.importorskip("librosa")
 
@@ -24,16 +24,6 @@ def test_on_accented_eighth_notes_only_the_harmonic_weight_picks_the_beat(monkey
     assert shares[1.0][0] > 0.9 and shares[1.0][1] < 0.1, shares[1.0]
 
 
-def steady_clicks(bpm: float, seconds: float = 30.0, sr: int = 16000) -> np.ndarray:
-    """float32 audio: 5 ms 1.5 kHz clicks every 60 / bpm s from 0.3 s, in digital silence."""
-    audio = np.zeros(int(sr * seconds), np.float32)
-    burst = 0.5 * np.sin(2 * np.pi * 1500 * np.arange(80) / sr) * np.exp(-np.arange(80) / 20)
-    for t in np.arange(0.3, seconds, 60.0 / bpm):
-        i = int(round(t * sr))
-        audio[i : i + 80] += burst[: audio.size - i]
-    return audio
-
-
 def test_the_levels_clocks_where_every_beat_sounds_alike(monkeypatch):
     """Clicks at 120 BPM for 30 s, every beat alike, read as a song in 4 with its beat of 0.5 s:
     counted from the beat, the two beats, the bar and two bars turn once a level (within 2 %); the
@@ -42,7 +32,7 @@ def test_the_levels_clocks_where_every_beat_sounds_alike(monkeypatch):
     from benchmarks.bench_pulse import level_clocks
 
     sr, bpm = 16000, 120.0
-    audio = steady_clicks(bpm)
+    audio, _ = click_track(bpm, seconds=30.0)
     clocks = level_clocks(audio, 4, 60.0 / bpm)
     np.testing.assert_allclose(clocks["counted"], 1.0, atol=0.02)
     assert np.all(np.abs(clocks["tempogram"][2:]) < 0.25), clocks["tempogram"]
@@ -56,7 +46,7 @@ def test_a_held_beat_on_a_steady_click_track(monkeypatch):
     from benchmarks.bench_pulse import held_picks
 
     sr, bpm = 16000, 120.0
-    audio = steady_clicks(bpm)
+    audio, _ = click_track(bpm, seconds=30.0)
     rows = held_picks(audio, 4, bpm, (0.0, 0.3))
     assert rows.shape == (2, 3) and np.all(rows[:, 0] > 0.95), rows
     assert rows[1, 1] <= rows[0, 1] and np.all(rows[:, 2] < 0.01), rows

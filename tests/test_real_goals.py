@@ -143,7 +143,7 @@ def test_goal_e_tells_the_style_heard_from_the_style_danced(real_goals):
     r["style"].update(heard={}, hearing="")  # a run that hears no style
     e = next(g for g in real_goals.goals(r) if g.key == "e")
     assert e.note.endswith("T_5 tango -> waltz")
-    r["style"]["real_right"] = 3  # the songs' real dances, named by the same classifier
+    r["style"]["dancers"] = "the real dances of these songs named right in 3 of 3"  # StyleReport's
     e = next(g for g in real_goals.goals(r) if g.key == "e")
     assert e.note.endswith("T_5 tango -> waltz; the real dances of these songs named right in 3 of 3")
 

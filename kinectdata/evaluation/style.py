@@ -161,16 +161,22 @@ class StyleReport:
         given): how many a run that danced as the dancers did would have right."""
         return sum(self.real.get(n) == self.songs[n][0] for n in self.counted) if self.real else None
 
+    def dancers(self) -> str:
+        """How many of the songs' real dances are named right ("" when none was given)."""
+        if not self.real:
+            return ""
+        return f"the real dances of these songs named right in {self.real_right} of {len(self.counted)}"
+
     def verdict(self) -> str:
         named = ", ".join(f"{n} {style} -> {said}" for n, (style, said, _) in self.songs.items())
         per_style = ", ".join(f"{style} {r} of {t}" for style, (r, t) in self.by_style.items())
         right, n = self.leave_one_out
         heard = f"; {self.hearing()}" if self.heard else ""
-        real = f"; the real dances of these songs named right in {self.real_right} of {len(self.counted)}"
+        real = f"; {self.dancers()}" if self.real else ""
         return (
             f"dances in their song's style: {self.right} of {len(self.counted)} ({named}; by style {per_style}; "
             f"the nearest style's mean in the kinetic and geometric features of the {n} training dances, which "
-            f"names {right} of them right when each is left out{real if self.real else ''}{heard})"
+            f"names {right} of them right when each is left out{real}{heard})"
         )
 
     def to_dict(self) -> dict[str, Any]:
@@ -187,6 +193,7 @@ class StyleReport:
             "hearing": self.hearing(),
             "real": self.real,
             "real_right": self.real_right,
+            "dancers": self.dancers(),
             "verdict": self.verdict(),
         }
 

@@ -222,7 +222,7 @@ class RhythmConfig:
             hold = float("nan")
         if not 0 <= hold < float("inf"):
             raise ConfigError(f"rhythm features: beat_hold must be a finite number at least 0, got {self.beat_hold!r}")
-        object.__setattr__(self, "beat_hold", float(self.beat_hold))
+        object.__setattr__(self, "beat_hold", hold)
         if self.beat_hold and not (self.levels or self.bar_levels):
             raise ConfigError("rhythm features: beat_hold holds the levels' beat: give levels or bar_levels")
         for name in ("tempo_phases", "saliences", "counted_levels", "unit_levels"):
@@ -278,7 +278,7 @@ class RhythmConfig:
     def follows_earlier_frames(self) -> bool:
         """True when a frame's values depend on the frames before it (counted levels, a held beat):
         frames must then come in time order, and a stream carries a :class:`PulseCount`."""
-        return self.counted_levels or (self.beat_hold > 0 and bool(self.levels or self.bar_levels))
+        return self.counted_levels or self.beat_hold > 0
 
     def beat_multiples(self, beats_per_bar: int) -> tuple[int, ...]:
         """Every output level in beats: ``levels``, then ``bar_levels`` x ``beats_per_bar``."""

@@ -10,7 +10,14 @@ import math
 
 import numpy as np
 import pytest
-from rhythm_reference import accented_eighths, ideal_pulse, reference_frames, reference_onsets, reference_tempi
+from rhythm_reference import (
+    accented_eighths,
+    click_track,
+    ideal_pulse,
+    reference_frames,
+    reference_onsets,
+    reference_tempi,
+)
 
 from kinectdata.core.errors import ConfigError
 from kinectdata.features import (
@@ -67,18 +74,6 @@ def random_clicks(seconds: float, seed: int) -> np.ndarray:
         i = int(t * SR)
         x[i : i + 1600] += 0.5 * kick[: max(0, min(1600, n - i))]
     return x.astype(np.float32)
-
-
-def click_track(bpm: float, seconds: float = 14.0, first: float = 0.3) -> tuple[np.ndarray, np.ndarray]:
-    """(float32 audio, click times in s): 5 ms 1.5 kHz clicks every 60 / bpm s in digital silence."""
-    n = int(seconds * SR)
-    x = np.zeros(n)
-    burst = 0.5 * np.sin(2 * np.pi * 1500 * np.arange(80) / SR) * np.exp(-np.arange(80) / 20)
-    times = np.arange(first, seconds, 60.0 / bpm)
-    samples = np.round(times * SR).astype(int)
-    for i in samples:
-        x[i : i + 80] += burst[: n - i]
-    return x.astype(np.float32), samples / SR
 
 
 @pytest.fixture(scope="module")
