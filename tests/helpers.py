@@ -230,3 +230,23 @@ def metre_music(
         out[at : at + hit.size] += gain * hit
     out += rng.normal(0, 0.01, out.size)
     return (out / max(1.0, np.abs(out).max())).astype(np.float32), beats
+
+
+def danced_live(run, song, seed: int, beats_per_bar: int | None = None) -> np.ndarray:
+    """[T, J, 3] the positions a run dances live to ``song`` (a file played at real-time pace on a
+    virtual clock), for holding them to ``generate``'s on the same song and seed."""
+    from kinectdata.live import sources
+    from kinectdata.live.clock import VirtualClock
+    from kinectdata.live.session import LiveDancer, run_live
+
+    dancer, kept = LiveDancer(run, "torch", seed=seed), []
+
+    class Kept:
+        def send(self, pose):
+            kept.append(pose.positions)
+
+    clock = VirtualClock(100.0)
+    run_live(
+        dancer, sources.FileSource(song, dancer.sample_rate, 80, clock), [Kept()], clock, beats_per_bar=beats_per_bar
+    )
+    return np.stack(kept)

@@ -133,6 +133,13 @@ _LOOP_OPTIONS = (
         "along the floor) then costs what it does.",
     ),
     (
+        "sway",
+        click.BOOL,
+        "Once trained, scale the network's sway along the floor to the dancers' wherever the run makes positions: "
+        "the ratio of the dancers' root speed along the floor at 1-4 Hz to the network's on the training songs, "
+        "never above 1 (a run that draws its travel).",
+    ),
+    (
         "song_starts",
         click.BOOL,
         "Also train on each song's first frames: windows whose context runs before the recording's start, silence "
@@ -436,6 +443,12 @@ def train_baseline(data, out, resume, paper, no_checksums, **options) -> None:
     if World.from_environment().main:  # under torchrun, one line from rank 0
         files = ", ".join(["log.csv", "loss.png", "model.pt", *model_kind(config.model).run_exports])
         click.echo(f"run: {out} ({len(history)} epochs; {files})")
+        from kinectdata.inference.turning import run_sway
+        from kinectdata.models.run import read_config
+
+        sway = run_sway(read_config(out))
+        if sway is not None:
+            click.echo(f"  {sway.describe()}")
 
 
 @click.command("evaluate")
@@ -470,6 +483,13 @@ def train_baseline(data, out, resume, paper, no_checksums, **options) -> None:
     "score a run trained with --seed N on its own draws with --seed N.",
 )
 @click.option(
+    "--sway/--no-sway",
+    default=True,
+    show_default=True,
+    help="Scale the network's sway along the floor by the run's gain (train --sway; none for a run trained "
+    "without it); --no-sway: the network's root as it made it.",
+)
+@click.option(
     "--style-tempo",
     default=None,
     type=click.FloatRange(0, 1, max_open=True),
@@ -490,6 +510,7 @@ def evaluate_command(
     turning,
     travel,
     seed,
+    sway,
     style_tempo,
 ) -> None:
     """Score a run as the paper does: SMAPE (%) free-running without and with reset, on normalised
@@ -511,6 +532,7 @@ def evaluate_command(
         beats_per_bar=beats_per_bar,
         turning=turning,
         travel=travel,
+        sway=sway,
         style_tempo="run" if style_tempo is None else style_tempo,
         draw_seed=seed,
     )

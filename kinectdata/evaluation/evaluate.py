@@ -231,6 +231,7 @@ def evaluate(
     baselines: bool = True,
     turning: bool = True,
     travel: bool = True,
+    sway: bool = True,
     tempo_rates: tuple[float, ...] | None = None,
     style_tempo: float | None | str = "run",
     draw_seed: int = 0,
@@ -249,7 +250,9 @@ def evaluate(
     retrieval baseline (:mod:`~kinectdata.evaluation.baselines`, :func:`baseline_runs`) by the same
     protocols, beside the model. ``turning``, ``travel``: draw the run's turning about the vertical and
     its travel across the floor in every free run (:mod:`kinectdata.inference.turning`; a run trained
-    without them draws none); False: the network's motion alone. ``results["turning"]`` says which. A
+    without them draws none); False: the network's motion alone. ``sway``: scale the network's sway
+    along the floor by the run's gain (:mod:`kinectdata.targets.sway`; a run trained without it keeps
+    none). ``results["turning"]`` says which. A
     run trained with ``smooth_hz`` smooths every free run after them (:mod:`kinectdata.inference.smoothing`;
     not the runs reset every L frames); ``results["smoothing"]`` says how.
     ``tempo_rates``: the tempo control's factors (None: its own; empty: no tempo control).
@@ -269,7 +272,7 @@ def evaluate(
         if style_tempo is not None:
             check_band(style_tempo, feature_config(config["dataset"]["features"]))
         config.setdefault("train", {})["style_tempo"] = style_tempo
-    for drawn, asked in (("turning", turning), ("travel", travel)):
+    for drawn, asked in (("turning", turning), ("travel", travel), ("sway", sway)):
         if not asked:  # every free run below then makes without it
             config.pop(drawn, None)
     manifest = read_manifest(dataset, checksums=checksums)

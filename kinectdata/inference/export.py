@@ -99,6 +99,7 @@ def stream_metadata(
         "root_centre": data["root_centre"],
         "normalisation": data["normalisation"],
         "start_pose": data["start_pose"],
+        "sway": run_config.get("sway"),
         "turning": run_config.get("turning"),
         "travel": run_config.get("travel"),
         "foot_lock": _foot_lock(run_config),

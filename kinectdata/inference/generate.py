@@ -52,12 +52,20 @@ from kinectdata.inference.engines import make_engine
 from kinectdata.inference.smoothing import run_smoothing, smooth_motion, smoothing_line
 from kinectdata.inference.start import StartPose, recording_start, target_poses
 from kinectdata.inference.style_tempo import run_style_tempo, style_tempo_factor, style_tempo_line, warp_back
-from kinectdata.inference.turning import faced_first_pose, run_travel, run_turning, travel_generator, turn_song
+from kinectdata.inference.turning import (
+    faced_first_pose,
+    run_sway,
+    run_travel,
+    run_turning,
+    travel_generator,
+    turn_song,
+)
 from kinectdata.models.registry import model_kind
 from kinectdata.models.run import load_model, model_name
 from kinectdata.targets.facing import turn_about_root
 from kinectdata.targets.normalization import Normalizer
 from kinectdata.targets.specs import TargetSpec
+from kinectdata.targets.sway import calm_sway
 
 
 def _motion(
@@ -149,7 +157,8 @@ def generate(
     ``turning``, ``travel``: draw the run's turning about the vertical and its travel across the floor
     over the frames the model makes (:mod:`kinectdata.inference.turning`, from generators seeded by
     ``seed``: ``live`` on the same audio and seed turns and travels the same way); a run trained
-    without them draws none. ``timing["turning"]`` says what was drawn. A run trained with ``smooth_hz``
+    without them draws none. A run trained with ``sway`` scales the network's root along the floor
+    first (:mod:`kinectdata.targets.sway`). ``timing["turning"]`` says what was drawn. A run trained with ``smooth_hz``
     then low-passes the frames the model made (:mod:`kinectdata.inference.smoothing`);
     ``timing["smoothing"]`` says how. A run trained with ``style_tempo`` dances a song far from its
     heard style's tempo at that tempo and plays the dance back at the song's
@@ -249,6 +258,9 @@ def generate(
         n = song_frames
     values = norm.invert(poses, spec)
     made = slice(1 if true_first else 0, n)  # the frames the model made: 1..n-1 after a true first pose
+    sway = run_sway(config)
+    if sway is not None:
+        values[made] = calm_sway(values[made], spec, sway)
     if heading:
         values[made] = turn_about_root(values[made], spec, heading)
     if process is not None or moving is not None:
@@ -306,7 +318,7 @@ def generate(
     if style_said:
         timing["style"] = style_said
     timing["start"] = start.source
-    drawn = [p.describe() for p in (process, moving) if p is not None]
+    drawn = [p.describe() for p in (sway, process, moving) if p is not None]
     if drawn and bar is not None and str(bar) in (config.get("drawn_by_metre") or {}):
         drawn.append(f"those of the training dances of {bar} beats a bar")
     timing["turning"] = "; ".join(drawn) if drawn else "none drawn"

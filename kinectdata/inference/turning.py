@@ -23,6 +23,10 @@ A run trained with ``by_metre`` also keeps each metre's processes (``drawn_by_me
 metre is known (given, listed in the recordings manifest, found by the build or estimated from the
 music, as its bar features are) is drawn its metre's where the run has them, else the pooled ones.
 
+A run that kept its network's sway along the floor (``train --sway``, :mod:`kinectdata.targets.sway`)
+scales the network's root x and z by it before the turning (:func:`run_sway`); it is part of every
+free run as the drawn processes are.
+
 Runs that reset their state every L frames (``evaluate``'s "with reset" figures, the yalta paper's
 table) are not turned: those figures measure the network's prediction from true poses.
 
@@ -46,6 +50,7 @@ from kinectdata.inference.style_tempo import on_song_clock, run_style_tempo
 from kinectdata.targets.facing import faced, trunk_pairs, turn_about_root
 from kinectdata.targets.normalization import Normalizer
 from kinectdata.targets.specs import TargetSpec
+from kinectdata.targets.sway import SwayGain, calm_sway
 from kinectdata.targets.travel import TravelProcess, TravelStream, draw_travel, travel_targets
 from kinectdata.targets.turning import TurningProcess, TurningStream, draw_turning_speed, turn_targets
 
@@ -56,6 +61,7 @@ __all__ = [
     "faced_first_pose",
     "live_turning",
     "run_faces",
+    "run_sway",
     "run_travel",
     "run_turning",
     "travel_generator",
@@ -88,11 +94,19 @@ def run_travel(config: dict[str, Any], beats_per_bar: int | None = None) -> Trav
     return None if doc is None else TravelProcess.from_dict(doc)
 
 
+def run_sway(config: dict[str, Any]) -> SwayGain | None:
+    """The gain a run's ``config.json`` keeps for its network's sway along the floor, or None (a run
+    trained without it, or left out by the caller: ``evaluate``'s ``sway=False``)."""
+    doc = config.get("sway")
+    return None if doc is None else SwayGain.from_dict(doc)
+
+
 def drawn_line(config: dict[str, Any], beats_per_bar: int | None = None) -> str:
     """What a run draws at generation, for a printout: its processes' lines (a song of
     ``beats_per_bar``'s; None: the pooled ones, and the metres the run has its own for), or that it
     draws none."""
-    lines = [p.describe() for p in (run_turning(config, beats_per_bar), run_travel(config, beats_per_bar)) if p]
+    drawn = (run_sway(config), run_turning(config, beats_per_bar), run_travel(config, beats_per_bar))
+    lines = [p.describe() for p in drawn if p]
     if not lines:
         return "no turning or travel drawn"
     metres = sorted(int(m) for m in config.get("drawn_by_metre") or {})
@@ -202,6 +216,7 @@ class TurnedKind:
         self.places: dict[int, np.ndarray] = {}  # a song's features' CRC-32 -> where its dance starts [3]
         self.songs: dict[int, np.ndarray] = {}  # a song's features' CRC-32 -> the features, for its openings
         self.smooth_hz = run_smoothing(config)
+        self.sway = run_sway(config)
 
     def __getattr__(self, name: str) -> Any:
         return getattr(self.kind, name)
@@ -292,6 +307,8 @@ class TurnedKind:
             process = run_turning(self.config, metre) if process is not None else None
             travel = run_travel(self.config, metre) if travel is not None else None
         values = self.norm.invert(run, self.spec)
+        if self.sway is not None:
+            values = calm_sway(values, self.spec, self.sway)
         if heading:  # the run faced one way: back to where its first pose stood
             values = turn_about_root(values, self.spec, heading)
         turned = turn_song(
@@ -336,23 +353,30 @@ class TurnedKind:
 
 def with_turning(kind: Any, config: dict[str, Any], seed: int = 0) -> Any:
     """``kind`` turned and moved by its run's processes and smoothed as the run says (:class:`TurnedKind`),
-    or ``kind`` itself when the run keeps neither process, did not learn its poses facing one way, is
+    or ``kind`` itself when the run keeps neither process nor a sway gain, did not learn its poses facing one way, is
     not smoothed (:mod:`kinectdata.inference.smoothing`) and plays no song at its style's tempo
     (:mod:`kinectdata.inference.style_tempo`)."""
     process, travel = run_turning(config), run_travel(config)
-    plain = run_smoothing(config) is None and run_style_tempo(config) is None
+    plain = run_smoothing(config) is None and run_style_tempo(config) is None and run_sway(config) is None
     if process is None and travel is None and not run_faces(config) and plain:
         return kind
     return TurnedKind(kind, config, process, seed, travel)
 
 
 class DrawnStream:
-    """A run's turning and travel one frame at a time (either may be absent)."""
+    """A run's sway gain, turning and travel one frame at a time (any may be absent)."""
 
-    def __init__(self, turning: TurningStream | None, travel: TravelStream | None):
-        self.turning, self.travel = turning, travel
+    def __init__(
+        self,
+        turning: TurningStream | None,
+        travel: TravelStream | None,
+        sway: tuple[SwayGain, TargetSpec] | None = None,
+    ):
+        self.turning, self.travel, self.sway = turning, travel, sway
 
     def step(self, values: np.ndarray, live: bool) -> np.ndarray:
+        if self.sway is not None:
+            values = calm_sway(np.asarray(values)[None], self.sway[1], self.sway[0])[0]
         if self.turning is not None:
             values = self.turning.step(values, live)
         if self.travel is not None:
@@ -363,14 +387,15 @@ class DrawnStream:
 def live_turning(
     config: dict[str, Any], seed: int = 0, beats_per_bar: int | None = None
 ) -> tuple[DrawnStream, np.ndarray] | None:
-    """(the run's turning and travel one frame at a time, a song of ``beats_per_bar``'s (None: the
-    pooled ones), the features [*F] of a silent frame), or None when the run keeps neither process."""
-    process, travel = run_turning(config, beats_per_bar), run_travel(config, beats_per_bar)
-    if process is None and travel is None:
+    """(the run's sway gain, turning and travel one frame at a time, a song of ``beats_per_bar``'s
+    (None: the pooled ones), the features [*F] of a silent frame), or None when the run keeps none."""
+    process, travel, sway = run_turning(config, beats_per_bar), run_travel(config, beats_per_bar), run_sway(config)
+    if process is None and travel is None and sway is None:
         return None
     data = config["dataset"]
     fps = float(data["fps"])
     spec = TargetSpec.from_dict(data["target"])
     turning = None if process is None else TurningStream(process, spec, fps, np.random.default_rng(int(seed)))
     moving = None if travel is None else TravelStream(travel, spec, fps, travel_generator(seed))
-    return DrawnStream(turning, moving), silence_features(data["features"], fps)
+    calmed = None if sway is None else (sway, spec)
+    return DrawnStream(turning, moving, calmed), silence_features(data["features"], fps)

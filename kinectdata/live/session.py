@@ -59,7 +59,8 @@ class LiveDancer:
             floor one frame at a time, from generators seeded by ``seed``
             (:func:`~kinectdata.inference.turning.live_turning`; held still while the features are
             silence), as ``generate`` draws them on the same audio and seed; a run trained without
-            them draws none. A run trained with ``smooth_hz`` low-passes each frame after them
+            them draws none; a run trained with ``sway`` scales its network's root along the floor
+            before them, as ``generate`` does. A run trained with ``smooth_hz`` low-passes each frame after them
             (:class:`~kinectdata.inference.smoothing.MotionSmoother`), as ``generate`` does. A run
             trained with ``style_tempo`` dances live music at its own tempo: a network cannot hear
             music faster than it arrives (:mod:`kinectdata.inference.style_tempo`). A run with a

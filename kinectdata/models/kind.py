@@ -76,6 +76,7 @@ PAPER_LOOP: dict[str, Any] = {
     "facing": False,
     "by_metre": False,
     "component_floor": False,
+    "sway": False,
     "smooth_hz": None,
     "style_tempo": None,
     "silence_share": 0.0,

@@ -62,6 +62,7 @@ ADDED_OFF = {
     "facing": False,
     "by_metre": False,
     "component_floor": False,
+    "sway": False,
     "smooth_hz": None,
     "style_tempo": None,
     "precision": "float32",
@@ -76,7 +77,7 @@ reading such a run keeps its model's and ignores the other model's."""
 
 _WEIGHTS = ("free_weight", "keep_energy_weight", *rhythm_weight_settings())
 """The loop's loss weights: each at least 0."""
-_SWITCHES = ("song_starts", "turning", "travel", "facing", "by_metre", "component_floor")
+_SWITCHES = ("song_starts", "turning", "travel", "facing", "by_metre", "component_floor", "sway")
 """The loop's settings that are true or false."""
 
 
@@ -218,6 +219,11 @@ class TrainConfig:
             (:func:`~kinectdata.models.losses.masked_energy_loss`'s ``component_floor``): on tang2018
             the root's sway along the floor, in normalised units, lies under the shared floor and
             costs nothing however fast it sways. Runs written before it had it off.
+        sway: once trained, measure how fast the network's root moves along the floor in the beat's
+            band over the training songs run whole, against the dancers' (:mod:`kinectdata.targets.sway`),
+            and keep the ratio (never above 1) in the run as ``sway``: wherever the run makes
+            positions, the network's root x and z are scaled by it before the drawn turning and
+            travel. Only a run that draws its travel keeps one. Runs written before it had it off.
         smooth_hz: low-pass the motion the run makes (after its drawn turning and travel) at this
             cutoff, Hz, wherever it makes positions: ``evaluate``'s free runs (so the kept epoch's
             whole songs too), ``generate`` and ``live`` (:mod:`kinectdata.inference.smoothing`: a causal
@@ -279,6 +285,7 @@ class TrainConfig:
     facing: bool
     by_metre: bool
     component_floor: bool
+    sway: bool
     smooth_hz: float | None
     style_tempo: float | None
     precision: str

@@ -89,6 +89,7 @@ from kinectdata.training.distributed import (
     sum_over_ranks,
 )
 from kinectdata.training.figures import loss_curves
+from kinectdata.training.sway import fit_run_sway
 from kinectdata.training.turning import fit_dataset_drawn
 from kinectdata.training.whole_songs import WholeSongs
 
@@ -940,6 +941,12 @@ def train(
         for row in history:
             row["kept"] = "best" if row["epoch"] == best["epoch"] else None
         _write_log(run, history)
+    if config.sway:  # the final weights' sway along the floor against the dancers'
+        with torch.no_grad():
+            sway = fit_run_sway(net, kind, dataset, manifest, run_config)
+        if sway is not None:
+            run_config["sway"] = sway.to_dict()
+            write_json(run / CONFIG, run_config)
     save_checkpoint(run / MODEL, {"model": net.state_dict(), "config": json.dumps(run_config)})
     for name, fmt in kind.run_exports.items():  # e.g. the yalta model's stream.ts, for robots
         export_network(net, run / name, fmt, metadata=stream_metadata(run_config, kind=kind), kind=kind)

@@ -11,6 +11,7 @@ import shutil
 import numpy as np
 import pytest
 from conftest import TINY_TRAINING
+from helpers import danced_live
 
 pytest.importorskip("torch")
 
@@ -18,9 +19,7 @@ from kinectdata.core.errors import ConfigError  # noqa: E402
 from kinectdata.evaluation.evaluate import evaluate  # noqa: E402
 from kinectdata.inference.generate import generate  # noqa: E402
 from kinectdata.inference.turning import drawn_line, run_travel, run_turning  # noqa: E402
-from kinectdata.live import sources  # noqa: E402
-from kinectdata.live.clock import VirtualClock  # noqa: E402
-from kinectdata.live.session import LiveDancer, run_live  # noqa: E402
+from kinectdata.live.session import LiveDancer  # noqa: E402
 from kinectdata.models.run import read_manifest  # noqa: E402
 from kinectdata.training import turning as fitting  # noqa: E402
 from kinectdata.training.config import TrainConfig  # noqa: E402
@@ -106,17 +105,11 @@ def test_live_and_evaluate_draw_by_the_songs_metre_as_generate_does(centred_run,
     config = json.loads((run / "config.json").read_text())
     faster = {**config["turning"], "rms_speed": 2 * config["turning"]["rms_speed"]}
     by_metre = _run_copy(run, tmp_path / "by_metre", drawn_by_metre={"3": {"turning": faster}})
-    clock = VirtualClock(100.0)
-    dancer = LiveDancer(by_metre, "torch", seed=2)
-    kept = []
-
-    class Kept:
-        def send(self, pose):
-            kept.append(pose.positions)
-
-    run_live(dancer, sources.FileSource(sample_song, dancer.sample_rate, 80, clock), [Kept()], clock, beats_per_bar=3)
     expected, _ = generate(by_metre, sample_song, seed=2, beats_per_bar=3)
-    np.testing.assert_allclose(np.stack(kept), expected.positions, atol=1e-6, equal_nan=True)
+    live = danced_live(by_metre, sample_song, 2, beats_per_bar=3)
+    np.testing.assert_allclose(live, expected.positions, atol=1e-6, equal_nan=True)
+    dancer = LiveDancer(by_metre, "torch", seed=2)
+    dancer.set_metre(3)
     assert "3 beats a bar" in dancer.turning_line
     given = evaluate(by_metre, dataset, "test", bootstrap=0, baselines=False, beats_per_bar=3, **QUICK)
     pooled = evaluate(by_metre, dataset, "test", bootstrap=0, baselines=False, beats_per_bar=4, **QUICK)

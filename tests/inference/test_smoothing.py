@@ -11,6 +11,7 @@ import shutil
 import numpy as np
 import pytest
 from conftest import TINY_TRAINING
+from helpers import danced_live
 from scipy.signal import butter, freqz, lfilter, lfilter_zi
 
 from kinectdata.core.body_quality import mean_jerk
@@ -118,9 +119,6 @@ def test_generate_live_and_evaluate_smooth_the_motion_alike(centred_run, sample_
     from kinectdata.evaluation.evaluate import evaluate
     from kinectdata.inference.export import stream_metadata
     from kinectdata.inference.generate import generate
-    from kinectdata.live import sources
-    from kinectdata.live.clock import VirtualClock
-    from kinectdata.live.session import LiveDancer, run_live
 
     run, dataset = centred_run
     smoothed = _smoothed_copy(run, tmp_path / "smoothed", 5.0)
@@ -133,15 +131,7 @@ def test_generate_live_and_evaluate_smooth_the_motion_alike(centred_run, sample_
     np.testing.assert_allclose(made.positions, expected, atol=1e-5)
     assert mean_jerk(made.positions, FPS) < 0.5 * mean_jerk(plain.positions, FPS)
 
-    dancer, kept = LiveDancer(smoothed, "torch", seed=3), []
-
-    class Kept:
-        def send(self, pose):
-            kept.append(pose.positions)
-
-    clock = VirtualClock(100.0)
-    run_live(dancer, sources.FileSource(sample_song, dancer.sample_rate, 80, clock), [Kept()], clock)
-    np.testing.assert_allclose(np.stack(kept), made.positions, atol=1e-5, equal_nan=True)
+    np.testing.assert_allclose(danced_live(smoothed, sample_song, 3), made.positions, atol=1e-5, equal_nan=True)
 
     quick = {"tempo_rates": (), "engines": [("torch", "float32")], "checksums": False, "baselines": False}
     scored = evaluate(smoothed, dataset, "test", bootstrap=0, out=tmp_path / "e1", **quick)
