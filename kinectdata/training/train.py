@@ -65,6 +65,7 @@ from kinectdata.models.run import (
 from kinectdata.targets.facing import faced
 from kinectdata.targets.normalization import Normalizer
 from kinectdata.targets.specs import TargetSpec
+from kinectdata.targets.sway import BAND_HZ as SWAY_BAND_HZ
 from kinectdata.training.augment import (
     Facing,
     Mirror,
@@ -729,6 +730,11 @@ def train(
             check_cutoff(config.smooth_hz, float(manifest["config"]["fps"]))
         except ConfigError as exc:
             raise ConfigError(f"{dataset}: {exc} (--smooth-hz: a lower cutoff, or 0 for none)") from None
+    if config.sway and float(manifest["config"]["fps"]) <= 2 * SWAY_BAND_HZ[1]:
+        raise ConfigError(
+            f"{dataset}: --sway measures the root's speed at {SWAY_BAND_HZ[0]:g}-{SWAY_BAND_HZ[1]:g} Hz, which a "
+            f"frame rate of {manifest['config']['fps']:g} fps cannot carry (more than {2 * SWAY_BAND_HZ[1]:g} needed)"
+        )
     if config.style_tempo is not None:
         config = _style_tempo_kept(config, manifest, dataset, world)
     if config.max_minutes is None:

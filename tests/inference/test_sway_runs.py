@@ -18,6 +18,7 @@ from helpers import danced_live
 pytest.importorskip("torch")
 
 from kinectdata.cli import main  # noqa: E402
+from kinectdata.core.errors import ConfigError  # noqa: E402
 from kinectdata.inference.export import stream_metadata  # noqa: E402
 from kinectdata.inference.generate import generate  # noqa: E402
 from kinectdata.targets.sway import SwayGain  # noqa: E402
@@ -89,3 +90,15 @@ def test_live_evaluate_and_the_exports_scale_the_sway_as_generate_does(centred_r
     assert "sway" not in alone["turning"]
     assert scored["smape"]["without_reset"] != alone["smape"]["without_reset"]
     assert scored["smape"]["with_reset"] == alone["smape"]["with_reset"]  # the network's own prediction
+
+
+def test_train_refuses_sway_at_a_frame_rate_that_cannot_carry_the_band_before_training(
+    sample_dataset, tmp_path, monkeypatch
+):
+    import kinectdata.training.train as training
+
+    fps = json.loads((sample_dataset / "manifest.json").read_text())["config"]["fps"]
+    monkeypatch.setattr(training, "SWAY_BAND_HZ", (1.0, fps / 2))  # a band up to the Nyquist rate
+    with pytest.raises(ConfigError, match=rf"{sample_dataset.name}: --sway .* {fps:g} fps cannot carry"):
+        train(sample_dataset, tmp_path / "r", TrainConfig(**{**TINY_TRAINING, "sway": True}))
+    assert not (tmp_path / "r").exists()  # refused before anything was written
