@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import importlib.util
 import os
 import sys
 from pathlib import Path
@@ -182,6 +183,32 @@ def _slow_tests_run(config) -> bool:
     out, to stay within minutes."""
     named = any("::" in arg for arg in config.args)
     return bool(os.environ.get("CI") or config.getoption("--slow") or config.getoption("markexpr") or named)
+
+
+def stale_install(installed: Path, source: Path) -> str:
+    """Why the ``installed`` kinectdata package folder is not the checkout's ``source`` one ("" when
+    it is the same folder, or holds every module of it byte for byte): the tests import the
+    installed package first, and an install made before the last change tests the code before it."""
+    if installed.resolve() == source.resolve():
+        return ""
+    for path in sorted(source.rglob("*.py")):
+        other = installed / path.relative_to(source)
+        if not other.is_file() or other.read_bytes() != path.read_bytes():
+            name = path.relative_to(source.parent)
+            said = (
+                f"which lacks this checkout's {name}" if not other.is_file() else f"whose {name} is not this checkout's"
+            )
+            return f"the tests would import kinectdata from {installed}, {said}: install it again (pip install -e .)"
+    return ""
+
+
+def pytest_configure(config):
+    """Stop before collecting when the kinectdata the tests import is not this checkout's."""
+    found = importlib.util.find_spec("kinectdata")
+    if found is not None and found.origin is not None:
+        why = stale_install(Path(found.origin).parent, REPO / "kinectdata")
+        if why:
+            pytest.exit(why, returncode=4)
 
 
 def pytest_collection_modifyitems(config, items):

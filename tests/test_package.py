@@ -38,3 +38,22 @@ def test_every_data_file_of_the_checkout_is_installed():
     assert wanted
     missing = [str(p) for p in wanted if not installed.joinpath(*p.parts).is_file()]
     assert not missing, f"not installed: {missing}"
+
+
+def test_a_stale_install_of_the_package_is_named_before_the_tests_run(tmp_path):
+    from conftest import stale_install
+
+    source, installed = tmp_path / "checkout" / "kinectdata", tmp_path / "site" / "kinectdata"
+    for folder in (source, installed):
+        (folder / "targets").mkdir(parents=True)
+        (folder / "__init__.py").write_text("x = 1\n")
+        (folder / "targets" / "travel.py").write_text("y = 2\n")
+    assert stale_install(installed, source) == ""  # an install of the same code (CI's)
+    assert stale_install(source, source) == ""  # the checkout itself (an editable install)
+    (source / "targets" / "sway.py").write_text("z = 3\n")
+    said = stale_install(installed, source)
+    assert f"from {installed}, which lacks this checkout's kinectdata/targets/sway.py" in said
+    assert said.endswith("install it again (pip install -e .)")
+    (installed / "targets" / "sway.py").write_text("z = 3\n")
+    (source / "__init__.py").write_text("x = 2\n")
+    assert "whose kinectdata/__init__.py is not this checkout's" in stale_install(installed, source)
