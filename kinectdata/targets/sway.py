@@ -37,9 +37,9 @@ from scipy.signal import butter, sosfiltfilt
 from kinectdata.core.errors import ConfigError
 from kinectdata.core.motion import true_runs
 from kinectdata.targets.specs import TargetSpec
-from kinectdata.targets.turning import turnable
+from kinectdata.targets.travel import floor_columns
 
-__all__ = ["BAND_HZ", "SwayGain", "band_speed", "calm_sway", "fit_sway", "floor_columns"]
+__all__ = ["BAND_HZ", "SwayGain", "band_problem", "band_speed", "calm_sway", "fit_sway"]
 
 BAND_HZ = (1.0, 4.0)
 """The beat's band (Hz): beats of 0.25 to 1 s. Below it lies the travel's (drawn below 0.5 Hz) and the
@@ -50,14 +50,26 @@ MIN_FRAMES = 32
 """A stretch of known root positions shorter than this is not measured (the filter's edges)."""
 
 
+def band_problem(band: tuple[float, float], fps: float) -> str:
+    """Why roots at ``fps`` cannot be measured within ``band`` (Hz) ("" when they can)."""
+    low, high = band
+    if 0 < low < high < fps / 2:
+        return ""
+    return (
+        f"measures the root's speed at {low:g}-{high:g} Hz, which a frame rate of {fps:g} fps cannot carry "
+        f"(the band must lie within 0 and half the frame rate, {fps / 2:g} Hz)"
+    )
+
+
 def band_speed(tracks: Sequence[np.ndarray], fps: float, band: tuple[float, float] = BAND_HZ) -> tuple[float, int]:
     """How fast roots moved along the floor within ``band`` (Hz): the root mean square over frames of
     the horizontal velocity's length (m/s; both axes together), band-passed without delay, over every
     stretch of at least :data:`MIN_FRAMES` known positions of ``tracks`` (each [T_i, 2] metres, x and
     z, NaN where unknown). Returns (the speed, the frames measured); (NaN, 0) when none was."""
+    why = band_problem(band, fps)
+    if why:
+        raise ConfigError(f"sway: {why}")
     low, high = band
-    if not 0 < low < high < fps / 2:
-        raise ConfigError(f"sway: the band must lie within 0 and half the frame rate ({fps / 2:g} Hz), not {band}")
     sos = butter(ORDER, [low, high], btype="band", fs=fps, output="sos")
     total, frames = 0.0, 0
     for track in tracks:
@@ -142,22 +154,9 @@ def fit_sway(network: Sequence[np.ndarray], dancers: Sequence[np.ndarray], fps: 
     return SwayGain(gain, made, real, len(network))
 
 
-def floor_columns(spec: TargetSpec) -> list[int]:
-    """The root's x and z columns of a 3-D target centred on its root.
-
-    Raises:
-        ConfigError: targets whose root is not their travel.
-    """
-    why = turnable(spec, root_centred=True)
-    if why:
-        raise ConfigError(f"sway: {why}")
-    start = spec.columns(spec.root, "position").start
-    return [start, start + 2]
-
-
 def calm_sway(values: np.ndarray, spec: TargetSpec, sway: SwayGain) -> np.ndarray:
     """Denormalised root-centred targets [T, D] (metres, y up) whose root x and z are scaled by
     ``sway.gain`` (one frame, [1, D], as a song's): a new float64 array."""
     out = np.array(values, np.float64)
-    out[..., floor_columns(spec)] *= sway.gain
+    out[..., floor_columns(spec, "sway")] *= sway.gain
     return out

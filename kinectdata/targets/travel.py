@@ -65,6 +65,7 @@ __all__ = [
     "TravelStream",
     "draw_travel",
     "fit_travel",
+    "floor_columns",
     "pull_time_constant",
     "slow_velocity",
     "travel_targets",
@@ -285,10 +286,15 @@ def draw_travel(
     return place - offset
 
 
-def _root_columns(spec: TargetSpec) -> list[int]:
+def floor_columns(spec: TargetSpec, owner: str = "travel") -> list[int]:
+    """The root's x and z columns of a 3-D target centred on its root: its travel along the floor.
+
+    Raises:
+        ConfigError: targets whose root is not their travel (the message starts with ``owner``).
+    """
     why = turnable(spec, root_centred=True)
     if why:
-        raise ConfigError(f"travel: {why}")
+        raise ConfigError(f"{owner}: {why}")
     start = spec.columns(spec.root, "position").start
     return [start, start + 2]
 
@@ -298,14 +304,14 @@ def travel_targets(values: np.ndarray, spec: TargetSpec, displacement: np.ndarra
     [T, 2] (metres along x and z from where the song began; :func:`draw_travel`), the standing foot
     planted where ``spec`` has both legs (:mod:`kinectdata.targets.foot_lock`): a new array."""
     out = np.array(values, np.float64)
-    out[:, _root_columns(spec)] += np.asarray(displacement, np.float64)
+    out[:, floor_columns(spec)] += np.asarray(displacement, np.float64)
     lock = _foot_lock(spec, fps)
     return out if lock is None else lock.plant(out)
 
 
 def _foot_lock(spec: TargetSpec, fps: float) -> FootLock | None:
     legs = legs_of(spec)
-    return None if legs is None else FootLock(legs, _root_columns(spec), fps)
+    return None if legs is None else FootLock(legs, floor_columns(spec), fps)
 
 
 class TravelStream:
@@ -321,7 +327,7 @@ class TravelStream:
         start: np.ndarray | None = None,
     ):
         self.process, self.fps, self.rng = process, float(fps), rng
-        self.columns = _root_columns(spec)
+        self.columns = floor_columns(spec)
         self.b, self.gain = pole_and_gain(process.time_constant, self.fps)
         self.a = 1.0 if process.pull is None else math.exp(-1 / (self.fps * process.pull))
         self.u = np.zeros(2)

@@ -14,7 +14,8 @@ from kinectdata.inference.turning import faced_first_pose
 from kinectdata.models.kind import ModelKind
 from kinectdata.targets.normalization import Normalizer
 from kinectdata.targets.specs import TargetSpec
-from kinectdata.targets.sway import SwayGain, fit_sway, floor_columns
+from kinectdata.targets.sway import SwayGain, fit_sway
+from kinectdata.targets.travel import floor_columns
 from kinectdata.targets.turning import turnable
 
 __all__ = ["fit_run_sway"]
@@ -34,7 +35,7 @@ def fit_run_sway(
     if run_config.get("travel") is None or turnable(spec, bool(summary["root_centre"])):
         return None
     norm = Normalizer.from_dict(summary["normalisation"])
-    columns = floor_columns(spec)
+    columns = floor_columns(spec, "sway")
     songs, firsts, dancers = [], [], []
     for r in split_recordings(dataset, manifest, "train"):
         if is_copy(r) or len(r["current"]) < 2:

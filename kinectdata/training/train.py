@@ -66,6 +66,7 @@ from kinectdata.targets.facing import faced
 from kinectdata.targets.normalization import Normalizer
 from kinectdata.targets.specs import TargetSpec
 from kinectdata.targets.sway import BAND_HZ as SWAY_BAND_HZ
+from kinectdata.targets.sway import band_problem
 from kinectdata.training.augment import (
     Facing,
     Mirror,
@@ -730,11 +731,9 @@ def train(
             check_cutoff(config.smooth_hz, float(manifest["config"]["fps"]))
         except ConfigError as exc:
             raise ConfigError(f"{dataset}: {exc} (--smooth-hz: a lower cutoff, or 0 for none)") from None
-    if config.sway and float(manifest["config"]["fps"]) <= 2 * SWAY_BAND_HZ[1]:
-        raise ConfigError(
-            f"{dataset}: --sway measures the root's speed at {SWAY_BAND_HZ[0]:g}-{SWAY_BAND_HZ[1]:g} Hz, which a "
-            f"frame rate of {manifest['config']['fps']:g} fps cannot carry (more than {2 * SWAY_BAND_HZ[1]:g} needed)"
-        )
+    unmeasurable = band_problem(SWAY_BAND_HZ, float(manifest["config"]["fps"])) if config.sway else ""
+    if unmeasurable:
+        raise ConfigError(f"{dataset}: --sway {unmeasurable}")
     if config.style_tempo is not None:
         config = _style_tempo_kept(config, manifest, dataset, world)
     if config.max_minutes is None:

@@ -9,7 +9,8 @@ from scipy.signal import welch
 
 from kinectdata.core.errors import ConfigError
 from kinectdata.targets.specs import load_target_spec
-from kinectdata.targets.sway import BAND_HZ, SwayGain, band_speed, calm_sway, fit_sway, floor_columns
+from kinectdata.targets.sway import BAND_HZ, SwayGain, band_speed, calm_sway, fit_sway
+from kinectdata.targets.travel import floor_columns
 
 FPS = 30.0
 
@@ -92,5 +93,6 @@ def test_bad_records_and_targets_that_do_not_travel_are_config_errors():
         SwayGain.from_dict({"gain": 0.5})
     with pytest.raises(ConfigError, match="half the frame rate"):
         band_speed([np.zeros((100, 2))], 6.0)
+    flat = load_target_spec("listen_to_dance")
     with pytest.raises(ConfigError, match="sway: .*3-D joint positions"):
-        floor_columns(load_target_spec("listen_to_dance"))
+        calm_sway(np.zeros((2, flat.dim)), flat, SwayGain(0.5, 0.2, 0.1, 1))
