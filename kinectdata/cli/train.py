@@ -108,6 +108,13 @@ _LOOP_OPTIONS = (
         "proportion (a trunk swaying faster than the dancers'); 0: none.",
     ),
     (
+        "root_band_weight",
+        click.FloatRange(min=0),
+        "Weight of the root's speed along the floor by band in the free-running loss: at 0.5-1, 1-2 and 2-4 Hz "
+        "against the real motion's, whatever the phase (a root swaying at the beat where the dancers sway at "
+        "the bar); 0: none.",
+    ),
+    (
         "bone_weight",
         click.FloatRange(min=0),
         "Weight of the bones' stretch in the free-running loss: how much each bone's length varies against the "

@@ -526,6 +526,73 @@ def masked_world_jitter_loss(prediction, target, mask, body, chunk: int | None =
     return masked_jitter_loss(*world, chunk, component_floor=component_floor)
 
 
+ROOT_BANDS_HZ = ((0.5, 1.0), (1.0, 2.0), (2.0, 4.0))
+"""The bands (Hz) :func:`masked_root_band_loss` compares the root's speed along the floor in: the bar's
+rate of the slow dances (a waltz's bar at 0.5 Hz, a cha-cha's at 0.5-0.6; two of their beats at
+1-1.5), the beat's, and the half beat's."""
+
+
+def masked_root_band_loss(prediction, target, mask, body, fps: float, bands=ROOT_BANDS_HZ):
+    """How differently fast the root moves along the floor in each band of ``bands`` than the
+    target's, whatever the phase: per [B, L, D] window whose root is valid throughout, the root's
+    velocity along the floor's axes (every axis but y, the up axis) in metres per second
+    (:func:`world_positions`), Hann-windowed over the whole window, and the power of its transform
+    summed over the bins of each band (proportional to the mean squared speed in that band), made
+    against real by :func:`masked_energy_loss`'s divergence ``2 (r/m - log(r/m) - 1)`` (too slow
+    costing in proportion, too fast in log ratio; each band's power floored at 1 % of the target's
+    mean over the batch).
+
+    The speed terms see how fast the root moves per 2 s, not at which rate it moves: on tang2018's
+    fold 2 the cdhc model's root moved along the floor at 0.22 m/s between 1 and 2 Hz (the beat)
+    and at 0.08 between 0.5 and 1 Hz, the dancers' at 0.09 and 0.23 (the bar's rate), and the trunk
+    riding on it accelerated twice as hard as theirs (docs/notebook/2026-12-real-dance-variety.md,
+    "The root's sway at the beat, brought to the dancers'").
+
+    Args:
+        prediction, target, mask: [B, L, D]; positions first, ``body.dims`` components per joint.
+        body: the :class:`Body` (its ``root`` is the joint measured).
+        fps: frames per second.
+        bands: (low, high) Hz pairs, each from ``low`` up to, not including, ``high``; a band holding
+            no bin of the window's transform is skipped.
+
+    Returns:
+        A scalar tensor (0 for a body without a root or bones, windows with no valid root throughout,
+        or no band with a bin).
+    """
+    import torch
+
+    world = world_positions(prediction, target, mask, body) if body.root is not None else None
+    if world is None:
+        return prediction.new_zeros(())
+    made, real, valid = world
+    dims = body.dims
+    columns = [body.root * dims + axis for axis in range(dims) if axis != 1]
+    whole = valid[..., columns].all(dim=2).all(dim=1)  # [B]
+    steps = made.shape[1] - 1
+    if steps < 2 or not bool(whole.any()):
+        return prediction.new_zeros(())
+    window = torch.hann_window(steps, device=made.device, dtype=made.dtype)[None, :, None]
+    keep = whole[:, None, None].to(made.dtype)
+
+    def power(x):
+        velocity = (x[:, 1:, columns] - x[:, :-1, columns]) * fps * keep  # [B, L-1, axes]
+        return (torch.fft.rfft(velocity * window, dim=1).abs() ** 2).sum(dim=2)  # [B, bins]
+
+    freqs = torch.fft.rfftfreq(steps, d=1.0 / fps).to(made.device)
+    made_power, real_power = power(made), power(torch.where(valid, real, torch.zeros_like(real)))
+    chosen = [(freqs >= low) & (freqs < high) for low, high in bands]
+    chosen = [c for c in chosen if bool(c.any())]
+    if not chosen:
+        return prediction.new_zeros(())
+    m = torch.stack([made_power[:, c].sum(dim=1) for c in chosen], dim=1)  # [B, bands]
+    r = torch.stack([real_power[:, c].sum(dim=1) for c in chosen], dim=1)
+    counted = whole.to(made.dtype)[:, None].expand_as(r)
+    floor = 1e-2 * (r * counted).sum(dim=0).detach() / counted.sum(dim=0).clamp(min=1.0) + 1e-12
+    ratio = (r + floor) / (m + floor)
+    divergence = 2.0 * (ratio - torch.log(ratio) - 1.0)
+    return (divergence * counted).sum() / counted.sum().clamp(min=1.0)
+
+
 def masked_foot_loss(
     prediction, target, mask, feet, scale, offset, root: int, centred: bool = False, up_axis: int = 1, dims: int = 3
 ):
@@ -672,6 +739,7 @@ class RhythmWeights:
     repetition: float = 0.0
     world_excess: float = 0.0
     world_jitter: float = 0.0
+    root_band: float = 0.0
     bone: float = 10.0
     world_speed: float = 1.0
     foot: float = 10.0
@@ -712,10 +780,11 @@ def masked_rhythm_loss(
     lengths (:func:`masked_bone_jitter_loss` per :data:`ENERGY_CHUNK_S`), how differently it bends
     its joints (:func:`masked_span_loss`), how differently it repeats
     (:func:`masked_repetition_loss`), how much faster its joints move in the world than the
-    target's (:func:`masked_world_speed_loss` with ``excess``) and how much more they accelerate
-    there (:func:`masked_world_jitter_loss`). ``component_floor``: every speed, jitter and bone
-    term floors each component by its own mean (:func:`masked_energy_loss`'s). [B, L, D] tensors;
-    a scalar."""
+    target's (:func:`masked_world_speed_loss` with ``excess``), how much more they accelerate
+    there (:func:`masked_world_jitter_loss`) and how differently fast the root moves along the floor
+    at the bar's rate, the beat's and the half beat's (:func:`masked_root_band_loss`).
+    ``component_floor``: every speed, jitter and bone term floors each component by its own mean
+    (:func:`masked_energy_loss`'s). [B, L, D] tensors; a scalar."""
     cf = component_floor
     w = RhythmWeights() if weights is None else weights
     chunk = max(1, round(ENERGY_CHUNK_S * fps))
@@ -745,6 +814,8 @@ def masked_rhythm_loss(
                 loss = loss + w.world_excess * masked_energy_loss(*world, chunk, excess=True, component_floor=cf)
             if w.world_jitter > 0:
                 loss = loss + w.world_jitter * masked_jitter_loss(*world, chunk, component_floor=cf)
+        if w.root_band > 0:
+            loss = loss + w.root_band * masked_root_band_loss(prediction, target, mask, body, fps)
         if w.span > 0:
             loss = loss + w.span * masked_span_loss(
                 prediction, target, mask, body.bones, body.scale, body.offset, body.dims

@@ -151,6 +151,10 @@ class TrainConfig:
             free-running loss (:func:`~kinectdata.models.losses.masked_world_jitter_loss`: the
             jitter term on each joint's position along each world axis, the root's travel added
             back: a trunk swaying faster than the dancers'). Runs written before it had none.
+        root_band_weight: weight of the root's speed along the floor by band in the free-running
+            loss (:func:`~kinectdata.models.losses.masked_root_band_loss`: at 0.5-1, 1-2 and 2-4 Hz,
+            in metres per second, against the real one's, whatever the phase: the root swaying at the
+            bar's rate rather than the beat's). Runs written before it had none.
         bone_weight: weight of the bones' stretch in the free-running loss
             (:func:`~kinectdata.models.losses.masked_bone_loss`; 10, as runs written before it had).
         world_speed_weight: weight of the joints' speed in the world in the free-running loss
@@ -269,6 +273,7 @@ class TrainConfig:
     repetition_weight: float
     world_excess_weight: float
     world_jitter_weight: float
+    root_band_weight: float
     bone_weight: float
     world_speed_weight: float
     foot_weight: float

@@ -1,0 +1,113 @@
+"""The free-running loss's root band term: the root's speed along the floor at the bar's rate, the
+beat's and the half beat's, against scipy's periodogram of the same velocity."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from scipy.signal import periodogram
+
+torch = pytest.importorskip("torch")
+
+from kinectdata.models.losses import ROOT_BANDS_HZ, Body, masked_root_band_loss  # noqa: E402
+
+FPS = 30.0
+ROOT, FOOT = 0, 1
+
+
+def _centred_windows(sway_hz: list[float], amplitude: float = 0.1, frames: int = 300) -> np.ndarray:
+    """[B, T, 6] root-centred windows (metres): the root sways along x (and half as far along z) at
+    each rate of ``sway_hz``, bobbing up and down at 3 Hz; the foot stays 0.9 m below it."""
+    t = np.arange(frames) / FPS
+    out = []
+    for hz in sway_hz:
+        x = amplitude * np.sin(2 * np.pi * hz * t)
+        z = 0.5 * amplitude * np.cos(2 * np.pi * hz * t)
+        root = np.stack([x, 0.9 + 0.05 * np.sin(2 * np.pi * 3 * t), z], axis=1)
+        foot = np.tile([0.0, -0.9, 0.0], (frames, 1))
+        out.append(np.concatenate([root, foot], axis=1))
+    return np.stack(out)
+
+
+def _body(scale: float = 0.5) -> Body:
+    return Body(bones=[(FOOT, ROOT)], scale=torch.full((6,), scale), offset=torch.zeros(6), root=ROOT, centred=True)
+
+
+def _normalised(metres: np.ndarray, scale: float = 0.5):
+    return torch.from_numpy((metres * scale).astype(np.float64))
+
+
+def _reference(made: np.ndarray, real: np.ndarray) -> float:
+    """The divergence by scipy's Hann periodogram of the root's floor velocity, band by band."""
+    powers = []
+    for x in (made, real):
+        velocity = np.diff(x[:, :, [0, 2]], axis=1) * FPS
+        freqs, p = periodogram(velocity, fs=FPS, window="hann", detrend=False, scaling="spectrum", axis=1)
+        # scipy's one-sided power over (sum of the window)^2, back to the transform's |X|^2 (the
+        # floor's last 1e-12 is absolute)
+        window_sum = np.hanning(velocity.shape[1] + 1)[:-1].sum()
+        p = p.sum(axis=2) * window_sum**2 / 2
+        powers.append(np.stack([p[:, (freqs >= lo) & (freqs < hi)].sum(axis=1) for lo, hi in ROOT_BANDS_HZ], axis=1))
+    m, r = powers
+    floor = 1e-2 * r.mean(axis=0) + 1e-12
+    q = (r + floor) / (m + floor)
+    terms = 2 * (q - np.log(q) - 1)
+    return float(terms.mean())
+
+
+def test_root_band_loss_equals_scipys_periodogram_band_by_band():
+    real_m = _centred_windows([0.7, 0.6, 1.2])
+    made_m = _centred_windows([1.5, 0.7, 2.5], amplitude=0.07)
+    mask = torch.ones(3, 300, 6, dtype=torch.bool)
+    got = float(masked_root_band_loss(_normalised(made_m), _normalised(real_m), mask, _body(), FPS))
+    assert got == pytest.approx(_reference(made_m, real_m), rel=1e-6)
+    assert got > 0.5
+
+
+def test_swaying_at_the_beat_costs_where_the_dancers_sway_at_the_bar():
+    """The same speed at the bar's rate costs nothing; at the beat's (twice the rate) it costs, and
+    so does half the speed at the bar's rate. Only the root's floor motion counts: its bob (y) and
+    the units the targets are normalised in do not."""
+    real = _centred_windows([0.7])
+    mask = torch.ones(1, 300, 6, dtype=torch.bool)
+    loss = lambda made, scale=0.5: float(  # noqa: E731
+        masked_root_band_loss(_normalised(made, scale), _normalised(real, scale), mask, _body(scale), FPS)
+    )
+    assert loss(real) == pytest.approx(0.0, abs=1e-9)
+    assert loss(_centred_windows([1.4])) > 1.0
+    assert loss(_centred_windows([0.7], amplitude=0.05)) > 0.5
+    bobbing = real.copy()
+    bobbing[:, :, 1] += 0.1 * np.sin(2 * np.pi * 1.5 * np.arange(300) / FPS)
+    assert loss(bobbing) == pytest.approx(0.0, abs=1e-9)
+    assert loss(_centred_windows([1.4]), scale=0.05) == pytest.approx(loss(_centred_windows([1.4])), rel=1e-6)
+
+
+def test_windows_whose_root_is_not_known_throughout_are_left_out():
+    real = _centred_windows([0.7, 0.7])
+    made = _centred_windows([0.7, 2.0])
+    mask = torch.ones(2, 300, 6, dtype=torch.bool)
+    mask[1, 100, 0] = False  # the second window's root x is missing in one frame
+    got = float(masked_root_band_loss(_normalised(made), _normalised(real), mask, _body(), FPS))
+    assert got == pytest.approx(0.0, abs=1e-9)
+    mask[:, 100, 0] = False
+    assert float(masked_root_band_loss(_normalised(made), _normalised(real), mask, _body(), FPS)) == 0.0
+
+
+def test_the_root_band_loss_moves_the_root_towards_the_dancers_rate():
+    """A gradient step on the loss slows a root swaying at the beat where the dancer sways at the bar."""
+    real = _normalised(_centred_windows([0.7]))
+    made = _normalised(_centred_windows([0.7, 1.5])[1:]).requires_grad_(True)
+    mask = torch.ones(1, 300, 6, dtype=torch.bool)
+    loss = masked_root_band_loss(made, real, mask, _body(), FPS)
+    loss.backward()
+    assert made.grad is not None and float(made.grad[..., 3:].abs().sum()) == 0.0  # the foot's columns untouched
+    stepped = (made - 1e-6 * made.grad / made.grad.abs().max()).detach()
+    assert float(masked_root_band_loss(stepped, real, mask, _body(), FPS)) < float(loss.detach())
+
+
+def test_a_body_without_a_root_or_too_short_a_window_costs_nothing():
+    real = _normalised(_centred_windows([0.7], frames=3))
+    mask = torch.ones(1, 3, 6, dtype=torch.bool)
+    rootless = Body(bones=[(FOOT, ROOT)], scale=torch.full((6,), 0.5), offset=torch.zeros(6))
+    assert float(masked_root_band_loss(real, real * 2, mask, rootless, FPS)) == 0.0
+    assert float(masked_root_band_loss(real, real * 2, mask, _body(), FPS)) == 0.0
