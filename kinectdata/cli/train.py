@@ -88,6 +88,12 @@ _LOOP_OPTIONS = (
         "(hip to ankle, shoulder to wrist) against the real motion's, in proportion; 0: none.",
     ),
     (
+        "bend_weight",
+        click.FloatRange(min=0),
+        "Weight of the joints' angles in the free-running loss: the mean and spread of the angle at each "
+        "two-bone chain's middle joint (the knee, the elbow) against the real motion's, in radians; 0: none.",
+    ),
+    (
         "repetition_weight",
         click.FloatRange(min=0),
         "Weight of how the motion repeats in the free-running loss: the autocorrelation of the joints' heights at "

@@ -418,6 +418,65 @@ def spans_of(bones) -> list[tuple[int, int]]:
     return [(child, parent[mid]) for child, mid in bones if mid in parent]
 
 
+def chains_of(bones) -> list[tuple[int, int, int]]:
+    """Every two-bone chain, (joint, parent, grandparent) index triples, from (joint, parent)
+    ``bones``: (ankle, knee, hip), (wrist, elbow, shoulder)... The joint bent is the middle one."""
+    parent = dict(bones)
+    return [(child, mid, parent[mid]) for child, mid in bones if mid in parent]
+
+
+def masked_bend_loss(prediction, target, mask, bones, scale, offset, dims: int = 3):
+    """How differently a motion bends its joints, in angle: per two-bone chain (:func:`chains_of`:
+    the knee between hip and ankle, the elbow between shoulder and wrist...), the angle at the middle
+    joint in every frame (radians, pi when straight), and the absolute differences between the
+    prediction's and the target's mean and standard deviation of it over the window, over the chains
+    valid in the target throughout (torch tensors; differentiable: the angle is ``atan2`` of the
+    cross and dot products, whose gradient stays finite near straight).
+
+    The span term (:func:`masked_span_loss`) compares the chain's length end to end as a fraction of
+    it, and near straight a large bend shortens it little: on tang2018's fold 2 a cdhc run bent its
+    knees at 133 degrees in the median frame of its training windows against the dancers' 157, its
+    hip-to-ankle span 2 % short (0.756 m against 0.771) and the span term at 0.04
+    (docs/notebook/2026-12-real-dance-variety.md, "The root at the bar's rate, and the bent knee
+    back").
+
+    Args:
+        prediction, target, mask: [B, L, D]; positions first, ``dims`` (2 or 3) components per joint.
+        bones: (joint, parent) index pairs into the positioned joints.
+        scale, offset: [D] the normalisation ``y = (x - offset) * scale``.
+
+    Returns:
+        A scalar tensor in radians (0 without a two-bone chain valid throughout a window).
+    """
+    import torch
+
+    chains = chains_of(bones)
+    if not chains or dims not in (2, 3):
+        return prediction.new_zeros(())
+    joints = max(max(chain) for chain in chains) + 1
+    child, mid, grand = (torch.tensor(list(ix), device=prediction.device) for ix in zip(*chains))
+
+    def angles(x):
+        p = _metres(x, scale, offset, joints, dims)
+        u, v = p[..., child, :] - p[..., mid, :], p[..., grand, :] - p[..., mid, :]
+        dot = (u * v).sum(dim=-1)
+        if dims == 3:
+            cross = torch.linalg.vector_norm(torch.linalg.cross(u, v, dim=-1), dim=-1)
+        else:
+            cross = (u[..., 0] * v[..., 1] - u[..., 1] * v[..., 0]).abs()
+        return torch.atan2(cross, dot)  # [B, L, chains]
+
+    valid = mask[..., : joints * dims].unflatten(-1, (joints, dims)).all(dim=-1)  # [B, L, J]
+    both = (valid[..., child] & valid[..., mid] & valid[..., grand]).all(dim=1)  # [B, chains]
+    real = torch.where(both[:, None], angles(target), torch.zeros((), dtype=prediction.dtype))
+    made = angles(prediction)
+    gap = (made.mean(dim=1) - real.mean(dim=1)).abs() + (
+        made.std(dim=1, correction=0) - real.std(dim=1, correction=0)
+    ).abs()
+    counted = both.to(prediction.dtype)
+    return (gap * counted).sum() / counted.sum().clamp(min=1.0)
+
+
 def masked_span_loss(prediction, target, mask, bones, scale, offset, dims: int = 3):
     """How differently a motion bends its joints: per two-bone chain (:func:`spans_of`: hip to
     ankle, shoulder to wrist...), the absolute differences between the prediction's and the
@@ -736,6 +795,7 @@ class RhythmWeights:
     bone_jitter: float = 0.0
     low_energy: float = 0.0
     span: float = 0.0
+    bend: float = 0.0
     repetition: float = 0.0
     world_excess: float = 0.0
     world_jitter: float = 0.0
@@ -778,7 +838,7 @@ def masked_rhythm_loss(
     lie (:func:`masked_periodogram_loss`), the speed of its slow part
     (:func:`masked_low_band_energy_loss`) and, given a body, how much faster its bones change their
     lengths (:func:`masked_bone_jitter_loss` per :data:`ENERGY_CHUNK_S`), how differently it bends
-    its joints (:func:`masked_span_loss`), how differently it repeats
+    its joints (:func:`masked_span_loss` end to end, :func:`masked_bend_loss` in angle), how differently it repeats
     (:func:`masked_repetition_loss`), how much faster its joints move in the world than the
     target's (:func:`masked_world_speed_loss` with ``excess``), how much more they accelerate
     there (:func:`masked_world_jitter_loss`) and how differently fast the root moves along the floor
@@ -818,6 +878,10 @@ def masked_rhythm_loss(
             loss = loss + w.root_band * masked_root_band_loss(prediction, target, mask, body, fps)
         if w.span > 0:
             loss = loss + w.span * masked_span_loss(
+                prediction, target, mask, body.bones, body.scale, body.offset, body.dims
+            )
+        if w.bend > 0:
+            loss = loss + w.bend * masked_bend_loss(
                 prediction, target, mask, body.bones, body.scale, body.offset, body.dims
             )
         if w.bone_jitter > 0:

@@ -138,6 +138,10 @@ class TrainConfig:
             (:func:`~kinectdata.models.losses.masked_span_loss`: the mean and spread of each two-bone
             chain's span, hip to ankle, shoulder to wrist, against the real one's, in proportion).
             Runs written before it had none.
+        bend_weight: weight of the joints' angles in the free-running loss
+            (:func:`~kinectdata.models.losses.masked_bend_loss`: the mean and spread of the angle at
+            each two-bone chain's middle joint, the knee, the elbow, against the real one's, in
+            radians). Runs written before it had none.
         repetition_weight: weight of how the motion repeats in the free-running loss
             (:func:`~kinectdata.models.losses.masked_repetition_loss`: the autocorrelation of the
             joints' heights at lags of 0.2-4.5 s against the real one's, whatever the phase: at one
@@ -270,6 +274,7 @@ class TrainConfig:
     bone_jitter_weight: float
     low_energy_weight: float
     span_weight: float
+    bend_weight: float
     repetition_weight: float
     world_excess_weight: float
     world_jitter_weight: float

@@ -675,6 +675,7 @@ def test_each_training_weight_reaches_its_own_term_of_the_free_running_loss():
             made, real, mask, body.bones, scale, offset, body.dims, chunk
         ),
         "span": lambda: losses.masked_span_loss(made, real, mask, body.bones, scale, offset, body.dims),
+        "bend": lambda: losses.masked_bend_loss(made, real, mask, body.bones, scale, offset, body.dims),
         "repetition": lambda: losses.masked_repetition_loss(made, real, mask, body, fps),
         "world_excess": lambda: losses.masked_world_speed_loss(made, real, mask, body, chunk, excess=True),
         "world_jitter": lambda: losses.masked_world_jitter_loss(made, real, mask, body, chunk),
