@@ -369,6 +369,12 @@ def _world(x, scale, offset, joints: int, dims: int, root: int | None, centred: 
     return p + others * p[..., root : root + 1, :]
 
 
+def _joints_valid(mask, joints: int, dims: int):
+    """[B, L, J] where every component of each of the first ``joints`` joints is valid in a [B, L, D]
+    mask (positions first, ``dims`` components per joint)."""
+    return mask[..., : joints * dims].unflatten(-1, (joints, dims)).all(dim=-1)
+
+
 def _bone_lengths(prediction, target, mask, bones, scale, offset, dims: int):
     """Each bone's length in every frame of the prediction and of the target [B, L, bones] (metres,
     the normalisation ``y = (x - offset) * scale`` undone) and where both its joints are valid in
@@ -383,7 +389,7 @@ def _bone_lengths(prediction, target, mask, bones, scale, offset, dims: int):
         p = _metres(x, scale, offset, joints, dims)
         return torch.linalg.vector_norm(p[..., child, :] - p[..., parent, :], dim=-1)
 
-    valid = mask[..., : joints * dims].unflatten(-1, (joints, dims)).all(dim=-1)  # [B, L, J]
+    valid = _joints_valid(mask, joints, dims)  # [B, L, J]
     return lengths(prediction), lengths(target), valid[..., child] & valid[..., parent]
 
 
@@ -410,19 +416,18 @@ def masked_bone_loss(prediction, target, mask, bones, scale, offset, dims: int =
     return (stretch * counted).sum() / counted.sum().clamp(min=1.0)
 
 
-def spans_of(bones) -> list[tuple[int, int]]:
-    """Each joint with its grandparent, (joint, grandparent) index pairs, from (joint, parent)
-    ``bones``: the ends of every two-bone chain (ankle and hip across the knee, wrist and shoulder
-    across the elbow), whose distance says how far the joint between them is bent."""
-    parent = dict(bones)
-    return [(child, parent[mid]) for child, mid in bones if mid in parent]
-
-
 def chains_of(bones) -> list[tuple[int, int, int]]:
     """Every two-bone chain, (joint, parent, grandparent) index triples, from (joint, parent)
     ``bones``: (ankle, knee, hip), (wrist, elbow, shoulder)... The joint bent is the middle one."""
     parent = dict(bones)
     return [(child, mid, parent[mid]) for child, mid in bones if mid in parent]
+
+
+def spans_of(bones) -> list[tuple[int, int]]:
+    """Each joint with its grandparent, (joint, grandparent) index pairs, from (joint, parent)
+    ``bones``: the ends of every two-bone chain (:func:`chains_of`: ankle and hip across the knee,
+    wrist and shoulder across the elbow), whose distance says how far the joint between them is bent."""
+    return [(child, grand) for child, _, grand in chains_of(bones)]
 
 
 def masked_bend_loss(prediction, target, mask, bones, scale, offset, dims: int = 3):
@@ -466,7 +471,7 @@ def masked_bend_loss(prediction, target, mask, bones, scale, offset, dims: int =
             cross = (u[..., 0] * v[..., 1] - u[..., 1] * v[..., 0]).abs()
         return torch.atan2(cross, dot)  # [B, L, chains]
 
-    valid = mask[..., : joints * dims].unflatten(-1, (joints, dims)).all(dim=-1)  # [B, L, J]
+    valid = _joints_valid(mask, joints, dims)  # [B, L, J]
     both = (valid[..., child] & valid[..., mid] & valid[..., grand]).all(dim=1)  # [B, chains]
     real = torch.where(both[:, None], angles(target), torch.zeros((), dtype=prediction.dtype))
     made = angles(prediction)
@@ -514,7 +519,7 @@ def world_positions(prediction, target, mask, body):
         return None
     joints = body.joints
     dims = body.dims
-    valid = mask[..., : joints * dims].unflatten(-1, (joints, dims)).all(dim=-1)  # [B, L, J]
+    valid = _joints_valid(mask, joints, dims)  # [B, L, J]
     if body.centred:
         valid = valid & valid[..., body.root : body.root + 1]
     world_mask = valid[..., None].expand(*valid.shape, dims).flatten(-2)
@@ -618,18 +623,23 @@ def masked_root_band_loss(prediction, target, mask, body, fps: float, bands=ROOT
         A scalar tensor (0 for a body without a root or bones, windows with no valid root throughout,
         or no band with a bin).
     """
-    import torch
-
     world = world_positions(prediction, target, mask, body) if body.root is not None else None
     if world is None:
         return prediction.new_zeros(())
-    made, real, valid = world
+    return _root_band_divergence(*world, body, fps, bands)
+
+
+def _root_band_divergence(made, real, valid, body, fps: float, bands=ROOT_BANDS_HZ):
+    """:func:`masked_root_band_loss` of world positions already made (:func:`world_positions`:
+    [B, L, J * dims] made and real, and where they are valid), for a body with a root."""
+    import torch
+
     dims = body.dims
     columns = [body.root * dims + axis for axis in range(dims) if axis != 1]
     whole = valid[..., columns].all(dim=2).all(dim=1)  # [B]
     steps = made.shape[1] - 1
     if steps < 2 or not bool(whole.any()):
-        return prediction.new_zeros(())
+        return made.new_zeros(())
     window = torch.hann_window(steps, device=made.device, dtype=made.dtype)[None, :, None]
     keep = whole[:, None, None].to(made.dtype)
 
@@ -642,7 +652,7 @@ def masked_root_band_loss(prediction, target, mask, body, fps: float, bands=ROOT
     chosen = [(freqs >= low) & (freqs < high) for low, high in bands]
     chosen = [c for c in chosen if bool(c.any())]
     if not chosen:
-        return prediction.new_zeros(())
+        return made.new_zeros(())
     m = torch.stack([made_power[:, c].sum(dim=1) for c in chosen], dim=1)  # [B, bands]
     r = torch.stack([real_power[:, c].sum(dim=1) for c in chosen], dim=1)
     counted = whole.to(made.dtype)[:, None].expand_as(r)
@@ -676,12 +686,11 @@ def masked_foot_loss(
     import torch
 
     joints = feet.shape[1]
-    width = joints * dims
 
     flat = [a for a in range(dims) if a != up_axis]
     used = (feet > 0).any(dim=0).clone()
     used[root] = True
-    valid = mask[..., :width].unflatten(-1, (joints, dims)).all(dim=-1)[..., used].all(dim=-1)  # [B, L]
+    valid = _joints_valid(mask, joints, dims)[..., used].all(dim=-1)  # [B, L]
     frames = (valid[:, 2:] & valid[:, 1:-1] & valid[:, :-2]).to(prediction.dtype)  # [B, L-2]
 
     def score(x):
@@ -874,8 +883,8 @@ def masked_rhythm_loss(
                 loss = loss + w.world_excess * masked_energy_loss(*world, chunk, excess=True, component_floor=cf)
             if w.world_jitter > 0:
                 loss = loss + w.world_jitter * masked_jitter_loss(*world, chunk, component_floor=cf)
-        if w.root_band > 0:
-            loss = loss + w.root_band * masked_root_band_loss(prediction, target, mask, body, fps)
+            if w.root_band > 0 and body.root is not None:
+                loss = loss + w.root_band * _root_band_divergence(*world, body, fps)
         if w.span > 0:
             loss = loss + w.span * masked_span_loss(
                 prediction, target, mask, body.bones, body.scale, body.offset, body.dims
