@@ -121,6 +121,12 @@ _LOOP_OPTIONS = (
         "the bar); 0: none.",
     ),
     (
+        "root_rise_weight",
+        click.FloatRange(min=0),
+        "Weight of the root's vertical speed by band in the free-running loss: at 0.5-1, 1-2, 2-4 and 4-8 Hz "
+        "against the real motion's, whatever the phase (a waltz's rise and fall); 0: none.",
+    ),
+    (
         "bone_weight",
         click.FloatRange(min=0),
         "Weight of the bones' stretch in the free-running loss: how much each bone's length varies against the "

@@ -159,6 +159,10 @@ class TrainConfig:
             loss (:func:`~kinectdata.models.losses.masked_root_band_loss`: at 0.5-1, 1-2 and 2-4 Hz,
             in metres per second, against the real one's, whatever the phase: the root swaying at the
             bar's rate rather than the beat's). Runs written before it had none.
+        root_rise_weight: weight of the root's vertical speed by band in the free-running loss
+            (:func:`~kinectdata.models.losses.masked_root_rise_loss`: at 0.5-1, 1-2, 2-4 and 4-8 Hz,
+            in metres per second, against the real one's, whatever the phase: a waltz's rise and
+            fall). Runs written before it had none.
         bone_weight: weight of the bones' stretch in the free-running loss
             (:func:`~kinectdata.models.losses.masked_bone_loss`; 10, as runs written before it had).
         world_speed_weight: weight of the joints' speed in the world in the free-running loss
@@ -279,6 +283,7 @@ class TrainConfig:
     world_excess_weight: float
     world_jitter_weight: float
     root_band_weight: float
+    root_rise_weight: float
     bone_weight: float
     world_speed_weight: float
     foot_weight: float

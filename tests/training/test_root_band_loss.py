@@ -1,5 +1,6 @@
-"""The free-running loss's root band term: the root's speed along the floor at the bar's rate, the
-beat's and the half beat's, against scipy's periodogram of the same velocity."""
+"""The free-running loss's root band terms: the root's speed along the floor at the bar's rate, the
+beat's and the half beat's, and its vertical speed there and at the quarter beat's, against scipy's
+periodogram of the same velocity."""
 
 from __future__ import annotations
 
@@ -9,7 +10,13 @@ from scipy.signal import periodogram
 
 torch = pytest.importorskip("torch")
 
-from kinectdata.models.losses import ROOT_BANDS_HZ, Body, masked_root_band_loss  # noqa: E402
+from kinectdata.models.losses import (  # noqa: E402
+    ROOT_BANDS_HZ,
+    ROOT_RISE_BANDS_HZ,
+    Body,
+    masked_root_band_loss,
+    masked_root_rise_loss,
+)
 
 FPS = 30.0
 ROOT, FOOT = 0, 1
@@ -37,17 +44,17 @@ def _normalised(metres: np.ndarray, scale: float = 0.5):
     return torch.from_numpy((metres * scale).astype(np.float64))
 
 
-def _reference(made: np.ndarray, real: np.ndarray) -> float:
-    """The divergence by scipy's Hann periodogram of the root's floor velocity, band by band."""
+def _reference(made: np.ndarray, real: np.ndarray, axes=(0, 2), bands=ROOT_BANDS_HZ) -> float:
+    """The divergence by scipy's Hann periodogram of the root's velocity along ``axes``, band by band."""
     powers = []
     for x in (made, real):
-        velocity = np.diff(x[:, :, [0, 2]], axis=1) * FPS
+        velocity = np.diff(x[:, :, list(axes)], axis=1) * FPS
         freqs, p = periodogram(velocity, fs=FPS, window="hann", detrend=False, scaling="spectrum", axis=1)
         # scipy's one-sided power over (sum of the window)^2, back to the transform's |X|^2 (the
         # floor's last 1e-12 is absolute)
         window_sum = np.hanning(velocity.shape[1] + 1)[:-1].sum()
         p = p.sum(axis=2) * window_sum**2 / 2
-        powers.append(np.stack([p[:, (freqs >= lo) & (freqs < hi)].sum(axis=1) for lo, hi in ROOT_BANDS_HZ], axis=1))
+        powers.append(np.stack([p[:, (freqs >= lo) & (freqs < hi)].sum(axis=1) for lo, hi in bands], axis=1))
     m, r = powers
     floor = 1e-2 * r.mean(axis=0) + 1e-12
     q = (r + floor) / (m + floor)
@@ -111,3 +118,56 @@ def test_a_body_without_a_root_or_too_short_a_window_costs_nothing():
     rootless = Body(bones=[(FOOT, ROOT)], scale=torch.full((6,), 0.5), offset=torch.zeros(6))
     assert float(masked_root_band_loss(real, real * 2, mask, rootless, FPS)) == 0.0
     assert float(masked_root_band_loss(real, real * 2, mask, _body(), FPS)) == 0.0
+
+
+def _rising(rise_hz: list[float], amplitude: float = 0.04, frames: int = 300) -> np.ndarray:
+    """[B, T, 6] root-centred windows (metres): the root rises and falls at each rate of ``rise_hz``
+    around 0.9 m while it sways along x at 0.7 Hz; the foot stays on the floor."""
+    out = _centred_windows([0.7] * len(rise_hz), frames=frames)
+    t = np.arange(frames) / FPS
+    for window, hz in zip(out, rise_hz):
+        window[:, 1] = 0.9 + amplitude * np.sin(2 * np.pi * hz * t)
+    return out
+
+
+def test_root_rise_loss_equals_scipys_periodogram_of_the_vertical_velocity():
+    real_m = _rising([0.6, 1.4, 5.0])
+    made_m = _rising([1.4, 1.4, 2.5], amplitude=0.02)
+    mask = torch.ones(3, 300, 6, dtype=torch.bool)
+    got = float(masked_root_rise_loss(_normalised(made_m), _normalised(real_m), mask, _body(), FPS))
+    assert got == pytest.approx(_reference(made_m, real_m, axes=(1,), bands=ROOT_RISE_BANDS_HZ), rel=1e-6)
+    assert got > 0.5
+
+
+def test_a_root_that_stops_rising_and_falling_costs_whatever_it_does_along_the_floor():
+    """The rise and fall the root band term cannot see: a root that stays at one height costs, one
+    rising and falling as the dancer does costs nothing, however differently it sways along the floor."""
+    real = _rising([1.4])
+    mask = torch.ones(1, 300, 6, dtype=torch.bool)
+    loss = lambda made: float(  # noqa: E731
+        masked_root_rise_loss(_normalised(made), _normalised(real), mask, _body(), FPS)
+    )
+    level = real.copy()
+    level[:, :, 1] = 0.9
+    swaying_fast = real.copy()
+    swaying_fast[:, :, 0] *= 3.0
+    assert loss(real) == pytest.approx(0.0, abs=1e-9)
+    assert loss(swaying_fast) == pytest.approx(0.0, abs=1e-9)
+    assert loss(level) > 5.0
+    assert loss(_rising([0.7])) > 1.0
+    assert float(masked_root_band_loss(_normalised(level), _normalised(real), mask, _body(), FPS)) == pytest.approx(
+        0.0, abs=1e-9
+    )
+
+
+def test_the_root_rise_loss_brings_back_the_rise_and_fall():
+    """A gradient step on the loss raises the vertical motion of a root that barely moves up and down."""
+    real = _normalised(_rising([1.4]))
+    made = _normalised(_rising([1.4], amplitude=0.01)).requires_grad_(True)
+    mask = torch.ones(1, 300, 6, dtype=torch.bool)
+    loss = masked_root_rise_loss(made, real, mask, _body(), FPS)
+    loss.backward()
+    assert made.grad is not None and float(made.grad[..., [0, 2, 3, 4, 5]].abs().sum()) == 0.0  # only the root's y
+    stepped = (made - 1e-4 * made.grad / made.grad.abs().max()).detach()
+    assert float(masked_root_rise_loss(stepped, real, mask, _body(), FPS)) < float(loss.detach())
+    assert float(stepped[0, :, 1].std()) > float(made.detach()[0, :, 1].std())
