@@ -424,6 +424,22 @@ def test_without_the_saliences_a_frame_is_the_levels_alone():
     assert PRESETS["listen_to_dance_clocks_style"].output_shape == (10,)
 
 
+def test_the_held_preset_is_the_bar_pulse_with_its_beat_held_and_its_clocks_at_unit_amplitude():
+    """``listen_to_dance_rhythm_held_style``: the 80 log-mel bands, the bar pulse's 65 saliences with
+    the beat's, the bar's and two bars' clocks (no two beats' clock) at unit amplitude and the beat
+    held at 1, then the style's 4 values; its build key round-trips through JSON."""
+    from kinectdata.features import LISTEN_TO_DANCE_BAR_PULSE, LISTEN_TO_DANCE_HELD_PULSE, StackConfig, feature_config
+
+    stack = PRESETS["listen_to_dance_rhythm_held_style"]
+    mel, pulse, style = stack.parts
+    assert pulse is LISTEN_TO_DANCE_HELD_PULSE
+    assert pulse == dataclasses.replace(LISTEN_TO_DANCE_BAR_PULSE, levels=(1,), unit_levels=True, beat_hold=1.0)
+    assert (mel.output_shape, pulse.output_shape, style.output_shape) == ((80,), (65 + 2 * 3,), (4,))
+    assert stack.output_shape == (155,)
+    back = feature_config(json.loads(json.dumps(stack.to_dict())))
+    assert isinstance(back, StackConfig) and back == stack
+
+
 def test_clock_planes_hold_each_value_of_the_vector_as_a_constant_plane():
     """``planes``: every value of the vector layout (the clocks, which the tests above check against
     the ideal pulse) fills its own [rows, columns] plane, in the same order; the yalta preset's clocks
