@@ -641,18 +641,21 @@ def masked_root_rise_loss(prediction, target, mask, body, fps: float, bands=ROOT
     The root band term asks only the root's speed along the floor for the dancers' rates, and it
     took the rise and fall with it: on tang2018's fold 2 the cdhc model's scored waltzes then moved
     the pelvis up and down with 0.66 times the real waltzers' vertical kinetic energy (1.11 times
-    without the term), on fold 1 with 0.42 (0.84), and fold 1's Latin dances were named waltzes
-    (docs/notebook/2026-12-real-dance-variety.md, "The rise and fall, kept").
+    without the term); on fold 1, with the span term at 30 and the beat held as well (c1), with 0.42
+    (the held lead: 0.84), and fold 1's Latin dances were named waltzes
+    (docs/notebook/2026-12-real-dance-variety.md, "The rise and fall kept, and the joints bent to
+    the dancers' angle").
 
     Args:
         prediction, target, mask: [B, L, D]; positions first, ``body.dims`` components per joint.
         body: the :class:`Body` (its ``root`` is the joint measured).
         fps: frames per second.
-        bands: (low, high) Hz pairs, each from ``low`` up to, not including, ``high``.
+        bands: (low, high) Hz pairs, each from ``low`` up to, not including, ``high``; a band holding
+            no bin of the window's transform is skipped.
 
     Returns:
-        A scalar tensor (0 for a body without a root or bones, or windows with no valid root
-        throughout).
+        A scalar tensor (0 for a body without a root or bones, windows with no valid root height
+        throughout or shorter than 3 frames, or no band with a bin).
     """
     world = world_positions(prediction, target, mask, body) if body.root is not None else None
     if world is None:
@@ -886,7 +889,7 @@ def masked_rhythm_loss(
     target's (:func:`masked_world_speed_loss` with ``excess``), how much more they accelerate
     there (:func:`masked_world_jitter_loss`) and how differently fast the root moves along the floor
     at the bar's rate, the beat's and the half beat's (:func:`masked_root_band_loss`) and how
-    differently fast it rises and falls there (:func:`masked_root_rise_loss`).
+    differently fast it rises and falls there and at the quarter beat's (:func:`masked_root_rise_loss`).
     ``component_floor``: every speed, jitter and bone term floors each component by its own mean
     (:func:`masked_energy_loss`'s). [B, L, D] tensors; a scalar."""
     cf = component_floor

@@ -427,13 +427,14 @@ def test_without_the_saliences_a_frame_is_the_levels_alone():
 def test_the_held_preset_is_the_bar_pulse_with_its_beat_held_and_its_clocks_at_unit_amplitude():
     """``listen_to_dance_rhythm_held_style``: the 80 log-mel bands, the bar pulse's 65 saliences with
     the beat's, the bar's and two bars' clocks (no two beats' clock) at unit amplitude and the beat
-    held at 1, then the style's 4 values; its build key round-trips through JSON."""
-    from kinectdata.features import LISTEN_TO_DANCE_BAR_PULSE, LISTEN_TO_DANCE_HELD_PULSE, StackConfig, feature_config
+    held at 1, then the style's 4 values; its configuration round-trips through JSON."""
+    from kinectdata.features import LISTEN_TO_DANCE_HELD_PULSE, StackConfig, feature_config
 
     stack = PRESETS["listen_to_dance_rhythm_held_style"]
     mel, pulse, style = stack.parts
     assert pulse is LISTEN_TO_DANCE_HELD_PULSE
-    assert pulse == dataclasses.replace(LISTEN_TO_DANCE_BAR_PULSE, levels=(1,), unit_levels=True, beat_hold=1.0)
+    assert (pulse.levels, pulse.bar_levels, pulse.n_tempi, pulse.beat_hold) == ((1,), (1, 2), 65, 1.0)
+    assert pulse.unit_levels and pulse.saliences and not pulse.counted_levels and not pulse.tempo_phases
     assert (mel.output_shape, pulse.output_shape, style.output_shape) == ((80,), (65 + 2 * 3,), (4,))
     assert stack.output_shape == (155,)
     back = feature_config(json.loads(json.dumps(stack.to_dict())))

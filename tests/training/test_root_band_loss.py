@@ -122,7 +122,7 @@ def test_a_body_without_a_root_or_too_short_a_window_costs_nothing():
 
 def _rising(rise_hz: list[float], amplitude: float = 0.04, frames: int = 300) -> np.ndarray:
     """[B, T, 6] root-centred windows (metres): the root rises and falls at each rate of ``rise_hz``
-    around 0.9 m while it sways along x at 0.7 Hz; the foot stays on the floor."""
+    around 0.9 m while it sways along x at 0.7 Hz; the foot stays 0.9 m below it."""
     out = _centred_windows([0.7] * len(rise_hz), frames=frames)
     t = np.arange(frames) / FPS
     for window, hz in zip(out, rise_hz):
@@ -130,13 +130,41 @@ def _rising(rise_hz: list[float], amplitude: float = 0.04, frames: int = 300) ->
     return out
 
 
+RISE_BANDS = ((0.5, 1.0), (1.0, 2.0), (2.0, 4.0), (4.0, 8.0))  # written out: the quarter beat's band too
+
+
 def test_root_rise_loss_equals_scipys_periodogram_of_the_vertical_velocity():
+    assert ROOT_RISE_BANDS_HZ == RISE_BANDS
     real_m = _rising([0.6, 1.4, 5.0])
     made_m = _rising([1.4, 1.4, 2.5], amplitude=0.02)
     mask = torch.ones(3, 300, 6, dtype=torch.bool)
     got = float(masked_root_rise_loss(_normalised(made_m), _normalised(real_m), mask, _body(), FPS))
-    assert got == pytest.approx(_reference(made_m, real_m, axes=(1,), bands=ROOT_RISE_BANDS_HZ), rel=1e-6)
+    assert got == pytest.approx(_reference(made_m, real_m, axes=(1,), bands=RISE_BANDS), rel=1e-6)
     assert got > 0.5
+
+
+def test_the_quarter_beats_rise_and_fall_counts_and_the_floor_bands_stop_at_4_hz():
+    """The dancer's root moves at 0.7, 1.5 and 3 Hz along the floor and up and down, and at 6 Hz up
+    and down too. A shake at 5.5 Hz added along y costs in the rise term (its 4-8 Hz band holds it);
+    the same shake along x costs next to nothing in the root band term (its bands end at 4 Hz)."""
+    assert ROOT_BANDS_HZ == ((0.5, 1.0), (1.0, 2.0), (2.0, 4.0))
+    t = np.arange(300) / FPS
+    moving = sum(0.03 * np.sin(2 * np.pi * hz * t) for hz in (0.7, 1.5, 3.0))
+    real = _rising([1.4])
+    real[0, :, 0] = moving
+    real[0, :, 1] = 0.9 + moving + 0.005 * np.sin(2 * np.pi * 6.0 * t)
+    shake = 0.03 * np.sin(2 * np.pi * 5.5 * t)
+    up, along = real.copy(), real.copy()
+    up[0, :, 1] += shake
+    along[0, :, 0] += shake
+    mask = torch.ones(1, 300, 6, dtype=torch.bool)
+    rise = float(masked_root_rise_loss(_normalised(up), _normalised(real), mask, _body(), FPS))
+    floor = float(masked_root_band_loss(_normalised(along), _normalised(real), mask, _body(), FPS))
+    assert rise > 1.0
+    assert floor < 1e-3
+    assert float(masked_root_rise_loss(_normalised(real), _normalised(real), mask, _body(), FPS)) == pytest.approx(
+        0.0, abs=1e-9
+    )
 
 
 def test_a_root_that_stops_rising_and_falling_costs_whatever_it_does_along_the_floor():
@@ -171,3 +199,19 @@ def test_the_root_rise_loss_brings_back_the_rise_and_fall():
     stepped = (made - 1e-4 * made.grad / made.grad.abs().max()).detach()
     assert float(masked_root_rise_loss(stepped, real, mask, _body(), FPS)) < float(loss.detach())
     assert float(stepped[0, :, 1].std()) > float(made.detach()[0, :, 1].std())
+
+
+def test_the_rise_term_leaves_out_what_the_floor_term_does():
+    """Windows whose root height is missing in a frame, a rootless body and a window too short for a
+    transform cost nothing in the rise term either."""
+    real = _rising([1.4, 1.4])
+    made = _rising([1.4, 0.7])
+    mask = torch.ones(2, 300, 6, dtype=torch.bool)
+    mask[1, 50, 1] = False  # the second window's root y is missing in one frame
+    assert float(masked_root_rise_loss(_normalised(made), _normalised(real), mask, _body(), FPS)) == pytest.approx(
+        0.0, abs=1e-9
+    )
+    rootless = Body(bones=[(FOOT, ROOT)], scale=torch.full((6,), 0.5), offset=torch.zeros(6))
+    assert float(masked_root_rise_loss(_normalised(made), _normalised(real), mask, rootless, FPS)) == 0.0
+    short = torch.ones(2, 3, 6, dtype=torch.bool)
+    assert float(masked_root_rise_loss(_normalised(made[:, :3]), _normalised(real[:, :3]), short, _body(), FPS)) == 0.0
