@@ -416,6 +416,15 @@ def masked_bone_loss(prediction, target, mask, bones, scale, offset, dims: int =
     return (stretch * counted).sum() / counted.sum().clamp(min=1.0)
 
 
+def _moments_gap(made, real):
+    """[B, K] the absolute differences of the means plus those of the (population) standard
+    deviations over the frames of [B, L, K] made and real values: what the span and bend terms
+    compare, whatever the timing."""
+    return (made.mean(dim=1) - real.mean(dim=1)).abs() + (
+        made.std(dim=1, correction=0) - real.std(dim=1, correction=0)
+    ).abs()
+
+
 def chains_of(bones) -> list[tuple[int, int, int]]:
     """Every two-bone chain, (joint, parent, grandparent) index triples, from (joint, parent)
     ``bones``: (ankle, knee, hip), (wrist, elbow, shoulder)... The joint bent is the middle one."""
@@ -474,12 +483,8 @@ def masked_bend_loss(prediction, target, mask, bones, scale, offset, dims: int =
     valid = _joints_valid(mask, joints, dims)  # [B, L, J]
     both = (valid[..., child] & valid[..., mid] & valid[..., grand]).all(dim=1)  # [B, chains]
     real = torch.where(both[:, None], angles(target), torch.zeros((), dtype=prediction.dtype))
-    made = angles(prediction)
-    gap = (made.mean(dim=1) - real.mean(dim=1)).abs() + (
-        made.std(dim=1, correction=0) - real.std(dim=1, correction=0)
-    ).abs()
     counted = both.to(prediction.dtype)
-    return (gap * counted).sum() / counted.sum().clamp(min=1.0)
+    return (_moments_gap(angles(prediction), real) * counted).sum() / counted.sum().clamp(min=1.0)
 
 
 def masked_span_loss(prediction, target, mask, bones, scale, offset, dims: int = 3):
@@ -505,9 +510,8 @@ def masked_span_loss(prediction, target, mask, bones, scale, offset, dims: int =
     made, real, valid = _bone_lengths(prediction, target, mask, spans, scale, offset, dims)
     both = valid.all(dim=1)  # [B, spans]: valid throughout the window
     typical = real.mean(dim=1)
-    gap = (made.mean(dim=1) - typical).abs() + (made.std(dim=1, correction=0) - real.std(dim=1, correction=0)).abs()
     counted = both.to(prediction.dtype)
-    return (gap / typical.clamp(min=1e-3) * counted).sum() / counted.sum().clamp(min=1.0)
+    return (_moments_gap(made, real) / typical.clamp(min=1e-3) * counted).sum() / counted.sum().clamp(min=1.0)
 
 
 def world_positions(prediction, target, mask, body):
@@ -623,10 +627,7 @@ def masked_root_band_loss(prediction, target, mask, body, fps: float, bands=ROOT
         A scalar tensor (0 for a body without a root or bones, windows with no valid root throughout,
         or no band with a bin).
     """
-    world = world_positions(prediction, target, mask, body) if body.root is not None else None
-    if world is None:
-        return prediction.new_zeros(())
-    return _root_band_divergence(*world, body, fps, bands)
+    return _root_bands(prediction, target, mask, body, fps, bands, vertical=False)
 
 
 ROOT_RISE_BANDS_HZ = ((0.5, 1.0), (1.0, 2.0), (2.0, 4.0), (4.0, 8.0))
@@ -646,21 +647,20 @@ def masked_root_rise_loss(prediction, target, mask, body, fps: float, bands=ROOT
     (docs/notebook/2026-12-real-dance-variety.md, "The rise and fall kept, and the joints bent to
     the dancers' angle").
 
-    Args:
-        prediction, target, mask: [B, L, D]; positions first, ``body.dims`` components per joint.
-        body: the :class:`Body` (its ``root`` is the joint measured).
-        fps: frames per second.
-        bands: (low, high) Hz pairs, each from ``low`` up to, not including, ``high``; a band holding
-            no bin of the window's transform is skipped.
-
-    Returns:
-        A scalar tensor (0 for a body without a root or bones, windows with no valid root height
-        throughout or shorter than 3 frames, or no band with a bin).
+    Arguments and result as :func:`masked_root_band_loss`'s, the root's height in place of its place
+    on the floor (0 also for windows whose root height is not valid throughout or that are shorter
+    than 3 frames).
     """
+    return _root_bands(prediction, target, mask, body, fps, bands, vertical=True)
+
+
+def _root_bands(prediction, target, mask, body, fps: float, bands, vertical: bool):
+    """:func:`_root_band_divergence` of [B, L, D] windows, their world positions made here
+    (:func:`world_positions`); 0 for a body without a root or bones."""
     world = world_positions(prediction, target, mask, body) if body.root is not None else None
     if world is None:
         return prediction.new_zeros(())
-    return _root_band_divergence(*world, body, fps, bands, vertical=True)
+    return _root_band_divergence(*world, body, fps, bands, vertical=vertical)
 
 
 def _root_band_divergence(made, real, valid, body, fps: float, bands=ROOT_BANDS_HZ, vertical: bool = False):
