@@ -127,6 +127,13 @@ _LOOP_OPTIONS = (
         "against the real motion's, whatever the phase (a waltz's rise and fall); 0: none.",
     ),
     (
+        "root_phase_weight",
+        click.FloatRange(min=0),
+        "Weight of the root's rise and fall out of phase in the free-running loss: one minus the correlation of its "
+        "vertical speed with the real motion's at 0.5-1, 1-2, 2-4 and 4-8 Hz, whatever the size (rising when the "
+        "dancer rose, to the same music); 0: none.",
+    ),
+    (
         "bone_weight",
         click.FloatRange(min=0),
         "Weight of the bones' stretch in the free-running loss: how much each bone's length varies against the "

@@ -163,6 +163,11 @@ class TrainConfig:
             (:func:`~kinectdata.models.losses.masked_root_rise_loss`: at 0.5-1, 1-2, 2-4 and 4-8 Hz,
             in metres per second, against the real one's, whatever the phase: a waltz's rise and
             fall). Runs written before it had none.
+        root_phase_weight: weight of the root's rise and fall out of phase in the free-running loss
+            (:func:`~kinectdata.models.losses.masked_root_phase_loss`: one minus the correlation of
+            the root's vertical velocity with the real one's in each of the rise term's bands,
+            whatever the size: rising and falling when the dancer did, to the same music). Runs
+            written before it had none.
         bone_weight: weight of the bones' stretch in the free-running loss
             (:func:`~kinectdata.models.losses.masked_bone_loss`; 10, as runs written before it had).
         world_speed_weight: weight of the joints' speed in the world in the free-running loss
@@ -284,6 +289,7 @@ class TrainConfig:
     world_jitter_weight: float
     root_band_weight: float
     root_rise_weight: float
+    root_phase_weight: float
     bone_weight: float
     world_speed_weight: float
     foot_weight: float

@@ -1,6 +1,7 @@
 """The free-running loss's root band terms: the root's speed along the floor at the bar's rate, the
 beat's and the half beat's, and its vertical speed there and at the quarter beat's, against scipy's
-periodogram of the same velocity."""
+periodogram of the same velocity; and the phase of its rise and fall against the dancer's, against
+numpy's transform of the same velocity."""
 
 from __future__ import annotations
 
@@ -15,6 +16,7 @@ from kinectdata.models.losses import (  # noqa: E402
     ROOT_RISE_BANDS_HZ,
     Body,
     masked_root_band_loss,
+    masked_root_phase_loss,
     masked_root_rise_loss,
 )
 
@@ -190,15 +192,21 @@ def test_a_root_that_stops_rising_and_falling_costs_whatever_it_does_along_the_f
 
 def test_the_root_rise_loss_brings_back_the_rise_and_fall():
     """A gradient step on the loss raises the vertical motion of a root that barely moves up and down."""
-    real = _normalised(_rising([1.4]))
-    made = _normalised(_rising([1.4], amplitude=0.01)).requires_grad_(True)
-    mask = torch.ones(1, 300, 6, dtype=torch.bool)
-    loss = masked_root_rise_loss(made, real, mask, _body(), FPS)
+    made = _normalised(_rising([1.4], amplitude=0.01))
+    stepped = _step_lowers(masked_root_rise_loss, made, _normalised(_rising([1.4])))
+    assert float(stepped[0, :, 1].std()) > float(made[0, :, 1].std())
+
+
+def _step_lowers(loss_of, made, real):
+    """A gradient step on ``loss_of`` touches only the root's y and lowers the loss; the stepped window."""
+    made = made.clone().requires_grad_(True)
+    mask = torch.ones(*real.shape, dtype=torch.bool)
+    loss = loss_of(made, real, mask, _body(), FPS)
     loss.backward()
     assert made.grad is not None and float(made.grad[..., [0, 2, 3, 4, 5]].abs().sum()) == 0.0  # only the root's y
     stepped = (made - 1e-4 * made.grad / made.grad.abs().max()).detach()
-    assert float(masked_root_rise_loss(stepped, real, mask, _body(), FPS)) < float(loss.detach())
-    assert float(stepped[0, :, 1].std()) > float(made.detach()[0, :, 1].std())
+    assert float(loss_of(stepped, real, mask, _body(), FPS)) < float(loss.detach())
+    return stepped
 
 
 def test_the_rise_term_leaves_out_what_the_floor_term_does():
@@ -215,3 +223,96 @@ def test_the_rise_term_leaves_out_what_the_floor_term_does():
     assert float(masked_root_rise_loss(_normalised(made), _normalised(real), mask, rootless, FPS)) == 0.0
     short = torch.ones(2, 3, 6, dtype=torch.bool)
     assert float(masked_root_rise_loss(_normalised(made[:, :3]), _normalised(real[:, :3]), short, _body(), FPS)) == 0.0
+
+
+def _phase_reference(made: np.ndarray, real: np.ndarray, bands=RISE_BANDS) -> float:
+    """The phase term by numpy: each band's correlation of the transforms of the root's vertical
+    velocity (a periodic Hann window), weighed by the real power's share in the band."""
+    transforms = []
+    for x in (made, real):
+        velocity = np.diff(x[:, :, 1], axis=1) * FPS  # [B, T-1]
+        window = np.hanning(velocity.shape[1] + 1)[:-1]
+        transforms.append(np.fft.rfft(velocity * window, axis=1))
+    freqs = np.fft.rfftfreq(made.shape[1] - 1, d=1.0 / FPS)
+    g, t = transforms
+    inside = [(freqs >= lo) & (freqs < hi) for lo, hi in bands]
+    m = np.stack([(np.abs(g[:, b]) ** 2).sum(axis=1) for b in inside], axis=1)
+    r = np.stack([(np.abs(t[:, b]) ** 2).sum(axis=1) for b in inside], axis=1)
+    cross = np.stack([(g[:, b] * np.conj(t[:, b])).real.sum(axis=1) for b in inside], axis=1)
+    floor = 1e-2 * r.mean(axis=0) + 1e-12
+    gap = 1 - cross / np.sqrt(np.maximum(m, floor) * r + 1e-12)
+    return float(((gap * r / r.sum(axis=1, keepdims=True)).sum(axis=1)).mean())
+
+
+def _phase_loss(made: np.ndarray, real: np.ndarray) -> float:
+    mask = torch.ones(*real.shape, dtype=torch.bool)
+    return float(masked_root_phase_loss(_normalised(made), _normalised(real), mask, _body(), FPS))
+
+
+def _rising_at(hz: float, shift_s: float, amplitude: float = 0.04) -> np.ndarray:
+    """A window of :func:`_rising` whose rise and fall comes ``shift_s`` seconds late."""
+    out = _rising([hz])
+    t = np.arange(out.shape[1]) / FPS
+    out[0, :, 1] = 0.9 + amplitude * np.sin(2 * np.pi * hz * (t - shift_s))
+    return out
+
+
+def test_root_phase_loss_equals_numpys_band_correlation():
+    real = np.concatenate([_rising([0.6]), _rising([1.4]), _rising([5.0])])
+    made = np.concatenate([_rising_at(0.6, 0.3), _rising_at(1.4, 0.1, 0.01), _rising([2.5])])
+    real[1, :, 1] += 0.01 * np.sin(2 * np.pi * 3.0 * np.arange(300) / FPS)  # a second band in one window
+    got = _phase_loss(made, real)
+    assert got == pytest.approx(_phase_reference(made, real), rel=1e-6)
+    assert 0.2 < got < 2.0
+
+
+def test_the_phase_term_asks_when_the_root_rises_not_how_much():
+    """The dancer rises and falls at 1.4 Hz. In time at half the size costs next to nothing (the rise
+    term's business); a quarter period late costs about 1, half a period late about 2."""
+    real = _rising([1.4])
+    period = 1 / 1.4
+    assert _phase_loss(real, real) == pytest.approx(0.0, abs=1e-6)
+    assert _phase_loss(_rising_at(1.4, 0.0, 0.02), real) < 0.05
+    assert _phase_loss(_rising_at(1.4, period / 4), real) == pytest.approx(1.0, abs=0.05)
+    assert _phase_loss(_rising_at(1.4, period / 2), real) == pytest.approx(2.0, abs=0.05)
+    swaying_fast = real.copy()
+    swaying_fast[:, :, 0] *= 3.0
+    assert _phase_loss(swaying_fast, real) == pytest.approx(0.0, abs=1e-6)  # only the height's timing counts
+
+
+def test_the_band_the_dancer_rises_in_most_keeps_time_most():
+    """The dancer rises at 1.4 Hz and barely at 3 Hz: the 3 Hz part out of phase costs little, the
+    1.4 Hz part out of phase costs much."""
+    t = np.arange(300) / FPS
+    real = _rising([1.4])
+    real[0, :, 1] += 0.004 * np.sin(2 * np.pi * 3.0 * t)
+    small_late = real.copy()
+    small_late[0, :, 1] = 0.9 + 0.04 * np.sin(2 * np.pi * 1.4 * t) - 0.004 * np.sin(2 * np.pi * 3.0 * t)
+    big_late = real.copy()
+    big_late[0, :, 1] = 0.9 - 0.04 * np.sin(2 * np.pi * 1.4 * t) + 0.004 * np.sin(2 * np.pi * 3.0 * t)
+    assert _phase_loss(small_late, real) < 0.2
+    assert _phase_loss(big_late, real) > 1.5
+
+
+def test_the_phase_term_brings_the_rise_into_time_and_leaves_out_what_it_cannot_see():
+    real = _normalised(_rising([1.4]))
+    made = _normalised(_rising_at(1.4, 0.2))
+    _step_lowers(masked_root_phase_loss, made, real)
+    mask = torch.ones(1, 300, 6, dtype=torch.bool)
+    level = _rising([1.4])
+    level[:, :, 1] = 0.9
+    flat = torch.ones(1, 300, 6, dtype=torch.bool)
+    # a model that does not rise at all: a finite gradient (the floor), the cost of unrelated motion
+    still = _normalised(level).requires_grad_(True)
+    cost = masked_root_phase_loss(still, real, flat, _body(), FPS)
+    cost.backward()
+    assert float(cost.detach()) == pytest.approx(1.0, abs=1e-6) and bool(torch.isfinite(still.grad).all())
+    # a dancer who does not rise, a missing height, a rootless body, a short window: nothing
+    assert _phase_loss(_rising([1.4]), level) == 0.0
+    missing = torch.ones(1, 300, 6, dtype=torch.bool)
+    missing[0, 10, 1] = False
+    assert float(masked_root_phase_loss(made, real, missing, _body(), FPS)) == 0.0
+    rootless = Body(bones=[(FOOT, ROOT)], scale=torch.full((6,), 0.5), offset=torch.zeros(6))
+    assert float(masked_root_phase_loss(made, real, mask, rootless, FPS)) == 0.0
+    short = torch.ones(1, 3, 6, dtype=torch.bool)
+    assert float(masked_root_phase_loss(made[:, :3], real[:, :3], short, _body(), FPS)) == 0.0
