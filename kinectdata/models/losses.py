@@ -660,10 +660,11 @@ def masked_root_phase_loss(prediction, target, mask, body, fps: float, bands=ROO
     over the window) made and real are band-passed to each band of ``bands`` (their transforms kept at
     the band's bins), and each band costs one minus their correlation, ``1 - Re<m, r> / (|m| |r|)``:
     0 in phase, 1 unrelated, 2 in antiphase, whatever the size (under the made power, a floor of 1 %
-    of the band's real power averaged over the batch). The bands are weighed by the target's share of
-    its power in them, so the band the dancer rises and falls in most keeps time most. Windows whose
-    real power over the bands is under 1 % of the batch's mean are not counted (no rise to keep in
-    time).
+    of the band's real power averaged over the batch's whole windows, at most the window's own). The
+    bands are weighed by the target's share of its power in them, so the band the dancer rises and
+    falls in most keeps time most. Windows whose
+    real power over the bands is under 1 % of the mean over the batch's whole windows are not counted
+    (no rise to keep in time).
 
     :func:`masked_root_rise_loss` asks each band for the dancer's power whatever the phase, and power
     can be bought with motion that keeps no time: on tang2018's fold 2 the rise term at 5 brought the
@@ -759,8 +760,9 @@ def _root_phase_gap(made, real, valid, body, fps: float, bands=ROOT_RISE_BANDS_H
     r = torch.stack([(t.abs() ** 2).sum(dim=(1, 2)) for _, t in per_band], dim=1)  # [B, bands]
     m = torch.stack([(g.abs() ** 2).sum(dim=(1, 2)) for g, _ in per_band], dim=1)
     cross = torch.stack([(g * t.conj()).real.sum(dim=(1, 2)) for g, t in per_band], dim=1)
-    # The floor under the made power keeps the gradient finite where the model does not rise at all.
-    floor = _band_floor(r, whole.to(made.dtype)[:, None].expand_as(r))
+    # The floor under the made power keeps the gradient bounded where the model does not rise at all;
+    # capped at the band's own real power, so that a copy of the dancer costs 0 in a quiet band too.
+    floor = torch.minimum(_band_floor(r, whole.to(made.dtype)[:, None].expand_as(r)), r.detach())
     gap = 1.0 - cross / torch.sqrt(torch.maximum(m, floor) * r + 1e-12)
     total = r.sum(dim=1)  # [B]
     share = r / total[:, None].clamp(min=1e-12)
