@@ -627,7 +627,7 @@ def masked_root_band_loss(prediction, target, mask, body, fps: float, bands=ROOT
         A scalar tensor (0 for a body without a root or bones, windows with no valid root throughout,
         or no band with a bin).
     """
-    return _root_bands(prediction, target, mask, body, fps, bands, vertical=False)
+    return _root_term(prediction, target, mask, body, _root_band_divergence, fps, bands, vertical=False)
 
 
 ROOT_RISE_BANDS_HZ = ((0.5, 1.0), (1.0, 2.0), (2.0, 4.0), (4.0, 8.0))
@@ -651,7 +651,7 @@ def masked_root_rise_loss(prediction, target, mask, body, fps: float, bands=ROOT
     on the floor (0 also for windows whose root height is not valid throughout or that are shorter
     than 3 frames).
     """
-    return _root_bands(prediction, target, mask, body, fps, bands, vertical=True)
+    return _root_term(prediction, target, mask, body, _root_band_divergence, fps, bands, vertical=True)
 
 
 def masked_root_phase_loss(prediction, target, mask, body, fps: float, bands=ROOT_RISE_BANDS_HZ):
@@ -662,9 +662,8 @@ def masked_root_phase_loss(prediction, target, mask, body, fps: float, bands=ROO
     0 in phase, 1 unrelated, 2 in antiphase, whatever the size (under the made power, a floor of 1 %
     of the band's real power averaged over the batch's whole windows, at most the window's own). The
     bands are weighed by the target's share of its power in them, so the band the dancer rises and
-    falls in most keeps time most. Windows whose
-    real power over the bands is under 1 % of the mean over the batch's whole windows are not counted
-    (no rise to keep in time).
+    falls in most keeps time most. Windows whose real power over the bands is under 1 % of the mean
+    over the batch's whole windows are not counted (no rise to keep in time).
 
     :func:`masked_root_rise_loss` asks each band for the dancer's power whatever the phase, and power
     can be bought with motion that keeps no time: on tang2018's fold 2 the rise term at 5 brought the
@@ -676,19 +675,17 @@ def masked_root_phase_loss(prediction, target, mask, body, fps: float, bands=ROO
     Arguments as :func:`masked_root_band_loss`'s; a scalar tensor, 0 for a body without a root or
     bones, windows with no root height valid throughout or shorter than 3 frames, or no band counted.
     """
-    world = world_positions(prediction, target, mask, body) if body.root is not None else None
-    if world is None:
-        return prediction.new_zeros(())
-    return _root_phase_gap(*world, body, fps, bands)
+    return _root_term(prediction, target, mask, body, _root_phase_gap, fps, bands)
 
 
-def _root_bands(prediction, target, mask, body, fps: float, bands, vertical: bool):
-    """:func:`_root_band_divergence` of [B, L, D] windows, their world positions made here
+def _root_term(prediction, target, mask, body, term, *args, **kwargs):
+    """``term(made, real, valid, body, *args, **kwargs)`` (:func:`_root_band_divergence`,
+    :func:`_root_phase_gap`) of [B, L, D] windows, their world positions made here
     (:func:`world_positions`); 0 for a body without a root or bones."""
     world = world_positions(prediction, target, mask, body) if body.root is not None else None
     if world is None:
         return prediction.new_zeros(())
-    return _root_band_divergence(*world, body, fps, bands, vertical=vertical)
+    return term(*world, body, *args, **kwargs)
 
 
 def _root_band_spectra(made, real, valid, body, fps: float, bands, vertical: bool):
@@ -722,6 +719,16 @@ def _root_band_spectra(made, real, valid, body, fps: float, bands, vertical: boo
     return [(made_t[:, c], real_t[:, c]) for c in chosen], whole
 
 
+def _band_powers(per_band):
+    """[B, bands] made and real powers (summed |transform|^2 over each band's bins and the axes) of
+    :func:`_root_band_spectra`'s per-band transforms."""
+    import torch
+
+    made = torch.stack([(g.abs() ** 2).sum(dim=(1, 2)) for g, _ in per_band], dim=1)
+    real = torch.stack([(t.abs() ** 2).sum(dim=(1, 2)) for _, t in per_band], dim=1)
+    return made, real
+
+
 def _band_floor(real_power, counted):
     """1 % of each band's real power, [B, bands], averaged over the ``counted`` windows: the floor
     under a band's power."""
@@ -733,15 +740,16 @@ def _root_band_divergence(made, real, valid, body, fps: float, bands=ROOT_BANDS_
     :func:`masked_root_rise_loss` (True: the y axis) of world positions already made
     (:func:`world_positions`: [B, L, J * dims] made and real, and where they are valid), for a body
     with a root."""
+    spectra = _root_band_spectra(made, real, valid, body, fps, bands, vertical)
+    return made.new_zeros(()) if spectra is None else _band_divergence(*spectra)
+
+
+def _band_divergence(per_band, whole):
+    """The divergence of :func:`masked_root_band_loss` from :func:`_root_band_spectra`'s result."""
     import torch
 
-    spectra = _root_band_spectra(made, real, valid, body, fps, bands, vertical)
-    if spectra is None:
-        return made.new_zeros(())
-    per_band, whole = spectra
-    m = torch.stack([(g.abs() ** 2).sum(dim=(1, 2)) for g, _ in per_band], dim=1)  # [B, bands]
-    r = torch.stack([(t.abs() ** 2).sum(dim=(1, 2)) for _, t in per_band], dim=1)
-    counted = whole.to(made.dtype)[:, None].expand_as(r)
+    m, r = _band_powers(per_band)  # [B, bands]
+    counted = whole.to(r.dtype)[:, None].expand_as(r)
     floor = _band_floor(r, counted)
     ratio = (r + floor) / (m + floor)
     divergence = 2.0 * (ratio - torch.log(ratio) - 1.0)
@@ -751,23 +759,24 @@ def _root_band_divergence(made, real, valid, body, fps: float, bands=ROOT_BANDS_
 def _root_phase_gap(made, real, valid, body, fps: float, bands=ROOT_RISE_BANDS_HZ):
     """:func:`masked_root_phase_loss` of world positions already made (:func:`world_positions`), for a
     body with a root."""
+    spectra = _root_band_spectra(made, real, valid, body, fps, bands, vertical=True)
+    return made.new_zeros(()) if spectra is None else _phase_gap(*spectra)
+
+
+def _phase_gap(per_band, whole):
+    """The gap of :func:`masked_root_phase_loss` from :func:`_root_band_spectra`'s result."""
     import torch
 
-    spectra = _root_band_spectra(made, real, valid, body, fps, bands, vertical=True)
-    if spectra is None:
-        return made.new_zeros(())
-    per_band, whole = spectra
-    r = torch.stack([(t.abs() ** 2).sum(dim=(1, 2)) for _, t in per_band], dim=1)  # [B, bands]
-    m = torch.stack([(g.abs() ** 2).sum(dim=(1, 2)) for g, _ in per_band], dim=1)
+    m, r = _band_powers(per_band)  # [B, bands]
     cross = torch.stack([(g * t.conj()).real.sum(dim=(1, 2)) for g, t in per_band], dim=1)
     # The floor under the made power keeps the gradient bounded where the model does not rise at all;
     # capped at the band's own real power, so that a copy of the dancer costs 0 in a quiet band too.
-    floor = torch.minimum(_band_floor(r, whole.to(made.dtype)[:, None].expand_as(r)), r.detach())
+    floor = torch.minimum(_band_floor(r, whole.to(r.dtype)[:, None].expand_as(r)), r.detach())
     gap = 1.0 - cross / torch.sqrt(torch.maximum(m, floor) * r + 1e-12)
     total = r.sum(dim=1)  # [B]
     share = r / total[:, None].clamp(min=1e-12)
     typical = total[whole].mean().detach()
-    counted = (whole & (total > 1e-2 * typical)).to(made.dtype)  # a dancer who barely rises keeps no phase
+    counted = (whole & (total > 1e-2 * typical)).to(r.dtype)  # a dancer who barely rises keeps no phase
     return ((gap * share).sum(dim=1) * counted).sum() / counted.sum().clamp(min=1.0)
 
 
@@ -998,10 +1007,13 @@ def masked_rhythm_loss(
                 loss = loss + w.world_jitter * masked_jitter_loss(*world, chunk, component_floor=cf)
             if w.root_band > 0 and body.root is not None:
                 loss = loss + w.root_band * _root_band_divergence(*world, body, fps)
-            if w.root_rise > 0 and body.root is not None:
-                loss = loss + w.root_rise * _root_band_divergence(*world, body, fps, ROOT_RISE_BANDS_HZ, vertical=True)
-            if w.root_phase > 0 and body.root is not None:
-                loss = loss + w.root_phase * _root_phase_gap(*world, body, fps)
+            if (w.root_rise > 0 or w.root_phase > 0) and body.root is not None:
+                # one transform of the root's height for both terms
+                rise = _root_band_spectra(*world, body, fps, ROOT_RISE_BANDS_HZ, vertical=True)
+                if rise is not None and w.root_rise > 0:
+                    loss = loss + w.root_rise * _band_divergence(*rise)
+                if rise is not None and w.root_phase > 0:
+                    loss = loss + w.root_phase * _phase_gap(*rise)
         if w.span > 0:
             loss = loss + w.span * masked_span_loss(
                 prediction, target, mask, body.bones, body.scale, body.offset, body.dims
