@@ -19,6 +19,10 @@ Run alone: ``python -m benchmarks.bench_learning --minutes 30 --seed 0 [--models
 [--ablations | --only-ablations 3,4] [--out DIR]``. Goals (issue 13): beat following >= 80 % of test songs, tempo rank
 correlation >= 0.9, the controls, Beat Align Score >= 0.8 x the real motion's and above the
 baselines, energy 0.5-2 x the real motion's.
+
+A real corpus (``--corpus tang2018 PATH``): :mod:`.learning_real` (the acceptance run, ``--seeds``)
+or, with ``--folds K``, :mod:`.learning_folds` (a candidate tried on folds outside the test split:
+``--fold``, ``--set``, ``--features``, ``--tag``).
 """
 
 from __future__ import annotations
@@ -35,6 +39,7 @@ from typing import Any
 import torch
 
 from kinectdata.apps.quickstart import SYNTHETIC_LOOP
+from kinectdata.core.errors import KinectDataError
 from kinectdata.dataset.build import build_dataset
 from kinectdata.dataset.config import BuildConfig
 from kinectdata.evaluation.beat_following import RecordingBeats, beat_following
@@ -312,6 +317,28 @@ def main(argv: list[str] | None = None) -> None:
         help="with --corpus: train and score on K cross-validation folds of the dances outside the test split "
         "(--minutes per fold), to compare a recipe without the test split",
     )
+    parser.add_argument("--fold", default=None, metavar="N[,N]", help="with --folds: train and score these folds only")
+    parser.add_argument(
+        "--set",
+        action="append",
+        default=[],
+        metavar="SETTING=VALUE",
+        help="with --folds: a candidate's training setting over the defaults of every model run (repeatable; "
+        "VALUE read as JSON where it parses, else as text: --set bend_weight=10 --set inputs=music)",
+    )
+    parser.add_argument(
+        "--features",
+        action="append",
+        default=[],
+        metavar="MODEL=PRESET",
+        help="with --folds: MODEL's datasets built with a feature preset instead of the recipe's (repeatable)",
+    )
+    parser.add_argument(
+        "--tag", default="", help="with --folds: name the candidate's runs (<model>-<tag>-seed<N>) to keep them apart"
+    )
+    parser.add_argument(
+        "--threads", type=int, default=2, help="torch threads (1: two runs side by side on the 2-core machine)"
+    )
     parser.add_argument(
         "--allow-librosa",
         action="store_true",
@@ -323,31 +350,34 @@ def main(argv: list[str] | None = None) -> None:
         parser.error("--rescore evaluates the runs of an earlier real-corpus benchmark: give --corpus and --out")
     if args.folds is not None and (args.corpus is None or args.rescore):
         parser.error("--folds cross-validates on a real corpus: give --corpus (and not --rescore)")
+    candidate = [name for name in ("fold", "set", "features", "tag") if getattr(args, name)]
+    if candidate and args.folds is None:
+        said = f"--{candidate[0]} tries a candidate on the folds: give --folds K"
+        parser.error(f"{said} (an acceptance run is the recipe's)")
+    only = _numbers(parser, "--fold", args.fold) if args.fold else None
+    changes = _pairs(parser, "--set", args.set, json_values=True)
+    features = _pairs(parser, "--features", args.features, json_values=False)
     models = [m.strip() for m in args.models.split(",") if m.strip()]
-    try:
-        seeds = [int(x) for x in args.seeds.split(",") if x.strip()]
-    except ValueError:
-        parser.error(f"--seeds takes whole numbers separated by commas, not {args.seeds!r}")
+    if set(features) - set(models):
+        parser.error(f"--features names {sorted(set(features) - set(models))[0]}, a model not in --models")
+    seeds = _numbers(parser, "--seeds", args.seeds)
     if not seeds:
         parser.error("--seeds names no seed")
     if args.corpus is not None:
         _require_sox(args.allow_librosa)
-    torch.set_num_threads(2)
+    if args.threads < 1:
+        parser.error(f"--threads takes a whole number of at least 1, not {args.threads}")
+    torch.set_num_threads(args.threads)
     if args.corpus is None:
         print("  real corpus: not run (--corpus tang2018 PATH: a local copy of Dance with Melody, docs/corpora.md)")
     with tempfile.TemporaryDirectory() as tmp:
         out = args.out or Path(tmp)
         out.mkdir(parents=True, exist_ok=True)
         if args.corpus is not None:
-            name, path = args.corpus
-            if args.folds is not None:
-                from .learning_folds import run_folds
-
-                run_folds(name, Path(path), out, _guard(args.minutes), models, seeds, args.folds)
-                return
-            from .learning_real import run
-
-            run(name, Path(path), out, models, seeds, _guard(args.minutes), rescore=args.rescore)
+            try:
+                _real(args, out, models, seeds, only, changes, features)
+            except KinectDataError as exc:
+                parser.exit(1, f"{parser.prog}: {exc}\n")
             return
         minutes = 30.0 if args.minutes is None else args.minutes
         datasets = make_corpus(out, args.seed, args.corpus_minutes, models)
@@ -372,6 +402,70 @@ def main(argv: list[str] | None = None) -> None:
                     _headline(model, label, scored)
                     summary[f"{model} {name}: {label}"] = scored["results"]["listening"]
         (out / "learning.json").write_text(json.dumps(summary, indent=1, default=str))
+
+
+def _real(
+    args: argparse.Namespace,
+    out: Path,
+    models: list[str],
+    seeds: list[int],
+    only: list[int] | None,
+    changes: dict[str, Any],
+    features: dict[str, str],
+) -> None:
+    """The real corpus's run: its acceptance split (or, with ``--rescore``, the runs already there),
+    or with ``--folds`` its folds, a candidate's ``changes`` and ``features`` tried on them."""
+    name, path = args.corpus
+    if args.folds is None:
+        from .learning_real import run
+
+        run(name, Path(path), out, models, seeds, _guard(args.minutes), rescore=args.rescore)
+        return
+    from .learning_folds import run_folds
+
+    for model in models:  # a setting no model knows fails now, not after the datasets are built
+        TrainConfig.for_model(model, **changes)
+    run_folds(
+        name,
+        Path(path),
+        out,
+        _guard(args.minutes),
+        models,
+        seeds,
+        args.folds,
+        changes={model: changes for model in models},
+        only=only,
+        features=features,
+        tag=args.tag,
+    )
+
+
+def _numbers(parser: argparse.ArgumentParser, option: str, text: str) -> list[int]:
+    """``option``'s comma-separated whole numbers (at least one), or the parser's one-line error."""
+    try:
+        numbers = [int(x) for x in text.split(",") if x.strip()]
+    except ValueError:
+        parser.error(f"{option} takes whole numbers separated by commas, not {text!r}")
+    if not numbers:
+        parser.error(f"{option} names no number")
+    return numbers
+
+
+def _pairs(parser: argparse.ArgumentParser, option: str, given: list[str], json_values: bool) -> dict[str, Any]:
+    """``option``'s ``NAME=VALUE`` pairs as a mapping (``json_values``: each value read as JSON where it
+    parses, else kept as text), or the parser's one-line error."""
+    pairs: dict[str, Any] = {}
+    for item in given:
+        name, equals, value = item.partition("=")
+        if not equals or not name.strip() or not value.strip():
+            parser.error(f"{option} takes NAME=VALUE, not {item!r}")
+        if json_values:
+            try:
+                value = json.loads(value)
+            except json.JSONDecodeError:
+                pass
+        pairs[name.strip()] = value
+    return pairs
 
 
 def _require_sox(allow_librosa: bool) -> None:

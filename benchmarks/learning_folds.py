@@ -22,6 +22,7 @@ from typing import Any
 import numpy as np
 
 from kinectdata.apps.real_dance import build_model_dataset
+from kinectdata.core.errors import ConfigError
 from kinectdata.dataset.folds import write_folds
 from kinectdata.dataset.recipes import prepare_corpus
 from kinectdata.evaluation.evaluate import variety
@@ -41,35 +42,62 @@ def run_folds(
     seeds: list[int],
     folds: int,
     changes: dict[str, dict[str, Any]] | None = None,
+    only: list[int] | None = None,
+    features: dict[str, str] | None = None,
+    tag: str = "",
 ) -> dict[str, Any]:
-    """Build, train and score every model on each of ``folds`` folds (module docstring) once per
-    seed, each run within ``guard_minutes`` at most; the pooled reading printed and returned per
-    model and seed. The folds are dealt the same way whatever the seeds (seed 0)."""
+    """Build, train and score every model on each of ``folds`` folds (module docstring; ``only``:
+    these folds, numbered from 1) once per seed, each run within ``guard_minutes`` at most; the
+    pooled reading printed and returned per model and seed. The folds are dealt the same way whatever
+    the seeds (seed 0). A candidate: ``changes[model]``, training settings over the defaults;
+    ``features[model]``, a feature preset instead of the recipe's (its datasets built beside the
+    recipe's, ``<model>-<preset>_dataset``); ``tag`` names its runs (``<model>-<tag>-seed<N>``) so
+    that candidates share one ``out`` and its datasets."""
+    unknown = sorted(set(only or ()) - set(range(1, folds + 1)))
+    if unknown:
+        raise ConfigError(f"there is no fold {unknown[0]} of {folds} (the folds are numbered 1-{folds})")
     out.mkdir(parents=True, exist_ok=True)
     manifest = prepare_corpus(corpus, path)
     listed = manifest.write(out / "recordings.yaml")
-    made = write_folds(listed, folds, by="style", seed=0)
+    made = [fold for fold in write_folds(listed, folds, by="style", seed=0) if only is None or fold.index in only]
     for fold in made:
         print(f"  fold {fold.index}: validates on {', '.join(fold.validation)} ({len(fold.training)} to train on)")
     summary: dict[str, Any] = {}
     for model in models:
+        preset = (features or {}).get(model)
+        datasets = {fold.index: out / f"fold{fold.index}" / _dataset_name(model, preset) for fold in made}
         for fold in made:
-            dataset = out / f"fold{fold.index}" / f"{model}_dataset"
-            build_model_dataset(fold.path, dataset, model, manifest, echo=lambda line: print("  " + line, flush=True))
+            build_model_dataset(fold.path, datasets[fold.index], model, manifest, echo=_echo, features=preset)
         for seed in seeds:
-            summary.setdefault(model, {})[seed] = _seed_on_folds(model, seed, made, out, guard_minutes, changes)
-    (out / "learning_folds.json").write_text(json.dumps(summary, indent=1, default=str))
+            run_name = "-".join(filter(None, (model, tag, f"seed{seed}")))
+            runs = {i: (datasets[i], out / f"fold{i}" / run_name) for i in datasets}
+            summary.setdefault(model, {})[seed] = _seed_on_folds(model, seed, made, runs, guard_minutes, changes)
+    (out / f"learning_folds{'-' + tag if tag else ''}.json").write_text(json.dumps(summary, indent=1, default=str))
     return summary
 
 
+def _echo(line: str) -> None:
+    print("  " + line, flush=True)
+
+
+def _dataset_name(model: str, preset: str | None) -> str:
+    """A fold's dataset folder for ``model``: the recipe's features, or ``preset``'s."""
+    return f"{model}-{preset}_dataset" if preset else f"{model}_dataset"
+
+
 def _seed_on_folds(
-    model: str, seed: int, made: list, out: Path, guard_minutes: float | None, changes: dict | None
+    model: str,
+    seed: int,
+    made: list,
+    runs: dict[int, tuple[Path, Path]],
+    guard_minutes: float | None,
+    changes: dict | None,
 ) -> dict[str, Any]:
-    """One seed of ``model`` trained and scored on every fold; the pooled figures printed and returned."""
+    """One seed of ``model`` trained and scored on every fold (``runs``: each fold's dataset and run
+    folder); the pooled figures printed and returned."""
     pairs, varied, styled = [], [], []
     for fold in made:
-        dataset = out / f"fold{fold.index}" / f"{model}_dataset"
-        run_dir = out / f"fold{fold.index}" / f"{model}-seed{seed}"
+        dataset, run_dir = runs[fold.index]
         history, trained = train_defaults(model, dataset, run_dir, guard_minutes, seed, changes)
         results = score_split(run_dir, dataset, "val", 0, seed)
         print(f"  [{model} seed {seed}] fold {fold.index}: trained {trained:.1f} min, "

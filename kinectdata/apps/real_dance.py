@@ -102,14 +102,16 @@ def build_model_dataset(
     model: str,
     manifest: CorpusManifest,
     echo: Callable[[str], Any] = print,
+    features: str | None = None,
 ) -> dict[str, Any]:
     """Build the recordings manifest file ``listed`` (the corpus's, or one of its folds) into
     ``folder`` as ``model`` trains on the corpus (:data:`REAL_DANCE_BUILDS`, the recipe's target and
-    build options); the dataset's manifest (a finished build is reused)."""
+    build options; ``features``: a feature preset of its pipeline's instead of the recipe's, for a
+    candidate tried on the folds); the dataset's manifest (a finished build is reused)."""
     pipeline = pipeline_of(model)
     how = REAL_DANCE_BUILDS[pipeline]
     told = all(r.style for r in manifest.recordings if r.split in (None, "train"))  # a training song is told its style
-    features = how["features"] if told else how["without_styles"]
+    features = features or (how["features"] if told else how["without_styles"])
     config = BuildConfig.from_pipeline(
         pipeline,
         features=features,
