@@ -28,7 +28,7 @@ from kinectdata.dataset.recipes import prepare_corpus
 from kinectdata.evaluation.evaluate import variety
 from kinectdata.evaluation.pooled import held_out_following
 
-from .learning_real import score_split, train_defaults
+from .learning_real import print_epoch, score_split, train_defaults
 from .real_goals import goals
 from .summary import record
 
@@ -98,7 +98,7 @@ def _seed_on_folds(
     pairs, varied, styled = [], [], []
     for fold in made:
         dataset, run_dir = runs[fold.index]
-        history, trained = train_defaults(model, dataset, run_dir, guard_minutes, seed, changes)
+        history, trained = train_defaults(model, dataset, run_dir, guard_minutes, seed, changes, progress=print_epoch)
         results = score_split(run_dir, dataset, "val", 0, seed)
         print(f"  [{model} seed {seed}] fold {fold.index}: trained {trained:.1f} min, "
               f"{history[-1]['step']} steps; on its {len(fold.validation)} held-out dances:")  # fmt: skip

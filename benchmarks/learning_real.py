@@ -74,7 +74,7 @@ def run(
                 print(f"  [{model} seed {seed}] the run in {run_dir}, not trained again", flush=True)
             else:
                 history, trained = train_defaults(
-                    model, datasets[model], run_dir, guard_minutes, seed, changes, progress=_progress
+                    model, datasets[model], run_dir, guard_minutes, seed, changes, progress=print_epoch
                 )
             scored = _score(model, seed, corpus, run_dir, datasets[model], history, trained, out, bootstrap)
             per_seed[seed] = scored.pop("goal_objects")
@@ -140,7 +140,8 @@ def score_split(run_dir: Path, dataset: Path, split: str, bootstrap: int, seed: 
     )
 
 
-def _progress(row: dict[str, Any]) -> None:
+def print_epoch(row: dict[str, Any]) -> None:
+    """One line per trained epoch: its losses, the free-running rhythm loss and the songs' energy."""
     print(f"    epoch {row['epoch']:3d} step {row['step']:5d}: train {row['train_loss']:.4f} "
           f"val {row['val_loss']:.4f}, SMAPE {row['val_smape']:.2f} %, free-running rhythm loss "
           f"{row['val_rhythm']:.3f}, songs' energy {_times(row['val_energy'])}", flush=True)  # fmt: skip

@@ -63,6 +63,7 @@ def test_a_candidate_runs_on_the_folds_it_names_from_the_command_line(tmp_path, 
           *small, *candidate])  # fmt: skip
     printed = capsys.readouterr().out
     assert "[yalta seed 0] fold 2: trained " in printed and "fold 1: trained" not in printed
+    assert "    epoch   1 step " in printed  # each epoch shown as it ends, as the acceptance run shows it
     assert not (out / "fold1").exists()  # the fold not named is neither built nor trained
     built = json.loads((out / "fold2" / "yalta-yalta2016_rhythm_style_dataset" / "manifest.json").read_text())
     assert built["feature_shape"] == [6, 129, 5]  # spectra, pulse, a plane per style: not [2, ...]
