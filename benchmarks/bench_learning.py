@@ -361,8 +361,6 @@ def main(argv: list[str] | None = None) -> None:
     if set(features) - set(models):
         parser.error(f"--features names {sorted(set(features) - set(models))[0]}, a model not in --models")
     seeds = _numbers(parser, "--seeds", args.seeds)
-    if not seeds:
-        parser.error("--seeds names no seed")
     if args.corpus is not None:
         _require_sox(args.allow_librosa)
     if args.threads < 1:
