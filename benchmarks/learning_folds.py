@@ -16,6 +16,7 @@ songs. The test dances are in no fold: nothing here trains, tunes or picks on th
 from __future__ import annotations
 
 import json
+import warnings
 from pathlib import Path
 from typing import Any
 
@@ -23,6 +24,7 @@ import numpy as np
 
 from kinectdata.apps.real_dance import build_model_dataset
 from kinectdata.core.errors import ConfigError
+from kinectdata.dataset.build import EmptySplitWarning
 from kinectdata.dataset.folds import write_folds
 from kinectdata.dataset.recipes import prepare_corpus
 from kinectdata.evaluation.evaluate import variety
@@ -67,7 +69,9 @@ def run_folds(
         preset = (features or {}).get(model)
         datasets = {fold.index: out / f"fold{fold.index}" / _dataset_name(model, preset) for fold in made}
         for fold in made:
-            build_model_dataset(fold.path, datasets[fold.index], model, manifest, echo=_echo, features=preset)
+            with warnings.catch_warnings():  # a fold has no test split by design: it is scored on its val split
+                warnings.simplefilter("ignore", EmptySplitWarning)
+                build_model_dataset(fold.path, datasets[fold.index], model, manifest, echo=_echo, features=preset)
         for seed in seeds:
             run_name = "-".join(filter(None, (model, tag, f"seed{seed}")))
             runs = {i: (datasets[i], out / f"fold{i}" / run_name) for i in datasets}

@@ -129,6 +129,16 @@ def _ratio(metrics: dict[str, Any], name: str) -> float | None:
     return None if g is None or not r else g / r
 
 
+def _furthest(entry: dict[str, Any]) -> str:
+    """The kinetic feature whose mean lies furthest from the dancers' (``largest_gaps``, scored
+    since 2026-12-07), for d's note: what the FID_k is made of."""
+    gaps = entry.get("metrics", {}).get("FID_k", {}).get("largest_gaps") or []
+    if not gaps:
+        return ""
+    top = gaps[0]
+    return f"; furthest from the dancers': {top['what']} {top['ratio']:.2f} x theirs ({abs(top['sds']):.1f} sd)"
+
+
 def goals(results: dict[str, Any], beat_where_real: bool = False) -> list[Goal]:
     """Goals a-e (module docstring) from ``evaluate``'s results. ``beat_where_real``: c asks the
     generated motion to follow the beat only when the real dancers do on the same songs (the folds: a
@@ -215,7 +225,7 @@ def goals(results: dict[str, Any], beat_where_real: bool = False) -> list[Goal]:
                         shown="n/a" if share is None else f"{fid:.3g} / {baseline:.3g} = {share:.2f}",
                     ),
                 ),  # fmt: skip
-                entry.get("unavailable", f"retrieval's FID_k {_num(retrieval)}"),
+                entry.get("unavailable", f"retrieval's FID_k {_num(retrieval)}{_furthest(entry)}"),
             )
         )
     divs = variety(field)

@@ -24,6 +24,7 @@ from kinectdata.evaluation.metrics import (
     bootstrap_interval,
     constant_reference_features,
     describe_feature,
+    describe_kinetic_feature,
     diversity,
     foot_contact_score,
     frechet_distance,
@@ -35,7 +36,7 @@ from kinectdata.evaluation.metrics import (
     peer_motion_beats,
     standardise_by_reference,
 )
-from kinectdata.evaluation.metrics.distribution import FAR_FEATURE, Interval, far_from_reference_features
+from kinectdata.evaluation.metrics.distribution import FAR_FEATURE, Interval, far_from_reference_features, mean_gaps
 from kinectdata.evaluation.metrics.foot_contact import SCALE as PFC_SCALE
 from kinectdata.evaluation.protocols import Protocol
 
@@ -71,6 +72,53 @@ class DanceSequence:
     native_fps: float | None = None
 
 
+GAPS_SHOWN = 3
+"""How many features :attr:`MetricRow.gaps` names: those whose means are furthest apart."""
+
+
+@dataclass(frozen=True)
+class FeatureGap:
+    """One feature's part of a Fréchet distance's mean term (:func:`largest_gaps`).
+
+    Attributes:
+        index: the feature (0-based, the features' order).
+        what: the feature in words (:func:`describe_kinetic_feature`, :func:`describe_feature`).
+        gap: the squared difference of the standardised means (its part of the mean term).
+        generated, reference: the sets' means, in the feature's units.
+        sds: the generated mean's distance from the reference mean, in reference standard
+            deviations (signed: below the reference is negative).
+    """
+
+    index: int
+    what: str
+    gap: float
+    generated: float
+    reference: float
+    sds: float
+
+    @property
+    def ratio(self) -> float:
+        """The generated mean over the reference's (NaN when the reference's is 0)."""
+        return self.generated / self.reference if self.reference != 0 else float("nan")
+
+    def to_dict(self) -> dict:
+        return {
+            "index": self.index,
+            "what": self.what,
+            "gap": self.gap,
+            "generated": self.generated,
+            "reference": self.reference,
+            "ratio": None if self.reference == 0 else self.ratio,
+            "sds": self.sds,
+        }
+
+    def __str__(self) -> str:
+        side = "below" if self.sds < 0 else "above"
+        if self.reference == 0:
+            return f"{self.what} {self.generated:.3g}, the reference's 0 ({abs(self.sds):.3g} sd {side})"
+        return f"{self.what} {self.ratio:.2f} x the reference's ({abs(self.sds):.3g} sd {side})"
+
+
 @dataclass(frozen=True)
 class MetricRow:
     """One column of the table: a metric of the generated set and, where it has one, of the reference."""
@@ -81,9 +129,11 @@ class MetricRow:
     reference: float | None = None
     interval: Interval | None = None
     note: str = ""
+    mean_term: float | None = None
+    gaps: tuple[FeatureGap, ...] = ()
 
     def to_dict(self) -> dict:
-        return {
+        record = {
             "name": self.name,
             "better": self.better,
             "generated": self.generated,
@@ -91,6 +141,20 @@ class MetricRow:
             "interval": None if self.interval is None else self.interval.to_dict(),
             "note": self.note,
         }
+        if self.mean_term is not None:
+            record["mean_term"] = self.mean_term
+            record["largest_gaps"] = [g.to_dict() for g in self.gaps]
+        return record
+
+    def gaps_line(self) -> str | None:
+        """What the distance is made of, in a line (None for a metric that is not a Fréchet distance)."""
+        if self.mean_term is None or self.generated is None:
+            return None
+        share = self.mean_term / self.generated if self.generated > 0 else float("nan")
+        return (
+            f"{self.name}: the means' gap is {_number(self.mean_term)} of {_number(self.generated)} ({share:.0%}); "
+            f"furthest from the reference: {'; '.join(str(g) for g in self.gaps)}"
+        )
 
 
 @dataclass
@@ -143,6 +207,7 @@ class FieldScores:
                 f"{row.name:<9}{_better(row.better):<9}{_number(row.generated):>16}{_span(row.interval):>22}"
                 f"{_number(row.reference):>16}  {row.note}".rstrip()
             )
+        lines += [line for line in (row.gaps_line() for row in self.metrics) if line]
         lines += [f"warning: {w}" for w in self.warnings]
         return "\n".join(lines)
 
@@ -199,6 +264,11 @@ def score_sets(
             f"FID and Div need at least 2 sequences per set, got {len(generated)} generated and {len(reference)} "
             "reference: only the per-sequence metrics are given"
         )
+    smpl24 = load_joint_set("smpl24").names
+
+    def kinetic_name(index: int) -> str:
+        return describe_kinetic_feature(index, smpl24)
+
     for label, index, dims in (("k", 0, 72), ("g", 1, 32)) if min(len(generated), len(reference)) >= 2 else ():
         gen, ref = features["generated"][index], features["reference"][index]
         constant = constant_reference_features(gen, ref)
@@ -224,6 +294,7 @@ def score_sets(
                 "moves a lot with the choice of sequences (see its interval)"
             )
         fid = frechet_distance(g_std, r_std)
+        gaps = mean_gaps(g_std, r_std)
         rows.append(
             MetricRow(
                 f"FID_{label}",
@@ -233,6 +304,8 @@ def score_sets(
                 _interval(
                     lambda a, b, g=g_std, r=r_std: frechet_distance(g[a], r[b]), len(gen), len(ref), bootstrap, seed
                 ),
+                mean_term=float(gaps.sum()),
+                gaps=largest_gaps(gen, ref, g_std, gaps, kinetic_name if label == "k" else describe_feature),
             )
         )
         rows.append(
@@ -277,6 +350,25 @@ def score_sets(
         per_sequence=per_sequence,
         mappings=mappings,
         positions=positions_record(generated, reference, protocol, placement),
+    )
+
+
+def largest_gaps(
+    generated: np.ndarray,
+    reference: np.ndarray,
+    generated_std: np.ndarray,
+    gaps: np.ndarray,
+    describe,
+    count: int = GAPS_SHOWN,
+) -> tuple[FeatureGap, ...]:
+    """The ``count`` features whose means lie furthest apart (:func:`mean_gaps` ``gaps`` [D]), each
+    with both sets' means in its own units ([N, D] ``generated``, [M, D] ``reference``) and its
+    distance in reference standard deviations (``generated_std``, the generated set standardised by
+    the reference); ``describe(index)`` names a feature."""
+    g_mean, r_mean, away = generated.mean(axis=0), reference.mean(axis=0), generated_std.mean(axis=0)
+    return tuple(
+        FeatureGap(int(i), describe(int(i)), float(gaps[i]), float(g_mean[i]), float(r_mean[i]), float(away[i]))
+        for i in np.argsort(-gaps, kind="stable")[:count]
     )
 
 

@@ -14,7 +14,7 @@ from kinectdata.core.errors import FormatError, KinectDataError
 from kinectdata.core.joint_mapping import load_smpl24_mapping, shipped_smpl24_mappings
 from kinectdata.core.jointsets import load_joint_set
 from kinectdata.evaluation import metrics as M
-from kinectdata.evaluation.field_scores import DanceSequence, score_sets
+from kinectdata.evaluation.field_scores import DanceSequence, FeatureGap, score_sets
 from kinectdata.evaluation.motion_sets import DanceReading, load_dance_set
 from kinectdata.evaluation.protocols import PROTOCOLS
 
@@ -129,6 +129,49 @@ def test_frechet_distance_and_diversity_against_scipy_by_another_route():
     assert M.diversity(a) == pytest.approx(np.mean(pairs))
     # a bootstrap draw never pairs a sequence with its own copy
     assert M.diversity(a[:3], draw=np.array([0, 0, 1])) == pytest.approx(np.linalg.norm(a[0] - a[1]))
+
+
+def test_the_means_gap_is_the_whole_distance_between_a_set_and_its_shifted_copy():
+    """Shifted, a set keeps its covariance: the Fréchet distance is then its means' term alone."""
+    rng = np.random.default_rng(5)
+    reference = rng.normal(size=(30, 6))
+    shift = np.array([0.0, 2.0, 0.0, -0.5, 0.0, 0.0])
+    gaps = M.mean_gaps(reference + shift, reference)
+    assert gaps == pytest.approx(shift**2)
+    assert gaps.sum() == pytest.approx(M.frechet_distance(reference + shift, reference), rel=1e-9)
+    with pytest.raises(KinectDataError, match="6 dimensions, reference 5"):
+        M.mean_gaps(reference, reference[:, :5])
+
+
+def test_the_kinetic_feature_furthest_from_the_reference_is_named_with_its_ratio():
+    """Dancers whose left ankle moves along the floor at half the speed (a quarter of the mean squared
+    speed) of the reference's: FID_k's largest gap is that feature, 0.25 x, below the reference."""
+    rng = np.random.default_rng(6)
+
+    def dancer(ankle_speed: float) -> DanceSequence:
+        steps = rng.normal(scale=0.01, size=(240, 24, 3))
+        steps[:, 7, [0, 2]] = ankle_speed * rng.normal(scale=0.03, size=(240, 2))  # SMPL-24 joint 7: left_ankle
+        return DanceSequence("d", np.cumsum(steps, axis=0) + [0.0, 1.0, 0.0], 60.0)
+
+    reference = [dancer(1.0) for _ in range(8)]
+    generated = [dancer(0.5) for _ in range(8)]
+    fid = score_sets(generated, reference, PROTOCOLS["aist"], bootstrap=0).metrics[0]
+    assert fid.name == "FID_k" and fid.mean_term <= fid.generated
+    top = fid.gaps[0]
+    assert (top.index, top.what) == (3 * 7, "left_ankle's mean squared horizontal speed")
+    by_hand = [
+        np.mean([M.kinetic_features(s.positions, 60.0)[3 * 7] for s in which]) for which in (generated, reference)
+    ]
+    assert top.ratio == pytest.approx(by_hand[0] / by_hand[1]) and top.ratio == pytest.approx(0.25, abs=0.05)
+    assert top.sds < 0 and "left_ankle's mean squared horizontal speed 0.2" in str(top) and "sd below" in str(top)
+    table = score_sets(generated, reference, PROTOCOLS["aist"], bootstrap=0).table()
+    assert "FID_k: the means' gap is " in table and "furthest from the reference: left_ankle's" in table
+    never = FeatureGap(0, "a relation the dancers never show", 9.0, 0.04, 0.0, 3.2e8)  # the ratio is undefined
+    assert str(never) == "a relation the dancers never show 0.04, the reference's 0 (3.2e+08 sd above)"
+    assert never.to_dict()["ratio"] is None
+    assert M.describe_kinetic_feature(71, load_joint_set("smpl24").names) == "right_hand's mean acceleration"
+    with pytest.raises(KinectDataError, match="kinetic feature 72 does not exist for 24 joints"):
+        M.describe_kinetic_feature(72, load_joint_set("smpl24").names)
 
 
 def test_a_feature_the_reference_barely_varies_in_is_named_when_it_swamps_fid():

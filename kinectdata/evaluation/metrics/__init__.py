@@ -22,11 +22,12 @@ from kinectdata.evaluation.metrics.distribution import (
     constant_reference_features,
     diversity,
     frechet_distance,
+    mean_gaps,
     standardise_by_reference,
 )
 from kinectdata.evaluation.metrics.foot_contact import foot_contact_score, physical_foot_contact
 from kinectdata.evaluation.metrics.geometric import describe_feature, geometric_features
-from kinectdata.evaluation.metrics.kinetic import kinetic_features
+from kinectdata.evaluation.metrics.kinetic import describe_kinetic_feature, kinetic_features
 from kinectdata.evaluation.metrics.pose_error import motion_energy, motion_energy_per_s, smape
 from kinectdata.evaluation.metrics.turning import Turning, turning, turning_rates
 
@@ -37,9 +38,11 @@ __all__ = [
     "diversity",
     "foot_contact_score",
     "frechet_distance",
+    "mean_gaps",
     "describe_feature",
     "geometric_features",
     "kinetic_features",
+    "describe_kinetic_feature",
     "mean_jerk",
     "motion_energy",
     "motion_energy_per_s",

@@ -68,6 +68,17 @@ def far_from_reference_features(generated_std: np.ndarray, constant: list[int] =
     return [int(i) for i in far if int(i) not in named]
 
 
+def mean_gaps(generated: np.ndarray, reference: np.ndarray) -> np.ndarray:
+    """Each feature's part of the Fréchet distance's mean term: the squared difference of the two
+    sets' means, per feature, of [N, D] and [M, D] features (already standardised, as
+    :func:`frechet_distance` takes them). Their sum is the term ``|mu_g - mu_r|^2``; the rest of the
+    distance is the covariances'. [D] float64, >= 0."""
+    g, r = _features(generated, "generated"), _features(reference, "reference")
+    if g.shape[1] != r.shape[1]:
+        raise KinectDataError(f"generated features have {g.shape[1]} dimensions, reference {r.shape[1]}")
+    return (g.mean(axis=0) - r.mean(axis=0)) ** 2
+
+
 def frechet_distance(generated: np.ndarray, reference: np.ndarray) -> float:
     """Fréchet distance between Gaussians fitted to two feature sets (already standardised).
 

@@ -20,12 +20,26 @@ test_field_metrics.py on ``shared/fixtures/metrics``.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 import numpy as np
 
 from kinectdata.core.errors import KinectDataError
 
 WINDOW_FRAMES = 2
 """Half-width of the averaging window in frame differences (the peers' ``sliding_window``)."""
+
+KINETIC_PARTS = ("mean squared horizontal speed", "mean squared vertical speed", "mean acceleration")
+"""What each joint's three kinetic features are, in their order (:func:`kinetic_features`)."""
+
+
+def describe_kinetic_feature(index: int, joints: Sequence[str]) -> str:
+    """What kinetic feature ``index`` (0-based: ``3 j + part``, :func:`kinetic_features`' order) is, in
+    words: ``joints`` names the J joints (SMPL-24's for the field's FID_k)."""
+    joint, part = divmod(int(index), 3)
+    if not 0 <= joint < len(joints):
+        raise KinectDataError(f"kinetic feature {index} does not exist for {len(joints)} joints ({3 * len(joints)})")
+    return f"{joints[joint]}'s {KINETIC_PARTS[part]}"
 
 
 def kinetic_features(positions: np.ndarray, fps: float, up_axis: int = 1, peer_acceleration: bool = True) -> np.ndarray:
