@@ -136,7 +136,8 @@ def _furthest(entry: dict[str, Any]) -> str:
     if not gaps:
         return ""
     top = gaps[0]
-    return f"; furthest from the dancers': {top['what']} {top['ratio']:.2f} x theirs ({abs(top['sds']):.1f} sd)"
+    at = f"{top['ratio']:.2f} x theirs" if top.get("ratio") is not None else f"{top['generated']:.3g}, theirs 0"
+    return f"; furthest from the dancers': {top['what']} {at} ({abs(top['sds']):.1f} sd)"
 
 
 def goals(results: dict[str, Any], beat_where_real: bool = False) -> list[Goal]:

@@ -10,7 +10,7 @@ for a stable covariance, and the record of every choice (``metrics.json``).
 from __future__ import annotations
 
 import json
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -358,7 +358,7 @@ def largest_gaps(
     reference: np.ndarray,
     generated_std: np.ndarray,
     gaps: np.ndarray,
-    describe,
+    describe: Callable[[int], str],
     count: int = GAPS_SHOWN,
 ) -> tuple[FeatureGap, ...]:
     """The ``count`` features whose means lie furthest apart (:func:`mean_gaps` ``gaps`` [D]), each
