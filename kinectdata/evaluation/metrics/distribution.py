@@ -40,9 +40,7 @@ def standardise_by_reference(generated: np.ndarray, reference: np.ndarray) -> tu
         A feature constant over the reference but not over the generated set is multiplied by
         1e10 here, as by the peers: :func:`constant_reference_features` finds them.
     """
-    g, r = _features(generated, "generated"), _features(reference, "reference")
-    if g.shape[1] != r.shape[1]:
-        raise KinectDataError(f"generated features have {g.shape[1]} dimensions, reference {r.shape[1]}")
+    g, r = _two_sets(generated, reference)
     mean, std = r.mean(axis=0), r.std(axis=0) + STD_EPSILON
     return (g - mean) / std, (r - mean) / std
 
@@ -73,9 +71,7 @@ def mean_gaps(generated: np.ndarray, reference: np.ndarray) -> np.ndarray:
     sets' means, per feature, of [N, D] and [M, D] features (already standardised, as
     :func:`frechet_distance` takes them). Their sum is the term ``|mu_g - mu_r|^2``; the rest of the
     distance is the covariances'. [D] float64, >= 0."""
-    g, r = _features(generated, "generated"), _features(reference, "reference")
-    if g.shape[1] != r.shape[1]:
-        raise KinectDataError(f"generated features have {g.shape[1]} dimensions, reference {r.shape[1]}")
+    g, r = _two_sets(generated, reference)
     return (g.mean(axis=0) - r.mean(axis=0)) ** 2
 
 
@@ -89,9 +85,7 @@ def frechet_distance(generated: np.ndarray, reference: np.ndarray) -> float:
     Returns:
         The squared Fréchet distance (unitless for standardised features), >= 0 up to round-off.
     """
-    g, r = _features(generated, "generated", 2), _features(reference, "reference", 2)
-    if g.shape[1] != r.shape[1]:
-        raise KinectDataError(f"generated features have {g.shape[1]} dimensions, reference {r.shape[1]}")
+    g, r = _two_sets(generated, reference, minimum=2)
     mu_g, mu_r = g.mean(axis=0), r.mean(axis=0)
     # the covariances as A^T A and B^T B of the centred rows: tr(sqrt(root_r cov_g root_r)) is then
     # the sum of the singular values of A B^T, an [N, M] matrix, where sets smaller than the features
@@ -186,6 +180,15 @@ def _psd_sqrt(matrix: np.ndarray) -> np.ndarray:
     """Symmetric square root of a positive semi-definite matrix (negative round-off eigenvalues as 0)."""
     values, vectors = np.linalg.eigh((matrix + matrix.T) / 2)
     return (vectors * np.sqrt(np.clip(values, 0.0, None))) @ vectors.T
+
+
+def _two_sets(generated: np.ndarray, reference: np.ndarray, minimum: int = 1) -> tuple[np.ndarray, np.ndarray]:
+    """Both sets checked by :func:`_features` (at least ``minimum`` sequences each) and of the same
+    number of features."""
+    g, r = _features(generated, "generated", minimum), _features(reference, "reference", minimum)
+    if g.shape[1] != r.shape[1]:
+        raise KinectDataError(f"generated features have {g.shape[1]} dimensions, reference {r.shape[1]}")
+    return g, r
 
 
 def _features(x: np.ndarray, what: str, minimum: int = 1) -> np.ndarray:
