@@ -134,6 +134,13 @@ _LOOP_OPTIONS = (
         "dancer rose, to the same music); 0: none.",
     ),
     (
+        "step_weight",
+        click.FloatRange(min=0),
+        "Weight of the feet's speed about the root in the free-running loss: each foot joint's speed along each "
+        "axis about the hips over the window against the real motion's, slower costing in proportion (a body "
+        "carried along the floor, its feet still: a glide); 0: none.",
+    ),
+    (
         "bone_weight",
         click.FloatRange(min=0),
         "Weight of the bones' stretch in the free-running loss: how much each bone's length varies against the "

@@ -168,6 +168,11 @@ class TrainConfig:
             the root's vertical velocity with the real one's in each of the rise term's bands,
             whatever the size: rising and falling when the dancer did, to the same music). Runs
             written before it had none.
+        step_weight: weight of the feet's speed about the root in the free-running loss
+            (:func:`~kinectdata.models.losses.masked_step_loss`: each foot joint's speed along
+            each axis about the root over the window against the real one's, slower costing in
+            proportion: a body carried along the floor with its feet still glides). Runs written
+            before it had none.
         bone_weight: weight of the bones' stretch in the free-running loss
             (:func:`~kinectdata.models.losses.masked_bone_loss`; 10, as runs written before it had).
         world_speed_weight: weight of the joints' speed in the world in the free-running loss
@@ -290,6 +295,7 @@ class TrainConfig:
     root_band_weight: float
     root_rise_weight: float
     root_phase_weight: float
+    step_weight: float
     bone_weight: float
     world_speed_weight: float
     foot_weight: float

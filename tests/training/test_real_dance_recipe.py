@@ -682,6 +682,7 @@ def test_each_training_weight_reaches_its_own_term_of_the_free_running_loss():
         "root_band": lambda: losses.masked_root_band_loss(made, real, mask, body, fps),
         "root_rise": lambda: losses.masked_root_rise_loss(made, real, mask, body, fps),
         "root_phase": lambda: losses.masked_root_phase_loss(made, real, mask, body, fps),
+        "step": lambda: losses.masked_step_loss(made, real, mask, body),
         "bone": lambda: losses.masked_bone_loss(made, real, mask, body.bones, scale, offset, body.dims),
         "world_speed": lambda: losses.masked_world_speed_loss(made, real, mask, body, chunk),
         "foot": lambda: losses.masked_foot_loss(made, real, mask, feet, scale, offset, 0),
