@@ -845,7 +845,9 @@ def masked_step_loss(prediction, target, mask, body):
     on folds 1 and 2): the dancer glided, and the four foot features were about half of FID_k on the
     aist protocol (docs/notebook/2026-12-real-dance-variety.md, "The dancer glides"). The whole
     window, not a stretch of 2 s: when the music does not say in which bar the dancer steps, the
-    mean speed over ten seconds is what it does say.
+    mean speed over ten seconds is what it does say. At weight 20 both models' feet came to
+    0.8 x about the hips but no faster along the floor (the hips swayed over planted feet) and
+    FID_k rose: tried, not adopted (docs/training.md).
 
     Args:
         prediction, target, mask: [B, L, D]; positions first, ``body.dims`` components per joint.
