@@ -780,6 +780,21 @@ def _phase_gap(per_band, whole):
     return ((gap * share).sum(dim=1) * counted).sum() / counted.sum().clamp(min=1.0)
 
 
+def _feet_valid(mask, feet, root: int, dims: int):
+    """[B, L] where every joint ``feet`` [4, P] weighs and the root are valid in a [B, L, D] mask."""
+    used = (feet > 0).any(dim=0).clone()
+    used[root] = True
+    return _joints_valid(mask, feet.shape[1], dims)[..., used].all(dim=-1)
+
+
+def _foot_points(p, feet):
+    """The four foot points [B, L, 4, dims] (left ankle, left foot, right ankle, right foot) of
+    positions [B, L, P, dims], as ``feet`` [4, P] weighs the joints."""
+    import torch
+
+    return torch.einsum("kp,blpc->blkc", feet.to(p.dtype), p)
+
+
 def masked_foot_loss(
     prediction, target, mask, feet, scale, offset, root: int, centred: bool = False, up_axis: int = 1, dims: int = 3
 ):
@@ -806,9 +821,7 @@ def masked_foot_loss(
     joints = feet.shape[1]
 
     flat = [a for a in range(dims) if a != up_axis]
-    used = (feet > 0).any(dim=0).clone()
-    used[root] = True
-    valid = _joints_valid(mask, joints, dims)[..., used].all(dim=-1)  # [B, L]
+    valid = _feet_valid(mask, feet, root, dims)  # [B, L]
     frames = (valid[:, 2:] & valid[:, 1:-1] & valid[:, :-2]).to(prediction.dtype)  # [B, L-2]
 
     def score(x):
@@ -818,7 +831,7 @@ def masked_foot_loss(
         level = torch.stack([upward if a == up_axis else acceleration[..., a] for a in range(dims)], dim=-1)
         magnitude = torch.sqrt((level**2).sum(dim=-1) + 1e-12) * frames
         share = magnitude / magnitude.amax(dim=1, keepdim=True).clamp(min=1e-9)
-        foot = torch.einsum("kp,blpc->blkc", feet.to(p.dtype), p)[..., flat]  # [B, L, 4, 2]
+        foot = _foot_points(p, feet)[..., flat]  # [B, L, 4, 2]
         step = torch.sqrt(((foot[:, 2:] - foot[:, 1:-1]) ** 2).sum(dim=-1) + 1e-12)  # [B, L-2, 4]
         both = torch.minimum(step[..., 0], step[..., 1]) * torch.minimum(step[..., 2], step[..., 3])
         return (both * share * frames).sum(dim=1) / frames.sum(dim=1).clamp(min=1.0)  # [B]
@@ -856,20 +869,14 @@ def masked_step_loss(prediction, target, mask, body):
     Returns:
         A scalar tensor (0 for a body without feet or root).
     """
-    import torch
-
     if body.feet is None or body.root is None:
         return prediction.new_zeros(())
-    feet = body.feet
-    joints = feet.shape[1]
-    used = (feet > 0).any(dim=0).clone()
-    used[body.root] = True
-    valid = _joints_valid(mask, joints, body.dims)[..., used].all(dim=-1)  # [B, L]
+    joints = body.feet.shape[1]
+    valid = _feet_valid(mask, body.feet, body.root, body.dims)  # [B, L]
 
     def about_root(x):
         p = _world(x, body.scale, body.offset, joints, body.dims, body.root, body.centred)
-        local = p - p[..., body.root : body.root + 1, :]
-        return torch.einsum("kp,blpc->blkc", feet.to(p.dtype), local).flatten(-2)  # [B, L, 4 * dims]
+        return _foot_points(p - p[..., body.root : body.root + 1, :], body.feet).flatten(-2)  # [B, L, 4 * dims]
 
     made, real = about_root(prediction), about_root(target)
     return masked_energy_loss(made, real, valid[..., None].expand_as(real))
