@@ -307,7 +307,8 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument(
         "--rescore",
         action="store_true",
-        help="with --corpus and --out: evaluate the runs an earlier benchmark left in --out again, without training",
+        help="with --corpus and --out: evaluate the runs an earlier benchmark left in --out again, without training "
+        "(with --folds: the fold runs of the candidate --tag names, after a change to what is drawn at generation)",
     )
     parser.add_argument(
         "--folds",
@@ -348,8 +349,8 @@ def main(argv: list[str] | None = None) -> None:
     args = parser.parse_args(argv or [])
     if args.rescore and (args.corpus is None or args.out is None):
         parser.error("--rescore evaluates the runs of an earlier real-corpus benchmark: give --corpus and --out")
-    if args.folds is not None and (args.corpus is None or args.rescore):
-        parser.error("--folds cross-validates on a real corpus: give --corpus (and not --rescore)")
+    if args.folds is not None and args.corpus is None:
+        parser.error("--folds cross-validates on a real corpus: give --corpus")
     candidate = [name for name in ("fold", "set", "features", "tag") if getattr(args, name)]
     if candidate and args.folds is None:
         said = f"--{candidate[0]} tries a candidate on the folds: give --folds K"
@@ -435,6 +436,7 @@ def _real(
         only=only,
         features=features,
         tag=args.tag,
+        rescore=args.rescore,
     )
 
 

@@ -30,7 +30,7 @@ from kinectdata.dataset.recipes import prepare_corpus
 from kinectdata.evaluation.evaluate import variety
 from kinectdata.evaluation.pooled import held_out_following
 
-from .learning_real import print_epoch, score_split, train_defaults
+from .learning_real import print_epoch, run_as_left, score_split, train_defaults
 from .real_goals import goals
 from .summary import record
 
@@ -47,6 +47,7 @@ def run_folds(
     only: list[int] | None = None,
     features: dict[str, str] | None = None,
     tag: str = "",
+    rescore: bool = False,
 ) -> dict[str, Any]:
     """Build, train and score every model on each of ``folds`` folds (module docstring; ``only``:
     these folds, numbered from 1) once per seed, each run within ``guard_minutes`` at most; the
@@ -54,7 +55,9 @@ def run_folds(
     the seeds (seed 0). A candidate: ``changes[model]``, training settings over the defaults;
     ``features[model]``, a feature preset instead of the recipe's (its datasets built beside the
     recipe's, ``<model>-<preset>_dataset``); ``tag`` names its runs (``<model>-<tag>-seed<N>``) so
-    that candidates share one ``out`` and its datasets."""
+    that candidates share one ``out`` and its datasets. ``rescore``: score the runs an earlier call
+    left in ``out`` again, without training (after a change to what is drawn at generation: the
+    turning, the travel, the standing foot)."""
     unknown = sorted(set(only or ()) - set(range(1, folds + 1)))
     if unknown:
         raise ConfigError(f"there is no fold {unknown[0]} of {folds} (the folds are numbered 1-{folds})")
@@ -75,7 +78,9 @@ def run_folds(
         for seed in seeds:
             run_name = "-".join(filter(None, (model, tag, f"seed{seed}")))
             runs = {i: (datasets[i], out / f"fold{i}" / run_name) for i in datasets}
-            summary.setdefault(model, {})[seed] = _seed_on_folds(model, seed, made, runs, guard_minutes, changes)
+            summary.setdefault(model, {})[seed] = _seed_on_folds(
+                model, seed, made, runs, guard_minutes, changes, rescore
+            )
     (out / f"learning_folds{'-' + tag if tag else ''}.json").write_text(json.dumps(summary, indent=1, default=str))
     return summary
 
@@ -96,13 +101,19 @@ def _seed_on_folds(
     runs: dict[int, tuple[Path, Path]],
     guard_minutes: float | None,
     changes: dict | None,
+    rescore: bool = False,
 ) -> dict[str, Any]:
-    """One seed of ``model`` trained and scored on every fold (``runs``: each fold's dataset and run
-    folder); the pooled figures printed and returned."""
+    """One seed of ``model`` trained (``rescore``: as an earlier call left it) and scored on every fold
+    (``runs``: each fold's dataset and run folder); the pooled figures printed and returned."""
     pairs, varied, styled = [], [], []
     for fold in made:
         dataset, run_dir = runs[fold.index]
-        history, trained = train_defaults(model, dataset, run_dir, guard_minutes, seed, changes, progress=print_epoch)
+        if rescore:
+            history, trained = run_as_left(run_dir, f"[{model} seed {seed}] fold {fold.index}:")
+        else:
+            history, trained = train_defaults(
+                model, dataset, run_dir, guard_minutes, seed, changes, progress=print_epoch
+            )
         results = score_split(run_dir, dataset, "val", 0, seed)
         print(f"  [{model} seed {seed}] fold {fold.index}: trained {trained:.1f} min, "
               f"{history[-1]['step']} steps; on its {len(fold.validation)} held-out dances:")  # fmt: skip

@@ -69,9 +69,7 @@ def run(
         for seed in seeds:
             run_dir = out / f"seed{seed}" / model
             if rescore:
-                history = read_log(run_dir)
-                trained = sum(r["seconds"] or 0.0 for r in history) / 60
-                print(f"  [{model} seed {seed}] the run in {run_dir}, not trained again", flush=True)
+                history, trained = run_as_left(run_dir, f"[{model} seed {seed}]")
             else:
                 history, trained = train_defaults(
                     model, datasets[model], run_dir, guard_minutes, seed, changes, progress=print_epoch
@@ -91,6 +89,14 @@ def run(
         )
     (out / "learning_real.json").write_text(json.dumps(summary, indent=1, default=str))
     return summary
+
+
+def run_as_left(run_dir: Path, head: str) -> tuple[list[dict[str, Any]], float]:
+    """A run an earlier benchmark left in ``run_dir``, for ``--rescore``: its history and the minutes it
+    trained, read from its log; prints that it is not trained again, after ``head`` (``[yalta seed 0]``)."""
+    history = read_log(run_dir)
+    print(f"  {head} the run in {run_dir}, not trained again", flush=True)
+    return history, sum(r["seconds"] or 0.0 for r in history) / 60
 
 
 def train_defaults(

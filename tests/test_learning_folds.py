@@ -74,6 +74,18 @@ def test_a_candidate_runs_on_the_folds_it_names_from_the_command_line(tmp_path, 
     assert (out / "learning_folds-cand.json").is_file()
     assert not [w for w in recwarn if issubclass(w.category, EmptySplitWarning)]
 
+    # scored again without training (after a change to what is drawn at generation): the run kept
+    import benchmarks.learning_real as real
+
+    monkeypatch.setattr(real, "train", lambda *a, **k: pytest.fail("--rescore trained"))
+    model = (out / "fold2" / "yalta-cand-seed0" / "model.pt").read_bytes()
+    main(["--corpus", "tang2018", str(corpus), "--folds", "2", "--fold", "2", "--models", "yalta", "--out", str(out),
+          "--threads", "1", "--features", "yalta=yalta2016_rhythm_style", "--tag", "cand", "--rescore"])  # fmt: skip
+    printed = capsys.readouterr().out
+    assert f"[yalta seed 0] fold 2: the run in {out / 'fold2' / 'yalta-cand-seed0'}, not trained again" in printed
+    assert "d. FID_k against the mean pose + noise (aist): " in printed
+    assert (out / "fold2" / "yalta-cand-seed0" / "model.pt").read_bytes() == model
+
 
 @pytest.mark.parametrize(
     ("argv", "said"),

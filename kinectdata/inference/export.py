@@ -55,9 +55,8 @@ from kinectdata.inference.smoothing import ORDER, run_smoothing
 from kinectdata.models.kind import ModelKind
 from kinectdata.models.registry import MODELS, kind_of, model_kind
 from kinectdata.models.run import load_model, model_name, read_config
-from kinectdata.targets.foot_lock import CATCH_UP_S, legs_of
+from kinectdata.targets.foot_lock import CATCH_UP_S, LEAD_S, SHIFT_S, STANCE_MARGIN_M, VELOCITY_SMOOTHING_S, legs_of
 from kinectdata.targets.specs import TargetSpec
-from kinectdata.targets.turning import PIVOT_SOFTNESS_M
 
 FORMATS = ("torchscript", "onnx")
 METADATA_KEY = "kinectdata"
@@ -121,7 +120,14 @@ def _foot_lock(run_config: dict[str, Any]) -> dict[str, float] | None:
         return None
     if legs_of(TargetSpec.from_dict(run_config["dataset"]["target"])) is None:
         return None
-    return {"catch_up_s": CATCH_UP_S, "standing_softness_m": PIVOT_SOFTNESS_M, "steps_at_reach": True}
+    return {
+        "catch_up_s": CATCH_UP_S,
+        "lead_s": LEAD_S,
+        "velocity_smoothing_s": VELOCITY_SMOOTHING_S,
+        "stance_margin_m": STANCE_MARGIN_M,
+        "shift_s": SHIFT_S,
+        "steps_at_reach": True,
+    }
 
 
 def check_export(kind: ModelKind, fmt: str, precision: str = "float32") -> None:

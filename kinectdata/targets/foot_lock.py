@@ -7,24 +7,26 @@ drawn travel and 2.54 x with it (docs/notebook/2026-12-real-dance-variety.md). A
 standing on one foot while the body moves over it and swinging the other to catch up. So each foot
 keeps a **lag** (metres, horizontal): how far the foot is from where the frames put it.
 
+- **Which foot stands**: the lower one, held until the other is lower by more than
+  :data:`STANCE_MARGIN_M`; the weight then shifts to it over :data:`SHIFT_S` (``w``, the left foot's
+  share of the standing, goes from 1 to 0 or back at that rate).
 - Each frame, the foot's own horizontal step in the world (the network's, the turning's and the
-  travel's together) is added to its lag by the foot's share of the standing ``w`` (the sigmoid of
-  the feet's heights that pivots the turning, :func:`kinectdata.targets.turning.left_standing`): the
-  foot that stands stays where it is.
-- The lag then shrinks by ``(1 - w) * r``, ``r = 1 - exp(-1 / (fps * CATCH_UP_S))``: the swinging
-  foot catches up within about :data:`CATCH_UP_S`.
+  travel's together) is added to its lag by the foot's share of the standing: the foot that stands
+  stays where it is.
+- The swinging foot then catches up: its lag goes towards ``-LEAD_S * v`` by ``(1 - w) * r`` of the
+  way, ``r = 1 - exp(-1 / (fps * CATCH_UP_S))``, within about :data:`CATCH_UP_S`; ``v`` is the root's
+  horizontal velocity in the world (m/s, averaged over about :data:`VELOCITY_SMOOTHING_S`), so that
+  the foot lands where the body will be :data:`LEAD_S` later, ahead of it, as a dancer's step does.
 - The lag is never more than the leg can reach: the ankle stays within the thigh's and the shin's
   lengths of the hip.
 - **A step at the leg's reach**: when the standing foot's lag reaches that bound, the dancer steps:
-  over the next :data:`SHIFT_S` the weight shifts to the other foot and the one that stood sets off
-  to catch up. The stance is then the heights' turned round, so that a step the network makes
-  with its feet's heights still moves the stance from one foot to the other, and the next reach
-  turns it back.
+  the stance goes to the other foot (over :data:`SHIFT_S`) and the one that stood sets off to
+  catch up. The heights are then read turned round, so that a step the network makes with its
+  feet's heights still moves the stance from one foot to the other, and the next reach turns it back.
 
 The foot (its ankle and the joints below it) is moved back by its lag, and the knee is placed again by
 two-bone inverse kinematics, so that the thigh and the shin keep their lengths in every frame and the
-knee bends the way it did (in the plane of the hip, the new ankle and the old knee). Feet at one
-height each stand half and catch up at half the rate.
+knee bends the way it did (in the plane of the hip, the new ankle and the old knee).
 
 Chosen on fold 1 of tang2018 (the adopted recipe's run, its travel drawn again per song):
 PFC 2.67 x the real dancers' with the travel added to the root alone, 1.16 x with the standing foot
@@ -41,6 +43,21 @@ weight shifted over :data:`SHIFT_S` (in one frame the yalta candidate's jerk ros
 jerk rose from 1.09 to 1.15 x, and its nine fold runs' PFC fell in every one (1.16-2.10 ->
 0.73-1.55 x).
 
+The margin and the catch-up, on tang2018's fold 3 (docs/notebook/2026-12-real-dance-variety.md,
+"The feet that glide"): the stance first followed the sigmoid of the feet's heights over 1 cm that
+pivots the turning, and the networks hold their feet within a centimetre or two of each other, so
+that in 29 % of the frames each foot stood about half and both slid half the body's travel; and the
+swinging foot caught up within 0.2 s. Held until the other foot is 2 cm lower, and caught up
+within 0.1 s, the seven yalta fold runs' FID_k on the aist protocol fell in every one (fold 3:
+156 -> 115, 154 -> 135, 188 -> 148; folds 1 and 2: 3-6 %), the cdhc run's on fold 3 from 115 to 84,
+PFC fell in every one (0.79-1.38 -> 0.71-1.20 x the dancers'), and the jerk rose by 0.03-0.12 x the
+dancers'. The feet still moved along the floor at 0.70-0.77 x the dancers' mean squared speed (the
+pelvis at 1.15 x): a foot that only catches up with the body never passes it. Landing 0.1 s of the
+body's travel ahead took FID_k (aist) further down in all eight runs (fold 3: 115 -> 98, 135 -> 129,
+148 -> 125, cdhc 84 -> 80; folds 1 and 2: 1-3 %), and the bailando protocol's too, PFC within
+0.05 x and the jerk within 0.02 x of where it was; 0.2 s ahead was better on four runs and worse
+on four, PFC and jerk higher in all eight.
+
 A target without both feet, their knees and their hips among its positions is not changed
 (:func:`legs_of` is None). :class:`FootLock` works one frame at a time, so that a whole song and a
 live dance plant the same frames (and take the same steps).
@@ -55,15 +72,32 @@ from dataclasses import dataclass
 import numpy as np
 
 from kinectdata.targets.specs import TargetSpec
-from kinectdata.targets.turning import left_standing
 
-__all__ = ["CATCH_UP_S", "SHIFT_S", "FootLock", "Leg", "legs_of", "move_feet"]
+__all__ = [
+    "CATCH_UP_S",
+    "LEAD_S",
+    "SHIFT_S",
+    "STANCE_MARGIN_M",
+    "VELOCITY_SMOOTHING_S",
+    "FootLock",
+    "Leg",
+    "legs_of",
+    "move_feet",
+]
 
-CATCH_UP_S = 0.2
+CATCH_UP_S = 0.1
 """The swinging foot's lag behind the body shrinks with this time constant (seconds)."""
+LEAD_S = 0.1
+"""The swinging foot catches up with where the body will be this much later (seconds): it lands ahead."""
+VELOCITY_SMOOTHING_S = 0.2
+"""The root's velocity the lead follows is averaged over about this (seconds; a causal first-order
+low-pass, so that a live dance leads as a whole song does)."""
+STANCE_MARGIN_M = 0.02
+"""The standing foot keeps the weight until the other foot is this much lower (metres): feet at
+about one height do not share it."""
 SHIFT_S = 0.15
-"""A step at the leg's reach moves the stance from one foot to the other over this (seconds): the
-weight shifts, the swinging foot sets off and the standing one stops within it, not in one frame."""
+"""The stance moves from one foot to the other over this (seconds): the weight shifts, the swinging
+foot sets off and the standing one stops within it, not in one frame."""
 UP = 1  # y up
 
 
@@ -183,8 +217,13 @@ class FootLock:
         self.state = np.zeros((2, 2))
         self.before: np.ndarray | None = None  # the feet's places in the world in the frame before [2, 2]
         self.shift = 1.0 / (float(fps) * SHIFT_S)
-        self.swapped = 0.0  # 1: steps at the leg's reach have put the stance on the higher foot
-        self.towards = 0.0  # where ``swapped`` is going (0 or 1)
+        self.left_stands: bool | None = None  # which foot has the weight (None before the first frame)
+        self.share = 0.0  # the left foot's share of the standing, going towards ``left_stands`` by ``shift``
+        self.turned = False  # steps at the leg's reach have turned the heights' reading round
+        self.smoothing = 1.0 - math.exp(-1.0 / (float(fps) * VELOCITY_SMOOTHING_S))
+        self.fps = float(fps)
+        self.velocity = np.zeros(2)  # the root's horizontal velocity in the world (m/s), smoothed
+        self.root_before: np.ndarray | None = None
         self._chains = [np.array([leg.hip, leg.knee, leg.ankle]) for leg in legs]
         self._places = np.array([[leg.ankle[0], leg.ankle[2]] for leg in legs])
         self._root = np.asarray(root)
@@ -193,21 +232,35 @@ class FootLock:
         places = values[self._places] + values[self._root]
         steps = np.zeros((2, 2)) if self.before is None else places - self.before
         self.before = places
+        root = values[self._root]
+        if self.root_before is not None:
+            self.velocity += self.smoothing * ((root - self.root_before) * self.fps - self.velocity)
+        self.root_before = root.copy()
+        ahead = -LEAD_S * self.velocity  # where the swinging foot's lag goes: the foot ahead of the body
         left, right = self.legs
-        share = float(left_standing(values[left.ankle[UP]], values[right.ankle[UP]]))
-        gap = self.towards - self.swapped
-        self.swapped = self.towards if abs(gap) <= self.shift else self.swapped + math.copysign(self.shift, gap)
-        share = share + self.swapped * (1.0 - 2.0 * share)
+        higher = float(values[left.ankle[UP]] - values[right.ankle[UP]])  # > 0: the left foot is higher
+        if self.turned:
+            higher = -higher
+        if self.left_stands is None:
+            self.left_stands = higher <= 0.0
+            self.share = float(self.left_stands)
+        elif (self.left_stands and higher > STANCE_MARGIN_M) or (not self.left_stands and higher < -STANCE_MARGIN_M):
+            self.left_stands = not self.left_stands
+        goal = float(self.left_stands)
+        gap = goal - self.share
+        self.share = goal if abs(gap) <= self.shift else self.share + math.copysign(self.shift, gap)
         step = False
-        for k, stands in enumerate((share, 1.0 - share)):
-            lag = (self.state[k] + stands * steps[k]) * (1.0 - (1.0 - stands) * self.rate)
+        for k, stands in enumerate((self.share, 1.0 - self.share)):
+            lag = self.state[k] + stands * steps[k]
+            lag = lag + (1.0 - stands) * self.rate * (ahead - lag)
             hip, knee, ankle = values[self._chains[k]]
             reach = math.dist(knee, hip) + math.dist(ankle, knee)
             kept = _reach(ankle - hip, lag, reach)
             self.state[k] = lag * kept
             step |= stands > 0.5 and kept < 1.0
-        if step and self.swapped == self.towards:  # the body is as far past the standing foot as the leg reaches
-            self.towards = 1.0 - self.towards
+        if step and self.share == goal:  # the body is as far past the standing foot as the leg reaches
+            self.left_stands = not self.left_stands
+            self.turned = not self.turned
         return self.state.copy()
 
     def step(self, values: np.ndarray) -> np.ndarray:
