@@ -74,8 +74,14 @@ def test_the_travel_moves_the_body_over_the_standing_foot_and_the_turning_is_dra
     moved, timing = generate(run, SONG, turning=False)
     assert "travel drawn at generation" in timing["turning"] and "over the standing foot" in timing["turning"]
     config = json.loads((run / "config.json").read_text())
-    lock = {"catch_up_s": 0.1, "lead_s": 0.1, "velocity_smoothing_s": 0.2, "stance_margin_m": 0.02, "shift_s": 0.15}
-    lock["steps_at_reach"] = True
+    lock = {
+        "catch_up_s": 0.1,
+        "lead_s": 0.1,
+        "velocity_smoothing_s": 0.2,
+        "stance_margin_m": 0.02,
+        "shift_s": 0.15,
+        "steps_at_reach": True,
+    }
     assert stream_metadata(config)["foot_lock"] == lock
     assert stream_metadata({**config, "travel": None})["foot_lock"] is None
     names = list(still.joint_set.names)
